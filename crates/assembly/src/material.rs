@@ -1,0 +1,100 @@
+//! Material parameters.
+
+use std::fmt;
+use std::sync::Arc;
+
+use crate::{AssemblyError, Result};
+
+/// How a bulk fiber's modulus depends on its current strain `(d - d0) / d0`.
+#[derive(Clone, Default)]
+pub enum StiffnessLaw {
+    /// Constant modulus (the paper's linear material).
+    #[default]
+    Linear,
+    /// `Y (1 + c strain^2)`: stiffening with stretch or compression.
+    Quadratic {
+        /// The coefficient c (>= 0).
+        c: f64,
+    },
+    /// Any factor `f(strain)` multiplying Y (must stay positive).
+    Custom(Arc<dyn Fn(f64) -> f64 + Send + Sync>),
+}
+
+impl StiffnessLaw {
+    /// The factor multiplying Y at a strain.
+    pub fn factor(&self, strain: f64) -> f64 {
+        match self {
+            StiffnessLaw::Linear => 1.0,
+            StiffnessLaw::Quadratic { c } => 1.0 + c * strain * strain,
+            StiffnessLaw::Custom(f) => f(strain),
+        }
+    }
+
+    /// Whether the factor is 1 everywhere.
+    pub fn is_linear(&self) -> bool {
+        matches!(self, StiffnessLaw::Linear)
+    }
+}
+
+impl fmt::Debug for StiffnessLaw {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            StiffnessLaw::Linear => write!(f, "Linear"),
+            StiffnessLaw::Quadratic { c } => write!(f, "Quadratic {{ c: {c} }}"),
+            StiffnessLaw::Custom(_) => write!(f, "Custom(..)"),
+        }
+    }
+}
+
+/// Material of the body: fibers and fluid.
+#[derive(Clone, Debug)]
+pub struct Material {
+    /// Young's modulus per axis (Yx, Yy, Yz); isotropic when equal.
+    pub young: [f64; 3],
+    /// Surface tension gamma; 0 switches surface fibers off.
+    pub surface_tension: f64,
+    /// Fluid density rho.
+    pub density: f64,
+    /// Strain dependence of the bulk modulus.
+    pub law: StiffnessLaw,
+}
+
+impl Default for Material {
+    /// The paper's sphere example: Y = gamma = 3000, rho = 1000.
+    fn default() -> Self {
+        Self { young: [3000.0; 3], surface_tension: 3000.0, density: 1000.0, law: StiffnessLaw::Linear }
+    }
+}
+
+impl Material {
+    /// An isotropic material.
+    pub fn isotropic(young: f64, surface_tension: f64, density: f64) -> Self {
+        Self { young: [young; 3], surface_tension, density, law: StiffnessLaw::Linear }
+    }
+
+    /// Whether Yx = Yy = Yz.
+    pub fn is_isotropic(&self) -> bool {
+        self.young[0] == self.young[1] && self.young[1] == self.young[2]
+    }
+
+    /// Checks ranges: Y > 0, gamma >= 0, rho >= 0, all finite.
+    pub fn check(&self) -> Result<()> {
+        for (c, y) in self.young.iter().enumerate() {
+            if !(y.is_finite() && *y > 0.0) {
+                return Err(AssemblyError::Material(format!("Young's modulus along {} must be positive and finite, got {y}", crate::AXES[c])));
+            }
+        }
+        if !(self.surface_tension.is_finite() && self.surface_tension >= 0.0) {
+            return Err(AssemblyError::Material(format!("surface tension must be >= 0 and finite, got {}", self.surface_tension)));
+        }
+        if !(self.density.is_finite() && self.density >= 0.0) {
+            return Err(AssemblyError::Material(format!("density must be >= 0 and finite, got {}", self.density)));
+        }
+        if let StiffnessLaw::Quadratic { c } = self.law {
+            if !(c.is_finite() && c >= 0.0) {
+                return Err(AssemblyError::Material(format!("stiffening coefficient must be >= 0, got {c}")));
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,50 @@
+//! Icosphere generator: midpoint subdivision of the icosahedron, new points pushed to the
+//! sphere (the paper's sphere cases are levels 1, 2, 3 with 42, 162, 642 vertices).
+
+use std::collections::HashMap;
+
+use crate::mesh::TriMesh;
+use crate::vec3::{Vec3, norm, scale};
+
+/// The icosahedron (level 0) or its `level`-times subdivided sphere of radius `radius`,
+/// outward oriented, vertex 0 first of the icosahedron's vertices.
+pub fn icosphere(level: u32, radius: f64) -> TriMesh {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut pos: Vec<Vec3> = vec![
+        [-1.0, t, 0.0], [1.0, t, 0.0], [-1.0, -t, 0.0], [1.0, -t, 0.0],
+        [0.0, -1.0, t], [0.0, 1.0, t], [0.0, -1.0, -t], [0.0, 1.0, -t],
+        [t, 0.0, -1.0], [t, 0.0, 1.0], [-t, 0.0, -1.0], [-t, 0.0, 1.0],
+    ];
+    for p in &mut pos {
+        *p = scale(*p, 1.0 / norm(*p));
+    }
+    let mut tris: Vec<[u32; 3]> = vec![
+        [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11],
+        [1, 5, 9], [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8],
+        [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9],
+        [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1],
+    ];
+    for _ in 0..level {
+        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut next = Vec::with_capacity(tris.len() * 4);
+        let mut midpoint = |a: u32, b: u32, pos: &mut Vec<Vec3>| {
+            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                let (p, q) = (pos[a as usize], pos[b as usize]);
+                let m = [(p[0] + q[0]) / 2.0, (p[1] + q[1]) / 2.0, (p[2] + q[2]) / 2.0];
+                pos.push(scale(m, 1.0 / norm(m)));
+                (pos.len() - 1) as u32
+            })
+        };
+        for [a, b, c] in tris {
+            let ab = midpoint(a, b, &mut pos);
+            let bc = midpoint(b, c, &mut pos);
+            let ca = midpoint(c, a, &mut pos);
+            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        tris = next;
+    }
+    let pos = pos.into_iter().map(|p| scale(p, radius)).collect();
+    let mut mesh = TriMesh::new(pos, tris).expect("the icosphere is well formed");
+    mesh.validate().expect("the icosphere is a closed surface");
+    mesh
+}

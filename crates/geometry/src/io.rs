@@ -1,0 +1,327 @@
+//! Mesh files: OBJ and STL in (binary and ASCII), OBJ out.
+//!
+//! The OBJ reader is a small strict parser rather than `tobj` because two things a solver
+//! needs are not available through `tobj`: the line number of every problem, and the map
+//! from the file's vertex order to the compacted mesh (unreferenced vertices are dropped, but
+//! outputs are written back in the input's order, and scenes name vertices by their index in
+//! the file). `tobj` is used in the tests as an independent reader of the same files.
+
+use std::collections::HashMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use crate::error::{GeometryError, MeshError, Result};
+use crate::mesh::{TriMesh, Validation};
+use crate::vec3::Vec3;
+
+/// Largest file this crate reads (bytes); a larger one is refused before it is read.
+pub const MAX_FILE_BYTES: u64 = 1 << 30;
+
+/// A mesh read from a file, with the map back to the file's vertex order.
+#[derive(Clone, Debug)]
+pub struct MeshFile {
+    /// The file.
+    pub path: PathBuf,
+    /// The validated, compacted, outward mesh.
+    pub mesh: TriMesh,
+    /// Every vertex position of the file, in file order (referenced or not).
+    pub file_positions: Vec<Vec3>,
+    /// For each mesh vertex, its 0-based index in the file.
+    pub to_file: Vec<u32>,
+    /// What validation found (flip, genus, warnings).
+    pub validation: Validation,
+    /// Notes about the file (unreferenced vertices dropped, polygons triangulated, ...).
+    pub notes: Vec<String>,
+}
+
+impl MeshFile {
+    /// The mesh index of the file's vertex `i`, or None if the vertex is unreferenced or
+    /// out of range.
+    pub fn from_file_index(&self, i: usize) -> Option<usize> {
+        self.to_file.iter().position(|&f| f as usize == i)
+    }
+
+    /// Number of vertices in the file.
+    pub fn file_vertex_count(&self) -> usize {
+        self.file_positions.len()
+    }
+
+    /// Positions in file order with the mesh vertices replaced by `positions`.
+    pub fn positions_in_file_order(&self, positions: &[Vec3]) -> Vec<Vec3> {
+        let mut out = self.file_positions.clone();
+        for (m, &f) in self.to_file.iter().enumerate() {
+            out[f as usize] = positions[m];
+        }
+        out
+    }
+
+    /// Triangles in file vertex indices.
+    pub fn triangles_in_file_order(&self) -> Vec<[u32; 3]> {
+        self.mesh.triangles().iter().map(|t| t.map(|v| self.to_file[v as usize])).collect()
+    }
+}
+
+/// Reads a mesh by extension (`.obj`, `.stl`), validates it, and flips it outward if needed.
+pub fn load_mesh(path: impl AsRef<Path>) -> Result<MeshFile> {
+    let path = path.as_ref();
+    let io = |source| GeometryError::Io { path: path.to_path_buf(), source };
+    let meta = std::fs::metadata(path).map_err(io)?;
+    if meta.is_dir() {
+        return Err(GeometryError::Parse { path: path.into(), line: 0, message: "is a directory, not a mesh file".into() });
+    }
+    if meta.len() > MAX_FILE_BYTES {
+        return Err(GeometryError::Parse { path: path.into(), line: 0, message: format!("file is {} bytes, larger than the {} byte limit", meta.len(), MAX_FILE_BYTES) });
+    }
+    let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
+    let bytes = std::fs::read(path).map_err(io)?;
+    let raw = match ext.as_deref() {
+        Some("obj") => parse_obj(&bytes).map_err(|(line, message)| GeometryError::Parse { path: path.into(), line, message })?,
+        Some("stl") => parse_stl(&bytes).map_err(|(line, message)| GeometryError::Parse { path: path.into(), line, message })?,
+        _ => return Err(GeometryError::UnsupportedFormat { path: path.into() }),
+    };
+    finish(path, raw)
+}
+
+/// Parses OBJ text already in memory (`path` only names it in errors).
+pub fn read_obj_bytes(path: impl AsRef<Path>, bytes: &[u8]) -> Result<MeshFile> {
+    let path = path.as_ref();
+    let raw = parse_obj(bytes).map_err(|(line, message)| GeometryError::Parse { path: path.into(), line, message })?;
+    finish(path, raw)
+}
+
+/// Parses STL bytes already in memory (`path` only names it in errors).
+pub fn read_stl_bytes(path: impl AsRef<Path>, bytes: &[u8]) -> Result<MeshFile> {
+    let path = path.as_ref();
+    let raw = parse_stl(bytes).map_err(|(line, message)| GeometryError::Parse { path: path.into(), line, message })?;
+    finish(path, raw)
+}
+
+struct RawMesh {
+    positions: Vec<Vec3>,
+    triangles: Vec<[u32; 3]>,
+    notes: Vec<String>,
+}
+
+fn finish(path: &Path, raw: RawMesh) -> Result<MeshFile> {
+    let mesh_err = |source| GeometryError::Mesh { path: path.to_path_buf(), source };
+    let RawMesh { positions, triangles, mut notes } = raw;
+    if triangles.is_empty() || positions.is_empty() {
+        return Err(mesh_err(MeshError::Empty { vertices: positions.len(), faces: triangles.len() }));
+    }
+    // Compact: keep referenced vertices in file order.
+    let mut used = vec![false; positions.len()];
+    for t in &triangles {
+        for &v in t {
+            used[v as usize] = true;
+        }
+    }
+    let mut new_index = vec![u32::MAX; positions.len()];
+    let mut to_file = Vec::new();
+    let mut compact = Vec::new();
+    for (i, p) in positions.iter().enumerate() {
+        if used[i] {
+            new_index[i] = to_file.len() as u32;
+            to_file.push(i as u32);
+            compact.push(*p);
+        }
+    }
+    let dropped = positions.len() - compact.len();
+    if dropped > 0 {
+        notes.push(format!("{dropped} unreferenced vertices dropped (outputs keep the file's vertex order)"));
+    }
+    let tris = triangles.iter().map(|t| t.map(|v| new_index[v as usize])).collect();
+    let mut mesh = TriMesh::new(compact, tris).map_err(|e| match e {
+        MeshError::NonFiniteVertex { vertex } => MeshError::NonFiniteVertex { vertex: to_file[vertex] as usize },
+        other => other,
+    }).map_err(mesh_err)?;
+    let validation = mesh.validate().map_err(|e| mesh_err(to_file_indices(e, &to_file)))?;
+    notes.extend(validation.warnings.iter().cloned());
+    Ok(MeshFile { path: path.to_path_buf(), mesh, file_positions: positions, to_file, validation, notes })
+}
+
+/// Rewrites vertex indices in an error from mesh order to file order.
+fn to_file_indices(e: MeshError, to_file: &[u32]) -> MeshError {
+    let f = |v: u32| to_file.get(v as usize).copied().unwrap_or(v);
+    match e {
+        MeshError::NonManifoldEdge { a, b, faces } => MeshError::NonManifoldEdge { a: f(a), b: f(b), faces },
+        MeshError::NonManifoldVertex { vertex, fans } => MeshError::NonManifoldVertex { vertex: f(vertex), fans },
+        MeshError::OpenBoundary { count, a, b } => MeshError::OpenBoundary { count, a: f(a), b: f(b) },
+        MeshError::InconsistentOrientation { a, b } => MeshError::InconsistentOrientation { a: f(a), b: f(b) },
+        other => other,
+    }
+}
+
+type ParseResult<T> = std::result::Result<T, (usize, String)>;
+
+fn parse_obj(bytes: &[u8]) -> ParseResult<RawMesh> {
+    let mut positions: Vec<Vec3> = Vec::new();
+    let mut faces: Vec<(usize, Vec<i64>)> = Vec::new();
+    let mut polygons = 0usize;
+    let mut skipped_elements = 0usize;
+    for (ln, line) in bytes.split(|&b| b == b'\n').enumerate() {
+        let lineno = ln + 1;
+        let line = std::str::from_utf8(line).map_err(|_| (lineno, "not a text OBJ file (invalid UTF-8)".to_string()))?;
+        let line = line.split('#').next().unwrap_or("").trim();
+        let mut it = line.split_whitespace();
+        match it.next() {
+            Some("v") => {
+                let mut p = [0.0; 3];
+                for (c, slot) in p.iter_mut().enumerate() {
+                    let tok = it.next().ok_or((lineno, format!("vertex has {c} coordinates, 3 expected")))?;
+                    *slot = tok.parse::<f64>().map_err(|_| (lineno, format!("bad coordinate `{tok}`")))?;
+                }
+                if p.iter().any(|c| !c.is_finite()) {
+                    return Err((lineno, format!("vertex {} has a non-finite coordinate", positions.len())));
+                }
+                positions.push(p);
+            }
+            Some("f") => {
+                let mut idx = Vec::new();
+                for tok in it {
+                    let first = tok.split('/').next().unwrap_or("");
+                    let v: i64 = first.parse().map_err(|_| (lineno, format!("bad face index `{tok}`")))?;
+                    let resolved = if v > 0 {
+                        v - 1
+                    } else if v < 0 {
+                        positions.len() as i64 + v
+                    } else {
+                        return Err((lineno, "face index 0 (OBJ indices start at 1)".into()));
+                    };
+                    if resolved < 0 {
+                        return Err((lineno, format!("relative face index {v} points before the first vertex")));
+                    }
+                    idx.push(resolved);
+                }
+                if idx.len() < 3 {
+                    return Err((lineno, format!("face with {} vertices (at least 3 needed)", idx.len())));
+                }
+                if idx.len() > 3 {
+                    polygons += 1;
+                }
+                faces.push((lineno, idx));
+            }
+            Some("l") | Some("p") => skipped_elements += 1,
+            _ => {}
+        }
+    }
+    let mut triangles = Vec::with_capacity(faces.len());
+    for (lineno, idx) in faces {
+        if let Some(&bad) = idx.iter().find(|&&v| v as usize >= positions.len()) {
+            return Err((lineno, format!("face refers to vertex {} but the file has {} vertices", bad + 1, positions.len())));
+        }
+        for k in 1..idx.len() - 1 {
+            triangles.push([idx[0] as u32, idx[k] as u32, idx[k + 1] as u32]);
+        }
+    }
+    if positions.is_empty() {
+        return Err((0, "no vertices (`v` lines) found".into()));
+    }
+    if triangles.is_empty() {
+        return Err((0, "no faces (`f` lines) found".into()));
+    }
+    let mut notes = Vec::new();
+    if polygons > 0 {
+        notes.push(format!("{polygons} polygons with more than 3 vertices triangulated as fans"));
+    }
+    if skipped_elements > 0 {
+        notes.push(format!("{skipped_elements} line/point elements ignored"));
+    }
+    Ok(RawMesh { positions, triangles, notes })
+}
+
+fn parse_stl(bytes: &[u8]) -> ParseResult<RawMesh> {
+    let binary_size_ok = bytes.len() >= 84 && {
+        let n = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as u64;
+        84 + 50 * n == bytes.len() as u64
+    };
+    let looks_ascii = bytes.starts_with(b"solid") && std::str::from_utf8(&bytes[..bytes.len().min(1024)]).map(|s| s.contains("facet") || s.contains("endsolid")).unwrap_or(false);
+    let mut welder = Welder::default();
+    let mut triangles = Vec::new();
+    if binary_size_ok && !(looks_ascii && !binary_size_ok) {
+        let n = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as usize;
+        for t in 0..n {
+            let base = 84 + 50 * t + 12;
+            let mut tri = [0u32; 3];
+            for (v, slot) in tri.iter_mut().enumerate() {
+                let mut p = [0.0; 3];
+                for (c, pc) in p.iter_mut().enumerate() {
+                    let o = base + 12 * v + 4 * c;
+                    *pc = f32::from_le_bytes([bytes[o], bytes[o + 1], bytes[o + 2], bytes[o + 3]]) as f64;
+                }
+                if p.iter().any(|c| !c.is_finite()) {
+                    return Err((0, format!("triangle {t} has a non-finite coordinate")));
+                }
+                *slot = welder.index(p);
+            }
+            triangles.push(tri);
+        }
+    } else if looks_ascii {
+        let text = std::str::from_utf8(bytes).map_err(|_| (0, "ASCII STL is not valid UTF-8".to_string()))?;
+        let mut corner = Vec::with_capacity(3);
+        for (ln, line) in text.lines().enumerate() {
+            let mut it = line.split_whitespace();
+            if it.next() == Some("vertex") {
+                let mut p = [0.0; 3];
+                for slot in p.iter_mut() {
+                    let tok = it.next().ok_or((ln + 1, "vertex with fewer than 3 coordinates".to_string()))?;
+                    *slot = tok.parse().map_err(|_| (ln + 1, format!("bad coordinate `{tok}`")))?;
+                }
+                if p.iter().any(|c: &f64| !c.is_finite()) {
+                    return Err((ln + 1, "non-finite coordinate".into()));
+                }
+                corner.push(welder.index(p));
+                if corner.len() == 3 {
+                    triangles.push([corner[0], corner[1], corner[2]]);
+                    corner.clear();
+                }
+            }
+        }
+        if !corner.is_empty() {
+            return Err((0, "the last facet has fewer than 3 vertices".into()));
+        }
+    } else if bytes.len() >= 84 {
+        let n = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as u64;
+        return Err((0, format!("binary STL header claims {n} triangles ({} bytes) but the file has {} bytes", 84 + 50 * n, bytes.len())));
+    } else {
+        return Err((0, format!("not an STL file ({} bytes, too short for a binary header)", bytes.len())));
+    }
+    let notes = vec![format!("STL vertices welded by exact coordinates: {} unique", welder.positions.len())];
+    Ok(RawMesh { positions: welder.positions, triangles, notes })
+}
+
+#[derive(Default)]
+struct Welder {
+    map: HashMap<[u64; 3], u32>,
+    positions: Vec<Vec3>,
+}
+
+impl Welder {
+    fn index(&mut self, p: Vec3) -> u32 {
+        // +0.0 and -0.0 weld together.
+        let key = p.map(|c| if c == 0.0 { 0 } else { c.to_bits() });
+        *self.map.entry(key).or_insert_with(|| {
+            self.positions.push(p);
+            (self.positions.len() - 1) as u32
+        })
+    }
+}
+
+/// Writes an OBJ file (positions with full f64 precision, 1-based triangles).
+pub fn write_obj(path: impl AsRef<Path>, positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<()> {
+    let path = path.as_ref();
+    let io = |source| GeometryError::Io { path: path.to_path_buf(), source };
+    let mut out = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
+    write_obj_to(&mut out, positions, triangles).map_err(io)?;
+    out.flush().map_err(io)
+}
+
+/// Writes OBJ text to any writer.
+pub fn write_obj_to(out: &mut impl Write, positions: &[Vec3], triangles: &[[u32; 3]]) -> std::io::Result<()> {
+    for p in positions {
+        writeln!(out, "v {:?} {:?} {:?}", p[0], p[1], p[2])?;
+    }
+    for t in triangles {
+        writeln!(out, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1)?;
+    }
+    Ok(())
+}

@@ -1,0 +1,82 @@
+//! The error type of the linear algebra crate.
+
+/// What can go wrong when factorizing or solving.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LinalgError {
+    /// A pivot is zero or negligible against its column: the system is singular.
+    #[error("singular system: pivot {index} is {pivot:e} (is any vertex fixed? is the border non-zero?)")]
+    SingularPivot {
+        /// Row/column of the system (0-based, paper layout).
+        index: usize,
+        /// The pivot value found.
+        pivot: f64,
+    },
+    /// A stiffness block is not positive definite (structured backend).
+    #[error("stiffness block {axis} is not positive definite at vertex {index} (fix at least one vertex along every axis)")]
+    NotPositiveDefinite {
+        /// Axis of the block (0 = x).
+        axis: usize,
+        /// Vertex index where the Cholesky factorization failed.
+        index: usize,
+    },
+    /// The matrix holds NaN or infinity.
+    #[error("the matrix has a non-finite entry at ({row}, {col})")]
+    NonFinite {
+        /// Row index.
+        row: usize,
+        /// Column index.
+        col: usize,
+    },
+    /// The right-hand side holds NaN or infinity.
+    #[error("the right-hand side has a non-finite entry at {index}")]
+    NonFiniteRhs {
+        /// Index in the right-hand side.
+        index: usize,
+    },
+    /// The solve produced NaN or infinity.
+    #[error("the solution has a non-finite entry at {index}")]
+    NonFiniteSolution {
+        /// Index in the solution.
+        index: usize,
+    },
+    /// The residual stayed above the accepted limit.
+    #[error("relative residual {residual:e} exceeds the limit {limit:e}")]
+    ResidualTooLarge {
+        /// The relative residual reached.
+        residual: f64,
+        /// The limit.
+        limit: f64,
+    },
+    /// The backend cannot factor in that precision.
+    #[error("backend {backend} does not support {precision} precision")]
+    UnsupportedPrecision {
+        /// Backend name.
+        backend: &'static str,
+        /// Precision name.
+        precision: &'static str,
+    },
+    /// No backend of that name is compiled in.
+    #[error("unknown backend `{name}` (compiled in: {available})")]
+    UnknownBackend {
+        /// The name asked for.
+        name: String,
+        /// The backends available.
+        available: String,
+    },
+    /// The dense matrix would not fit in memory.
+    #[error("the dense {dim} x {dim} matrix needs {gib:.1} GiB, more than the {limit_gib:.1} GiB allowed; use the `structured` backend")]
+    TooLarge {
+        /// System size.
+        dim: usize,
+        /// GiB needed.
+        gib: f64,
+        /// GiB allowed.
+        limit_gib: f64,
+    },
+    /// A LAPACK routine reported a failure.
+    #[error("LAPACK failed: {0}")]
+    Lapack(String),
+}
+
+/// Result alias of this crate.
+pub type Result<T> = std::result::Result<T, LinalgError>;

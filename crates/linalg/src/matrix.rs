@@ -1,0 +1,229 @@
+//! The bordered matrix of the fiber–fluid method, in structured form.
+
+use faer::Mat;
+
+use crate::{LinalgError, Result};
+
+/// The stiffness blocks `K_c` of the bordered system, one per axis or one shared by all axes.
+#[derive(Clone, Debug)]
+pub enum Blocks {
+    /// One N x N block used for every axis (isotropic material, identical constraints).
+    Shared(Mat<f64>),
+    /// One N x N block per axis, in axis order (x, y[, z]).
+    PerAxis(Vec<Mat<f64>>),
+}
+
+/// The (dN+1) x (dN+1) bordered matrix, `d` = number of axes (2 or 3):
+///
+/// ```text
+/// [ K_x  0    0    b_x ]
+/// [ 0    K_y  0    b_y ]
+/// [ 0    0    K_z  b_z ]
+/// [ b_x' b_y' b_z' 0   ]
+/// ```
+///
+/// Unknowns are ordered as the paper stores them: all x, all y, all z, then the pressure.
+/// The border `b_c` is the vertex area vector component `S_c` multiplied by
+/// [`pressure_scale`](Self::pressure_scale): the last unknown is `P / pressure_scale` and
+/// the last right-hand side entry is `pressure_scale * volume_target`. The matrix is never
+/// stored densely unless [`to_dense`](Self::to_dense) is called.
+#[derive(Clone, Debug)]
+pub struct BorderedMatrix {
+    n: usize,
+    blocks: Blocks,
+    border: Vec<Vec<f64>>,
+    pressure_scale: f64,
+}
+
+impl BorderedMatrix {
+    /// Builds the matrix from its blocks, the *physical* border (`S_c`, one vector of
+    /// length N per axis) and the pressure scale that multiplies it.
+    ///
+    /// # Panics
+    /// On inconsistent shapes (a programming error, not a data error).
+    #[track_caller]
+    pub fn new(blocks: Blocks, border: Vec<Vec<f64>>, pressure_scale: f64) -> Self {
+        let axes = border.len();
+        assert!(axes == 2 || axes == 3, "the border must have 2 or 3 axes");
+        let n = border[0].len();
+        assert!(border.iter().all(|b| b.len() == n), "border rows differ in length");
+        match &blocks {
+            Blocks::Shared(k) => assert!(k.nrows() == n && k.ncols() == n, "block shape"),
+            Blocks::PerAxis(ks) => {
+                assert_eq!(ks.len(), axes, "one block per axis");
+                assert!(ks.iter().all(|k| k.nrows() == n && k.ncols() == n), "block shape");
+            }
+        }
+        let border = border
+            .into_iter()
+            .map(|b| b.into_iter().map(|v| v * pressure_scale).collect())
+            .collect();
+        Self { n, blocks, border, pressure_scale }
+    }
+
+    /// Number of vertices N.
+    pub fn n_vertices(&self) -> usize {
+        self.n
+    }
+
+    /// Number of axes d (2 for the paper's planar example, 3 otherwise).
+    pub fn axes(&self) -> usize {
+        self.border.len()
+    }
+
+    /// Size of the system, dN + 1.
+    pub fn dim(&self) -> usize {
+        self.axes() * self.n + 1
+    }
+
+    /// The stiffness blocks.
+    pub fn blocks(&self) -> &Blocks {
+        &self.blocks
+    }
+
+    /// The stiffness block of one axis.
+    pub fn block(&self, axis: usize) -> &Mat<f64> {
+        match &self.blocks {
+            Blocks::Shared(k) => k,
+            Blocks::PerAxis(ks) => &ks[axis],
+        }
+    }
+
+    /// Whether one block serves every axis.
+    pub fn is_shared(&self) -> bool {
+        matches!(self.blocks, Blocks::Shared(_))
+    }
+
+    /// The border column of one axis as stored in the matrix (already scaled).
+    pub fn border(&self, axis: usize) -> &[f64] {
+        &self.border[axis]
+    }
+
+    /// The factor that multiplies the physical border (and divides the pressure unknown).
+    pub fn pressure_scale(&self) -> f64 {
+        self.pressure_scale
+    }
+
+    /// Replaces the border by a new physical border `S` (same shape), keeping the scale.
+    #[track_caller]
+    pub fn set_border(&mut self, border: &[Vec<f64>]) {
+        assert_eq!(border.len(), self.axes(), "border axes");
+        for (dst, src) in self.border.iter_mut().zip(border) {
+            assert_eq!(src.len(), self.n, "border length");
+            for (d, s) in dst.iter_mut().zip(src) {
+                *d = s * self.pressure_scale;
+            }
+        }
+    }
+
+    /// The dense (dN+1)^2 matrix in the paper's layout.
+    pub fn to_dense(&self) -> Mat<f64> {
+        let (n, d) = (self.n, self.axes());
+        let dim = self.dim();
+        let mut a = Mat::<f64>::zeros(dim, dim);
+        for c in 0..d {
+            let k = self.block(c);
+            let off = c * n;
+            for j in 0..n {
+                for i in 0..n {
+                    a[(off + i, off + j)] = k[(i, j)];
+                }
+            }
+            for i in 0..n {
+                a[(off + i, dim - 1)] = self.border[c][i];
+                a[(dim - 1, off + i)] = self.border[c][i];
+            }
+        }
+        a
+    }
+
+    /// Bytes the dense form would take.
+    pub fn dense_bytes(&self) -> usize {
+        self.dim() * self.dim() * std::mem::size_of::<f64>()
+    }
+
+    /// `y = A x` without forming the dense matrix.
+    #[track_caller]
+    pub fn apply(&self, x: &[f64], y: &mut [f64]) {
+        let (n, d, dim) = (self.n, self.axes(), self.dim());
+        assert!(x.len() == dim && y.len() == dim, "apply: vector length");
+        let p = x[dim - 1];
+        let mut last = 0.0;
+        for c in 0..d {
+            let k = self.block(c);
+            let xc = &x[c * n..(c + 1) * n];
+            let yc = &mut y[c * n..(c + 1) * n];
+            yc.iter_mut().for_each(|v| *v = 0.0);
+            for j in 0..n {
+                let col = k.col(j);
+                let xj = xc[j];
+                if xj != 0.0 {
+                    for i in 0..n {
+                        yc[i] += col[i] * xj;
+                    }
+                }
+            }
+            for i in 0..n {
+                yc[i] += self.border[c][i] * p;
+                last += self.border[c][i] * xc[i];
+            }
+        }
+        y[dim - 1] = last;
+    }
+
+    /// The infinity norm (largest absolute row sum), equal to the 1-norm since A is symmetric.
+    pub fn norm_inf(&self) -> f64 {
+        let (n, d) = (self.n, self.axes());
+        let mut best = self.border.iter().flatten().map(|v| v.abs()).sum::<f64>();
+        for c in 0..d {
+            let k = self.block(c);
+            for j in 0..n {
+                // K is symmetric, so column sums are row sums.
+                let s: f64 = k.col(j).iter().map(|v| v.abs()).sum::<f64>() + self.border[c][j].abs();
+                best = best.max(s);
+            }
+        }
+        best
+    }
+
+    /// The largest absolute entry of column `j` of the dense form (equal to row `j`).
+    pub fn column_max(&self, j: usize) -> f64 {
+        let (n, dim) = (self.n, self.dim());
+        if j == dim - 1 {
+            return self.border.iter().flatten().fold(0.0, |m, v| m.max(v.abs()));
+        }
+        let (c, i) = (j / n, j % n);
+        let k = self.block(c);
+        k.col(i).iter().fold(self.border[c][i].abs(), |m, v| m.max(v.abs()))
+    }
+
+    /// Returns an error naming the first non-finite entry, if any.
+    pub fn check_finite(&self) -> Result<()> {
+        let (n, dim) = (self.n, self.dim());
+        for c in 0..self.axes() {
+            let k = self.block(c);
+            for j in 0..n {
+                for i in 0..n {
+                    if !k[(i, j)].is_finite() {
+                        return Err(LinalgError::NonFinite { row: c * n + i, col: c * n + j });
+                    }
+                }
+                if !self.border[c][j].is_finite() {
+                    return Err(LinalgError::NonFinite { row: c * n + j, col: dim - 1 });
+                }
+            }
+            if matches!(self.blocks, Blocks::Shared(_)) {
+                // The shared block was checked once; still check the remaining borders.
+                for c2 in 1..self.axes() {
+                    for j in 0..n {
+                        if !self.border[c2][j].is_finite() {
+                            return Err(LinalgError::NonFinite { row: c2 * n + j, col: dim - 1 });
+                        }
+                    }
+                }
+                break;
+            }
+        }
+        Ok(())
+    }
+}
