@@ -279,7 +279,10 @@ impl System {
     ///
     /// `border_areas` are the `S` currently in the border (needed to move prescribed
     /// displacements to the right-hand side under elimination).
-    pub fn rhs(&self, b: &[f64], volume_target: f64, border_areas: &[Vec3]) -> Vec<f64> {
+    ///
+    /// Prescribed displacements enter multiplied by `prescribed_scale` (1 for a full
+    /// solve, 1/steps for one load step).
+    pub fn rhs(&self, b: &[f64], volume_target: f64, border_areas: &[Vec3], prescribed_scale: f64) -> Vec<f64> {
         let n = self.matrix.n_vertices();
         let mut r = Vec::with_capacity(self.axes * n + 1);
         r.extend_from_slice(b);
@@ -287,6 +290,7 @@ impl System {
         for c in 0..self.axes {
             for i in 0..n {
                 if let Some(v) = self.constraints.get(i, c) {
+                    let v = v * prescribed_scale;
                     match self.method {
                         ConstraintMethod::Penalty { big } => r[c * n + i] += big * v,
                         ConstraintMethod::Eliminate => {
@@ -300,7 +304,7 @@ impl System {
         for lift in &self.lifts {
             for j in 0..n {
                 if self.constraints.get(j, lift.axis).is_none() {
-                    r[lift.axis * n + j] -= lift.column[j] * lift.value;
+                    r[lift.axis * n + j] -= lift.column[j] * lift.value * prescribed_scale;
                 }
             }
         }

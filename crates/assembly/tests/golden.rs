@@ -59,7 +59,7 @@ fn rectangle_solution_matches_the_paper() {
     let s: Vec<[f64; 3]> = poly.vertex_area_vectors().iter().map(|v| [v[0], v[1], 0.0]).collect();
     let forces = [(0, [0.0, 1680.0, 0.0]), (3, [0.0, 1680.0, 0.0])];
     let b = load_vector(2, &pos, &s, &forces, [0.0; 3], 0.0);
-    let rhs = sys.rhs(&b, 0.0, &s);
+    let rhs = sys.rhs(&b, 0.0, &s, 1.0);
     for name in fibfluid_linalg::backend_names() {
         let f = backend_by_name(name).unwrap().factorize_default(&sys.matrix).unwrap();
         let sol = f.solve(&rhs).unwrap();
@@ -91,7 +91,7 @@ fn rectangle_eliminate_gives_exact_fixed_dofs() {
     let sys = assemble(&body, &material, &c, &opts).unwrap();
     let b = load_vector(2, &pos, &s, &[(0, [0.0, 1680.0, 0.0]), (3, [0.0, 1680.0, 0.0])], [0.0; 3], 0.0);
     let f = backend_by_name("structured").unwrap().factorize_default(&sys.matrix).unwrap();
-    let (u, p) = sys.split_solution(&f.solve(&sys.rhs(&b, 0.0, &s)).unwrap().x);
+    let (u, p) = sys.split_solution(&f.solve(&sys.rhs(&b, 0.0, &s, 1.0)).unwrap().x);
     assert_eq!(u[2], [0.0, 0.0, 0.0]);
     assert_eq!(u[1][1], 0.0);
     assert!((u[0][0] + 4.0).abs() < 1e-10 && (u[3][1] - 16.0 / 3.0).abs() < 1e-10 && (p - 32.0).abs() < 1e-9);

@@ -1,0 +1,321 @@
+//! Log-log line charts and Pareto fronts.
+
+use plotters::prelude::*;
+
+use crate::error::{RenderError, Result};
+use crate::text::{FAMILY, check_image_size, draw_err, ensure_fonts, format_log_tick, rgb_to_png, text_size};
+
+/// One line of a [`loglog_chart`].
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Series {
+    /// Legend label.
+    pub label: String,
+    /// Points `(x, y)`, connected in the given order; both coordinates must
+    /// be finite and positive.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// Label used for the Pareto points, in the legend and in errors.
+const PARETO_LABEL: &str = "Pareto front";
+
+/// Indices of the points not dominated by any other point when both
+/// coordinates are to be minimized, sorted by x (then y, then index).
+///
+/// A point dominates another if it is no larger in both coordinates and
+/// smaller in at least one; exact duplicates of a front point are all kept.
+/// Points with a NaN or infinite coordinate are never on the front.
+pub fn pareto_front(points: &[(f64, f64)]) -> Vec<usize> {
+    let mut order: Vec<usize> =
+        (0..points.len()).filter(|&i| points[i].0.is_finite() && points[i].1.is_finite()).collect();
+    order.sort_by(|&a, &b| {
+        let (pa, pb) = (points[a], points[b]);
+        pa.0.total_cmp(&pb.0).then(pa.1.total_cmp(&pb.1)).then(a.cmp(&b))
+    });
+    let mut front: Vec<usize> = Vec::new();
+    for i in order {
+        let p = points[i];
+        match front.last() {
+            None => front.push(i),
+            Some(&last) => {
+                let q = points[last];
+                if p.1 < q.1 || p == q {
+                    front.push(i);
+                }
+            }
+        }
+    }
+    front
+}
+
+/// Smallest and largest coordinate a log axis accepts (beyond these the
+/// axis arithmetic of plotters would overflow).
+const LOG_LIMITS: (f64, f64) = (1e-100, 1e100);
+
+fn check_log_points(label: &str, points: &[(f64, f64)]) -> Result<()> {
+    let ok = |v: f64| (LOG_LIMITS.0..=LOG_LIMITS.1).contains(&v);
+    match points.iter().position(|&(x, y)| !(ok(x) && ok(y))) {
+        Some(point) => Err(RenderError::NonPositiveLog {
+            series: label.to_string(),
+            point,
+            x: points[point].0,
+            y: points[point].1,
+        }),
+        None => Ok(()),
+    }
+}
+
+/// Log-axis range around the data `[lo, hi]`: padded by 5 % of the data's
+/// span in decades (at least 0.05 decade); widened to whole decades when that
+/// would contain no power of ten (plotters labels only those and their
+/// multiples).
+fn log_axis_range(lo: f64, hi: f64) -> (f64, f64) {
+    let (a, b) = (lo.log10(), hi.log10());
+    let pad = (0.05 * (b - a)).max(0.05);
+    let (a, b) = (a - pad, b + pad);
+    let (a, b) = if a.ceil() <= b.floor() { (a, b) } else { (a.floor(), b.ceil()) };
+    // Keep the axis arithmetic finite: at most 10 decades beyond the limits.
+    let (a, b) = (a.max(LOG_LIMITS.0.log10() - 10.0), b.min(LOG_LIMITS.1.log10() + 10.0));
+    (10f64.powf(a), 10f64.powf(b))
+}
+
+/// Whether the ticks of a log axis spanning `[lo, hi]` (all between 0.01
+/// and 99999) get plain labels rather than `1e-3` style ones.
+fn plain_axis(lo: f64, hi: f64) -> bool {
+    lo >= 0.0099 && hi < 1e5
+}
+
+/// Picks the corner of the plot where the legend box (a `fw` × `fh`
+/// fraction of the plot) covers the fewest samples of the drawn lines and
+/// points, given in normalized log coordinates (`[0, 1]²`, y up).
+fn legend_corner(samples: &[(f64, f64)], fw: f64, fh: f64) -> SeriesLabelPosition {
+    let corners = [
+        (SeriesLabelPosition::UpperRight, true, true),
+        (SeriesLabelPosition::UpperLeft, false, true),
+        (SeriesLabelPosition::LowerRight, true, false),
+        (SeriesLabelPosition::LowerLeft, false, false),
+    ];
+    let covered = |right: bool, upper: bool| {
+        samples
+            .iter()
+            .filter(|&&(x, y)| {
+                let in_x = if right { x >= 1.0 - fw } else { x <= fw };
+                let in_y = if upper { y >= 1.0 - fh } else { y <= fh };
+                in_x && in_y
+            })
+            .count()
+    };
+    corners
+        .iter()
+        .map(|(pos, right, upper)| (covered(*right, *upper), pos))
+        .min_by_key(|(n, _)| *n)
+        .map(|(_, pos)| pos.clone())
+        .unwrap_or(SeriesLabelPosition::UpperRight)
+}
+
+/// Draws a log-log chart and returns PNG bytes of `width` × `height`.
+///
+/// Each series is a line with round markers in its own color (Tableau 10,
+/// repeating), listed in the legend. Points in `pareto` (in any order) are
+/// drawn as large black rings joined, in order of x, by a thick dashed line
+/// listed as "Pareto front". The axes span whole decades around all points.
+///
+/// # Errors
+///
+/// [`RenderError::ZeroSize`] / [`RenderError::ImageTooLarge`] for a bad
+/// size, [`RenderError::EmptyInput`] if there is no point at all, and
+/// [`RenderError::NonPositiveLog`] naming the series and the point index if
+/// a coordinate is not finite and positive (or lies outside `1e-100..=1e100`).
+pub fn loglog_chart(
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+    pareto: &[(f64, f64)],
+    width: u32,
+    height: u32,
+) -> Result<Vec<u8>> {
+    if width == 0 || height == 0 {
+        return Err(RenderError::ZeroSize { width, height });
+    }
+    let (w, h) = check_image_size(u64::from(width), u64::from(height))?;
+    for s in series {
+        check_log_points(&s.label, &s.points)?;
+    }
+    check_log_points(PARETO_LABEL, pareto)?;
+    let all = series.iter().flat_map(|s| s.points.iter()).chain(pareto.iter());
+    let (mut x_lo, mut x_hi, mut y_lo, mut y_hi) =
+        (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    let mut count = 0usize;
+    for &(x, y) in all {
+        count += 1;
+        x_lo = x_lo.min(x);
+        x_hi = x_hi.max(x);
+        y_lo = y_lo.min(y);
+        y_hi = y_hi.max(y);
+    }
+    if count == 0 {
+        return Err(RenderError::EmptyInput { what: "the chart has no points".into() });
+    }
+    let (x_lo, x_hi) = log_axis_range(x_lo, x_hi);
+    let (y_lo, y_hi) = log_axis_range(y_lo, y_hi);
+    let (x_plain, y_plain) = (plain_axis(x_lo, x_hi), plain_axis(y_lo, y_hi));
+    ensure_fonts()?;
+
+    let hf = f64::from(h.min(w));
+    let caption_size = (hf * 0.045).clamp(13.0, 30.0);
+    let label_size = (hf * 0.03).clamp(10.0, 20.0);
+    let desc_size = label_size * 1.1;
+    let line_w = ((hf / 300.0).round() as u32).clamp(1, 4);
+    let marker = (hf * 0.008).round().clamp(2.0, 6.0) as u32;
+    let ring = (f64::from(marker) * 2.4).round() as u32;
+    let legend_margin = (label_size * 0.6).round() as u32;
+    let legend_area = (label_size * 2.2).round() as u32;
+    let sample_len = legend_area as i32 - legend_margin as i32 / 2;
+
+    // Legend entries, to size the legend box and pick its corner.
+    let mut entries: Vec<&str> =
+        series.iter().filter(|s| !s.points.is_empty()).map(|s| s.label.as_str()).collect();
+    if !pareto.is_empty() {
+        entries.push(PARETO_LABEL);
+    }
+    let mut legend_text_w = 0u32;
+    for e in &entries {
+        legend_text_w = legend_text_w.max(text_size(e, label_size)?.0);
+    }
+
+    let mut rgb = vec![255u8; w as usize * h as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, (FAMILY, caption_size))
+            .margin((label_size * 1.2) as u32)
+            .x_label_area_size((label_size * 3.4) as u32)
+            .y_label_area_size((label_size * 5.0) as u32)
+            .build_cartesian_2d((x_lo..x_hi).log_scale(), (y_lo..y_hi).log_scale())
+            .map_err(draw_err)?;
+        let x_fmt = |v: &f64| format_log_tick(*v, x_plain);
+        let y_fmt = |v: &f64| format_log_tick(*v, y_plain);
+        chart
+            .configure_mesh()
+            .x_desc(x_label)
+            .y_desc(y_label)
+            .label_style((FAMILY, label_size))
+            .axis_desc_style((FAMILY, desc_size))
+            .x_label_formatter(&x_fmt)
+            .y_label_formatter(&y_fmt)
+            .bold_line_style(RGBColor(200, 200, 200))
+            .light_line_style(RGBColor(235, 235, 235))
+            .draw()
+            .map_err(draw_err)?;
+
+        for (k, s) in series.iter().enumerate() {
+            if s.points.is_empty() {
+                continue;
+            }
+            let c = colorous::TABLEAU10[k % colorous::TABLEAU10.len()];
+            let color = RGBColor(c.r, c.g, c.b);
+            chart
+                .draw_series(LineSeries::new(s.points.iter().copied(), color.stroke_width(line_w)))
+                .map_err(draw_err)?
+                .label(s.label.as_str())
+                .legend(move |(x, y)| {
+                    EmptyElement::at((x, y))
+                        + PathElement::new(vec![(0, 0), (sample_len, 0)], color.stroke_width(line_w))
+                        + Circle::new((sample_len / 2, 0), marker, color.filled())
+                });
+            chart
+                .draw_series(s.points.iter().map(|&p| Circle::new(p, marker, color.filled())))
+                .map_err(draw_err)?;
+        }
+
+        if !pareto.is_empty() {
+            let mut front = pareto.to_vec();
+            front.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+            let style = BLACK.stroke_width(line_w + 1);
+            let dash = (label_size * 0.6) as u32;
+            let legend_ring = ring.min((label_size * 0.45) as u32);
+            chart
+                .draw_series(DashedLineSeries::new(front.clone(), dash, dash * 2 / 3, style))
+                .map_err(draw_err)?
+                .label(PARETO_LABEL)
+                .legend(move |(x, y)| {
+                    let r = legend_ring as i32;
+                    let mid = sample_len / 2;
+                    EmptyElement::at((x, y))
+                        + PathElement::new(vec![(0, 0), (mid - r - 1, 0)], style)
+                        + PathElement::new(vec![(mid + r + 1, 0), (sample_len, 0)], style)
+                        + Circle::new((mid, 0), legend_ring, BLACK.stroke_width(2))
+                });
+            chart
+                .draw_series(front.iter().map(|&p| Circle::new(p, ring, BLACK.stroke_width(2))))
+                .map_err(draw_err)?;
+        }
+
+        // Put the legend in the corner where it hides the least data.
+        let (plot_w, plot_h) = chart.plotting_area().dim_in_pixel();
+        let legend_w = f64::from(legend_text_w + legend_area + 2 * legend_margin + 10);
+        let legend_h = entries.len() as f64 * label_size * 1.3 + f64::from(2 * legend_margin + 10);
+        let (lx, ly) = (x_lo.log10(), y_lo.log10());
+        let (sx, sy) = (x_hi.log10() - lx, y_hi.log10() - ly);
+        let norm = |(x, y): (f64, f64)| ((x.log10() - lx) / sx, (y.log10() - ly) / sy);
+        let mut samples = Vec::new();
+        let mut lines: Vec<Vec<(f64, f64)>> = series.iter().map(|s| s.points.clone()).collect();
+        let mut front = pareto.to_vec();
+        front.sort_by(|a, b| a.0.total_cmp(&b.0));
+        lines.push(front);
+        for line in &lines {
+            let pts: Vec<(f64, f64)> = line.iter().map(|&p| norm(p)).collect();
+            samples.extend(pts.iter().copied());
+            for seg in pts.windows(2) {
+                for i in 1..16 {
+                    let t = f64::from(i) / 16.0;
+                    samples
+                        .push((seg[0].0 + t * (seg[1].0 - seg[0].0), seg[0].1 + t * (seg[1].1 - seg[0].1)));
+                }
+            }
+        }
+        let corner =
+            legend_corner(&samples, legend_w / f64::from(plot_w.max(1)), legend_h / f64::from(plot_h.max(1)));
+
+        chart
+            .configure_series_labels()
+            .position(corner)
+            .margin(legend_margin)
+            .legend_area_size(legend_area)
+            .label_font((FAMILY, label_size))
+            .background_style(WHITE.mix(0.9))
+            .border_style(RGBColor(120, 120, 120))
+            .draw()
+            .map_err(draw_err)?;
+        root.present().map_err(draw_err)?;
+    }
+    rgb_to_png(&rgb, w, h)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn axis_range_pads_and_keeps_a_power_of_ten() {
+        let (lo, hi) = log_axis_range(8e-4, 0.9);
+        assert!(lo < 8e-4 && lo > 5e-4, "{lo}");
+        assert!(hi > 0.9 && hi <= 1.5, "{hi}");
+        // No power of ten inside 2..5 after padding: whole decades.
+        assert_eq!(log_axis_range(2.0, 5.0), (1.0, 10.0));
+        // A single value still gives a non-empty range.
+        let (lo, hi) = log_axis_range(3.0, 3.0);
+        assert!(lo < 3.0 && hi > 3.0);
+    }
+
+    #[test]
+    fn legend_avoids_the_crowded_corner() {
+        // Data along the rising diagonal: upper right and lower left are busy.
+        let diagonal: Vec<(f64, f64)> = (0..=100).map(|i| (i as f64 / 100.0, i as f64 / 100.0)).collect();
+        let pos = legend_corner(&diagonal, 0.3, 0.3);
+        assert!(matches!(pos, SeriesLabelPosition::UpperLeft | SeriesLabelPosition::LowerRight), "{pos:?}");
+        // Empty plot: the default upper right.
+        assert_eq!(legend_corner(&[], 0.3, 0.3), SeriesLabelPosition::UpperRight);
+    }
+}

@@ -1,0 +1,152 @@
+//! Output files: deformed OBJ, legacy VTK, report JSON and a PNG render, written to a
+//! temporary directory and moved into place only when everything succeeded.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use fibfluid_geometry::Vec3;
+
+use crate::report::Report;
+use crate::simulate::Simulation;
+use crate::{Error, Result, Shape};
+
+/// Names of the files a run writes.
+pub const OUTPUT_FILES: [&str; 4] = ["deformed.obj", "deformed.vtk", "report.json", "render.png"];
+
+/// Writes legacy VTK polydata (ASCII) with the displacement vector and its magnitude as
+/// point data; ParaView opens it directly.
+pub fn write_vtk(out: &mut impl Write, title: &str, positions: &[Vec3], triangles: &[[u32; 3]], displacement: &[Vec3]) -> std::io::Result<()> {
+    writeln!(out, "# vtk DataFile Version 3.0")?;
+    writeln!(out, "{}", title.replace('\n', " "))?;
+    writeln!(out, "ASCII")?;
+    writeln!(out, "DATASET POLYDATA")?;
+    writeln!(out, "POINTS {} double", positions.len())?;
+    for p in positions {
+        writeln!(out, "{:?} {:?} {:?}", p[0], p[1], p[2])?;
+    }
+    writeln!(out, "POLYGONS {} {}", triangles.len(), 4 * triangles.len())?;
+    for t in triangles {
+        writeln!(out, "3 {} {} {}", t[0], t[1], t[2])?;
+    }
+    writeln!(out, "POINT_DATA {}", positions.len())?;
+    writeln!(out, "VECTORS displacement double")?;
+    for d in displacement {
+        writeln!(out, "{:?} {:?} {:?}", d[0], d[1], d[2])?;
+    }
+    writeln!(out, "SCALARS displacement_magnitude double 1")?;
+    writeln!(out, "LOOKUP_TABLE default")?;
+    for d in displacement {
+        writeln!(out, "{:?}", (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt())?;
+    }
+    Ok(())
+}
+
+/// Writes the kept fibers as VTK line polydata (the paper's Fig. 2 and 7).
+pub fn write_fibers_vtk(out: &mut impl Write, positions: &[Vec3], fibers: &fibfluid_geometry::FiberSet) -> std::io::Result<()> {
+    writeln!(out, "# vtk DataFile Version 3.0")?;
+    writeln!(out, "fibfluid kept fibers")?;
+    writeln!(out, "ASCII")?;
+    writeln!(out, "DATASET POLYDATA")?;
+    writeln!(out, "POINTS {} double", positions.len())?;
+    for p in positions {
+        writeln!(out, "{:?} {:?} {:?}", p[0], p[1], p[2])?;
+    }
+    writeln!(out, "LINES {} {}", fibers.kept(), 3 * fibers.kept())?;
+    for (i, j) in fibers.pairs() {
+        writeln!(out, "2 {i} {j}")?;
+    }
+    Ok(())
+}
+
+/// Surface triangles for output (a polygon is drawn as a fan, for pictures only).
+fn triangles_of(sim: &Simulation) -> Vec<[u32; 3]> {
+    match &sim.scene().shape {
+        Shape::Surface(m) => m.mesh.triangles().to_vec(),
+        Shape::Polygon(p) => (1..p.n_vertices() as u32 - 1).map(|k| [0, k, k + 1]).collect(),
+    }
+}
+
+/// Renders the rest and deformed shapes side by side, colored by displacement magnitude.
+pub fn render_png(sim: &Simulation) -> Result<Vec<u8>> {
+    let tris = triangles_of(sim);
+    let rest = sim.rest_positions();
+    let now = sim.positions();
+    let mag: Vec<f64> = now.iter().zip(rest).map(|(p, r)| ((p[0] - r[0]).powi(2) + (p[1] - r[1]).powi(2) + (p[2] - r[2]).powi(2)).sqrt()).collect();
+    let zero = vec![0.0; mag.len()];
+    let opts = fibfluid_render::ViewOptions { scalar_label: "|u|".into(), ..Default::default() };
+    let panels = [
+        fibfluid_render::Surface { positions: rest, triangles: &tris, scalar: &zero, title: "rest".into() },
+        fibfluid_render::Surface { positions: now, triangles: &tris, scalar: &mag, title: format!("deformed ({} steps, {})", sim.scene().steps, sim.scene().solver.mode.name()) },
+    ];
+    Ok(fibfluid_render::render_surfaces(&panels, None, &opts)?)
+}
+
+/// Writes every output of a run into `dir` atomically: files go to a fresh temporary
+/// directory beside `dir` first and are moved in only when all of them were written, so a
+/// failure leaves `dir` (and any file the user had there) untouched.
+pub fn write_outputs(dir: &Path, sim: &Simulation, report: &Report) -> Result<Vec<PathBuf>> {
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| Error::Io { path, source }
+    };
+    let parent = match dir.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    if dir.exists() && !dir.is_dir() {
+        return Err(Error::Invalid(format!("{}: exists and is not a directory", dir.display())));
+    }
+    std::fs::create_dir_all(&parent).map_err(io(&parent))?;
+    let tmp = parent.join(format!(".fibfluid-tmp-{}-{}", std::process::id(), nanos()));
+    std::fs::create_dir(&tmp).map_err(io(&tmp))?;
+    let result = (|| -> Result<()> {
+        let tris_out;
+        let (positions, triangles): (Vec<Vec3>, &[[u32; 3]]) = match &sim.scene().shape {
+            Shape::Surface(m) => {
+                tris_out = m.triangles_in_file_order();
+                (m.positions_in_file_order(sim.positions()), &tris_out)
+            }
+            Shape::Polygon(_) => {
+                tris_out = triangles_of(sim);
+                (sim.positions().to_vec(), &tris_out)
+            }
+        };
+        let rest_file: Vec<Vec3> = match &sim.scene().shape {
+            Shape::Surface(m) => m.positions_in_file_order(sim.rest_positions()),
+            Shape::Polygon(_) => sim.rest_positions().to_vec(),
+        };
+        let disp: Vec<Vec3> = positions.iter().zip(&rest_file).map(|(p, r)| [p[0] - r[0], p[1] - r[1], p[2] - r[2]]).collect();
+        let p = tmp.join("deformed.obj");
+        fibfluid_geometry::write_obj(&p, &positions, triangles)?;
+        let p = tmp.join("deformed.vtk");
+        let mut f = std::io::BufWriter::new(std::fs::File::create(&p).map_err(io(&p))?);
+        write_vtk(&mut f, &format!("fibfluid {}", sim.scene().name), &positions, triangles, &disp).map_err(io(&p))?;
+        f.flush().map_err(io(&p))?;
+        let p = tmp.join("report.json");
+        let json = serde_json::to_string_pretty(report).map_err(|e| Error::Invalid(e.to_string()))?;
+        std::fs::write(&p, json + "\n").map_err(io(&p))?;
+        let p = tmp.join("render.png");
+        std::fs::write(&p, render_png(sim)?).map_err(io(&p))?;
+        Ok(())
+    })();
+    if let Err(e) = result {
+        let _ = std::fs::remove_dir_all(&tmp);
+        return Err(e);
+    }
+    std::fs::create_dir_all(dir).map_err(io(dir))?;
+    let mut written = Vec::new();
+    for name in OUTPUT_FILES {
+        let (from, to) = (tmp.join(name), dir.join(name));
+        if let Err(source) = std::fs::rename(&from, &to) {
+            let _ = std::fs::remove_dir_all(&tmp);
+            return Err(Error::Io { path: to, source });
+        }
+        written.push(to);
+    }
+    let _ = std::fs::remove_dir_all(&tmp);
+    Ok(written)
+}
+
+fn nanos() -> u128 {
+    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_nanos()).unwrap_or(0)
+}
