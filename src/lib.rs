@@ -20,6 +20,7 @@
 //! Linear backends are chosen at build time by Cargo features (`faer-lu`, `nalgebra-lu`
 //! by default, `openblas`) and at run time by name (`structured`, always built).
 
+pub mod bench;
 mod error;
 mod output;
 mod report;
