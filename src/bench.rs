@@ -1,6 +1,8 @@
 //! Synthetic systems of any size, for `fibfluid bench` and the criterion benches.
 
-use fibfluid_assembly::{AssemblyOptions, Body, ConstraintMethod, Constraints, Material, PressureScaling, System, assemble};
+use fibfluid_assembly::{
+    AssemblyOptions, Body, ConstraintMethod, Constraints, Material, PressureScaling, System, assemble,
+};
 use fibfluid_geometry::{FiberSet, Vec3};
 
 use crate::Result;
@@ -27,7 +29,14 @@ pub fn synthetic_system(n: usize, method: ConstraintMethod) -> Result<System> {
     let w = 4.0 * std::f64::consts::PI / n as f64;
     let areas: Vec<Vec3> = pos.iter().map(|p| p.map(|c| c * w)).collect();
     let fibers = FiberSet::all(n);
-    let body = Body { axes: 3, positions: &pos, vertex_areas: &areas, edges: &[], fibers: &fibers, rest_positions: None };
+    let body = Body {
+        axes: 3,
+        positions: &pos,
+        vertex_areas: &areas,
+        edges: &[],
+        fibers: &fibers,
+        rest_positions: None,
+    };
     let material = Material { surface_tension: 0.0, ..Material::default() };
     let mut c = Constraints::new(n);
     for (i, p) in pos.iter().enumerate() {
@@ -35,6 +44,7 @@ pub fn synthetic_system(n: usize, method: ConstraintMethod) -> Result<System> {
             c.fix(i, [true; 3])?;
         }
     }
-    let scaling = if method == ConstraintMethod::Eliminate { PressureScaling::Auto } else { PressureScaling::None };
+    let scaling =
+        if method == ConstraintMethod::Eliminate { PressureScaling::Auto } else { PressureScaling::None };
     Ok(assemble(&body, &material, &c, &AssemblyOptions { method, pressure_scaling: scaling })?)
 }

@@ -15,7 +15,13 @@ pub const OUTPUT_FILES: [&str; 4] = ["deformed.obj", "deformed.vtk", "report.jso
 
 /// Writes legacy VTK polydata (ASCII) with the displacement vector and its magnitude as
 /// point data; ParaView opens it directly.
-pub fn write_vtk(out: &mut impl Write, title: &str, positions: &[Vec3], triangles: &[[u32; 3]], displacement: &[Vec3]) -> std::io::Result<()> {
+pub fn write_vtk(
+    out: &mut impl Write,
+    title: &str,
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    displacement: &[Vec3],
+) -> std::io::Result<()> {
     writeln!(out, "# vtk DataFile Version 3.0")?;
     writeln!(out, "{}", title.replace('\n', " "))?;
     writeln!(out, "ASCII")?;
@@ -42,7 +48,11 @@ pub fn write_vtk(out: &mut impl Write, title: &str, positions: &[Vec3], triangle
 }
 
 /// Writes the kept fibers as VTK line polydata (the paper's Fig. 2 and 7).
-pub fn write_fibers_vtk(out: &mut impl Write, positions: &[Vec3], fibers: &fibfluid_geometry::FiberSet) -> std::io::Result<()> {
+pub fn write_fibers_vtk(
+    out: &mut impl Write,
+    positions: &[Vec3],
+    fibers: &fibfluid_geometry::FiberSet,
+) -> std::io::Result<()> {
     writeln!(out, "# vtk DataFile Version 3.0")?;
     writeln!(out, "fibfluid kept fibers")?;
     writeln!(out, "ASCII")?;
@@ -71,12 +81,21 @@ pub fn render_png(sim: &Simulation) -> Result<Vec<u8>> {
     let tris = triangles_of(sim);
     let rest = sim.rest_positions();
     let now = sim.positions();
-    let mag: Vec<f64> = now.iter().zip(rest).map(|(p, r)| ((p[0] - r[0]).powi(2) + (p[1] - r[1]).powi(2) + (p[2] - r[2]).powi(2)).sqrt()).collect();
+    let mag: Vec<f64> = now
+        .iter()
+        .zip(rest)
+        .map(|(p, r)| ((p[0] - r[0]).powi(2) + (p[1] - r[1]).powi(2) + (p[2] - r[2]).powi(2)).sqrt())
+        .collect();
     let zero = vec![0.0; mag.len()];
     let opts = fibfluid_render::ViewOptions { scalar_label: "|u|".into(), ..Default::default() };
     let panels = [
         fibfluid_render::Surface { positions: rest, triangles: &tris, scalar: &zero, title: "rest".into() },
-        fibfluid_render::Surface { positions: now, triangles: &tris, scalar: &mag, title: format!("deformed ({} steps, {})", sim.scene().steps, sim.scene().solver.mode.name()) },
+        fibfluid_render::Surface {
+            positions: now,
+            triangles: &tris,
+            scalar: &mag,
+            title: format!("deformed ({} steps, {})", sim.scene().steps, sim.scene().solver.mode.name()),
+        },
     ];
     Ok(fibfluid_render::render_surfaces(&panels, None, &opts)?)
 }
@@ -115,12 +134,14 @@ pub fn write_outputs(dir: &Path, sim: &Simulation, report: &Report) -> Result<Ve
             Shape::Surface(m) => m.positions_in_file_order(sim.rest_positions()),
             Shape::Polygon(_) => sim.rest_positions().to_vec(),
         };
-        let disp: Vec<Vec3> = positions.iter().zip(&rest_file).map(|(p, r)| [p[0] - r[0], p[1] - r[1], p[2] - r[2]]).collect();
+        let disp: Vec<Vec3> =
+            positions.iter().zip(&rest_file).map(|(p, r)| [p[0] - r[0], p[1] - r[1], p[2] - r[2]]).collect();
         let p = tmp.join("deformed.obj");
         fibfluid_geometry::write_obj(&p, &positions, triangles)?;
         let p = tmp.join("deformed.vtk");
         let mut f = std::io::BufWriter::new(std::fs::File::create(&p).map_err(io(&p))?);
-        write_vtk(&mut f, &format!("fibfluid {}", sim.scene().name), &positions, triangles, &disp).map_err(io(&p))?;
+        write_vtk(&mut f, &format!("fibfluid {}", sim.scene().name), &positions, triangles, &disp)
+            .map_err(io(&p))?;
         f.flush().map_err(io(&p))?;
         let p = tmp.join("report.json");
         let json = serde_json::to_string_pretty(report).map_err(|e| Error::Invalid(e.to_string()))?;

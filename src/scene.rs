@@ -332,7 +332,11 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> Result
         (Some(m), None) => {
             let mesh_path = dir.join(&m.path);
             if !mesh_path.exists() {
-                return Err(inv(format!("[mesh].path: `{}` does not exist (resolved to {})", m.path, mesh_path.display())));
+                return Err(inv(format!(
+                    "[mesh].path: `{}` does not exist (resolved to {})",
+                    m.path,
+                    mesh_path.display()
+                )));
             }
             let mut file = load_mesh(&mesh_path)?;
             if let Some(s) = m.scale {
@@ -346,7 +350,8 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> Result
             Shape::Surface(Box::new(file))
         }
         (None, Some(p)) => Shape::Polygon(
-            Polygon::new(p.points).ok_or_else(|| inv("[polygon].points: at least 3 finite points are needed".into()))?,
+            Polygon::new(p.points)
+                .ok_or_else(|| inv("[polygon].points: at least 3 finite points are needed".into()))?,
         ),
         (Some(_), Some(_)) => return Err(inv("give either [mesh] or [polygon], not both".into())),
         (None, None) => return Err(inv("missing [mesh] (or [polygon]) table".into())),
@@ -358,7 +363,10 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> Result
     };
     for (c, y) in young.iter().enumerate().take(axes) {
         if !(y.is_finite() && *y > 0.0) {
-            return Err(inv(format!("[material].young: must be positive, got {y} along {}", ['x', 'y', 'z'][c])));
+            return Err(inv(format!(
+                "[material].young: must be positive, got {y} along {}",
+                ['x', 'y', 'z'][c]
+            )));
         }
     }
     let gamma = spec.material.surface_tension;
@@ -389,10 +397,14 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> Result
     let to_mesh_index = |v: i64, key: &str| -> Result<usize> {
         let count = file.map(|f| f.file_vertex_count()).unwrap_or(n);
         if v < 0 || v as usize >= count {
-            return Err(inv(format!("{key}: vertex {v} is out of range (the mesh file has {count} vertices, 0-based)")));
+            return Err(inv(format!(
+                "{key}: vertex {v} is out of range (the mesh file has {count} vertices, 0-based)"
+            )));
         }
         match file {
-            Some(f) => f.from_file_index(v as usize).ok_or_else(|| inv(format!("{key}: vertex {v} is not used by any face"))),
+            Some(f) => f
+                .from_file_index(v as usize)
+                .ok_or_else(|| inv(format!("{key}: vertex {v} is not used by any face"))),
             None => Ok(v as usize),
         }
     };
@@ -416,11 +428,19 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> Result
             }
         }
         let axis = fix.axis.as_deref().map(|a| axis_index(a, &format!("{key}.axis"))).transpose()?;
-        let kinds = [fix.above.is_some(), fix.below.is_some(), fix.top.is_some(), fix.bottom.is_some(), fix.vertices.is_some(), fix.bbox.is_some()];
+        let kinds = [
+            fix.above.is_some(),
+            fix.below.is_some(),
+            fix.top.is_some(),
+            fix.bottom.is_some(),
+            fix.vertices.is_some(),
+            fix.bbox.is_some(),
+        ];
         if kinds.iter().filter(|k| **k).count() != 1 {
             return Err(inv(format!("{key}: give exactly one of above, below, top, bottom, vertices, box")));
         }
-        let need_axis = || axis.ok_or_else(|| inv(format!("{key}: `axis` is required with above/below/top/bottom")));
+        let need_axis =
+            || axis.ok_or_else(|| inv(format!("{key}: `axis` is required with above/below/top/bottom")));
         let selector = if let Some(v) = fix.above {
             Selector::Above { axis: need_axis()?, value: v }
         } else if let Some(v) = fix.below {
@@ -439,12 +459,13 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> Result
             Selector::Box { min: b[0], max: b[1] }
         } else {
             let list = fix.vertices.as_ref().map(|v| v.as_slice()).unwrap_or(&[]);
-            let idx = list.iter().map(|&v| to_mesh_index(v, &format!("{key}.vertices"))).collect::<Result<Vec<_>>>()?;
+            let idx = list
+                .iter()
+                .map(|&v| to_mesh_index(v, &format!("{key}.vertices")))
+                .collect::<Result<Vec<_>>>()?;
             Selector::Vertices(idx)
         };
-        constraints
-            .fix_selected(&selector, &positions, dofs)
-            .map_err(|e| inv(format!("{key}: {e}")))?;
+        constraints.fix_selected(&selector, &positions, dofs).map_err(|e| inv(format!("{key}: {e}")))?;
     }
     let mut forces = Vec::new();
     for (k, f) in spec.force.iter().enumerate() {
@@ -464,15 +485,20 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> Result
     if let Some(s) = spec.solver {
         if let Some(b) = s.backend {
             if !fibfluid_linalg::backend_names().contains(&b.as_str()) {
-                return Err(inv(format!("[solver].backend: `{b}` is not compiled in (available: {})", fibfluid_linalg::backend_names().join(", "))));
+                return Err(inv(format!(
+                    "[solver].backend: `{b}` is not compiled in (available: {})",
+                    fibfluid_linalg::backend_names().join(", ")
+                )));
             }
             solver.backend = b;
         }
         if let Some(m) = s.mode {
-            solver.mode = Mode::parse(&m).ok_or_else(|| inv(format!("[solver].mode: `{m}` is not paper, refresh or nonlinear")))?;
+            solver.mode = Mode::parse(&m)
+                .ok_or_else(|| inv(format!("[solver].mode: `{m}` is not paper, refresh or nonlinear")))?;
         }
         if let Some(m) = s.stepping {
-            solver.stepping = Stepping::parse(&m).ok_or_else(|| inv(format!("[solver].stepping: `{m}` is not euler or heun")))?;
+            solver.stepping = Stepping::parse(&m)
+                .ok_or_else(|| inv(format!("[solver].stepping: `{m}` is not euler or heun")))?;
         }
         if let Some(p) = s.precision {
             solver.precision = match p.as_str() {
@@ -502,5 +528,15 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> Result
     }
     let material = Material { young, surface_tension: gamma, density, law };
     let _ = scene_path;
-    Ok(Scene { name, source: Some(scene_path.to_path_buf()), shape, material, constraints, gravity, forces, steps: steps as usize, solver })
+    Ok(Scene {
+        name,
+        source: Some(scene_path.to_path_buf()),
+        shape,
+        material,
+        constraints,
+        gravity,
+        forces,
+        steps: steps as usize,
+        solver,
+    })
 }

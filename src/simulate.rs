@@ -3,7 +3,9 @@
 use std::time::Instant;
 
 use fibfluid_assembly::{AssemblyOptions, Body, ConstraintMethod, PressureScaling, System, assemble, depths};
-use fibfluid_geometry::{FiberSet, Polygon, Vec3, VisibilityOptions, cull_fibers, vertex_area_vectors, volume};
+use fibfluid_geometry::{
+    FiberSet, Polygon, Vec3, VisibilityOptions, cull_fibers, vertex_area_vectors, volume,
+};
 use fibfluid_linalg::{FactorOptions, Factorization, FactorizationExt, LinearSolver, backend_by_name};
 
 use crate::scene::{ForceTiming, Mode, Scene, Shape, Stepping};
@@ -127,11 +129,16 @@ impl Simulation {
         }
         let areas = log.time(names::AREAS, || areas_of(&topology, &scene.shape, &rest));
         let volume0 = volume_of(&topology, &scene.shape, &rest);
-        let system = log.time(names::ASSEMBLY, || assemble_on(&scene, axes, &edges, &fibers, &rest, &rest, &areas))?;
+        let system =
+            log.time(names::ASSEMBLY, || assemble_on(&scene, axes, &edges, &fibers, &rest, &rest, &areas))?;
         if system.stats.blocks == 1 {
-            log.skip("factorization of separate x, y, z blocks", "isotropic material with the same constraints on every axis: one block");
+            log.skip(
+                "factorization of separate x, y, z blocks",
+                "isotropic material with the same constraints on every axis: one block",
+            );
         }
-        let factorization = log.time(names::FACTORIZATION, || solver.factorize(&system.matrix, &factor_options))?;
+        let factorization =
+            log.time(names::FACTORIZATION, || solver.factorize(&system.matrix, &factor_options))?;
         Ok(Self {
             topology,
             axes,
@@ -320,7 +327,8 @@ impl Simulation {
                 let x2 = self.solve(&b2, 0.0, prescribed)?;
                 let (u2, p2) = self.to_increment(&x2);
                 self.log.add(names::PREDICTOR, start.elapsed().as_secs_f64());
-                let u = (0..s.len()).map(|i| add3(add3(scale3(ub[i], 0.5), scale3(u2[i], 0.5)), ut[i])).collect();
+                let u =
+                    (0..s.len()).map(|i| add3(add3(scale3(ub[i], 0.5), scale3(u2[i], 0.5)), ut[i])).collect();
                 (u, 0.5 * pb + 0.5 * p2 + pt)
             }
         };
@@ -356,7 +364,8 @@ impl Simulation {
             Mode::Nonlinear => {
                 let areas = self.log.time(names::AREAS, || areas_of(&self.topology, &self.scene.shape, s));
                 let start = Instant::now();
-                let system = assemble_on(&self.scene, self.axes, &self.edges, &self.fibers, s, &self.rest, &areas)?;
+                let system =
+                    assemble_on(&self.scene, self.axes, &self.edges, &self.fibers, s, &self.rest, &areas)?;
                 self.log.add(names::REASSEMBLY, start.elapsed().as_secs_f64());
                 let start = Instant::now();
                 self.factorization = self.solver.factorize(&system.matrix, &self.factor_options)?;
@@ -382,7 +391,10 @@ impl Simulation {
             // opposite increment but the same "down".
             let g = self.scene.gravity;
             let h = self.log.time(names::DEPTHS, || depths(s, g));
-            let areas = if self.scene.solver.mode == Mode::Paper || s != self.positions.as_slice() || self.border_areas.len() != n {
+            let areas = if self.scene.solver.mode == Mode::Paper
+                || s != self.positions.as_slice()
+                || self.border_areas.len() != n
+            {
                 self.log.time(names::AREAS, || areas_of(&self.topology, &self.scene.shape, s))
             } else {
                 self.border_areas.clone()

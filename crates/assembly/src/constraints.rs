@@ -79,7 +79,9 @@ impl fmt::Display for Selector {
             Selector::Above { axis, value } => write!(f, "{} > {value}", AXES[*axis]),
             Selector::Below { axis, value } => write!(f, "{} < {value}", AXES[*axis]),
             Selector::Top { axis, within } => write!(f, "within {within} of the top along {}", AXES[*axis]),
-            Selector::Bottom { axis, within } => write!(f, "within {within} of the bottom along {}", AXES[*axis]),
+            Selector::Bottom { axis, within } => {
+                write!(f, "within {within} of the bottom along {}", AXES[*axis])
+            }
             Selector::Box { min, max } => write!(f, "box {min:?}..{max:?}"),
         }
     }
@@ -156,7 +158,12 @@ impl Constraints {
     }
 
     /// Fixes the chosen axes of every selected vertex; returns how many were selected.
-    pub fn fix_selected(&mut self, selector: &Selector, positions: &[[f64; 3]], axes: [bool; 3]) -> Result<usize> {
+    pub fn fix_selected(
+        &mut self,
+        selector: &Selector,
+        positions: &[[f64; 3]],
+        axes: [bool; 3],
+    ) -> Result<usize> {
         let sel = selector.select(positions)?;
         for &v in &sel {
             self.fix(v, axes)?;

@@ -81,14 +81,23 @@ impl Material {
     pub fn check(&self) -> Result<()> {
         for (c, y) in self.young.iter().enumerate() {
             if !(y.is_finite() && *y > 0.0) {
-                return Err(AssemblyError::Material(format!("Young's modulus along {} must be positive and finite, got {y}", crate::AXES[c])));
+                return Err(AssemblyError::Material(format!(
+                    "Young's modulus along {} must be positive and finite, got {y}",
+                    crate::AXES[c]
+                )));
             }
         }
         if !(self.surface_tension.is_finite() && self.surface_tension >= 0.0) {
-            return Err(AssemblyError::Material(format!("surface tension must be >= 0 and finite, got {}", self.surface_tension)));
+            return Err(AssemblyError::Material(format!(
+                "surface tension must be >= 0 and finite, got {}",
+                self.surface_tension
+            )));
         }
         if !(self.density.is_finite() && self.density >= 0.0) {
-            return Err(AssemblyError::Material(format!("density must be >= 0 and finite, got {}", self.density)));
+            return Err(AssemblyError::Material(format!(
+                "density must be >= 0 and finite, got {}",
+                self.density
+            )));
         }
         if let StiffnessLaw::Quadratic { c } = self.law {
             if !(c.is_finite() && c >= 0.0) {

@@ -87,7 +87,12 @@ pub struct System {
 }
 
 /// Assembles the bordered system for a body, material and constraints.
-pub fn assemble(body: &Body, material: &Material, constraints: &Constraints, opts: &AssemblyOptions) -> Result<System> {
+pub fn assemble(
+    body: &Body,
+    material: &Material,
+    constraints: &Constraints,
+    opts: &AssemblyOptions,
+) -> Result<System> {
     let start = Instant::now();
     material.check()?;
     let (n, axes) = (body.positions.len(), body.axes);
@@ -103,7 +108,8 @@ pub fn assemble(body: &Body, material: &Material, constraints: &Constraints, opt
         return Err(AssemblyError::EverythingFixed);
     }
     let conn = body.fibers.mean_connections();
-    let area: Vec<f64> = body.vertex_areas.iter().map(|s| (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt()).collect();
+    let area: Vec<f64> =
+        body.vertex_areas.iter().map(|s| (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt()).collect();
     let mut neighbors: Vec<Vec<u32>> = vec![Vec::new(); n];
     if material.surface_tension > 0.0 {
         for e in body.edges {
@@ -171,7 +177,8 @@ pub fn assemble(body: &Body, material: &Material, constraints: &Constraints, opt
             let s: f64 = k.col(j).iter().sum();
             k[(j, j)] = -s;
         }
-        let free_diag: Vec<f64> = (0..n).filter(|&i| constraints.get(i, c).is_none()).map(|i| k[(i, i)]).collect();
+        let free_diag: Vec<f64> =
+            (0..n).filter(|&i| constraints.get(i, c).is_none()).map(|i| k[(i, i)]).collect();
         let mean_diag = free_diag.iter().sum::<f64>() / free_diag.len().max(1) as f64;
         // Record lifts for every axis this block serves.
         let served: Vec<usize> = if shared { (0..axes).collect() } else { vec![c] };
@@ -180,7 +187,12 @@ pub fn assemble(body: &Body, material: &Material, constraints: &Constraints, opt
             for i in 0..n {
                 if let Some(v) = constraints.get(i, axis) {
                     if v != 0.0 && opts.method == ConstraintMethod::Eliminate {
-                        lifts.push(Lift { axis, vertex: i, value: v, column: k.col(i).iter().copied().collect() });
+                        lifts.push(Lift {
+                            axis,
+                            vertex: i,
+                            value: v,
+                            column: k.col(i).iter().copied().collect(),
+                        });
                     }
                 }
             }
@@ -202,7 +214,8 @@ pub fn assemble(body: &Body, material: &Material, constraints: &Constraints, opt
         }
         blocks.push(k);
     }
-    let blocks = if shared { Blocks::Shared(blocks.pop().expect("one block")) } else { Blocks::PerAxis(blocks) };
+    let blocks =
+        if shared { Blocks::Shared(blocks.pop().expect("one block")) } else { Blocks::PerAxis(blocks) };
     let mean_area = area.iter().sum::<f64>() / n as f64;
     let mean_diag = diag_scale[..axes].iter().sum::<f64>() / axes as f64;
     let scale = match opts.pressure_scaling {
@@ -263,7 +276,8 @@ impl System {
             .map(|c| {
                 (0..n)
                     .map(|i| {
-                        if self.method == ConstraintMethod::Eliminate && self.constraints.get(i, c).is_some() {
+                        if self.method == ConstraintMethod::Eliminate && self.constraints.get(i, c).is_some()
+                        {
                             0.0
                         } else {
                             vertex_areas[i][c]
@@ -282,7 +296,13 @@ impl System {
     ///
     /// Prescribed displacements enter multiplied by `prescribed_scale` (1 for a full
     /// solve, 1/steps for one load step).
-    pub fn rhs(&self, b: &[f64], volume_target: f64, border_areas: &[Vec3], prescribed_scale: f64) -> Vec<f64> {
+    pub fn rhs(
+        &self,
+        b: &[f64],
+        volume_target: f64,
+        border_areas: &[Vec3],
+        prescribed_scale: f64,
+    ) -> Vec<f64> {
         let n = self.matrix.n_vertices();
         let mut r = Vec::with_capacity(self.axes * n + 1);
         r.extend_from_slice(b);

@@ -1,6 +1,8 @@
 //! The paper's golden cases (REFERENCE §4), built through the public API.
 
-use fibfluid_assembly::{AssemblyOptions, Body, ConstraintMethod, Constraints, Material, PressureScaling, assemble, load_vector};
+use fibfluid_assembly::{
+    AssemblyOptions, Body, ConstraintMethod, Constraints, Material, PressureScaling, assemble, load_vector,
+};
 use fibfluid_geometry::{FiberSet, Polygon, icosphere};
 use fibfluid_linalg::{FactorizationExt, LinearSolverExt, backend_by_name};
 
@@ -11,12 +13,22 @@ fn rectangle() -> (Polygon, fibfluid_assembly::System) {
     let s: Vec<[f64; 3]> = poly.vertex_area_vectors().iter().map(|v| [v[0], v[1], 0.0]).collect();
     let fibers = FiberSet::all(4);
     let edges = poly.edges();
-    let body = Body { axes: 2, positions: &pos, vertex_areas: &s, edges: &edges, fibers: &fibers, rest_positions: None };
+    let body = Body {
+        axes: 2,
+        positions: &pos,
+        vertex_areas: &s,
+        edges: &edges,
+        fibers: &fibers,
+        rest_positions: None,
+    };
     let material = Material { young: [360.0; 3], surface_tension: 0.0, density: 0.0, ..Material::default() };
     let mut c = Constraints::new(4);
     c.fix(2, [true, true, false]).unwrap(); // lower left: x and y
     c.fix(1, [false, true, false]).unwrap(); // lower right: y only
-    let opts = AssemblyOptions { method: ConstraintMethod::Penalty { big: 1e9 }, pressure_scaling: PressureScaling::None };
+    let opts = AssemblyOptions {
+        method: ConstraintMethod::Penalty { big: 1e9 },
+        pressure_scaling: PressureScaling::None,
+    };
     let sys = assemble(&body, &material, &c, &opts).unwrap();
     (poly, sys)
 }
@@ -47,7 +59,12 @@ fn rectangle_matrix_is_the_papers_eq8() {
         for j in 0..9 {
             // 1e-12 relative: the entries are sums of a few rounded terms.
             let tol = 1e-12 * EQ8[i][j].abs().max(1.0);
-            assert!((a[(i, j)] - EQ8[i][j]).abs() <= tol, "entry ({i}, {j}) = {} expected {}", a[(i, j)], EQ8[i][j]);
+            assert!(
+                (a[(i, j)] - EQ8[i][j]).abs() <= tol,
+                "entry ({i}, {j}) = {} expected {}",
+                a[(i, j)],
+                EQ8[i][j]
+            );
         }
     }
 }
@@ -67,8 +84,16 @@ fn rectangle_solution_matches_the_paper() {
         // Paper: u_x = -4 on the right corners, u_y = 16/3 on the upper corners, P = 32.
         // The penalty leaves the fixed dofs at O(F / big) = 1.7e-6, which shifts the rest by as much.
         let tol = 4.0 * 1680.0 / 1e9;
-        assert!((u[0][0] + 4.0).abs() < tol && (u[1][0] + 4.0).abs() < tol, "{name}: u_x right = {:?}", (u[0][0], u[1][0]));
-        assert!((u[0][1] - 16.0 / 3.0).abs() < tol && (u[3][1] - 16.0 / 3.0).abs() < tol, "{name}: u_y top {:?}", (u[0][1], u[3][1], u[1][1], u[2][1]));
+        assert!(
+            (u[0][0] + 4.0).abs() < tol && (u[1][0] + 4.0).abs() < tol,
+            "{name}: u_x right = {:?}",
+            (u[0][0], u[1][0])
+        );
+        assert!(
+            (u[0][1] - 16.0 / 3.0).abs() < tol && (u[3][1] - 16.0 / 3.0).abs() < tol,
+            "{name}: u_y top {:?}",
+            (u[0][1], u[3][1], u[1][1], u[2][1])
+        );
         assert!((p - 32.0).abs() < 1e-5, "{name}: P = {p}");
         let vol_row: f64 = (0..4).map(|i| s[i][0] * u[i][0] + s[i][1] * u[i][1]).sum();
         assert!(vol_row.abs() < 1e-9, "{name}: volume row {vol_row}");
@@ -82,12 +107,20 @@ fn rectangle_eliminate_gives_exact_fixed_dofs() {
     let s: Vec<[f64; 3]> = poly.vertex_area_vectors().iter().map(|v| [v[0], v[1], 0.0]).collect();
     let fibers = FiberSet::all(4);
     let edges = poly.edges();
-    let body = Body { axes: 2, positions: &pos, vertex_areas: &s, edges: &edges, fibers: &fibers, rest_positions: None };
+    let body = Body {
+        axes: 2,
+        positions: &pos,
+        vertex_areas: &s,
+        edges: &edges,
+        fibers: &fibers,
+        rest_positions: None,
+    };
     let material = Material { young: [360.0; 3], surface_tension: 0.0, density: 0.0, ..Material::default() };
     let mut c = Constraints::new(4);
     c.fix(2, [true, true, false]).unwrap();
     c.fix(1, [false, true, false]).unwrap();
-    let opts = AssemblyOptions { method: ConstraintMethod::Eliminate, pressure_scaling: PressureScaling::Auto };
+    let opts =
+        AssemblyOptions { method: ConstraintMethod::Eliminate, pressure_scaling: PressureScaling::Auto };
     let sys = assemble(&body, &material, &c, &opts).unwrap();
     let b = load_vector(2, &pos, &s, &[(0, [0.0, 1680.0, 0.0]), (3, [0.0, 1680.0, 0.0])], [0.0; 3], 0.0);
     let f = backend_by_name("structured").unwrap().factorize_default(&sys.matrix).unwrap();

@@ -124,7 +124,8 @@ struct Overrides {
 
 impl Overrides {
     fn apply(&self, scene: &mut Scene) -> Result<(), Error> {
-        let bad = |what: &str, v: &str, ok: &str| Error::Invalid(format!("--{what}: `{v}` is not one of {ok}"));
+        let bad =
+            |what: &str, v: &str, ok: &str| Error::Invalid(format!("--{what}: `{v}` is not one of {ok}"));
         if let Some(b) = &self.backend {
             fibfluid::linalg::backend_by_name(b)?;
             scene.solver.backend = b.clone();
@@ -220,7 +221,9 @@ fn run(command: Command) -> Result<(), Error> {
         Command::Run { scene, out, over } => run_scene(&scene, &out, &over),
         Command::Roundtrip { scene, over, json } => roundtrip(&scene, &over, json),
         Command::Bench { sizes, json } => bench(&sizes, json),
-        Command::Accuracy { scene, out, steps, backends, modes } => accuracy::run(&scene, &out, &steps, backends, modes),
+        Command::Accuracy { scene, out, steps, backends, modes } => {
+            accuracy::run(&scene, &out, &steps, backends, modes)
+        }
     }
 }
 
@@ -243,8 +246,11 @@ fn mesh_info(path: &Path, json: bool, fibers_out: Option<&Path>) -> Result<(), E
     let area = mesh.area();
     let s_sum: f64 = mesh.vertex_area_vectors().iter().map(|s| fibfluid::geometry::vec3::norm(*s)).sum();
     if let Some(out) = fibers_out {
-        let mut f = std::io::BufWriter::new(std::fs::File::create(out).map_err(|source| Error::Io { path: out.into(), source })?);
-        fibfluid::write_fibers_vtk(&mut f, mesh.positions(), &fibers).map_err(|source| Error::Io { path: out.into(), source })?;
+        let mut f = std::io::BufWriter::new(
+            std::fs::File::create(out).map_err(|source| Error::Io { path: out.into(), source })?,
+        );
+        fibfluid::write_fibers_vtk(&mut f, mesh.positions(), &fibers)
+            .map_err(|source| Error::Io { path: out.into(), source })?;
         std::io::Write::flush(&mut f).map_err(|source| Error::Io { path: out.into(), source })?;
     }
     if json {
@@ -275,10 +281,16 @@ fn mesh_info(path: &Path, json: bool, fibers_out: Option<&Path>) -> Result<(), E
         println!("  vertices        {} ({} in the file)", mesh.n_vertices(), file.file_vertex_count());
         println!("  faces           {}", mesh.n_faces());
         println!("  closed          yes, genus {}", file.validation.genus);
-        println!("  bounding box    [{:.4}, {:.4}, {:.4}] .. [{:.4}, {:.4}, {:.4}]", lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]);
+        println!(
+            "  bounding box    [{:.4}, {:.4}, {:.4}] .. [{:.4}, {:.4}, {:.4}]",
+            lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+        );
         println!("  area            {area:.6}  (sum |S_i| = {s_sum:.6})");
         println!("  volume          {:.6}", mesh.volume());
-        println!("  convex          {}", if vis.convex { "yes (every fiber kept, no test ran)" } else { "no" });
+        println!(
+            "  convex          {}",
+            if vis.convex { "yes (every fiber kept, no test ran)" } else { "no" }
+        );
         println!(
             "  fibers          {} of {} kept ({:.1} %; exit test removed {}, crossing test {})",
             fibers.kept(),
@@ -299,7 +311,8 @@ fn load_scene(path: &Path, over: &Overrides) -> Result<(Scene, StageRecord), Err
     let start = Instant::now();
     let mut scene = Scene::load(path)?;
     over.apply(&mut scene)?;
-    let rec = StageRecord { name: "load scene and mesh".into(), seconds: start.elapsed().as_secs_f64(), count: 1 };
+    let rec =
+        StageRecord { name: "load scene and mesh".into(), seconds: start.elapsed().as_secs_f64(), count: 1 };
     Ok((scene, rec))
 }
 
@@ -342,16 +355,21 @@ fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), Error> {
 fn roundtrip(path: &Path, over: &Overrides, json: bool) -> Result<(), Error> {
     let (scene, _) = load_scene(path, over)?;
     let steps = scene.steps;
-    let rt = fibfluid::roundtrip(scene, &RunOptions { progress: progress(2 * steps, "round trip").map(|p| {
-        let p2: Arc<dyn Fn(usize, usize) + Send + Sync> = Arc::new({
-            let done = std::sync::atomic::AtomicUsize::new(0);
-            move |_k, _n| {
-                let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-                p(d, 2 * steps);
-            }
-        });
-        p2
-    }) })?;
+    let rt = fibfluid::roundtrip(
+        scene,
+        &RunOptions {
+            progress: progress(2 * steps, "round trip").map(|p| {
+                let p2: Arc<dyn Fn(usize, usize) + Send + Sync> = Arc::new({
+                    let done = std::sync::atomic::AtomicUsize::new(0);
+                    move |_k, _n| {
+                        let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                        p(d, 2 * steps);
+                    }
+                });
+                p2
+            }),
+        },
+    )?;
     if json {
         println!("{}", serde_json::to_string(&rt).map_err(|e| Error::Invalid(e.to_string()))?);
     } else {
@@ -377,7 +395,8 @@ fn bench(sizes: &[usize], json: bool) -> Result<(), Error> {
             return Err(Error::Invalid(format!("--sizes: {n} is out of range (4..20000)")));
         }
         let system = fibfluid::bench::synthetic_system(n, fibfluid::assembly::ConstraintMethod::Eliminate)?;
-        let rhs: Vec<f64> = (0..system.matrix.dim()).map(|i| ((i * 7919) % 1000) as f64 / 1000.0 - 0.5).collect();
+        let rhs: Vec<f64> =
+            (0..system.matrix.dim()).map(|i| ((i * 7919) % 1000) as f64 / 1000.0 - 0.5).collect();
         for backend in fibfluid::linalg::all_backends() {
             let name = backend.name();
             let f = match backend.factorize(&system.matrix, &Default::default()) {
@@ -410,7 +429,10 @@ fn bench(sizes: &[usize], json: bool) -> Result<(), Error> {
     if json {
         println!("{}", serde_json::Value::Array(rows));
     } else {
-        println!("{:<12} {:>6} {:>7} {:>12} {:>12} {:>9} {:>10}", "backend", "N", "dim", "factor s", "solve s", "GFLOP/s", "MiB");
+        println!(
+            "{:<12} {:>6} {:>7} {:>12} {:>12} {:>9} {:>10}",
+            "backend", "N", "dim", "factor s", "solve s", "GFLOP/s", "MiB"
+        );
         for r in rows {
             println!(
                 "{:<12} {:>6} {:>7} {:>12.5} {:>12.6} {:>9.2} {:>10.1}",

@@ -85,7 +85,14 @@ impl TriangleBvh {
     }
 }
 
-fn build(nodes: &mut Vec<Node>, at: usize, items: &mut [u32], offset: usize, boxes: &[(Vec3, Vec3)], pad: f64) {
+fn build(
+    nodes: &mut Vec<Node>,
+    at: usize,
+    items: &mut [u32],
+    offset: usize,
+    boxes: &[(Vec3, Vec3)],
+    pad: f64,
+) {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
     let mut clo = [f64::INFINITY; 3];

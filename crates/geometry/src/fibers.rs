@@ -97,7 +97,8 @@ impl FiberSet {
 
     /// Iterates over the kept pairs (i, j), i < j.
     pub fn pairs(&self) -> impl Iterator<Item = (usize, usize)> + '_ {
-        (0..self.n).flat_map(move |i| (i + 1..self.n).filter(move |&j| self.contains(i, j)).map(move |j| (i, j)))
+        (0..self.n)
+            .flat_map(move |i| (i + 1..self.n).filter(move |&j| self.contains(i, j)).map(move |j| (i, j)))
     }
 }
 
@@ -119,7 +120,11 @@ pub struct VisibilityOptions {
 
 impl Default for VisibilityOptions {
     fn default() -> Self {
-        Self { convexity_tolerance: crate::mesh::CONVEXITY_TOLERANCE, exit_tolerance: EXIT_TOLERANCE, force_tests: false }
+        Self {
+            convexity_tolerance: crate::mesh::CONVEXITY_TOLERANCE,
+            exit_tolerance: EXIT_TOLERANCE,
+            force_tests: false,
+        }
     }
 }
 
@@ -141,7 +146,8 @@ pub fn cull_fibers(mesh: &TriMesh, opts: &VisibilityOptions) -> (FiberSet, Visib
     let start = Instant::now();
     let n = mesh.n_vertices();
     if !opts.force_tests && mesh.is_convex_eps(opts.convexity_tolerance) {
-        let report = VisibilityReport { convex: true, seconds: start.elapsed().as_secs_f64(), ..Default::default() };
+        let report =
+            VisibilityReport { convex: true, seconds: start.elapsed().as_secs_f64(), ..Default::default() };
         return (FiberSet::all(n), report);
     }
     let pos = mesh.positions();
@@ -173,7 +179,8 @@ pub fn cull_fibers(mesh: &TriMesh, opts: &VisibilityOptions) -> (FiberSet, Visib
                     if t.contains(&(i as u32)) || t.contains(&(j as u32)) {
                         return false;
                     }
-                    segment_triangle(p, q, pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize]).removes_fiber()
+                    segment_triangle(p, q, pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize])
+                        .removes_fiber()
                 });
                 if crosses {
                     cr += 1;
@@ -188,7 +195,12 @@ pub fn cull_fibers(mesh: &TriMesh, opts: &VisibilityOptions) -> (FiberSet, Visib
     let removed_by_crossing = rows.iter().map(|r| r.2).sum();
     let kept_rows: Vec<Vec<u32>> = rows.into_iter().map(|r| r.0).collect();
     let set = FiberSet::from_rows(n, &kept_rows);
-    let report = VisibilityReport { convex: false, removed_by_exit, removed_by_crossing, seconds: start.elapsed().as_secs_f64() };
+    let report = VisibilityReport {
+        convex: false,
+        removed_by_exit,
+        removed_by_crossing,
+        seconds: start.elapsed().as_secs_f64(),
+    };
     (set, report)
 }
 
@@ -199,7 +211,8 @@ pub fn crosses_surface_brute_force(mesh: &TriMesh, i: usize, j: usize) -> bool {
     mesh.triangles().iter().any(|t| {
         !t.contains(&(i as u32))
             && !t.contains(&(j as u32))
-            && segment_triangle(pos[i], pos[j], pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize]).removes_fiber()
+            && segment_triangle(pos[i], pos[j], pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize])
+                .removes_fiber()
     })
 }
 
@@ -219,7 +232,13 @@ pub fn self_intersections(mesh: &TriMesh) -> Vec<(u32, u32)> {
                 bvh.any_on_segment(pos[a as usize], pos[b as usize], |k| {
                     let u = tris[k as usize];
                     if k as usize != f && !u.iter().any(|v| t.contains(v)) {
-                        let c = segment_triangle(pos[a as usize], pos[b as usize], pos[u[0] as usize], pos[u[1] as usize], pos[u[2] as usize]);
+                        let c = segment_triangle(
+                            pos[a as usize],
+                            pos[b as usize],
+                            pos[u[0] as usize],
+                            pos[u[1] as usize],
+                            pos[u[2] as usize],
+                        );
                         if c.removes_fiber() {
                             hits.push(((f as u32).min(k), (f as u32).max(k)));
                         }

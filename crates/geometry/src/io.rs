@@ -67,16 +67,32 @@ pub fn load_mesh(path: impl AsRef<Path>) -> Result<MeshFile> {
     let io = |source| GeometryError::Io { path: path.to_path_buf(), source };
     let meta = std::fs::metadata(path).map_err(io)?;
     if meta.is_dir() {
-        return Err(GeometryError::Parse { path: path.into(), line: 0, message: "is a directory, not a mesh file".into() });
+        return Err(GeometryError::Parse {
+            path: path.into(),
+            line: 0,
+            message: "is a directory, not a mesh file".into(),
+        });
     }
     if meta.len() > MAX_FILE_BYTES {
-        return Err(GeometryError::Parse { path: path.into(), line: 0, message: format!("file is {} bytes, larger than the {} byte limit", meta.len(), MAX_FILE_BYTES) });
+        return Err(GeometryError::Parse {
+            path: path.into(),
+            line: 0,
+            message: format!("file is {} bytes, larger than the {} byte limit", meta.len(), MAX_FILE_BYTES),
+        });
     }
     let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
     let bytes = std::fs::read(path).map_err(io)?;
     let raw = match ext.as_deref() {
-        Some("obj") => parse_obj(&bytes).map_err(|(line, message)| GeometryError::Parse { path: path.into(), line, message })?,
-        Some("stl") => parse_stl(&bytes).map_err(|(line, message)| GeometryError::Parse { path: path.into(), line, message })?,
+        Some("obj") => parse_obj(&bytes).map_err(|(line, message)| GeometryError::Parse {
+            path: path.into(),
+            line,
+            message,
+        })?,
+        Some("stl") => parse_stl(&bytes).map_err(|(line, message)| GeometryError::Parse {
+            path: path.into(),
+            line,
+            message,
+        })?,
         _ => return Err(GeometryError::UnsupportedFormat { path: path.into() }),
     };
     finish(path, raw)
@@ -85,14 +101,22 @@ pub fn load_mesh(path: impl AsRef<Path>) -> Result<MeshFile> {
 /// Parses OBJ text already in memory (`path` only names it in errors).
 pub fn read_obj_bytes(path: impl AsRef<Path>, bytes: &[u8]) -> Result<MeshFile> {
     let path = path.as_ref();
-    let raw = parse_obj(bytes).map_err(|(line, message)| GeometryError::Parse { path: path.into(), line, message })?;
+    let raw = parse_obj(bytes).map_err(|(line, message)| GeometryError::Parse {
+        path: path.into(),
+        line,
+        message,
+    })?;
     finish(path, raw)
 }
 
 /// Parses STL bytes already in memory (`path` only names it in errors).
 pub fn read_stl_bytes(path: impl AsRef<Path>, bytes: &[u8]) -> Result<MeshFile> {
     let path = path.as_ref();
-    let raw = parse_stl(bytes).map_err(|(line, message)| GeometryError::Parse { path: path.into(), line, message })?;
+    let raw = parse_stl(bytes).map_err(|(line, message)| GeometryError::Parse {
+        path: path.into(),
+        line,
+        message,
+    })?;
     finish(path, raw)
 }
 
@@ -130,10 +154,14 @@ fn finish(path: &Path, raw: RawMesh) -> Result<MeshFile> {
         notes.push(format!("{dropped} unreferenced vertices dropped (outputs keep the file's vertex order)"));
     }
     let tris = triangles.iter().map(|t| t.map(|v| new_index[v as usize])).collect();
-    let mut mesh = TriMesh::new(compact, tris).map_err(|e| match e {
-        MeshError::NonFiniteVertex { vertex } => MeshError::NonFiniteVertex { vertex: to_file[vertex] as usize },
-        other => other,
-    }).map_err(mesh_err)?;
+    let mut mesh = TriMesh::new(compact, tris)
+        .map_err(|e| match e {
+            MeshError::NonFiniteVertex { vertex } => {
+                MeshError::NonFiniteVertex { vertex: to_file[vertex] as usize }
+            }
+            other => other,
+        })
+        .map_err(mesh_err)?;
     let validation = mesh.validate().map_err(|e| mesh_err(to_file_indices(e, &to_file)))?;
     notes.extend(validation.warnings.iter().cloned());
     Ok(MeshFile { path: path.to_path_buf(), mesh, file_positions: positions, to_file, validation, notes })
@@ -144,9 +172,13 @@ fn to_file_indices(e: MeshError, to_file: &[u32]) -> MeshError {
     let f = |v: u32| to_file.get(v as usize).copied().unwrap_or(v);
     match e {
         MeshError::NonManifoldEdge { a, b, faces } => MeshError::NonManifoldEdge { a: f(a), b: f(b), faces },
-        MeshError::NonManifoldVertex { vertex, fans } => MeshError::NonManifoldVertex { vertex: f(vertex), fans },
+        MeshError::NonManifoldVertex { vertex, fans } => {
+            MeshError::NonManifoldVertex { vertex: f(vertex), fans }
+        }
         MeshError::OpenBoundary { count, a, b } => MeshError::OpenBoundary { count, a: f(a), b: f(b) },
-        MeshError::InconsistentOrientation { a, b } => MeshError::InconsistentOrientation { a: f(a), b: f(b) },
+        MeshError::InconsistentOrientation { a, b } => {
+            MeshError::InconsistentOrientation { a: f(a), b: f(b) }
+        }
         other => other,
     }
 }
@@ -160,7 +192,8 @@ fn parse_obj(bytes: &[u8]) -> ParseResult<RawMesh> {
     let mut skipped_elements = 0usize;
     for (ln, line) in bytes.split(|&b| b == b'\n').enumerate() {
         let lineno = ln + 1;
-        let line = std::str::from_utf8(line).map_err(|_| (lineno, "not a text OBJ file (invalid UTF-8)".to_string()))?;
+        let line = std::str::from_utf8(line)
+            .map_err(|_| (lineno, "not a text OBJ file (invalid UTF-8)".to_string()))?;
         let line = line.split('#').next().unwrap_or("").trim();
         let mut it = line.split_whitespace();
         match it.next() {
@@ -188,7 +221,10 @@ fn parse_obj(bytes: &[u8]) -> ParseResult<RawMesh> {
                         return Err((lineno, "face index 0 (OBJ indices start at 1)".into()));
                     };
                     if resolved < 0 {
-                        return Err((lineno, format!("relative face index {v} points before the first vertex")));
+                        return Err((
+                            lineno,
+                            format!("relative face index {v} points before the first vertex"),
+                        ));
                     }
                     idx.push(resolved);
                 }
@@ -207,7 +243,10 @@ fn parse_obj(bytes: &[u8]) -> ParseResult<RawMesh> {
     let mut triangles = Vec::with_capacity(faces.len());
     for (lineno, idx) in faces {
         if let Some(&bad) = idx.iter().find(|&&v| v as usize >= positions.len()) {
-            return Err((lineno, format!("face refers to vertex {} but the file has {} vertices", bad + 1, positions.len())));
+            return Err((
+                lineno,
+                format!("face refers to vertex {} but the file has {} vertices", bad + 1, positions.len()),
+            ));
         }
         for k in 1..idx.len() - 1 {
             triangles.push([idx[0] as u32, idx[k] as u32, idx[k + 1] as u32]);
@@ -234,7 +273,10 @@ fn parse_stl(bytes: &[u8]) -> ParseResult<RawMesh> {
         let n = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as u64;
         84 + 50 * n == bytes.len() as u64
     };
-    let looks_ascii = bytes.starts_with(b"solid") && std::str::from_utf8(&bytes[..bytes.len().min(1024)]).map(|s| s.contains("facet") || s.contains("endsolid")).unwrap_or(false);
+    let looks_ascii = bytes.starts_with(b"solid")
+        && std::str::from_utf8(&bytes[..bytes.len().min(1024)])
+            .map(|s| s.contains("facet") || s.contains("endsolid"))
+            .unwrap_or(false);
     let mut welder = Welder::default();
     let mut triangles = Vec::new();
     if binary_size_ok && !(looks_ascii && !binary_size_ok) {
@@ -263,7 +305,8 @@ fn parse_stl(bytes: &[u8]) -> ParseResult<RawMesh> {
             if it.next() == Some("vertex") {
                 let mut p = [0.0; 3];
                 for slot in p.iter_mut() {
-                    let tok = it.next().ok_or((ln + 1, "vertex with fewer than 3 coordinates".to_string()))?;
+                    let tok =
+                        it.next().ok_or((ln + 1, "vertex with fewer than 3 coordinates".to_string()))?;
                     *slot = tok.parse().map_err(|_| (ln + 1, format!("bad coordinate `{tok}`")))?;
                 }
                 if p.iter().any(|c: &f64| !c.is_finite()) {
@@ -281,7 +324,14 @@ fn parse_stl(bytes: &[u8]) -> ParseResult<RawMesh> {
         }
     } else if bytes.len() >= 84 {
         let n = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as u64;
-        return Err((0, format!("binary STL header claims {n} triangles ({} bytes) but the file has {} bytes", 84 + 50 * n, bytes.len())));
+        return Err((
+            0,
+            format!(
+                "binary STL header claims {n} triangles ({} bytes) but the file has {} bytes",
+                84 + 50 * n,
+                bytes.len()
+            ),
+        ));
     } else {
         return Err((0, format!("not an STL file ({} bytes, too short for a binary header)", bytes.len())));
     }

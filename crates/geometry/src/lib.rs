@@ -34,8 +34,8 @@ pub use fibers::{
 pub use icosphere::icosphere;
 pub use io::{MAX_FILE_BYTES, MeshFile, load_mesh, read_obj_bytes, read_stl_bytes, write_obj, write_obj_to};
 pub use mesh::{
-    CONVEXITY_TOLERANCE, DEGENERATE_AREA, TriMesh, Validation, bounding_box, face_area_vector, raw_vertex_vectors,
-    vertex_area_vectors, volume,
+    CONVEXITY_TOLERANCE, DEGENERATE_AREA, TriMesh, Validation, bounding_box, face_area_vector,
+    raw_vertex_vectors, vertex_area_vectors, volume,
 };
 pub use polygon::Polygon;
 pub use vec3::Vec3;

@@ -41,7 +41,11 @@ impl TriMesh {
         }
         for (f, t) in triangles.iter().enumerate() {
             if let Some(&i) = t.iter().find(|&&i| i as usize >= positions.len()) {
-                return Err(MeshError::IndexOutOfRange { face: f, index: i as i64, vertices: positions.len() });
+                return Err(MeshError::IndexOutOfRange {
+                    face: f,
+                    index: i as i64,
+                    vertices: positions.len(),
+                });
             }
         }
         Ok(Self { positions, triangles })
@@ -227,7 +231,8 @@ impl TriMesh {
         }
         let used = (0..n).filter(|&v| !adj.faces_of(v).is_empty()).count() as i64;
         let chi = used - n_edges + self.n_faces() as i64;
-        let mut report = Validation { flipped: false, euler_characteristic: chi, genus: (2 - chi) / 2, warnings: vec![] };
+        let mut report =
+            Validation { flipped: false, euler_characteristic: chi, genus: (2 - chi) / 2, warnings: vec![] };
         let vol = self.volume();
         if vol == 0.0 || !vol.is_finite() {
             return Err(MeshError::ZeroVolume);
@@ -275,7 +280,8 @@ pub fn face_area_vector(c: [Vec3; 3]) -> Vec3 {
 pub fn raw_vertex_vectors(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
     let mut r = vec![[0.0; 3]; positions.len()];
     for t in triangles {
-        let a = face_area_vector([positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize]]);
+        let a =
+            face_area_vector([positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize]]);
         for &v in t {
             let rv = &mut r[v as usize];
             rv[0] += a[0];
@@ -291,7 +297,13 @@ pub fn vertex_area_vectors(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Ve
     let r = raw_vertex_vectors(positions, triangles);
     let face_sum: f64 = triangles
         .iter()
-        .map(|t| norm(face_area_vector([positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize]])))
+        .map(|t| {
+            norm(face_area_vector([
+                positions[t[0] as usize],
+                positions[t[1] as usize],
+                positions[t[2] as usize],
+            ]))
+        })
         .sum();
     let raw_sum: f64 = r.iter().map(|v| norm(*v)).sum();
     let c = if raw_sum > 0.0 { face_sum / raw_sum } else { 0.0 };

@@ -54,10 +54,12 @@ impl Polygon {
     pub fn vertex_area_vectors(&self) -> Vec<[f64; 2]> {
         let n = self.points.len();
         let a = self.edge_area_vectors();
-        let r: Vec<[f64; 2]> = (0..n).map(|i| {
-            let (p, q) = (a[(i + n - 1) % n], a[i]);
-            [p[0] + q[0], p[1] + q[1]]
-        }).collect();
+        let r: Vec<[f64; 2]> = (0..n)
+            .map(|i| {
+                let (p, q) = (a[(i + n - 1) % n], a[i]);
+                [p[0] + q[0], p[1] + q[1]]
+            })
+            .collect();
         let len = |v: [f64; 2]| v[0].hypot(v[1]);
         let c = a.iter().map(|v| len(*v)).sum::<f64>() / r.iter().map(|v| len(*v)).sum::<f64>();
         r.into_iter().map(|v| [c * v[0], c * v[1]]).collect()
@@ -66,10 +68,12 @@ impl Polygon {
     /// Edges (i, i+1) as vertex pairs with the lower index first.
     pub fn edges(&self) -> Vec<[u32; 2]> {
         let n = self.points.len() as u32;
-        (0..n).map(|i| {
-            let j = (i + 1) % n;
-            [i.min(j), i.max(j)]
-        }).collect()
+        (0..n)
+            .map(|i| {
+                let j = (i + 1) % n;
+                [i.min(j), i.max(j)]
+            })
+            .collect()
     }
 
     /// Positions lifted to 3D (z = 0).

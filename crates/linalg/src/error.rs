@@ -12,7 +12,9 @@ pub enum LinalgError {
         pivot: f64,
     },
     /// A stiffness block is not positive definite (structured backend).
-    #[error("stiffness block {axis} is not positive definite at vertex {index} (fix at least one vertex along every axis)")]
+    #[error(
+        "stiffness block {axis} is not positive definite at vertex {index} (fix at least one vertex along every axis)"
+    )]
     NotPositiveDefinite {
         /// Axis of the block (0 = x).
         axis: usize,
@@ -64,7 +66,9 @@ pub enum LinalgError {
         available: String,
     },
     /// The dense matrix would not fit in memory.
-    #[error("the dense {dim} x {dim} matrix needs {gib:.1} GiB, more than the {limit_gib:.1} GiB allowed; use the `structured` backend")]
+    #[error(
+        "the dense {dim} x {dim} matrix needs {gib:.1} GiB, more than the {limit_gib:.1} GiB allowed; use the `structured` backend"
+    )]
     TooLarge {
         /// System size.
         dim: usize,

@@ -41,6 +41,7 @@ mod nalgebra_lu;
 #[cfg(feature = "openblas")]
 mod openblas_lu;
 
+pub use dense::{DENSE_MEMORY_FRACTION, available_memory_bytes};
 pub use error::{LinalgError, Result};
 pub use matrix::{Blocks, BorderedMatrix};
 pub use solver::{
@@ -48,7 +49,6 @@ pub use solver::{
     FactorizationExt, LinearSolver, LinearSolverExt, Precision, Solution,
 };
 pub use structured::Structured;
-pub use dense::{DENSE_MEMORY_FRACTION, available_memory_bytes};
 
 #[cfg(feature = "faer-lu")]
 pub use faer_lu::FaerLu;
@@ -90,10 +90,9 @@ pub fn backend_by_name(name: &str) -> Result<Box<dyn LinearSolver>> {
         "nalgebra-lu" => Ok(Box::new(NalgebraLu)),
         #[cfg(feature = "openblas")]
         "openblas-lu" => Ok(Box::new(OpenblasLu)),
-        _ => Err(LinalgError::UnknownBackend {
-            name: name.to_string(),
-            available: backend_names().join(", "),
-        }),
+        _ => {
+            Err(LinalgError::UnknownBackend { name: name.to_string(), available: backend_names().join(", ") })
+        }
     }
 }
 

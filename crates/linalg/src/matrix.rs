@@ -54,10 +54,8 @@ impl BorderedMatrix {
                 assert!(ks.iter().all(|k| k.nrows() == n && k.ncols() == n), "block shape");
             }
         }
-        let border = border
-            .into_iter()
-            .map(|b| b.into_iter().map(|v| v * pressure_scale).collect())
-            .collect();
+        let border =
+            border.into_iter().map(|b| b.into_iter().map(|v| v * pressure_scale).collect()).collect();
         Self { n, blocks, border, pressure_scale }
     }
 

@@ -215,10 +215,7 @@ pub(crate) fn inf_norm(v: &[f64]) -> f64 {
 pub(crate) const PIVOT_TOLERANCE_FACTOR: f64 = 1.0;
 
 /// Checks LU or Cholesky pivots against their column scale; returns the first bad index.
-pub(crate) fn check_pivots(
-    a: &BorderedMatrix,
-    pivots: impl Iterator<Item = (usize, f64)>,
-) -> Result<()> {
+pub(crate) fn check_pivots(a: &BorderedMatrix, pivots: impl Iterator<Item = (usize, f64)>) -> Result<()> {
     let n = a.dim() as f64;
     for (i, p) in pivots {
         if !p.is_finite() {
@@ -233,9 +230,5 @@ pub(crate) fn check_pivots(
 }
 
 pub(crate) fn ensure_supported(backend: &'static str, supported: bool, p: Precision) -> Result<()> {
-    if supported {
-        Ok(())
-    } else {
-        Err(LinalgError::UnsupportedPrecision { backend, precision: p.name() })
-    }
+    if supported { Ok(()) } else { Err(LinalgError::UnsupportedPrecision { backend, precision: p.name() }) }
 }

@@ -7,8 +7,8 @@ use faer::{Mat, Side};
 
 use crate::solver::inf_norm;
 use crate::{
-    BorderedMatrix, FactorCost, FactorOptions, Factorization, LinalgError, LinearSolver, Precision,
-    Result, cholesky_flops,
+    BorderedMatrix, FactorCost, FactorOptions, Factorization, LinalgError, LinearSolver, Precision, Result,
+    cholesky_flops,
 };
 
 /// Never forms the dense matrix. Each stiffness block `K_c` is factored by Cholesky (one

@@ -9,11 +9,7 @@
 /// yet, rayon's global pool. Returns false when rayon's pool already existed.
 pub fn set_threads(n: usize) -> bool {
     let n = n.max(1);
-    faer::set_global_parallelism(if n == 1 {
-        faer::Par::Seq
-    } else {
-        faer::Par::rayon(n)
-    });
+    faer::set_global_parallelism(if n == 1 { faer::Par::Seq } else { faer::Par::rayon(n) });
     rayon::ThreadPoolBuilder::new().num_threads(n).build_global().is_ok()
 }
 

@@ -1,0 +1,137 @@
+//! LAPACK LU (getrf/getrs) through ndarray-linalg's LAPACK layer, linked to the system
+//! OpenBLAS (feature `openblas`; Debian: `libopenblas-dev`).
+//!
+//! The factorization goes through `lax` (the crate under ndarray-linalg that wraps LAPACK)
+//! rather than ndarray-linalg's `LUFactorized`, because the latter keeps the factors
+//! private and the pivots must be checked to name a singular one.
+
+use std::time::Instant;
+
+use lax::layout::MatrixLayout;
+use lax::{Lapack, Pivot, Transpose};
+
+use crate::dense::{check_dense_memory, dense_lu_cost};
+use crate::solver::check_pivots;
+use crate::{
+    BorderedMatrix, FactorCost, FactorOptions, Factorization, LinalgError, LinearSolver, Precision, Result,
+};
+
+// ndarray-linalg is what selects and links the LAPACK implementation (openblas-system).
+use ndarray_linalg as _;
+
+/// Dense LU from LAPACK (OpenBLAS's getrf/getrs).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct OpenblasLu;
+
+enum Lu {
+    F64(Vec<f64>, Pivot),
+    F32(Vec<f32>, Pivot),
+}
+
+struct OpenblasFactorization {
+    matrix: BorderedMatrix,
+    opts: FactorOptions,
+    lu: Lu,
+    cost: FactorCost,
+}
+
+impl LinearSolver for OpenblasLu {
+    fn name(&self) -> &'static str {
+        "openblas-lu"
+    }
+
+    fn supports(&self, _precision: Precision) -> bool {
+        true
+    }
+
+    fn factorize(&self, a: &BorderedMatrix, opts: &FactorOptions) -> Result<Box<dyn Factorization>> {
+        let (lu, cost) = factor(a, opts.precision)?;
+        Ok(Box::new(OpenblasFactorization { matrix: a.clone(), opts: *opts, lu, cost }))
+    }
+}
+
+fn layout(dim: usize) -> MatrixLayout {
+    MatrixLayout::F { col: dim as i32, lda: dim as i32 }
+}
+
+fn lapack_err(e: lax::error::Error, dim: usize) -> LinalgError {
+    match e {
+        lax::error::Error::LapackComputationalFailure { return_code } if return_code > 0 => {
+            LinalgError::SingularPivot { index: (return_code as usize - 1).min(dim - 1), pivot: 0.0 }
+        }
+        other => LinalgError::Lapack(other.to_string()),
+    }
+}
+
+fn factor(a: &BorderedMatrix, precision: Precision) -> Result<(Lu, FactorCost)> {
+    a.check_finite()?;
+    let dim = a.dim();
+    check_dense_memory(dim, 2)?;
+    let start = Instant::now();
+    let dense = a.to_dense();
+    // Column-major copy.
+    let lu = match precision {
+        Precision::F64 => {
+            let mut buf: Vec<f64> = (0..dim * dim).map(|k| dense[(k % dim, k / dim)]).collect();
+            drop(dense);
+            let piv = f64::lu(layout(dim), &mut buf).map_err(|e| lapack_err(e, dim))?;
+            check_pivots(a, (0..dim).map(|i| (i, buf[i * dim + i])))?;
+            Lu::F64(buf, piv)
+        }
+        Precision::Mixed => {
+            let mut buf: Vec<f32> = (0..dim * dim).map(|k| dense[(k % dim, k / dim)] as f32).collect();
+            drop(dense);
+            let piv = f32::lu(layout(dim), &mut buf).map_err(|e| lapack_err(e, dim))?;
+            check_pivots(a, (0..dim).map(|i| (i, buf[i * dim + i] as f64)))?;
+            Lu::F32(buf, piv)
+        }
+    };
+    let word = if precision == Precision::F64 { 8 } else { 4 };
+    Ok((lu, dense_lu_cost(dim, start.elapsed().as_secs_f64(), word)))
+}
+
+impl Factorization for OpenblasFactorization {
+    fn backend(&self) -> &'static str {
+        "openblas-lu"
+    }
+
+    fn matrix(&self) -> &BorderedMatrix {
+        &self.matrix
+    }
+
+    fn options(&self) -> &FactorOptions {
+        &self.opts
+    }
+
+    fn cost(&self) -> FactorCost {
+        self.cost
+    }
+
+    fn solve_unrefined(&self, rhs: &mut [f64]) {
+        let dim = rhs.len();
+        match &self.lu {
+            Lu::F64(buf, piv) => {
+                // getrs only fails on argument errors, which the shapes rule out; a failure
+                // leaves NaN so the checked solve reports it.
+                if f64::solve(layout(dim), Transpose::No, buf, piv, rhs).is_err() {
+                    rhs.iter_mut().for_each(|v| *v = f64::NAN);
+                }
+            }
+            Lu::F32(buf, piv) => {
+                let mut b: Vec<f32> = rhs.iter().map(|v| *v as f32).collect();
+                if f32::solve(layout(dim), Transpose::No, buf, piv, &mut b).is_err() {
+                    b.iter_mut().for_each(|v| *v = f32::NAN);
+                }
+                rhs.iter_mut().zip(&b).for_each(|(d, s)| *d = *s as f64);
+            }
+        }
+    }
+
+    fn set_border(&mut self, border: &[Vec<f64>]) -> Result<FactorCost> {
+        self.matrix.set_border(border);
+        let (lu, cost) = factor(&self.matrix, self.opts.precision)?;
+        self.lu = lu;
+        self.cost = cost;
+        Ok(cost)
+    }
+}
