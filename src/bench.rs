@@ -7,6 +7,23 @@ use fibfluid_geometry::{FiberSet, Vec3};
 
 use crate::Result;
 
+/// Environment variable read by [`pin_threads`].
+pub const THREADS_ENV: &str = "FIBFLUID_THREADS";
+
+/// Pins faer's and rayon's thread count for a bench process: the value of
+/// `FIBFLUID_THREADS` if it is set to a positive integer, else every core the process may
+/// use. Returns the count. Call it before anything builds rayon's global pool. OpenBLAS is
+/// not affected: it reads `OPENBLAS_NUM_THREADS` itself when the library loads.
+pub fn pin_threads() -> usize {
+    let n = std::env::var(THREADS_ENV)
+        .ok()
+        .and_then(|v| v.trim().parse::<usize>().ok())
+        .filter(|&n| n > 0)
+        .unwrap_or_else(|| std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1));
+    fibfluid_linalg::threads::set_threads(n);
+    n
+}
+
 /// `n` points spread evenly over the unit sphere (Fibonacci lattice), y up.
 pub fn fibonacci_sphere(n: usize) -> Vec<Vec3> {
     let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());

@@ -20,6 +20,7 @@
 //! Linear backends are chosen at build time by Cargo features (`faer-lu`, `nalgebra-lu`
 //! by default, `openblas`) and at run time by name (`structured`, always built).
 
+pub mod accuracy;
 pub mod bench;
 mod error;
 mod output;
@@ -29,7 +30,9 @@ mod simulate;
 pub mod stages;
 
 pub use error::{Error, Result};
-pub use output::{OUTPUT_FILES, render_png, write_fibers_vtk, write_outputs, write_vtk};
+pub use output::{
+    OUTPUT_FILES, render_png, write_fibers_vtk, write_files_atomically, write_outputs, write_vtk,
+};
 pub use report::{Report, RoundTrip, roundtrip, roundtrip_error};
 pub use scene::{ForceTiming, Mode, PointForce, Scene, Shape, SolverOptions, Stepping};
 pub use simulate::{Direction, RunOptions, Simulation};

@@ -100,10 +100,47 @@ pub fn render_png(sim: &Simulation) -> Result<Vec<u8>> {
     Ok(fibfluid_render::render_surfaces(&panels, None, &opts)?)
 }
 
-/// Writes every output of a run into `dir` atomically: files go to a fresh temporary
-/// directory beside `dir` first and are moved in only when all of them were written, so a
-/// failure leaves `dir` (and any file the user had there) untouched.
+/// Writes every output of a run into `dir` (see [`write_files_atomically`]).
 pub fn write_outputs(dir: &Path, sim: &Simulation, report: &Report) -> Result<Vec<PathBuf>> {
+    let tris_out;
+    let (positions, triangles): (Vec<Vec3>, &[[u32; 3]]) = match &sim.scene().shape {
+        Shape::Surface(m) => {
+            tris_out = m.triangles_in_file_order();
+            (m.positions_in_file_order(sim.positions()), &tris_out)
+        }
+        Shape::Polygon(_) => {
+            tris_out = triangles_of(sim);
+            (sim.positions().to_vec(), &tris_out)
+        }
+    };
+    let rest_file: Vec<Vec3> = match &sim.scene().shape {
+        Shape::Surface(m) => m.positions_in_file_order(sim.rest_positions()),
+        Shape::Polygon(_) => sim.rest_positions().to_vec(),
+    };
+    let disp: Vec<Vec3> =
+        positions.iter().zip(&rest_file).map(|(p, r)| [p[0] - r[0], p[1] - r[1], p[2] - r[2]]).collect();
+    let mem = |e: std::io::Error| Error::Invalid(e.to_string());
+    let mut obj = Vec::new();
+    fibfluid_geometry::write_obj_to(&mut obj, &positions, triangles).map_err(mem)?;
+    let mut vtk = Vec::new();
+    write_vtk(&mut vtk, &format!("fibfluid {}", sim.scene().name), &positions, triangles, &disp)
+        .map_err(mem)?;
+    let json = serde_json::to_string_pretty(report).map_err(|e| Error::Invalid(e.to_string()))? + "\n";
+    let png = render_png(sim)?;
+    let files = [
+        (OUTPUT_FILES[0], obj),
+        (OUTPUT_FILES[1], vtk),
+        (OUTPUT_FILES[2], json.into_bytes()),
+        (OUTPUT_FILES[3], png),
+    ];
+    write_files_atomically(dir, &files)
+}
+
+/// Writes named files into `dir` all or nothing: they go to a fresh temporary directory
+/// beside `dir` first and are moved in only when every one was written, so a failure
+/// leaves `dir` (and any file the user had there) untouched. Files of the same names are
+/// replaced; other files in `dir` are left alone.
+pub fn write_files_atomically(dir: &Path, files: &[(&str, Vec<u8>)]) -> Result<Vec<PathBuf>> {
     let io = |path: &Path| {
         let path = path.to_path_buf();
         move |source| Error::Io { path, source }
@@ -115,48 +152,31 @@ pub fn write_outputs(dir: &Path, sim: &Simulation, report: &Report) -> Result<Ve
     if dir.exists() && !dir.is_dir() {
         return Err(Error::Invalid(format!("{}: exists and is not a directory", dir.display())));
     }
+    // A directory in the way of one output would stop the moves half-way: refuse up front.
+    if let Some(blocked) = OUTPUT_FILES.iter().map(|name| dir.join(name)).find(|p| p.is_dir()) {
+        return Err(Error::Invalid(format!(
+            "{}: is a directory, where an output file would go (nothing was written)",
+            blocked.display()
+        )));
+    }
     std::fs::create_dir_all(&parent).map_err(io(&parent))?;
     let tmp = parent.join(format!(".fibfluid-tmp-{}-{}", std::process::id(), nanos()));
     std::fs::create_dir(&tmp).map_err(io(&tmp))?;
     let result = (|| -> Result<()> {
-        let tris_out;
-        let (positions, triangles): (Vec<Vec3>, &[[u32; 3]]) = match &sim.scene().shape {
-            Shape::Surface(m) => {
-                tris_out = m.triangles_in_file_order();
-                (m.positions_in_file_order(sim.positions()), &tris_out)
-            }
-            Shape::Polygon(_) => {
-                tris_out = triangles_of(sim);
-                (sim.positions().to_vec(), &tris_out)
-            }
-        };
-        let rest_file: Vec<Vec3> = match &sim.scene().shape {
-            Shape::Surface(m) => m.positions_in_file_order(sim.rest_positions()),
-            Shape::Polygon(_) => sim.rest_positions().to_vec(),
-        };
-        let disp: Vec<Vec3> =
-            positions.iter().zip(&rest_file).map(|(p, r)| [p[0] - r[0], p[1] - r[1], p[2] - r[2]]).collect();
-        let p = tmp.join("deformed.obj");
-        fibfluid_geometry::write_obj(&p, &positions, triangles)?;
-        let p = tmp.join("deformed.vtk");
-        let mut f = std::io::BufWriter::new(std::fs::File::create(&p).map_err(io(&p))?);
-        write_vtk(&mut f, &format!("fibfluid {}", sim.scene().name), &positions, triangles, &disp)
-            .map_err(io(&p))?;
-        f.flush().map_err(io(&p))?;
-        let p = tmp.join("report.json");
-        let json = serde_json::to_string_pretty(report).map_err(|e| Error::Invalid(e.to_string()))?;
-        std::fs::write(&p, json + "\n").map_err(io(&p))?;
-        let p = tmp.join("render.png");
-        std::fs::write(&p, render_png(sim)?).map_err(io(&p))?;
-        Ok(())
+        for (name, bytes) in files {
+            let p = tmp.join(name);
+            let mut f = std::fs::File::create(&p).map_err(io(&p))?;
+            f.write_all(bytes).map_err(io(&p))?;
+            f.sync_all().map_err(io(&p))?;
+        }
+        std::fs::create_dir_all(dir).map_err(io(dir))
     })();
     if let Err(e) = result {
         let _ = std::fs::remove_dir_all(&tmp);
         return Err(e);
     }
-    std::fs::create_dir_all(dir).map_err(io(dir))?;
     let mut written = Vec::new();
-    for name in OUTPUT_FILES {
+    for (name, _) in files {
         let (from, to) = (tmp.join(name), dir.join(name));
         if let Err(source) = std::fs::rename(&from, &to) {
             let _ = std::fs::remove_dir_all(&tmp);

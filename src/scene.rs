@@ -201,23 +201,83 @@ impl Scene {
         }
         let text = std::fs::read(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
         let text = String::from_utf8(text).map_err(|_| err("not a text file (invalid UTF-8)".into()))?;
-        let spec: SceneToml = toml::from_str(&text).map_err(|e| err(one_line(&e.to_string())))?;
+        let spec: SceneToml = toml::from_str(&text).map_err(|e| err(toml_message(&text, &e)))?;
         let dir = path.parent().unwrap_or(Path::new("."));
         let name = path.file_stem().and_then(|s| s.to_str()).unwrap_or("scene").to_string();
         build(spec, dir, name, path).map_err(|e| match e {
             Error::Invalid(message) => err(message),
+            // A bad mesh file: name the scene and its key too, not only the mesh file.
+            Error::Geometry(g) => err(format!("[mesh].path: {g}")),
             other => other,
         })
     }
 }
 
-fn one_line(s: &str) -> String {
-    // toml errors are multi-line with a source excerpt; keep the position and the message.
-    let lines: Vec<&str> = s.lines().map(str::trim).filter(|l| !l.is_empty()).collect();
-    let head = lines.first().copied().unwrap_or("");
-    let msg = lines.last().copied().unwrap_or("");
-    let msg = msg.trim_start_matches('|').trim().trim_start_matches('^').trim();
-    if head == msg || msg.is_empty() { head.to_string() } else { format!("{head}: {msg}") }
+/// One line for a TOML error: the key it concerns (with its table), what is wrong, and
+/// where (toml's own text is several lines with a source excerpt).
+fn toml_message(text: &str, e: &toml::de::Error) -> String {
+    let msg = e.message().split_whitespace().collect::<Vec<_>>().join(" ");
+    let Some(span) = e.span() else { return msg };
+    if span.start == 0 && span.end >= text.trim_end().len() {
+        return msg; // about the whole document, e.g. a missing top-level table
+    }
+    let before = text.get(..span.start).unwrap_or(text);
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().unwrap_or("").chars().count() + 1;
+    let (table, key) = key_at(text, line);
+    let place = match (table, key) {
+        // The key itself is named by the message; the table is what it lacks.
+        (Some(t), _) if msg.starts_with("unknown field") => format!("{t}: "),
+        (_, _) if msg.starts_with("unknown field") => String::new(),
+        (Some(t), Some(k)) => format!("{t}.{k}: "),
+        (None, Some(k)) => format!("{k}: "),
+        (Some(t), None) => format!("{t}: "),
+        (None, None) => String::new(),
+    };
+    format!("{place}{msg} (line {line}, column {column})")
+}
+
+/// The table (`[load]`, `[[fix]] #2`) and the key whose value covers 1-based `line`,
+/// found by a light scan of the text (good enough to name them in a message).
+fn key_at(text: &str, line: usize) -> (Option<String>, Option<String>) {
+    let (mut table, mut key) = (None, None);
+    let mut arrays: std::collections::HashMap<String, usize> = Default::default();
+    let mut depth = 0i64; // open brackets of a multi-line value
+    for raw in text.lines().take(line) {
+        let l = raw.split('#').next().unwrap_or("").trim();
+        if depth > 0 {
+            depth += bracket_balance(l);
+            continue;
+        }
+        if let Some(name) = l.strip_prefix("[[").and_then(|r| r.strip_suffix("]]")) {
+            let name = name.trim().to_string();
+            let k = arrays.entry(name.clone()).or_insert(0);
+            *k += 1;
+            table = Some(format!("[[{name}]] #{k}"));
+            key = None;
+        } else if let Some(name) = l.strip_prefix('[').and_then(|r| r.strip_suffix(']')) {
+            table = Some(format!("[{}]", name.trim()));
+            key = None;
+        } else if let Some((k, v)) = l.split_once('=') {
+            key = Some(k.trim().to_string());
+            depth = bracket_balance(v).max(0);
+        }
+    }
+    (table, key)
+}
+
+fn bracket_balance(s: &str) -> i64 {
+    s.chars()
+        .map(|c| {
+            if c == '[' {
+                1
+            } else if c == ']' {
+                -1
+            } else {
+                0
+            }
+        })
+        .sum()
 }
 
 #[derive(Deserialize)]
@@ -250,7 +310,7 @@ struct PolygonToml {
 }
 
 #[derive(Deserialize)]
-#[serde(untagged)]
+#[serde(untagged, expecting = "expected a number or an array of three numbers [x, y, z]")]
 enum Young {
     One(f64),
     Three([f64; 3]),

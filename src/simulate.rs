@@ -338,6 +338,9 @@ impl Simulation {
             }
         });
         self.pressure += du.1;
+        if self.scene.solver.mode != Mode::Paper {
+            self.correct_volume()?;
+        }
         Ok(())
     }
 
@@ -357,9 +360,11 @@ impl Simulation {
                 self.system.matrix.set_border(&border);
                 self.factorization.set_border(&border)?;
                 self.log.add(names::BORDER, start.elapsed().as_secs_f64());
+                let start = Instant::now();
+                let target = self.volume_target(s, &areas);
+                self.log.add(names::VOLUME, start.elapsed().as_secs_f64());
                 self.border_areas = areas;
-                let v = self.log.time(names::VOLUME, || volume_of(&self.topology, &self.scene.shape, s));
-                Ok(self.volume0 - v)
+                Ok(target)
             }
             Mode::Nonlinear => {
                 let areas = self.log.time(names::AREAS, || areas_of(&self.topology, &self.scene.shape, s));
@@ -372,11 +377,50 @@ impl Simulation {
                 self.log.add(names::FACTORIZATION, start.elapsed().as_secs_f64());
                 self.factorizations += 1;
                 self.system = system;
+                let start = Instant::now();
+                let target = self.volume_target(s, &areas);
+                self.log.add(names::VOLUME, start.elapsed().as_secs_f64());
                 self.border_areas = areas;
-                let v = self.log.time(names::VOLUME, || volume_of(&self.topology, &self.scene.shape, s));
-                Ok(self.volume0 - v)
+                Ok(target)
             }
         }
+    }
+
+    /// The volume row's target on shape `s` with border `areas`: the row asks
+    /// `sum S_i . u_i = t`, while the volume changes by `sum G_i . u_i` to first order with
+    /// `G` the exact gradient, parallel to `S` (`G = S / (3C)` on a surface, `S / (2C)` on a
+    /// polygon). So `t = (V0 - V) / r` with `r = sum |G_i| / sum |S_i|`.
+    fn volume_target(&self, s: &[Vec3], areas: &[Vec3]) -> f64 {
+        let v = volume_of(&self.topology, &self.scene.shape, s);
+        let g = gradient_of(&self.topology, s);
+        let sum_g: f64 = g.iter().map(|v| norm3(*v)).sum();
+        let sum_s: f64 = areas.iter().map(|v| norm3(*v)).sum();
+        let r = if sum_s > 0.0 && sum_g > 0.0 { sum_g / sum_s } else { 1.0 };
+        (self.volume0 - v) / r
+    }
+
+    /// Pulls the volume back to V0 after a step (refresh and nonlinear modes): up to
+    /// [`VOLUME_CORRECTIONS`] solves with no load and the volume target of the new shape,
+    /// using the current factorization.
+    fn correct_volume(&mut self) -> Result<()> {
+        for _ in 0..VOLUME_CORRECTIONS {
+            let v = volume_of(&self.topology, &self.scene.shape, &self.positions);
+            if (v / self.volume0 - 1.0).abs() <= VOLUME_TOLERANCE {
+                break;
+            }
+            let start = Instant::now();
+            let areas = areas_of(&self.topology, &self.scene.shape, &self.positions);
+            let target = self.volume_target(&self.positions.clone(), &areas);
+            let zero = vec![0.0; self.axes * self.positions.len()];
+            let x = self.solve(&zero, target, 0.0)?;
+            let (du, dp) = self.to_increment(&x);
+            for (p, d) in self.positions.iter_mut().zip(&du) {
+                *p = add3(*p, *d);
+            }
+            self.pressure += dp;
+            self.log.add(names::VOLUME_CORRECTION, start.elapsed().as_secs_f64());
+        }
+        Ok(())
     }
 
     /// Load increment on shape `s`: `rho |da| h_i S_i` plus the point-force increments.
@@ -431,6 +475,38 @@ impl Simulation {
         self.residual_max = self.residual_max.max(sol.relative_residual);
         self.refinement_steps_max = self.refinement_steps_max.max(sol.refinement_steps);
         Ok(sol.x)
+    }
+}
+
+/// At most this many volume-correction solves follow each step in refresh and nonlinear
+/// modes.
+pub const VOLUME_CORRECTIONS: usize = 2;
+
+/// Relative volume error below which no correction solve is made.
+pub const VOLUME_TOLERANCE: f64 = 1e-12;
+
+fn norm3(a: Vec3) -> f64 {
+    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
+}
+
+/// Exact gradient of the volume (area for a polygon) with respect to each vertex.
+fn gradient_of(topology: &Topology, s: &[Vec3]) -> Vec<Vec3> {
+    match topology {
+        Topology::Surface { triangles } => fibfluid_geometry::raw_vertex_vectors(s, triangles)
+            .into_iter()
+            .map(|r| scale3(r, 1.0 / 3.0))
+            .collect(),
+        Topology::Polygon => {
+            let n = s.len();
+            let sign = polygon_at(s).map(|p| p.signed_area().signum()).unwrap_or(1.0);
+            (0..n)
+                .map(|i| {
+                    let (a, b) = (s[(i + n - 1) % n], s[(i + 1) % n]);
+                    // d(area)/d(s_i) = 1/2 perp(s_{i+1} - s_{i-1}) for a counter-clockwise polygon.
+                    [0.5 * sign * (b[1] - a[1]), -0.5 * sign * (b[0] - a[0]), 0.0]
+                })
+                .collect()
+        }
     }
 }
 

@@ -95,6 +95,8 @@ pub mod names {
     pub const BORDER: &str = "border refresh";
     /// Volume of the current shape (for the volume target).
     pub const VOLUME: &str = "volume target";
+    /// Solves that pull the volume back to V0 after a step.
+    pub const VOLUME_CORRECTION: &str = "volume correction";
     /// Re-assembly on the current shape.
     pub const REASSEMBLY: &str = "re-assembly";
     /// Linear solves.

@@ -17,8 +17,8 @@
 //! Fixed degrees of freedom are imposed by the paper's penalty (a diagonal entry `big`) or
 //! by elimination (identity-replaced rows and columns scaled to the block's mean diagonal,
 //! keeping the matrix symmetric and well conditioned). With [`PressureScaling::Auto`] the
-//! border is multiplied by `sqrt(mean diag K) / mean |S|` so the pressure unknown has the
-//! same scale as the displacements.
+//! border is multiplied by `lambda_S / |S|` (`lambda_S = S' K S / S' S`, free degrees of
+//! freedom) so the pressure unknown has the same scale as the displacements.
 
 mod constraints;
 mod loads;

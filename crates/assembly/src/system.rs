@@ -13,8 +13,10 @@ use crate::{AXES, AssemblyError, ConstraintMethod, Constraints, Material, Result
 pub enum PressureScaling {
     /// The paper's raw border (`S`), as in Eq. 8.
     None,
-    /// Border times `sqrt(mean diag K) / mean |S|` (REFERENCE §3), so the pressure row has
-    /// the displacement rows' scale.
+    /// Border times `lambda_S / |S|`, with `lambda_S = S' K S / S' S` the stiffness along the
+    /// border (free degrees of freedom), so the pressure row has the displacement rows'
+    /// scale in any units (REFERENCE §3 suggests `sqrt(diag K) / |S|`, which is not
+    /// invariant under a change of the units of Y and gamma).
     #[default]
     Auto,
     /// A given factor.
@@ -125,7 +127,7 @@ pub fn assemble(
     let mut surf = vec![0.0f64; if material.surface_tension > 0.0 { n * n } else { 0 }];
     let gamma = material.surface_tension;
     let coincident = std::sync::Mutex::new(None);
-    bulk.par_chunks_mut(n).enumerate().for_each(|(i, row)| {
+    let bulk_row = |(i, row): (usize, &mut [f64])| {
         let pi = body.positions[i];
         for j in 0..n {
             if j == i || !body.fibers.contains(i, j) {
@@ -143,7 +145,13 @@ pub fn assemble(
             }
             row[j] = w;
         }
-    });
+    };
+    // Small systems are filled on one thread: waking the pool costs more than the work.
+    if n * n < PARALLEL_WORK {
+        bulk.chunks_mut(n).enumerate().for_each(bulk_row);
+    } else {
+        bulk.par_chunks_mut(n).enumerate().for_each(bulk_row);
+    }
     if let Some((i, j, distance)) = coincident.into_inner().unwrap_or(None) {
         return Err(AssemblyError::CoincidentVertices { i, j, distance });
     }
@@ -216,12 +224,10 @@ pub fn assemble(
     }
     let blocks =
         if shared { Blocks::Shared(blocks.pop().expect("one block")) } else { Blocks::PerAxis(blocks) };
-    let mean_area = area.iter().sum::<f64>() / n as f64;
-    let mean_diag = diag_scale[..axes].iter().sum::<f64>() / axes as f64;
     let scale = match opts.pressure_scaling {
         PressureScaling::None => 1.0,
         PressureScaling::Auto => {
-            let s = mean_diag.sqrt() / mean_area;
+            let s = auto_pressure_scale(&blocks, body.vertex_areas, constraints, axes);
             if s.is_finite() && s > 0.0 { s } else { 1.0 }
         }
         PressureScaling::Factor(f) => f,
@@ -245,6 +251,37 @@ pub fn assemble(
     system.matrix.set_border(&border);
     system.stats.seconds = start.elapsed().as_secs_f64();
     Ok(system)
+}
+
+/// Below this many matrix entries assembly runs on one thread.
+const PARALLEL_WORK: usize = 1 << 16;
+
+/// The [`PressureScaling::Auto`] factor `lambda_S / |S|`, with `|S|` the 2-norm of the
+/// border over the free degrees of freedom and `lambda_S = S' K S / S' S` the Rayleigh
+/// quotient of the (constrained) blocks along it.
+///
+/// Along S the bordered matrix acts like `[[lambda_S, s |S|], [s |S|, 0]]`, whose eigenvalues
+/// are `lambda_S (1 +- sqrt(5)) / 2` when `s |S| = lambda_S`: the pressure then adds no
+/// eigenvalue outside the blocks' own range. The factor scales like K, so the condition
+/// number does not depend on the units of Y and gamma.
+fn auto_pressure_scale(blocks: &Blocks, areas: &[Vec3], constraints: &Constraints, axes: usize) -> f64 {
+    let (mut sks, mut ss) = (0.0, 0.0);
+    for c in 0..axes {
+        let k = match blocks {
+            Blocks::Shared(k) => k,
+            Blocks::PerAxis(ks) => &ks[c],
+        };
+        let free = |i: usize| constraints.get(i, c).is_none();
+        let s: Vec<f64> = (0..areas.len()).map(|i| if free(i) { areas[i][c] } else { 0.0 }).collect();
+        for (j, &sj) in s.iter().enumerate() {
+            if sj != 0.0 {
+                let col = k.col(j);
+                sks += sj * s.iter().enumerate().map(|(i, si)| si * col[i]).sum::<f64>();
+                ss += sj * sj;
+            }
+        }
+    }
+    (sks / ss) / ss.sqrt()
 }
 
 #[inline]

@@ -1,15 +1,106 @@
-//! `fibfluid accuracy`: placeholder until the accuracy study lands.
+//! `fibfluid accuracy`: the accuracy-versus-time study of a scene.
 
 use std::path::Path;
 
-use fibfluid::Error;
+use fibfluid::accuracy::{Grid, chart, run_study, to_csv, to_markdown};
+use fibfluid::linalg::Precision;
+use fibfluid::{Error, Mode, Scene, Stepping};
+use indicatif::{ProgressBar, ProgressStyle};
 
+/// Runs the grid and writes accuracy.csv, accuracy.md, accuracy.png and
+/// accuracy-reference.png into `out` (all or nothing).
 pub fn run(
-    _scene: &Path,
-    _out: &Path,
-    _steps: &[usize],
-    _backends: Option<Vec<String>>,
-    _modes: Option<Vec<String>>,
+    scene_path: &Path,
+    out: &Path,
+    steps: &[usize],
+    backends: Option<Vec<String>>,
+    modes: Option<Vec<String>>,
+    steppings: Option<Vec<String>>,
+    precisions: Option<Vec<String>>,
+    constraints: Option<String>,
 ) -> Result<(), Error> {
-    Err(Error::Invalid("accuracy: not built yet".into()))
+    let mut scene = Scene::load(scene_path)?;
+    if let Some(c) = constraints {
+        scene.solver.constraints = match c.as_str() {
+            "penalty" => fibfluid::assembly::ConstraintMethod::PAPER,
+            "eliminate" => fibfluid::assembly::ConstraintMethod::Eliminate,
+            o => return Err(Error::Invalid(format!("--constraints: `{o}` is not penalty or eliminate"))),
+        };
+    }
+    let mut grid = Grid { steps: steps.to_vec(), ..Grid::default() };
+    if steps.is_empty() || steps.contains(&0) {
+        return Err(Error::Invalid("--steps: give positive step counts".into()));
+    }
+    if let Some(b) = backends {
+        for name in &b {
+            fibfluid::linalg::backend_by_name(name)?;
+        }
+        grid.backends = b;
+    }
+    if let Some(m) = modes {
+        grid.modes = m
+            .iter()
+            .map(|s| {
+                Mode::parse(s).ok_or_else(|| {
+                    Error::Invalid(format!("--modes: `{s}` is not paper, refresh or nonlinear"))
+                })
+            })
+            .collect::<Result<_, _>>()?;
+    }
+    if let Some(m) = steppings {
+        grid.steppings = m
+            .iter()
+            .map(|s| {
+                Stepping::parse(s)
+                    .ok_or_else(|| Error::Invalid(format!("--steppings: `{s}` is not euler or heun")))
+            })
+            .collect::<Result<_, _>>()?;
+    }
+    if let Some(p) = precisions {
+        grid.precisions = p
+            .iter()
+            .map(|s| match s.as_str() {
+                "f64" => Ok(Precision::F64),
+                "mixed" => Ok(Precision::Mixed),
+                o => Err(Error::Invalid(format!("--precisions: `{o}` is not f64 or mixed"))),
+            })
+            .collect::<Result<_, _>>()?;
+    }
+    let bar = ProgressBar::new(0);
+    bar.set_style(
+        ProgressStyle::with_template("accuracy [{bar:30}] {pos}/{len} runs ({elapsed})")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    let study = run_study(&scene, &grid, &|k, n| {
+        bar.set_length(n as u64);
+        bar.set_position(k as u64);
+    })?;
+    bar.finish_and_clear();
+    let title = format!("{} ({} vertices)", scene.name, scene.n_vertices());
+    let csv = to_csv(&study);
+    let md = to_markdown(&study, &title);
+    let png =
+        chart(&study, &format!("{title}: round-trip error vs time"), "round-trip error (Eq. 9)", |p| {
+            p.roundtrip_error
+        })?;
+    let png_ref = chart(
+        &study,
+        &format!("{title}: distance to the converged reference vs time"),
+        "distance to reference",
+        |p| p.reference_distance,
+    )?;
+    let files = [
+        ("accuracy.csv", csv.into_bytes()),
+        ("accuracy.md", md.into_bytes()),
+        ("accuracy.png", png),
+        ("accuracy-reference.png", png_ref),
+    ];
+    fibfluid::write_files_atomically(out, &files)?;
+    for (name, _) in &files {
+        println!("wrote {}", out.join(name).display());
+    }
+    let ok = study.points.iter().filter(|p| p.error.is_none()).count();
+    println!("{ok} of {} configurations ran; {} skipped", study.points.len(), study.skipped.len());
+    Ok(())
 }

@@ -96,6 +96,15 @@ enum Command {
         /// Modes (default: paper, refresh, nonlinear).
         #[arg(long, value_delimiter = ',')]
         modes: Option<Vec<String>>,
+        /// Stepping schemes (default: euler, heun).
+        #[arg(long, value_delimiter = ',')]
+        steppings: Option<Vec<String>>,
+        /// Precisions (default: f64, mixed).
+        #[arg(long, value_delimiter = ',')]
+        precisions: Option<Vec<String>>,
+        /// Override the scene's constraint method (penalty, eliminate).
+        #[arg(long)]
+        constraints: Option<String>,
     },
 }
 
@@ -221,8 +230,8 @@ fn run(command: Command) -> Result<(), Error> {
         Command::Run { scene, out, over } => run_scene(&scene, &out, &over),
         Command::Roundtrip { scene, over, json } => roundtrip(&scene, &over, json),
         Command::Bench { sizes, json } => bench(&sizes, json),
-        Command::Accuracy { scene, out, steps, backends, modes } => {
-            accuracy::run(&scene, &out, &steps, backends, modes)
+        Command::Accuracy { scene, out, steps, backends, modes, steppings, precisions, constraints } => {
+            accuracy::run(&scene, &out, &steps, backends, modes, steppings, precisions, constraints)
         }
     }
 }

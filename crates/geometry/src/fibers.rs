@@ -33,10 +33,10 @@ impl FiberSet {
     pub fn all(n: usize) -> Self {
         let total = n * n.saturating_sub(1) / 2;
         let mut bits = vec![u64::MAX; total.div_ceil(64)];
-        if total % 64 != 0 {
-            if let Some(last) = bits.last_mut() {
-                *last = (1u64 << (total % 64)) - 1;
-            }
+        if !total.is_multiple_of(64)
+            && let Some(last) = bits.last_mut()
+        {
+            *last = (1u64 << (total % 64)) - 1;
         }
         Self { n, bits, kept: total, per_vertex: vec![n.saturating_sub(1) as u32; n] }
     }

@@ -279,7 +279,7 @@ fn parse_stl(bytes: &[u8]) -> ParseResult<RawMesh> {
             .unwrap_or(false);
     let mut welder = Welder::default();
     let mut triangles = Vec::new();
-    if binary_size_ok && !(looks_ascii && !binary_size_ok) {
+    if binary_size_ok {
         let n = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as usize;
         for t in 0..n {
             let base = 84 + 50 * t + 12;
@@ -300,9 +300,11 @@ fn parse_stl(bytes: &[u8]) -> ParseResult<RawMesh> {
     } else if looks_ascii {
         let text = std::str::from_utf8(bytes).map_err(|_| (0, "ASCII STL is not valid UTF-8".to_string()))?;
         let mut corner = Vec::with_capacity(3);
+        let mut last_vertex_line = 0;
         for (ln, line) in text.lines().enumerate() {
             let mut it = line.split_whitespace();
             if it.next() == Some("vertex") {
+                last_vertex_line = ln + 1;
                 let mut p = [0.0; 3];
                 for slot in p.iter_mut() {
                     let tok =
@@ -320,7 +322,7 @@ fn parse_stl(bytes: &[u8]) -> ParseResult<RawMesh> {
             }
         }
         if !corner.is_empty() {
-            return Err((0, "the last facet has fewer than 3 vertices".into()));
+            return Err((last_vertex_line, "the last facet has fewer than 3 vertices".into()));
         }
     } else if bytes.len() >= 84 {
         let n = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as u64;

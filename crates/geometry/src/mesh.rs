@@ -146,7 +146,10 @@ impl TriMesh {
                 self.positions[t[1] as usize],
                 self.positions[t[2] as usize],
             ]));
-            if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] || !(area > DEGENERATE_AREA * diag * diag) {
+            // Not `area > limit` (a NaN area or limit must count as degenerate too).
+            let larger =
+                area.partial_cmp(&(DEGENERATE_AREA * diag * diag)) == Some(std::cmp::Ordering::Greater);
+            if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] || !larger {
                 return Err(MeshError::DegenerateFace { face: k, area });
             }
         }
@@ -258,14 +261,23 @@ impl TriMesh {
         use rayon::prelude::*;
         let tol = eps * self.diagonal();
         let areas = self.face_area_vectors();
-        (0..self.n_faces()).into_par_iter().all(|k| {
+        let face_ok = |k: usize| {
             let a = areas[k];
             let la = norm(a);
             let v1 = self.corners(k)[0];
             self.positions.iter().all(|p| dot(a, sub(*p, v1)) <= tol * la)
-        })
+        };
+        // Small meshes are checked on one thread: waking the pool costs more than the work.
+        if self.n_vertices() * self.n_faces() < PARALLEL_WORK {
+            (0..self.n_faces()).all(face_ok)
+        } else {
+            (0..self.n_faces()).into_par_iter().all(face_ok)
+        }
     }
 }
+
+/// Below this much work (vertex-face pairs) loops run on one thread.
+pub(crate) const PARALLEL_WORK: usize = 1 << 18;
 
 /// Default relative tolerance of [`TriMesh::is_convex`].
 pub const CONVEXITY_TOLERANCE: f64 = 1e-9;

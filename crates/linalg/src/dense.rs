@@ -13,8 +13,11 @@ pub fn available_memory_bytes() -> Option<u64> {
     Some(kb * 1024)
 }
 
-/// Errors before allocating if `copies` dense dim x dim f64 matrices would not fit.
-pub(crate) fn check_dense_memory(dim: usize, copies: usize) -> Result<()> {
+/// Errors before allocating if `copies` dense dim x dim f64 matrices would not fit in
+/// [`DENSE_MEMORY_FRACTION`] of the available memory (8 GiB when that is unknown). The dense
+/// backends call it with `copies = 2` (the matrix and its factors) before forming the matrix;
+/// the error says how much memory is needed and points to the `structured` backend.
+pub fn check_dense_memory(dim: usize, copies: usize) -> Result<()> {
     let need = (dim as f64) * (dim as f64) * 8.0 * copies as f64;
     let limit = available_memory_bytes().map(|b| b as f64 * DENSE_MEMORY_FRACTION).unwrap_or(8.0 * GIB);
     if need > limit {

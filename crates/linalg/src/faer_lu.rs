@@ -42,9 +42,10 @@ impl LinearSolver for FaerLu {
 }
 
 fn factor(a: &BorderedMatrix, precision: Precision) -> Result<(Lu, FactorCost)> {
-    a.check_finite()?;
     let dim = a.dim();
+    // Before anything touches the matrix: a system too large to hold densely fails at once.
     check_dense_memory(dim, 2)?;
+    a.check_finite()?;
     let start = Instant::now();
     let dense = a.to_dense();
     let lu = match precision {

@@ -41,7 +41,7 @@ mod nalgebra_lu;
 #[cfg(feature = "openblas")]
 mod openblas_lu;
 
-pub use dense::{DENSE_MEMORY_FRACTION, available_memory_bytes};
+pub use dense::{DENSE_MEMORY_FRACTION, available_memory_bytes, check_dense_memory};
 pub use error::{LinalgError, Result};
 pub use matrix::{Blocks, BorderedMatrix};
 pub use solver::{

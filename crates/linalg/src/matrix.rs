@@ -33,6 +33,8 @@ pub struct BorderedMatrix {
     blocks: Blocks,
     border: Vec<Vec<f64>>,
     pressure_scale: f64,
+    /// Absolute row sums of each block (without the border), cached for `norm_inf`.
+    block_row_sums: Vec<Vec<f64>>,
 }
 
 impl BorderedMatrix {
@@ -56,7 +58,15 @@ impl BorderedMatrix {
         }
         let border =
             border.into_iter().map(|b| b.into_iter().map(|v| v * pressure_scale).collect()).collect();
-        Self { n, blocks, border, pressure_scale }
+        let row_sums = |k: &Mat<f64>| -> Vec<f64> {
+            // K is symmetric, so column sums are row sums (and columns are contiguous).
+            (0..n).map(|j| k.col(j).iter().map(|v| v.abs()).sum()).collect()
+        };
+        let block_row_sums = match &blocks {
+            Blocks::Shared(k) => vec![row_sums(k)],
+            Blocks::PerAxis(ks) => ks.iter().map(row_sums).collect(),
+        };
+        Self { n, blocks, border, pressure_scale, block_row_sums }
     }
 
     /// Number of vertices N.
@@ -140,30 +150,37 @@ impl BorderedMatrix {
         self.dim() * self.dim() * std::mem::size_of::<f64>()
     }
 
-    /// `y = A x` without forming the dense matrix.
+    /// `y = A x` without forming the dense matrix (one matrix product per block; the
+    /// unknowns of all axes form an n x d column-major matrix, so a shared block is a
+    /// single product).
     #[track_caller]
     pub fn apply(&self, x: &[f64], y: &mut [f64]) {
+        use faer::{Accum, MatMut, MatRef};
         let (n, d, dim) = (self.n, self.axes(), self.dim());
         assert!(x.len() == dim && y.len() == dim, "apply: vector length");
+        let par = if n >= 512 { faer::get_global_parallelism() } else { faer::Par::Seq };
+        match &self.blocks {
+            Blocks::Shared(k) => {
+                let xm = MatRef::from_column_major_slice(&x[..d * n], n, d);
+                let ym = MatMut::from_column_major_slice_mut(&mut y[..d * n], n, d);
+                faer::linalg::matmul::matmul(ym, Accum::Replace, k.as_ref(), xm, 1.0, par);
+            }
+            Blocks::PerAxis(ks) => {
+                for (c, k) in ks.iter().enumerate() {
+                    let xm = MatRef::from_column_major_slice(&x[c * n..(c + 1) * n], n, 1);
+                    let ym = MatMut::from_column_major_slice_mut(&mut y[c * n..(c + 1) * n], n, 1);
+                    faer::linalg::matmul::matmul(ym, Accum::Replace, k.as_ref(), xm, 1.0, par);
+                }
+            }
+        }
         let p = x[dim - 1];
         let mut last = 0.0;
         for c in 0..d {
-            let k = self.block(c);
-            let xc = &x[c * n..(c + 1) * n];
-            let yc = &mut y[c * n..(c + 1) * n];
-            yc.iter_mut().for_each(|v| *v = 0.0);
-            for j in 0..n {
-                let col = k.col(j);
-                let xj = xc[j];
-                if xj != 0.0 {
-                    for i in 0..n {
-                        yc[i] += col[i] * xj;
-                    }
-                }
-            }
+            let b = &self.border[c];
+            let (xc, yc) = (&x[c * n..(c + 1) * n], &mut y[c * n..(c + 1) * n]);
             for i in 0..n {
-                yc[i] += self.border[c][i] * p;
-                last += self.border[c][i] * xc[i];
+                yc[i] += b[i] * p;
+                last += b[i] * xc[i];
             }
         }
         y[dim - 1] = last;
@@ -171,14 +188,11 @@ impl BorderedMatrix {
 
     /// The infinity norm (largest absolute row sum), equal to the 1-norm since A is symmetric.
     pub fn norm_inf(&self) -> f64 {
-        let (n, d) = (self.n, self.axes());
         let mut best = self.border.iter().flatten().map(|v| v.abs()).sum::<f64>();
-        for c in 0..d {
-            let k = self.block(c);
-            for j in 0..n {
-                // K is symmetric, so column sums are row sums.
-                let s: f64 = k.col(j).iter().map(|v| v.abs()).sum::<f64>() + self.border[c][j].abs();
-                best = best.max(s);
+        for c in 0..self.axes() {
+            let sums = &self.block_row_sums[if self.is_shared() { 0 } else { c }];
+            for (s, b) in sums.iter().zip(&self.border[c]) {
+                best = best.max(s + b.abs());
             }
         }
         best
@@ -198,28 +212,20 @@ impl BorderedMatrix {
     /// Returns an error naming the first non-finite entry, if any.
     pub fn check_finite(&self) -> Result<()> {
         let (n, dim) = (self.n, self.dim());
-        for c in 0..self.axes() {
-            let k = self.block(c);
+        let blocks: Vec<&Mat<f64>> = match &self.blocks {
+            Blocks::Shared(k) => vec![k],
+            Blocks::PerAxis(ks) => ks.iter().collect(),
+        };
+        for (c, k) in blocks.iter().enumerate() {
             for j in 0..n {
-                for i in 0..n {
-                    if !k[(i, j)].is_finite() {
-                        return Err(LinalgError::NonFinite { row: c * n + i, col: c * n + j });
-                    }
-                }
-                if !self.border[c][j].is_finite() {
-                    return Err(LinalgError::NonFinite { row: c * n + j, col: dim - 1 });
+                if let Some(i) = k.col(j).iter().position(|v| !v.is_finite()) {
+                    return Err(LinalgError::NonFinite { row: c * n + i, col: c * n + j });
                 }
             }
-            if matches!(self.blocks, Blocks::Shared(_)) {
-                // The shared block was checked once; still check the remaining borders.
-                for c2 in 1..self.axes() {
-                    for j in 0..n {
-                        if !self.border[c2][j].is_finite() {
-                            return Err(LinalgError::NonFinite { row: c2 * n + j, col: dim - 1 });
-                        }
-                    }
-                }
-                break;
+        }
+        for (c, b) in self.border.iter().enumerate() {
+            if let Some(i) = b.iter().position(|v| !v.is_finite()) {
+                return Err(LinalgError::NonFinite { row: c * n + i, col: dim - 1 });
             }
         }
         Ok(())

@@ -64,9 +64,10 @@ fn lapack_err(e: lax::error::Error, dim: usize) -> LinalgError {
 }
 
 fn factor(a: &BorderedMatrix, precision: Precision) -> Result<(Lu, FactorCost)> {
-    a.check_finite()?;
     let dim = a.dim();
+    // Before anything touches the matrix: a system too large to hold densely fails at once.
     check_dense_memory(dim, 2)?;
+    a.check_finite()?;
     let start = Instant::now();
     let dense = a.to_dense();
     // Column-major copy.

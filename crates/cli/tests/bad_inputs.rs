@@ -1,0 +1,238 @@
+//! Every entry of `tests/bad_inputs/` is fed to the real binary (`mesh-info` for meshes,
+//! `run --out DIR` for scenes): it must exit with code 2 and print exactly one `error:`
+//! line that names the file and its problem, never panic, and leave `--out` as it was.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// Each corpus entry and a fragment its error line must contain (README.md there says why).
+const EXPECTED: &[(&str, &str)] = &[
+    ("mesh-duplicate-faces.obj", "faces 0 and 4 are duplicates"),
+    ("mesh-empty.obj", "no vertices"),
+    ("mesh-garbage.obj", "not a text OBJ file (invalid UTF-8)"),
+    ("mesh-garbage.stl", "but the file has 301 bytes"),
+    ("mesh-huge-header.stl", "header claims 4000000 triangles (200000084 bytes) but the file has 134 bytes"),
+    ("mesh-inconsistent-orientation.obj", "faces around edge (0, 2) are inconsistently oriented"),
+    ("mesh-index-out-of-range.obj", ":9: face refers to vertex 9 but the file has 4 vertices"),
+    ("mesh-index-zero.obj", ":6: face index 0 (OBJ indices start at 1)"),
+    ("mesh-is-a-directory.obj", "is a directory, not a mesh file"),
+    ("mesh-nan.obj", ":4: vertex 2 has a non-finite coordinate"),
+    ("mesh-negative-index.obj", ":9: relative face index -5 points before the first vertex"),
+    ("mesh-non-manifold-edge.obj", "edge (0, 1) is shared by 4 faces (non-manifold)"),
+    ("mesh-open.obj", "the surface is open"),
+    ("mesh-single-triangle.obj", "the surface is open: 3 boundary edges"),
+    ("mesh-truncated-facet.stl", ":12: the last facet has fewer than 3 vertices"),
+    ("mesh-two-tetrahedra.obj", "2 disconnected components"),
+    ("mesh-unknown-extension.ply", "unsupported mesh format"),
+    ("scene-bad-mesh.toml", "[mesh].path: "),
+    ("scene-fix-nothing-along-z.toml", "no vertex is fixed along z"),
+    ("scene-fix-selects-nothing.toml", "[[fix]] #1: constraint `y > 5` selects no vertex"),
+    ("scene-fix-vertex-out-of-range.toml", "[[fix]] #1.vertices: vertex 100 is out of range"),
+    ("scene-force-vertex-out-of-range.toml", "[[force]] #1.vertex: vertex 42 is out of range"),
+    ("scene-is-a-directory.toml", "is a directory, not a scene file"),
+    ("scene-malformed.toml", "unclosed table, expected `]` (line 2, column 6)"),
+    ("scene-mesh-is-directory.toml", "mesh-is-a-directory.obj:0: is a directory, not a mesh file"),
+    ("scene-mesh-not-found.toml", "[mesh].path: `no-such-mesh.obj` does not exist"),
+    ("scene-missing-mesh.toml", "missing [mesh] (or [polygon]) table"),
+    ("scene-negative-density.toml", "[fluid].density: must be >= 0, got -1000"),
+    ("scene-negative-surface-tension.toml", "[material].surface_tension: must be >= 0, got -1"),
+    ("scene-steps-zero.toml", "[load].steps: must be between 1 and 1000000, got 0"),
+    ("scene-unknown-backend.toml", "[solver].backend: `cholmod` is not compiled in"),
+    ("scene-unknown-key-in-table.toml", "[material]: unknown field `youngs`"),
+    ("scene-unknown-key-top.toml", "unknown field `colour`"),
+    ("scene-unknown-mode.toml", "[solver].mode: `implicit` is not paper, refresh or nonlinear"),
+    ("scene-wrong-type-steps.toml", "[load].steps: invalid type: string \"ten\", expected i64"),
+    ("scene-wrong-type-young.toml", "[material].young: expected a number or an array of three numbers"),
+    ("scene-young-negative.toml", "[material].young: must be positive, got -5 along y"),
+    ("scene-young-zero.toml", "[material].young: must be positive, got 0 along x"),
+];
+
+/// Files of the folder that are not bad inputs.
+const NOT_CORPUS: &[&str] = &["README.md"];
+
+/// What the user had in `--out` before a run.
+const KEEP_NAME: &str = "keep.txt";
+const KEEP_TEXT: &str = "the user's own notes; no run may touch them\n";
+
+fn corpus_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/bad_inputs").canonicalize().unwrap()
+}
+
+fn fixtures_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures").canonicalize().unwrap()
+}
+
+/// The corpus entries (files and directories), by name.
+fn corpus() -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(corpus_dir())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| !NOT_CORPUS.contains(&n.as_str()))
+        .collect();
+    names.sort();
+    names
+}
+
+fn is_scene(name: &str) -> bool {
+    name.ends_with(".toml")
+}
+
+/// Runs the binary in `cwd` (a scratch directory, so a stray file would not land in the tree).
+fn fibfluid(args: &[&std::ffi::OsStr], cwd: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_fibfluid")).args(args).current_dir(cwd).output().unwrap()
+}
+
+/// A `--out` directory inside a fresh parent, holding the user's `keep.txt`.
+fn out_with_user_file() -> (tempfile::TempDir, PathBuf) {
+    let parent = tempfile::tempdir().unwrap();
+    let out = parent.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    std::fs::write(out.join(KEEP_NAME), KEEP_TEXT).unwrap();
+    (parent, out)
+}
+
+/// Names in a directory, sorted.
+fn listing(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> =
+        std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
+    v.sort();
+    v
+}
+
+/// Problems with a failed run's output: code 2, one `error:` line naming `name` and holding
+/// `fragment`, no panic, nothing on stdout.
+fn check_failure(name: &str, fragment: &str, out: &Output) -> Vec<String> {
+    let mut problems = Vec::new();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    if out.status.code() != Some(2) {
+        problems.push(format!("{name}: exit status {:?}, expected 2", out.status.code()));
+    }
+    if stderr.contains("panicked") || stdout.contains("panicked") {
+        problems.push(format!("{name}: panicked: {stderr}"));
+    }
+    if !stdout.trim().is_empty() {
+        problems.push(format!("{name}: printed on stdout: {stdout}"));
+    }
+    let lines: Vec<&str> = stderr.lines().collect();
+    match lines.as_slice() {
+        [line] => {
+            if !line.starts_with("error: ") {
+                problems.push(format!("{name}: stderr line does not start with `error: `: {line}"));
+            }
+            if !line.contains(name) {
+                problems.push(format!("{name}: the error does not name the file: {line}"));
+            }
+            if !line.contains(fragment) {
+                problems.push(format!("{name}: the error lacks `{fragment}`: {line}"));
+            }
+        }
+        _ => {
+            problems.push(format!("{name}: expected exactly one stderr line, got {}: {stderr}", lines.len()))
+        }
+    }
+    problems
+}
+
+/// Problems with `--out` after a run: it must hold exactly the user's file, unchanged, and no
+/// temporary directory may be left beside it.
+fn check_untouched(name: &str, parent: &Path, out: &Path) -> Vec<String> {
+    let mut problems = Vec::new();
+    if !out.is_dir() {
+        return vec![format!("{name}: --out is gone")];
+    }
+    let inside = listing(out);
+    if inside != [KEEP_NAME] {
+        problems.push(format!("{name}: --out holds {inside:?}, expected only {KEEP_NAME}"));
+    }
+    match std::fs::read_to_string(out.join(KEEP_NAME)) {
+        Ok(text) if text == KEEP_TEXT => {}
+        other => problems.push(format!("{name}: {KEEP_NAME} changed: {other:?}")),
+    }
+    let beside = listing(parent);
+    if beside != ["out"] {
+        problems.push(format!("{name}: beside --out: {beside:?} (a temporary directory left behind?)"));
+    }
+    problems
+}
+
+#[test]
+fn every_corpus_entry_has_an_expected_message_and_every_expectation_an_entry() {
+    let expected: BTreeMap<&str, &str> = EXPECTED.iter().copied().collect();
+    assert_eq!(expected.len(), EXPECTED.len(), "a name is listed twice in EXPECTED");
+    let names = corpus();
+    let missing: Vec<&String> = names.iter().filter(|n| !expected.contains_key(n.as_str())).collect();
+    assert!(missing.is_empty(), "corpus entries without an expected message in EXPECTED: {missing:?}");
+    let stale: Vec<&&str> = expected.keys().filter(|k| !names.iter().any(|n| n == *k)).collect();
+    assert!(stale.is_empty(), "EXPECTED lists entries that are not in tests/bad_inputs/: {stale:?}");
+    assert!(names.iter().any(|n| is_scene(n)) && names.iter().any(|n| !is_scene(n)));
+    // The README documents every entry too.
+    let readme = std::fs::read_to_string(corpus_dir().join("README.md")).unwrap();
+    let undocumented: Vec<&String> = names.iter().filter(|n| !readme.contains(&format!("`{n}`"))).collect();
+    assert!(undocumented.is_empty(), "entries missing from tests/bad_inputs/README.md: {undocumented:?}");
+}
+
+#[test]
+fn every_bad_input_gives_one_clean_error_and_writes_nothing() {
+    let dir = corpus_dir();
+    let expected: BTreeMap<&str, &str> = EXPECTED.iter().copied().collect();
+    let mut problems = Vec::new();
+    for name in corpus() {
+        let Some(fragment) = expected.get(name.as_str()) else {
+            problems.push(format!("{name}: no expected message in EXPECTED"));
+            continue;
+        };
+        let path = dir.join(&name);
+        let (parent, out) = out_with_user_file();
+        let output = if is_scene(&name) {
+            fibfluid(&["run".as_ref(), path.as_os_str(), "--out".as_ref(), out.as_os_str()], parent.path())
+        } else {
+            fibfluid(&["mesh-info".as_ref(), path.as_os_str()], parent.path())
+        };
+        problems.extend(check_failure(&name, fragment, &output));
+        problems.extend(check_untouched(&name, parent.path(), &out));
+    }
+    assert!(problems.is_empty(), "{} problems:\n{}", problems.len(), problems.join("\n"));
+}
+
+#[test]
+fn a_good_run_adds_its_outputs_and_keeps_the_users_file() {
+    let scene = fixtures_dir().join("scenes/sphere.toml");
+    let (parent, out) = out_with_user_file();
+    for round in 0..2 {
+        // The second round replaces the first round's outputs.
+        let output =
+            fibfluid(&["run".as_ref(), scene.as_os_str(), "--out".as_ref(), out.as_os_str()], parent.path());
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(output.status.success(), "round {round}: {stderr}");
+        let mut want: Vec<String> = fibfluid::OUTPUT_FILES.iter().map(|s| s.to_string()).collect();
+        want.push(KEEP_NAME.into());
+        want.sort();
+        assert_eq!(listing(&out), want, "round {round}");
+        for f in fibfluid::OUTPUT_FILES {
+            assert!(std::fs::metadata(out.join(f)).unwrap().len() > 0, "round {round}: {f} is empty");
+        }
+        assert_eq!(std::fs::read_to_string(out.join(KEEP_NAME)).unwrap(), KEEP_TEXT, "round {round}");
+        assert_eq!(listing(parent.path()), ["out"], "round {round}: a temporary directory was left");
+    }
+}
+
+#[test]
+fn a_run_that_cannot_place_an_output_moves_none_of_them() {
+    // The user has a directory where render.png would go: the run fails, and the outputs
+    // written before it must not be left in --out either.
+    let scene = fixtures_dir().join("scenes/sphere.toml");
+    let (parent, out) = out_with_user_file();
+    let blocker = out.join("render.png");
+    std::fs::create_dir(&blocker).unwrap();
+    std::fs::write(blocker.join("inside.txt"), "x").unwrap();
+    let output =
+        fibfluid(&["run".as_ref(), scene.as_os_str(), "--out".as_ref(), out.as_os_str()], parent.path());
+    let problems = check_failure("render.png", "is a directory", &output);
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+    assert_eq!(listing(&out), [KEEP_NAME, "render.png"]);
+    assert_eq!(listing(&blocker), ["inside.txt"]);
+    assert_eq!(std::fs::read_to_string(out.join(KEEP_NAME)).unwrap(), KEEP_TEXT);
+    assert_eq!(listing(parent.path()), ["out"], "a temporary directory was left");
+}

@@ -1,0 +1,309 @@
+//! What accuracy costs in time: a grid of stepping modes, schemes, step counts, precisions
+//! and backends, each run as a compression–decompression round trip on the same scene.
+
+use serde::Serialize;
+
+use fibfluid_linalg::Precision;
+
+use crate::report::{RoundTrip, roundtrip};
+use crate::{Mode, RunOptions, Scene, Stepping};
+
+/// One configuration of the study.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Config {
+    /// Stepping mode.
+    pub mode: String,
+    /// Stepping scheme.
+    pub stepping: String,
+    /// Load steps each way.
+    pub steps: usize,
+    /// Precision.
+    pub precision: String,
+    /// Backend.
+    pub backend: String,
+}
+
+impl Config {
+    /// The configuration's line label (everything but the step count).
+    pub fn series(&self) -> String {
+        format!("{} {} {} {}", self.mode, self.stepping, self.precision, self.backend)
+    }
+}
+
+/// One measured point.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Point {
+    /// The configuration.
+    #[serde(flatten)]
+    pub config: Config,
+    /// Eq. 9 round-trip error (None when the run failed).
+    pub roundtrip_error: Option<f64>,
+    /// |V/V0 - 1| at the end of compression.
+    pub volume_drift: Option<f64>,
+    /// Mean distance of the compressed shape to the reference, over N times the
+    /// bounding-box diagonal (the normalization of Eq. 9).
+    pub reference_distance: Option<f64>,
+    /// Largest relative residual of any solve.
+    pub residual_max: Option<f64>,
+    /// Factorizations made.
+    pub factorizations: Option<usize>,
+    /// Wall-clock seconds of the round trip (setup and both ways).
+    pub seconds: Option<f64>,
+    /// Why the run failed, if it did.
+    pub error: Option<String>,
+}
+
+/// The grid to run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Grid {
+    /// Modes.
+    pub modes: Vec<Mode>,
+    /// Schemes.
+    pub steppings: Vec<Stepping>,
+    /// Step counts.
+    pub steps: Vec<usize>,
+    /// Precisions.
+    pub precisions: Vec<Precision>,
+    /// Backends.
+    pub backends: Vec<String>,
+    /// Dense backends in nonlinear mode refactor the (3N+1)^2 matrix at every step; above
+    /// this many vertices they are run only up to `dense_nonlinear_max_steps`.
+    pub dense_nonlinear_vertex_limit: usize,
+    /// See `dense_nonlinear_vertex_limit`.
+    pub dense_nonlinear_max_steps: usize,
+}
+
+impl Default for Grid {
+    fn default() -> Self {
+        Self {
+            modes: Mode::ALL.to_vec(),
+            steppings: vec![Stepping::Euler, Stepping::Heun],
+            steps: vec![1, 3, 10, 30, 100],
+            precisions: vec![Precision::F64, Precision::Mixed],
+            backends: fibfluid_linalg::backend_names().into_iter().map(String::from).collect(),
+            dense_nonlinear_vertex_limit: 500,
+            dense_nonlinear_max_steps: 10,
+        }
+    }
+}
+
+/// The study's result: every point plus the reference it was compared with.
+#[derive(Clone, Debug)]
+pub struct Study {
+    /// The reference configuration (nonlinear, Heun, the most steps, f64, structured).
+    pub reference: Config,
+    /// Points in grid order.
+    pub points: Vec<Point>,
+    /// Points skipped by the grid's cost rule, with the reason.
+    pub skipped: Vec<(Config, String)>,
+}
+
+/// Runs the study. `progress(done, total)` is called after each point.
+pub fn run_study(scene: &Scene, grid: &Grid, progress: &dyn Fn(usize, usize)) -> crate::Result<Study> {
+    let max_steps = grid.steps.iter().copied().max().unwrap_or(1);
+    let mut reference_scene = scene.clone();
+    reference_scene.steps = max_steps;
+    reference_scene.solver.mode = Mode::Nonlinear;
+    reference_scene.solver.stepping = Stepping::Heun;
+    reference_scene.solver.precision = Precision::F64;
+    reference_scene.solver.backend = "structured".into();
+    // Warm-up (thread pools, page faults) so the first measured point is not penalized.
+    let mut warm = scene.clone();
+    warm.steps = 1;
+    warm.solver.backend = "structured".into();
+    let _ = roundtrip(warm, &RunOptions::default());
+    let reference_run = roundtrip(reference_scene.clone(), &RunOptions::default())?;
+    let reference = config_of(&reference_scene);
+    let rest = scene.rest_positions();
+    let (lo, hi) = fibfluid_geometry::bounding_box(&rest);
+    let diag = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (hi[2] - lo[2]).powi(2)).sqrt();
+    let n = rest.len();
+    let mut configs = Vec::new();
+    let mut skipped = Vec::new();
+    for &mode in &grid.modes {
+        for &stepping in &grid.steppings {
+            for &precision in &grid.precisions {
+                for backend in &grid.backends {
+                    for &steps in &grid.steps {
+                        let mut s = scene.clone();
+                        s.steps = steps;
+                        s.solver.mode = mode;
+                        s.solver.stepping = stepping;
+                        s.solver.precision = precision;
+                        s.solver.backend = backend.clone();
+                        let dense = backend != "structured";
+                        if dense
+                            && mode == Mode::Nonlinear
+                            && n > grid.dense_nonlinear_vertex_limit
+                            && steps > grid.dense_nonlinear_max_steps
+                        {
+                            skipped.push((config_of(&s), format!("a dense refactorization per step at N = {n} costs too much beyond {} steps", grid.dense_nonlinear_max_steps)));
+                            continue;
+                        }
+                        configs.push(s);
+                    }
+                }
+            }
+        }
+    }
+    let total = configs.len();
+    let mut points = Vec::with_capacity(total);
+    for (k, s) in configs.into_iter().enumerate() {
+        let config = config_of(&s);
+        let point = match roundtrip(s, &RunOptions::default()) {
+            Ok(rt) => point_of(config, &rt, &reference_run, n, diag),
+            Err(e) => Point {
+                config,
+                roundtrip_error: None,
+                volume_drift: None,
+                reference_distance: None,
+                residual_max: None,
+                factorizations: None,
+                seconds: None,
+                error: Some(e.to_string()),
+            },
+        };
+        points.push(point);
+        progress(k + 1, total);
+    }
+    Ok(Study { reference, points, skipped })
+}
+
+fn config_of(s: &Scene) -> Config {
+    Config {
+        mode: s.solver.mode.name().into(),
+        stepping: s.solver.stepping.name().into(),
+        steps: s.steps,
+        precision: s.solver.precision.name().into(),
+        backend: s.solver.backend.clone(),
+    }
+}
+
+fn point_of(config: Config, rt: &RoundTrip, reference: &RoundTrip, n: usize, diag: f64) -> Point {
+    let dist: f64 = rt
+        .compressed
+        .iter()
+        .zip(&reference.compressed)
+        .map(|(a, b)| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt())
+        .sum();
+    Point {
+        config,
+        roundtrip_error: Some(rt.roundtrip_error),
+        volume_drift: Some(rt.volume_drift),
+        reference_distance: Some(dist / (n as f64 * diag)),
+        residual_max: Some(rt.residual_max),
+        factorizations: Some(rt.factorizations),
+        seconds: Some(rt.seconds),
+        error: None,
+    }
+}
+
+/// The study as CSV (one row per point).
+pub fn to_csv(study: &Study) -> String {
+    let mut out = String::from(
+        "mode,stepping,steps,precision,backend,roundtrip_error,volume_drift,reference_distance,residual_max,factorizations,seconds,error\n",
+    );
+    let f = |v: Option<f64>| v.map(|x| format!("{x:e}")).unwrap_or_default();
+    for p in &study.points {
+        let c = &p.config;
+        out.push_str(&format!(
+            "{},{},{},{},{},{},{},{},{},{},{},{}\n",
+            c.mode,
+            c.stepping,
+            c.steps,
+            c.precision,
+            c.backend,
+            f(p.roundtrip_error),
+            f(p.volume_drift),
+            f(p.reference_distance),
+            f(p.residual_max),
+            p.factorizations.map(|v| v.to_string()).unwrap_or_default(),
+            f(p.seconds),
+            p.error.as_deref().unwrap_or("").replace(',', ";").replace('\n', " ")
+        ));
+    }
+    out
+}
+
+/// Indices of the points on the Pareto front of (seconds, error) for an error measure.
+pub fn pareto(study: &Study, error: impl Fn(&Point) -> Option<f64>) -> Vec<usize> {
+    let idx: Vec<usize> = (0..study.points.len())
+        .filter(|&i| study.points[i].seconds.is_some() && error(&study.points[i]).is_some_and(|e| e > 0.0))
+        .collect();
+    let pts: Vec<(f64, f64)> = idx
+        .iter()
+        .map(|&i| (study.points[i].seconds.unwrap_or(0.0), error(&study.points[i]).unwrap_or(0.0)))
+        .collect();
+    fibfluid_render::pareto_front(&pts).into_iter().map(|k| idx[k]).collect()
+}
+
+/// The study as a Markdown table, Pareto points marked.
+pub fn to_markdown(study: &Study, title: &str) -> String {
+    let front = pareto(study, |p| p.roundtrip_error);
+    let mut out = format!(
+        "### {title}\n\nReference: {} {} {} steps {} {}. `*` marks the Pareto front of round-trip error against time.\n\n",
+        study.reference.mode,
+        study.reference.stepping,
+        study.reference.steps,
+        study.reference.precision,
+        study.reference.backend
+    );
+    out.push_str("| mode | stepping | steps | precision | backend | round-trip error | volume drift | distance to reference | residual | factorizations | seconds | |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    let f = |v: Option<f64>| v.map(|x| format!("{x:.2e}")).unwrap_or_else(|| "—".into());
+    for (i, p) in study.points.iter().enumerate() {
+        let c = &p.config;
+        out.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+            c.mode,
+            c.stepping,
+            c.steps,
+            c.precision,
+            c.backend,
+            f(p.roundtrip_error),
+            f(p.volume_drift),
+            f(p.reference_distance),
+            f(p.residual_max),
+            p.factorizations.map(|v| v.to_string()).unwrap_or_else(|| "—".into()),
+            p.seconds.map(|s| format!("{s:.4}")).unwrap_or_else(|| "—".into()),
+            if front.contains(&i) {
+                "*".to_string()
+            } else {
+                p.error.clone().map(|e| format!("failed: {e}")).unwrap_or_default()
+            }
+        ));
+    }
+    for (c, why) in &study.skipped {
+        out.push_str(&format!(
+            "| {} | {} | {} | {} | {} | skipped: {why} |||||||\n",
+            c.mode, c.stepping, c.steps, c.precision, c.backend
+        ));
+    }
+    out
+}
+
+/// Log–log chart of an error measure against seconds, one line per configuration, the
+/// Pareto front marked. Returns PNG bytes.
+pub fn chart(
+    study: &Study,
+    title: &str,
+    y_label: &str,
+    error: impl Fn(&Point) -> Option<f64> + Copy,
+) -> crate::Result<Vec<u8>> {
+    let mut series: Vec<fibfluid_render::Series> = Vec::new();
+    for p in &study.points {
+        let (Some(t), Some(e)) = (p.seconds, error(p)) else { continue };
+        if !(e > 0.0 && t > 0.0) {
+            continue;
+        }
+        let label = p.config.series();
+        match series.iter_mut().find(|s| s.label == label) {
+            Some(s) => s.points.push((t, e)),
+            None => series.push(fibfluid_render::Series { label, points: vec![(t, e)] }),
+        }
+    }
+    let front: Vec<(f64, f64)> = pareto(study, error)
+        .into_iter()
+        .map(|i| (study.points[i].seconds.unwrap_or(0.0), error(&study.points[i]).unwrap_or(0.0)))
+        .collect();
+    Ok(fibfluid_render::loglog_chart(title, "seconds (round trip)", y_label, &series, &front, 1400, 900)?)
+}
