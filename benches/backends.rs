@@ -24,9 +24,11 @@ use std::hint::black_box;
 use std::time::Duration;
 
 use criterion::{
-    BenchmarkGroup, BenchmarkId, Criterion, SamplingMode, Throughput, criterion_group, criterion_main,
-    measurement::WallTime,
+    BatchSize, BenchmarkGroup, BenchmarkId, Criterion, SamplingMode, Throughput, criterion_group,
+    criterion_main, measurement::WallTime,
 };
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::lu::partial_pivoting::factor::{lu_in_place, lu_in_place_scratch};
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat};
 use fibfluid::assembly::{ConstraintMethod, System};
@@ -161,6 +163,39 @@ fn backends(c: &mut Criterion) {
                 );
                 black_box(out[(0, 0)])
             })
+        });
+    }
+    group.finish();
+
+    // faer's LU kernel alone (in place on a copy made outside the timing): the backend's
+    // factorization minus its conversion to the dense form and its bookkeeping.
+    let mut group = c.benchmark_group("lu-kernel/faer");
+    for case in &cases {
+        let dim = case.system.matrix.dim();
+        let dense = case.system.matrix.to_dense();
+        configure(&mut group, dense_estimate("faer-lu", dim));
+        group.throughput(Throughput::Elements(lu_flops(dim) as u64));
+        let mut perm = vec![0usize; dim];
+        let mut perm_inv = vec![0usize; dim];
+        group.bench_with_input(BenchmarkId::new(format!("N={}", case.n), dim), &dense, |bench, dense| {
+            bench.iter_batched(
+                || dense.clone(),
+                |mut a| {
+                    let par = faer::get_global_parallelism();
+                    let mut mem =
+                        MemBuffer::new(lu_in_place_scratch::<usize, f64>(dim, dim, par, Default::default()));
+                    lu_in_place(
+                        a.as_mut(),
+                        &mut perm,
+                        &mut perm_inv,
+                        par,
+                        MemStack::new(&mut mem),
+                        Default::default(),
+                    );
+                    a
+                },
+                BatchSize::PerIteration,
+            )
         });
     }
     group.finish();

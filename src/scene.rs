@@ -506,19 +506,19 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> Result
         } else if let Some(v) = fix.below {
             Selector::Below { axis: need_axis()?, value: v }
         } else if let Some(v) = fix.top {
-            if !(v >= 0.0) {
+            if v.is_nan() || v < 0.0 {
                 return Err(inv(format!("{key}.top: must be >= 0")));
             }
             Selector::Top { axis: need_axis()?, within: v }
         } else if let Some(v) = fix.bottom {
-            if !(v >= 0.0) {
+            if v.is_nan() || v < 0.0 {
                 return Err(inv(format!("{key}.bottom: must be >= 0")));
             }
             Selector::Bottom { axis: need_axis()?, within: v }
         } else if let Some(b) = fix.bbox {
             Selector::Box { min: b[0], max: b[1] }
         } else {
-            let list = fix.vertices.as_ref().map(|v| v.as_slice()).unwrap_or(&[]);
+            let list = fix.vertices.as_deref().unwrap_or(&[]);
             let idx = list
                 .iter()
                 .map(|&v| to_mesh_index(v, &format!("{key}.vertices")))

@@ -480,7 +480,7 @@ impl Simulation {
 
 /// At most this many volume-correction solves follow each step in refresh and nonlinear
 /// modes.
-pub const VOLUME_CORRECTIONS: usize = 2;
+pub const VOLUME_CORRECTIONS: usize = 6;
 
 /// Relative volume error below which no correction solve is made.
 pub const VOLUME_TOLERANCE: f64 = 1e-12;

@@ -99,10 +99,10 @@ impl Material {
                 self.density
             )));
         }
-        if let StiffnessLaw::Quadratic { c } = self.law {
-            if !(c.is_finite() && c >= 0.0) {
-                return Err(AssemblyError::Material(format!("stiffening coefficient must be >= 0, got {c}")));
-            }
+        if let StiffnessLaw::Quadratic { c } = self.law
+            && !(c.is_finite() && c >= 0.0)
+        {
+            return Err(AssemblyError::Material(format!("stiffening coefficient must be >= 0, got {c}")));
         }
         Ok(())
     }

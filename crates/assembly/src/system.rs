@@ -193,15 +193,16 @@ pub fn assemble(
         for &axis in &served {
             diag_scale[axis] = mean_diag;
             for i in 0..n {
-                if let Some(v) = constraints.get(i, axis) {
-                    if v != 0.0 && opts.method == ConstraintMethod::Eliminate {
-                        lifts.push(Lift {
-                            axis,
-                            vertex: i,
-                            value: v,
-                            column: k.col(i).iter().copied().collect(),
-                        });
-                    }
+                if let Some(v) = constraints.get(i, axis)
+                    && v != 0.0
+                    && opts.method == ConstraintMethod::Eliminate
+                {
+                    lifts.push(Lift {
+                        axis,
+                        vertex: i,
+                        value: v,
+                        column: k.col(i).iter().copied().collect(),
+                    });
                 }
             }
         }

@@ -816,7 +816,6 @@ proptest! {
             let sys = shape.assemble(&material, &c, method, scaling).unwrap();
             let vol = check_volume_row(&shape, &sys, &b, target);
             prop_assert!(vol.is_ok(), "{:?} {:?}: {:?}", method, scaling, vol);
-            eprintln!("VOLROW {:?} {:e}", method, vol.unwrap() / volume_tol(sys.matrix.dim()));
         }
     }
 }

@@ -100,6 +100,16 @@ fn table1_icosphere_level3() {
 /// matches an independent tetrahedron sum (centroid apex) and is positive.
 #[test]
 fn eq1_eq2_on_every_fixture() {
+    // The list covers every mesh file in the folder, so a new fixture cannot be skipped.
+    let mut on_disk: Vec<String> = std::fs::read_dir(fixture(""))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".obj") || n.ends_with(".stl"))
+        .collect();
+    on_disk.sort();
+    let mut listed: Vec<String> = FIXTURES.iter().map(|f| f.0.to_string()).collect();
+    listed.sort();
+    assert_eq!(on_disk, listed);
     for &(name, _) in FIXTURES {
         let m = load(name).mesh;
         let area = area_independent(m.positions(), m.triangles());

@@ -271,12 +271,17 @@ fn stl_binary(header: &[u8; 80], positions: &[V3], triangles: &[[u32; 3]]) -> Ve
     out
 }
 
-fn stl_ascii(positions: &[V3], triangles: &[[u32; 3]]) -> String {
+/// ASCII STL text; with `negative_zeros`, zero coordinates of every other facet are written
+/// as `-0.0` (they must weld with `0.0`).
+fn stl_ascii(positions: &[V3], triangles: &[[u32; 3]], negative_zeros: bool) -> String {
     let mut s = String::from("solid test\n");
-    for t in triangles {
+    for (k, t) in triangles.iter().enumerate() {
         s.push_str("  facet normal 0 0 0\n    outer loop\n");
         for i in t {
-            let p = positions[*i as usize];
+            let mut p = positions[*i as usize];
+            if negative_zeros && k % 2 == 1 {
+                p = p.map(|c| if c == 0.0 { -0.0 } else { c });
+            }
             // `{:?}` of an f64 round-trips exactly; the values are f32-exact already.
             s.push_str(&format!("      vertex {:?} {:?} {:?}\n", p[0], p[1], p[2]));
         }
@@ -288,7 +293,7 @@ fn stl_ascii(positions: &[V3], triangles: &[[u32; 3]]) -> String {
 
 /// Binary and ASCII STL of the same mesh (a level-1 icosphere with f32-exact coordinates)
 /// read to the same mesh, whose triangles are the source triangles (vertices welded in
-/// order of first appearance). A binary file whose header starts with "solid" (as some
+/// order of first appearance, `-0.0` with `0.0`). A binary file whose header starts with "solid" (as some
 /// exporters write) is still read as binary.
 #[test]
 fn binary_and_ascii_stl_agree() {
@@ -297,11 +302,15 @@ fn binary_and_ascii_stl_agree() {
     let tris = src.triangles().to_vec();
     let mut header = [b' '; 80];
     let bin = read_stl_bytes("b.stl", &stl_binary(&header, &pos, &tris)).unwrap();
-    let ascii = read_stl_bytes("a.stl", stl_ascii(&pos, &tris).as_bytes()).unwrap();
+    let ascii = read_stl_bytes("a.stl", stl_ascii(&pos, &tris, false).as_bytes()).unwrap();
+    let text = stl_ascii(&pos, &tris, true);
+    assert!(text.contains("-0.0"));
+    let signed_zeros = read_stl_bytes("z.stl", text.as_bytes()).unwrap();
     header[..5].copy_from_slice(b"solid");
     let solid = read_stl_bytes("s.stl", &stl_binary(&header, &pos, &tris)).unwrap();
     assert_eq!(bin.mesh, ascii.mesh);
     assert_eq!(bin.mesh, solid.mesh);
+    assert_eq!(bin.mesh, signed_zeros.mesh, "-0.0 and 0.0 are one vertex");
     assert_eq!((bin.mesh.n_vertices(), bin.mesh.n_faces()), (42, 80));
     for k in 0..tris.len() {
         assert_eq!(bin.mesh.corners(k), tris[k].map(|i| pos[i as usize]), "face {k}");
@@ -341,6 +350,11 @@ fn parse_errors_name_the_line() {
     assert!(msg.contains("no vertices"), "{msg}");
     let (line, msg) = parse_error(obj("# nothing but a comment\n\n"));
     assert_eq!(line, 0, "{msg}");
+    let empty = TempFile::new("empty", "obj", b"");
+    match load_mesh(&empty.0) {
+        Err(GeometryError::Parse { path, line: 0, .. }) => assert_eq!(path, empty.0),
+        other => panic!("{other:?}"),
+    }
 
     let (line, msg) = parse_error(obj("v 0 0 0\nv 1 0 0\nv 0 1 0\n"));
     assert_eq!(line, 0);
@@ -451,7 +465,7 @@ fn stl_and_file_errors() {
     let (_, msg) = parse_error(read_stl_bytes("big-solid.stl", &bytes));
     assert!(msg.contains("claims 1000000 triangles"), "header starting with solid: {msg}");
 
-    let ascii = stl_ascii(&p, &t);
+    let ascii = stl_ascii(&p, &t, false);
     let cut = &ascii[..ascii.rfind("vertex").unwrap()];
     parse_error(read_stl_bytes("cut.stl", cut.as_bytes()));
 

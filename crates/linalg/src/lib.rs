@@ -46,7 +46,7 @@ pub use error::{LinalgError, Result};
 pub use matrix::{Blocks, BorderedMatrix};
 pub use solver::{
     DEFAULT_MAX_RESIDUAL, DEFAULT_TARGET_RESIDUAL, FactorCost, FactorOptions, Factorization,
-    FactorizationExt, LinearSolver, LinearSolverExt, Precision, Solution,
+    FactorizationExt, LinearSolver, LinearSolverExt, Precision, Solution, componentwise_backward_error,
 };
 pub use structured::Structured;
 

@@ -35,6 +35,9 @@ pub struct BorderedMatrix {
     pressure_scale: f64,
     /// Absolute row sums of each block (without the border), cached for `norm_inf`.
     block_row_sums: Vec<Vec<f64>>,
+    /// Per block: every off-diagonal entry is <= 0 (a weighted Laplacian with constraints),
+    /// so `|K| |x| = 2 D |x| - K |x|` needs one matrix product.
+    block_is_z_matrix: Vec<bool>,
 }
 
 impl BorderedMatrix {
@@ -66,7 +69,14 @@ impl BorderedMatrix {
             Blocks::Shared(k) => vec![row_sums(k)],
             Blocks::PerAxis(ks) => ks.iter().map(row_sums).collect(),
         };
-        Self { n, blocks, border, pressure_scale, block_row_sums }
+        let z_matrix = |k: &Mat<f64>| -> bool {
+            (0..n).all(|j| k.col(j).iter().enumerate().all(|(i, v)| i == j || *v <= 0.0))
+        };
+        let block_is_z_matrix = match &blocks {
+            Blocks::Shared(k) => vec![z_matrix(k)],
+            Blocks::PerAxis(ks) => ks.iter().map(z_matrix).collect(),
+        };
+        Self { n, blocks, border, pressure_scale, block_row_sums, block_is_z_matrix }
     }
 
     /// Number of vertices N.
@@ -133,14 +143,32 @@ impl BorderedMatrix {
             let k = self.block(c);
             let off = c * n;
             for j in 0..n {
-                for i in 0..n {
-                    a[(off + i, off + j)] = k[(i, j)];
-                }
+                a.col_as_slice_mut(off + j)[off..off + n].copy_from_slice(k.col_as_slice(j));
             }
+            a.col_as_slice_mut(dim - 1)[off..off + n].copy_from_slice(&self.border[c]);
             for i in 0..n {
-                a[(off + i, dim - 1)] = self.border[c][i];
                 a[(dim - 1, off + i)] = self.border[c][i];
             }
+        }
+        a
+    }
+
+    /// The dense (dN+1)^2 matrix in the paper's layout, column-major in one `Vec` (the
+    /// layout LAPACK and nalgebra take), written directly without an intermediate matrix.
+    pub fn to_dense_col_major(&self) -> Vec<f64> {
+        let (n, d) = (self.n, self.axes());
+        let dim = self.dim();
+        let mut a = vec![0.0; dim * dim];
+        for c in 0..d {
+            let k = self.block(c);
+            let off = c * n;
+            for j in 0..n {
+                let col = (off + j) * dim;
+                a[col + off..col + off + n].copy_from_slice(k.col_as_slice(j));
+                a[col + dim - 1] = self.border[c][j];
+            }
+            let last = (dim - 1) * dim;
+            a[last + off..last + off + n].copy_from_slice(&self.border[c]);
         }
         a
     }
@@ -181,6 +209,47 @@ impl BorderedMatrix {
             for i in 0..n {
                 yc[i] += b[i] * p;
                 last += b[i] * xc[i];
+            }
+        }
+        y[dim - 1] = last;
+    }
+
+    /// `y = |A| |x|` (entrywise absolute values), the denominator of the componentwise
+    /// backward error.
+    #[track_caller]
+    pub fn apply_abs(&self, x: &[f64], y: &mut [f64]) {
+        let (n, d, dim) = (self.n, self.axes(), self.dim());
+        assert!(x.len() == dim && y.len() == dim, "apply_abs: vector length");
+        let ax: Vec<f64> = x.iter().map(|v| v.abs()).collect();
+        for c in 0..d {
+            let bi = if self.is_shared() { 0 } else { c };
+            let k = self.block(c);
+            let (xc, yc) = (&ax[c * n..(c + 1) * n], &mut y[c * n..(c + 1) * n]);
+            if self.block_is_z_matrix[bi] {
+                let par = if n >= 512 { faer::get_global_parallelism() } else { faer::Par::Seq };
+                let xm = faer::MatRef::from_column_major_slice(xc, n, 1);
+                let ym = faer::MatMut::from_column_major_slice_mut(yc, n, 1);
+                faer::linalg::matmul::matmul(ym, faer::Accum::Replace, k.as_ref(), xm, -1.0, par);
+                for i in 0..n {
+                    yc[i] += 2.0 * k[(i, i)] * xc[i];
+                }
+            } else {
+                yc.iter_mut().for_each(|v| *v = 0.0);
+                for j in 0..n {
+                    let col = k.col(j);
+                    for (i, v) in col.iter().enumerate() {
+                        yc[i] += v.abs() * xc[j];
+                    }
+                }
+            }
+        }
+        let p = ax[dim - 1];
+        let mut last = 0.0;
+        for c in 0..d {
+            let b = &self.border[c];
+            for i in 0..n {
+                y[c * n + i] += b[i].abs() * p;
+                last += b[i].abs() * ax[c * n + i];
             }
         }
         y[dim - 1] = last;

@@ -46,18 +46,18 @@ fn factor(a: &BorderedMatrix, precision: Precision) -> Result<(Lu, FactorCost)> 
     check_dense_memory(dim, 2)?;
     a.check_finite()?;
     let start = Instant::now();
-    let dense = a.to_dense();
+    // Column-major, nalgebra's storage order: no intermediate matrix.
+    let dense = a.to_dense_col_major();
     let lu = match precision {
         Precision::F64 => {
-            let m = DMatrix::<f64>::from_fn(dim, dim, |i, j| dense[(i, j)]);
-            drop(dense);
+            let m = DMatrix::<f64>::from_vec(dim, dim, dense);
             let lu = m.lu();
             let u = lu.u();
             check_pivots(a, (0..dim).map(|i| (i, u[(i, i)])))?;
             Lu::F64(lu)
         }
         Precision::Mixed => {
-            let m = DMatrix::<f32>::from_fn(dim, dim, |i, j| dense[(i, j)] as f32);
+            let m = DMatrix::<f32>::from_iterator(dim, dim, dense.iter().map(|v| *v as f32));
             drop(dense);
             let lu = m.lu();
             let u = lu.u();

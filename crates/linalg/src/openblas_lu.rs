@@ -63,26 +63,44 @@ fn lapack_err(e: lax::error::Error, dim: usize) -> LinalgError {
     }
 }
 
+/// Stack reserved for the LAPACK factorization (virtual memory; only what is used is committed).
+///
+/// OpenBLAS's threaded getrf keeps a job array of about 0.5 MiB on the stack at every level
+/// of its recursion (Debian's build, 0.3.21), so a few hundred unknowns already overflow the
+/// 2 MiB stack of a Rust spawned thread (test threads, rayon workers) and crash the process.
+const GETRF_STACK_BYTES: usize = 64 << 20;
+
+/// Runs `f` on a scoped thread with [`GETRF_STACK_BYTES`] of stack.
+fn on_large_stack<T: Send>(f: impl FnOnce() -> T + Send) -> Result<T> {
+    std::thread::scope(|s| {
+        let handle = std::thread::Builder::new()
+            .name("openblas-getrf".into())
+            .stack_size(GETRF_STACK_BYTES)
+            .spawn_scoped(s, f)
+            .map_err(|e| LinalgError::Lapack(format!("cannot start the factorization thread: {e}")))?;
+        Ok(handle.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic)))
+    })
+}
+
 fn factor(a: &BorderedMatrix, precision: Precision) -> Result<(Lu, FactorCost)> {
     let dim = a.dim();
     // Before anything touches the matrix: a system too large to hold densely fails at once.
     check_dense_memory(dim, 2)?;
     a.check_finite()?;
     let start = Instant::now();
-    let dense = a.to_dense();
-    // Column-major copy.
+    // Column-major, as LAPACK takes it, factored in place.
+    let dense = a.to_dense_col_major();
     let lu = match precision {
         Precision::F64 => {
-            let mut buf: Vec<f64> = (0..dim * dim).map(|k| dense[(k % dim, k / dim)]).collect();
-            drop(dense);
-            let piv = f64::lu(layout(dim), &mut buf).map_err(|e| lapack_err(e, dim))?;
+            let mut buf = dense;
+            let piv = on_large_stack(|| f64::lu(layout(dim), &mut buf))?.map_err(|e| lapack_err(e, dim))?;
             check_pivots(a, (0..dim).map(|i| (i, buf[i * dim + i])))?;
             Lu::F64(buf, piv)
         }
         Precision::Mixed => {
-            let mut buf: Vec<f32> = (0..dim * dim).map(|k| dense[(k % dim, k / dim)] as f32).collect();
+            let mut buf: Vec<f32> = dense.iter().map(|v| *v as f32).collect();
             drop(dense);
-            let piv = f32::lu(layout(dim), &mut buf).map_err(|e| lapack_err(e, dim))?;
+            let piv = on_large_stack(|| f32::lu(layout(dim), &mut buf))?.map_err(|e| lapack_err(e, dim))?;
             check_pivots(a, (0..dim).map(|i| (i, buf[i * dim + i] as f64)))?;
             Lu::F32(buf, piv)
         }

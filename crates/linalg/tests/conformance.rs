@@ -269,6 +269,14 @@ fn apply_and_to_dense_agree() {
         }
         assert_eq!(dense[(dim - 1, dim - 1)], 0.0);
         assert!((case.matrix.norm_inf() - norm_inf(&dense)).abs() <= dim as f64 * EPS * norm_inf(&dense));
+        // The column-major form (LAPACK, nalgebra) holds the same entries.
+        let flat = case.matrix.to_dense_col_major();
+        assert_eq!(flat.len(), dim * dim);
+        for j in 0..dim {
+            for i in 0..dim {
+                assert_eq!(flat[j * dim + i].to_bits(), dense[(i, j)].to_bits(), "{}: ({i}, {j})", case.name);
+            }
+        }
     }
 }
 
@@ -678,5 +686,31 @@ fn mixed_precision_on_the_penalty_sphere_is_reported() {
             }
             Err(e) => eprintln!("mixed, penalty sphere: {} failed: {e}", backend.name()),
         }
+    }
+}
+
+#[test]
+fn backends_factor_on_a_default_sized_thread_stack() {
+    // Rust spawns threads (test threads, rayon workers) with 2 MiB of stack; a backend must
+    // not need more (OpenBLAS's threaded getrf recurses with ~0.5 MiB frames; how deep
+    // depends on its thread schedule, hence the repetitions).
+    let case = random_case(21, 250, 3, false, Spd::LaplacianPlusDiagonal, 1.0);
+    let dense = case.matrix.to_dense();
+    for _ in 0..6 {
+        std::thread::scope(|s| {
+            std::thread::Builder::new()
+                .stack_size(2 << 20)
+                .spawn_scoped(s, || {
+                    for backend in all_backends() {
+                        let f = backend.factorize_default(&case.matrix).unwrap();
+                        let x = f.solve(&case.rhs).unwrap().x;
+                        let res = dense_relative_residual(&dense, &x, &case.rhs);
+                        assert!(res <= residual_tol(case.matrix.dim()), "{}: {res:e}", backend.name());
+                    }
+                })
+                .unwrap()
+                .join()
+                .unwrap();
+        });
     }
 }
