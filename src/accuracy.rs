@@ -66,11 +66,12 @@ pub struct Grid {
     pub precisions: Vec<Precision>,
     /// Backends.
     pub backends: Vec<String>,
-    /// Dense backends in nonlinear mode refactor the (3N+1)^2 matrix at every step; above
-    /// this many vertices they are run only up to `dense_nonlinear_max_steps`.
-    pub dense_nonlinear_vertex_limit: usize,
-    /// See `dense_nonlinear_vertex_limit`.
-    pub dense_nonlinear_max_steps: usize,
+    /// Dense backends refactor the (3N+1)^2 matrix at every step outside paper mode (a new
+    /// border or a new K); above this many vertices they are run only up to
+    /// `dense_refactor_max_steps` there.
+    pub dense_refactor_vertex_limit: usize,
+    /// See `dense_refactor_vertex_limit`.
+    pub dense_refactor_max_steps: usize,
 }
 
 impl Default for Grid {
@@ -81,8 +82,8 @@ impl Default for Grid {
             steps: vec![1, 3, 10, 30, 100],
             precisions: vec![Precision::F64, Precision::Mixed],
             backends: fibfluid_linalg::backend_names().into_iter().map(String::from).collect(),
-            dense_nonlinear_vertex_limit: 500,
-            dense_nonlinear_max_steps: 10,
+            dense_refactor_vertex_limit: 500,
+            dense_refactor_max_steps: 10,
         }
     }
 }
@@ -133,11 +134,11 @@ pub fn run_study(scene: &Scene, grid: &Grid, progress: &dyn Fn(usize, usize)) ->
                         s.solver.backend = backend.clone();
                         let dense = backend != "structured";
                         if dense
-                            && mode == Mode::Nonlinear
-                            && n > grid.dense_nonlinear_vertex_limit
-                            && steps > grid.dense_nonlinear_max_steps
+                            && mode != Mode::Paper
+                            && n > grid.dense_refactor_vertex_limit
+                            && steps > grid.dense_refactor_max_steps
                         {
-                            skipped.push((config_of(&s), format!("a dense refactorization per step at N = {n} costs too much beyond {} steps", grid.dense_nonlinear_max_steps)));
+                            skipped.push((config_of(&s), format!("a dense refactorization per step at N = {n} costs too much beyond {} steps", grid.dense_refactor_max_steps)));
                             continue;
                         }
                         configs.push(s);
@@ -230,12 +231,26 @@ pub fn pareto(study: &Study, error: impl Fn(&Point) -> Option<f64>) -> Vec<usize
     let idx: Vec<usize> = (0..study.points.len())
         .filter(|&i| study.points[i].seconds.is_some() && error(&study.points[i]).is_some_and(|e| e > 0.0))
         .collect();
-    let pts: Vec<(f64, f64)> = idx
-        .iter()
-        .map(|&i| (study.points[i].seconds.unwrap_or(0.0), error(&study.points[i]).unwrap_or(0.0)))
-        .collect();
-    fibfluid_render::pareto_front(&pts).into_iter().map(|k| idx[k]).collect()
+    let mut order = idx;
+    order.sort_by(|&a, &b| {
+        study.points[a].seconds.unwrap_or(0.0).total_cmp(&study.points[b].seconds.unwrap_or(0.0))
+    });
+    // Keep a point when it is at least PARETO_MARGIN more accurate than every faster one
+    // (ties within rounding would otherwise all count as non-dominated).
+    let mut best = f64::INFINITY;
+    let mut front = Vec::new();
+    for i in order {
+        let e = error(&study.points[i]).unwrap_or(f64::INFINITY);
+        if e < best * (1.0 - PARETO_MARGIN) {
+            best = e;
+            front.push(i);
+        }
+    }
+    front
 }
+
+/// Relative improvement a slower point needs to count on the Pareto front.
+pub const PARETO_MARGIN: f64 = 0.01;
 
 /// The study as a Markdown table, Pareto points marked.
 pub fn to_markdown(study: &Study, title: &str) -> String {

@@ -554,16 +554,18 @@ fn penalty_and_elimination_agree_and_scaling_fixes_conditioning() {
     let diff = |a: &[[f64; 3]], b: &[[f64; 3]]| {
         a.iter().flatten().zip(b.iter().flatten()).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / max_u
     };
-    // Scaling the pressure unknown is exact algebra: only rounding may differ.
+    // Scaling the pressure unknown is exact algebra (a diagonal change of variables): the
+    // two solutions differ by rounding, amplified by the scaled system's condition number.
+    let scaled_tol = 4.0 * cond1(&elim) * volume_tol(elim.matrix.dim());
     eprintln!(
-        "sphere under gravity: max |u| {max_u:.4e}; scaled vs unscaled elimination {:.2e}",
+        "sphere under gravity: max |u| {max_u:.4e}; scaled vs unscaled elimination {:.2e} (bound {scaled_tol:.1e})",
         diff(&u_raw, &u_elim)
     );
-    assert!(diff(&u_raw, &u_elim) <= 1e-9);
+    assert!(diff(&u_raw, &u_elim) <= scaled_tol);
     // The penalty is not exact: a fixed row reads `big u_i + sum_j K_ij u_j + S_i P = b_i`,
     // so u_i ~ (diag K |u| + |S_i P| + |b_i|) / big, and the free dofs follow the fixed ones
     // (maximum principle of the Laplacian). A priori bound on the relative difference:
-    // PENALTY_C * max diag K / big (the |S P| and |b| terms are ~10x smaller here).
+    // PENALTY_C * max diag K / big, the factor 2 leaving room for the |S_i P| and |b_i| terms.
     const PENALTY_C: f64 = 2.0;
     let kx = independent_block(&shape.pos, &shape.tris, m.young[0], m.surface_tension);
     let max_diag = (0..shape.n()).map(|i| kx[i * shape.n() + i]).fold(0.0, f64::max);
@@ -683,7 +685,7 @@ fn auto_pressure_scale_does_not_depend_on_the_stress_unit() {
         .map(|f| {
             let m = Material::isotropic(3000.0 * f, 3000.0 * f, 1000.0);
             let sys = shape.assemble(&m, &c, ConstraintMethod::Eliminate, PressureScaling::Auto).unwrap();
-            (f * 1.0, cond1(&sys))
+            (*f, cond1(&sys))
         })
         .collect();
     eprintln!("stress unit factor -> cond_1 with the automatic pressure scale: {conds:?}");
