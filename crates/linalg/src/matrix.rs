@@ -221,24 +221,39 @@ impl BorderedMatrix {
         let (n, d, dim) = (self.n, self.axes(), self.dim());
         assert!(x.len() == dim && y.len() == dim, "apply_abs: vector length");
         let ax: Vec<f64> = x.iter().map(|v| v.abs()).collect();
-        for c in 0..d {
-            let bi = if self.is_shared() { 0 } else { c };
-            let k = self.block(c);
-            let (xc, yc) = (&ax[c * n..(c + 1) * n], &mut y[c * n..(c + 1) * n]);
-            if self.block_is_z_matrix[bi] {
-                let par = if n >= 512 { faer::get_global_parallelism() } else { faer::Par::Seq };
-                let xm = faer::MatRef::from_column_major_slice(xc, n, 1);
-                let ym = faer::MatMut::from_column_major_slice_mut(yc, n, 1);
-                faer::linalg::matmul::matmul(ym, faer::Accum::Replace, k.as_ref(), xm, -1.0, par);
+        if self.is_shared() && self.block_is_z_matrix[0] {
+            // One product for every axis (one pass over the shared block, as in `apply`):
+            // Y = 2 D |X| - K |X| with |X| the n x d matrix of the axes' unknowns.
+            let k = self.block(0);
+            let par = if n >= 512 { faer::get_global_parallelism() } else { faer::Par::Seq };
+            let xm = faer::MatRef::from_column_major_slice(&ax[..d * n], n, d);
+            let ym = faer::MatMut::from_column_major_slice_mut(&mut y[..d * n], n, d);
+            faer::linalg::matmul::matmul(ym, faer::Accum::Replace, k.as_ref(), xm, -1.0, par);
+            for c in 0..d {
                 for i in 0..n {
-                    yc[i] += 2.0 * k[(i, i)] * xc[i];
+                    y[c * n + i] += 2.0 * k[(i, i)] * ax[c * n + i];
                 }
-            } else {
-                yc.iter_mut().for_each(|v| *v = 0.0);
-                for j in 0..n {
-                    let col = k.col(j);
-                    for (i, v) in col.iter().enumerate() {
-                        yc[i] += v.abs() * xc[j];
+            }
+        } else {
+            for c in 0..d {
+                let bi = if self.is_shared() { 0 } else { c };
+                let k = self.block(c);
+                let (xc, yc) = (&ax[c * n..(c + 1) * n], &mut y[c * n..(c + 1) * n]);
+                if self.block_is_z_matrix[bi] {
+                    let par = if n >= 512 { faer::get_global_parallelism() } else { faer::Par::Seq };
+                    let xm = faer::MatRef::from_column_major_slice(xc, n, 1);
+                    let ym = faer::MatMut::from_column_major_slice_mut(yc, n, 1);
+                    faer::linalg::matmul::matmul(ym, faer::Accum::Replace, k.as_ref(), xm, -1.0, par);
+                    for i in 0..n {
+                        yc[i] += 2.0 * k[(i, i)] * xc[i];
+                    }
+                } else {
+                    yc.iter_mut().for_each(|v| *v = 0.0);
+                    for j in 0..n {
+                        let col = k.col(j);
+                        for (i, v) in col.iter().enumerate() {
+                            yc[i] += v.abs() * xc[j];
+                        }
                     }
                 }
             }

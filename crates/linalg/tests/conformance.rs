@@ -269,6 +269,13 @@ fn apply_and_to_dense_agree() {
         }
         assert_eq!(dense[(dim - 1, dim - 1)], 0.0);
         assert!((case.matrix.norm_inf() - norm_inf(&dense)).abs() <= dim as f64 * EPS * norm_inf(&dense));
+        // |A| |x| (the componentwise backward error's denominator) against the dense form.
+        let mut z = vec![0.0; dim];
+        case.matrix.apply_abs(&case.rhs, &mut z);
+        for i in 0..dim {
+            let exact: f64 = (0..dim).map(|j| dense[(i, j)].abs() * case.rhs[j].abs()).sum();
+            assert!((z[i] - exact).abs() <= 4.0 * dim as f64 * EPS * exact, "{}: |A||x| row {i}", case.name);
+        }
         // The column-major form (LAPACK, nalgebra) holds the same entries.
         let flat = case.matrix.to_dense_col_major();
         assert_eq!(flat.len(), dim * dim);

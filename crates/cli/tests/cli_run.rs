@@ -1,0 +1,197 @@
+//! The `fibfluid` binary end to end on the bundled fixtures.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_fibfluid"))
+}
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn read_obj_positions(path: &Path) -> Vec<[f64; 3]> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .filter(|l| l.starts_with("v "))
+        .map(|l| {
+            let v: Vec<f64> = l.split_whitespace().skip(1).map(|t| t.parse().unwrap()).collect();
+            [v[0], v[1], v[2]]
+        })
+        .collect()
+}
+
+fn compiled_backends() -> Vec<String> {
+    let out = bin().args(["bench", "--sizes", "8", "--json"]).output().unwrap();
+    assert!(out.status.success());
+    let rows: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let mut names: Vec<String> =
+        rows.as_array().unwrap().iter().map(|r| r["backend"].as_str().unwrap().to_string()).collect();
+    names.dedup();
+    names
+}
+
+#[test]
+fn sphere_scene_through_the_cli_with_every_backend() {
+    let scene = root().join("fixtures/scenes/sphere.toml");
+    let tmp = tempfile::tempdir().unwrap();
+    let mut results = Vec::new();
+    for backend in compiled_backends() {
+        let out = tmp.path().join(&backend);
+        let status = bin()
+            .arg("run")
+            .arg(&scene)
+            .arg("--out")
+            .arg(&out)
+            .args(["--backend", &backend])
+            .status()
+            .unwrap();
+        assert!(status.success(), "{backend}");
+        for f in ["deformed.obj", "deformed.vtk", "report.json", "render.png"] {
+            assert!(out.join(f).is_file(), "{backend}: {f} missing");
+        }
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+        assert_eq!(report["backend"], backend.as_str());
+        assert_eq!(report["vertices"], 162);
+        assert!(report["stages"].as_array().unwrap().iter().any(|s| s["name"] == "factorization"));
+        let vtk = std::fs::read_to_string(out.join("deformed.vtk")).unwrap();
+        assert!(vtk.starts_with("# vtk DataFile Version 3.0") && vtk.contains("VECTORS displacement double"));
+        let png = std::fs::read(out.join("render.png")).unwrap();
+        assert_eq!(&png[1..4], b"PNG");
+        results.push((backend, read_obj_positions(&out.join("deformed.obj"))));
+    }
+    let rest = read_obj_positions(&root().join("fixtures/meshes/icosphere-2.obj"));
+    let (name0, first) = &results[0];
+    let scale = first
+        .iter()
+        .zip(&rest)
+        .map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).abs()).fold(0.0, f64::max))
+        .fold(0.0, f64::max);
+    assert!(scale > 0.1, "the sphere must deform");
+    for (name, pos) in &results[1..] {
+        let d = pos
+            .iter()
+            .zip(first)
+            .map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).abs()).fold(0.0, f64::max))
+            .fold(0.0, f64::max);
+        // OBJ output keeps every f64 digit; 1e-8 relative to the largest displacement.
+        assert!(d <= 1e-8 * scale, "{name} vs {name0}: {d:e}");
+    }
+}
+
+#[test]
+fn roundtrip_json_has_the_documented_keys() {
+    let scene = root().join("fixtures/scenes/sphere.toml");
+    let out = bin().arg("roundtrip").arg(&scene).args(["--steps", "3", "--json"]).output().unwrap();
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for k in ["steps", "roundtrip_error", "volume_drift", "seconds"] {
+        assert!(v.get(k).is_some(), "missing {k}");
+    }
+    assert_eq!(v["steps"], 3);
+    let e = v["roundtrip_error"].as_f64().unwrap();
+    assert!(e > 0.0 && e < 1.0, "a fraction, not a percentage: {e}");
+}
+
+#[test]
+fn mesh_info_on_every_fixture_mesh() {
+    let dir = root().join("fixtures/meshes");
+    let mut seen = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+        if !matches!(ext, "obj" | "stl") {
+            continue;
+        }
+        let out = bin().arg("mesh-info").arg(&path).arg("--json").output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{}: {stderr}", path.display());
+        assert!(!stderr.contains("panicked"));
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        for k in [
+            "vertices",
+            "faces",
+            "area",
+            "vertex_area_sum",
+            "volume",
+            "closed",
+            "convex",
+            "fibers_total",
+            "fibers_kept",
+            "seconds",
+        ] {
+            assert!(v.get(k).is_some(), "{}: missing {k}", path.display());
+        }
+        // Eq. 1: the vertex vectors' lengths add up to the surface area.
+        let (a, s) = (v["area"].as_f64().unwrap(), v["vertex_area_sum"].as_f64().unwrap());
+        assert!((a - s).abs() <= 1e-10 * a, "{}: {a} vs {s}", path.display());
+        assert!(v["volume"].as_f64().unwrap() > 0.0);
+        let n = v["vertices"].as_u64().unwrap();
+        assert_eq!(v["fibers_total"].as_u64().unwrap(), n * (n - 1) / 2);
+        if v["convex"].as_bool().unwrap() {
+            assert_eq!(v["fibers_kept"], v["fibers_total"]);
+        }
+        let name = path.file_name().unwrap().to_str().unwrap();
+        if name == "liver.obj" {
+            assert!(v["notes"].to_string().contains("42 unreferenced vertices"));
+        }
+        if name == "liver-smooth.obj" {
+            assert!(
+                v["notes"].to_string().contains("intersects itself"),
+                "liver-smooth's self-intersections must be noted"
+            );
+        }
+        seen += 1;
+    }
+    assert!(seen >= 8);
+}
+
+#[test]
+fn icosphere_and_fibers_vtk() {
+    let tmp = tempfile::tempdir().unwrap();
+    let obj = tmp.path().join("ico.obj");
+    assert!(
+        bin()
+            .args(["icosphere", "--level", "1", "--radius", "2", "--out"])
+            .arg(&obj)
+            .status()
+            .unwrap()
+            .success()
+    );
+    let pos = read_obj_positions(&obj);
+    assert_eq!(pos.len(), 42);
+    assert!(pos.iter().all(|p| ((p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 2.0).abs() < 1e-12));
+    let vtk = tmp.path().join("fibers.vtk");
+    let out = bin()
+        .arg("mesh-info")
+        .arg(root().join("fixtures/meshes/torus2_for_collision.obj"))
+        .arg("--fibers")
+        .arg(&vtk)
+        .arg("--json")
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let text = std::fs::read_to_string(&vtk).unwrap();
+    let lines_header = text.lines().find(|l| l.starts_with("LINES")).unwrap();
+    let count: u64 = lines_header.split_whitespace().nth(1).unwrap().parse().unwrap();
+    assert_eq!(count, v["fibers_kept"].as_u64().unwrap());
+}
+
+#[test]
+fn bench_json_rows() {
+    let out = bin().args(["--threads", "1", "bench", "--sizes", "20,40", "--json"]).output().unwrap();
+    assert!(out.status.success());
+    let rows: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let rows = rows.as_array().unwrap();
+    assert!(rows.len() >= 2 * 3);
+    for r in rows {
+        for k in ["backend", "n_vertices", "factor_seconds", "solve_seconds"] {
+            assert!(r.get(k).is_some(), "missing {k}");
+        }
+        assert!(r["residual"].as_f64().unwrap() < 1e-10);
+    }
+}
