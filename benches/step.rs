@@ -7,9 +7,11 @@
 //! `sim.step(k, 10, Direction::Load)`: in paper mode the load increment, the right-hand
 //! side, the checked solve and the position update; refresh mode adds the new border and
 //! volume target (triangular solves for the structured backend, a refactorization for the
-//! dense ones). After each tenth load step the ten unload steps run untimed, so the body
-//! stays within the scene's load range however many steps criterion asks for (steps that
-//! take over 0.15 s run about 11 times in all and are not rewound).
+//! dense ones) and the volume-correction solves that follow the step (up to
+//! `VOLUME_CORRECTIONS`, until the relative volume error is below `VOLUME_TOLERANCE`; the
+//! count of solves is printed). After each tenth load step the ten unload steps run
+//! untimed, so the body stays within the scene's load range however many steps criterion
+//! asks for (steps that take over 0.15 s run about 11 times in all and are not rewound).
 //!
 //! nalgebra-lu is skipped at N = 2562 (n = 7687): its unblocked LU would take minutes for
 //! the first factorization alone, and refresh mode refactors every step.
@@ -18,7 +20,7 @@
 
 use std::time::{Duration, Instant};
 
-use criterion::{BenchmarkId, Criterion, SamplingMode, criterion_group, criterion_main};
+use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use fibfluid::assembly::{ConstraintMethod, Material, Selector};
 use fibfluid::bench::pin_threads;
 use fibfluid::geometry::{MeshFile, icosphere};
@@ -67,42 +69,23 @@ fn step(c: &mut Criterion) {
     for backend in backend_names() {
         for mode in [Mode::Paper, Mode::Refresh] {
             let mut group = c.benchmark_group(format!("step/{}/{backend}", mode.name()));
+            // Criterion switches to one step per sample (flat sampling) by itself when a
+            // step is long.
+            group
+                .sample_size(10)
+                .warm_up_time(Duration::from_millis(500))
+                .measurement_time(Duration::from_secs(2));
             for level in [3, 4] {
-                let scene = scene(level, backend, mode);
-                let n = scene.n_vertices();
+                let n = 10 * 4usize.pow(level) + 2;
                 if let Some(why) = skipped(backend, n) {
                     println!("step/{}/{backend} at N = {n}: skipped ({why})", mode.name());
                     continue;
                 }
-                let start = Instant::now();
-                let mut sim = Simulation::new(scene).expect("simulation");
-                let setup = start.elapsed().as_secs_f64();
-                // One untimed step to estimate the cost and choose the sampling.
-                let start = Instant::now();
-                sim.step(0, STEPS, Direction::Load).expect("step");
-                let one = start.elapsed().as_secs_f64();
-                sim.step(STEPS - 1, STEPS, Direction::Unload).expect("step");
-                println!(
-                    "step/{}/{backend} N = {n}: setup (assembly + factorization) {setup:.3} s, first step {one:.4} s",
-                    mode.name()
-                );
-                group.sample_size(10);
-                if one > 0.15 {
-                    group
-                        .sampling_mode(SamplingMode::Flat)
-                        .warm_up_time(Duration::from_millis(10))
-                        .measurement_time(Duration::from_secs_f64(10.0 * one));
-                } else {
-                    group
-                        .sampling_mode(SamplingMode::Auto)
-                        .warm_up_time(Duration::from_millis(500))
-                        .measurement_time(Duration::from_secs(2));
-                }
-                // Long steps run about 11 times in all: skip the rewinding (12 load steps
-                // are 1.2 times the scene's load, still in range).
-                let rewind = one <= 0.15;
+                // Built on first use, so a criterion filter skips the setup of other cases.
+                let mut state: Option<(Simulation, bool)> = None;
                 let mut k = 0;
                 group.bench_function(BenchmarkId::from_parameter(n), |b| {
+                    let (sim, rewind) = state.get_or_insert_with(|| prepare(level, backend, mode));
                     b.iter_custom(|iters| {
                         let mut timed = Duration::ZERO;
                         for _ in 0..iters {
@@ -110,7 +93,7 @@ fn step(c: &mut Criterion) {
                             sim.step(k, STEPS, Direction::Load).expect("load step");
                             timed += start.elapsed();
                             k += 1;
-                            if k == STEPS && rewind {
+                            if k == STEPS && *rewind {
                                 for u in 0..STEPS {
                                     sim.step(u, STEPS, Direction::Unload).expect("unload step");
                                 }
@@ -120,10 +103,40 @@ fn step(c: &mut Criterion) {
                         timed
                     })
                 });
+                if let Some((sim, _)) = &state {
+                    println!(
+                        "step/{}/{backend} N = {n}: {} solves, largest residual {:.1e}, at most {} refinement steps",
+                        mode.name(),
+                        sim.solves(),
+                        sim.residual_max(),
+                        sim.refinement_steps_max()
+                    );
+                }
             }
             group.finish();
         }
     }
+}
+
+/// The simulation (assembly and first factorization untimed), after one untimed load and
+/// unload step; the flag says whether steps are short enough to rewind the load.
+fn prepare(level: u32, backend: &str, mode: Mode) -> (Simulation, bool) {
+    let scene = scene(level, backend, mode);
+    let n = scene.n_vertices();
+    let start = Instant::now();
+    let mut sim = Simulation::new(scene).expect("simulation");
+    let setup = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    sim.step(0, STEPS, Direction::Load).expect("step");
+    let one = start.elapsed().as_secs_f64();
+    sim.step(STEPS - 1, STEPS, Direction::Unload).expect("step");
+    println!(
+        "step/{}/{backend} N = {n}: setup (assembly + factorization) {setup:.3} s, first step {one:.4} s",
+        mode.name()
+    );
+    // Long steps run about 11 times in all: no rewinding (12 load steps are 1.2 times the
+    // scene's load, still in range).
+    (sim, one <= 0.15)
 }
 
 criterion_group!(benches, step);

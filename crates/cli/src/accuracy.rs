@@ -80,15 +80,23 @@ pub fn run(
     let title = format!("{} ({} vertices)", scene.name, scene.n_vertices());
     let csv = to_csv(&study);
     let md = to_markdown(&study, &title);
-    let png =
-        chart(&study, &format!("{title}: round-trip error vs time"), "round-trip error (Eq. 9)", |p| {
-            p.roundtrip_error
-        })?;
+    // The charts draw the structured f64 lines (the table has every backend and precision);
+    // the Pareto front is over the whole grid.
+    let png = chart(
+        &study,
+        &format!("{title}: round-trip error vs time"),
+        "round-trip error (Eq. 9)",
+        |p| p.roundtrip_error,
+        "f64",
+        "structured",
+    )?;
     let png_ref = chart(
         &study,
         &format!("{title}: distance to the converged reference vs time"),
         "distance to reference",
         |p| p.reference_distance,
+        "f64",
+        "structured",
     )?;
     let files = [
         ("accuracy.csv", csv.into_bytes()),
