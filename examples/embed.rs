@@ -10,14 +10,7 @@ fn main() -> Result<(), fibfluid::Error> {
     // A level-3 icosphere (642 vertices) of radius 5 cm.
     let mesh = icosphere(3, 0.05);
     let n = mesh.n_vertices();
-    let file = MeshFile {
-        path: "icosphere-3".into(),
-        file_positions: mesh.positions().to_vec(),
-        to_file: (0..n as u32).collect(),
-        validation: Default::default(),
-        notes: vec![],
-        mesh,
-    };
+    let file = MeshFile::from_mesh("icosphere-3", mesh).expect("the icosphere is a closed surface");
     let material = Material::isotropic(800.0, 40.0, 1000.0);
     let mut scene = Scene::from_mesh("embedded sphere", file, material);
     // Hold the bottom cap (within 1 cm of the lowest point).

@@ -587,7 +587,6 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> Result
         }
     }
     let material = Material { young, surface_tension: gamma, density, law };
-    let _ = scene_path;
     Ok(Scene {
         name,
         source: Some(scene_path.to_path_buf()),

@@ -127,8 +127,8 @@ impl Simulation {
         if scene.solver.stepping == Stepping::Euler {
             log.skip(names::PREDICTOR, "Euler stepping");
         }
-        let areas = log.time(names::AREAS, || areas_of(&topology, &scene.shape, &rest));
-        let volume0 = volume_of(&topology, &scene.shape, &rest);
+        let areas = log.time(names::AREAS, || areas_of(&topology, &rest));
+        let volume0 = volume_of(&topology, &rest);
         let system =
             log.time(names::ASSEMBLY, || assemble_on(&scene, axes, &edges, &fibers, &rest, &rest, &areas))?;
         if system.stats.blocks == 1 {
@@ -191,7 +191,7 @@ impl Simulation {
 
     /// Volume of the current shape.
     pub fn volume(&self) -> f64 {
-        volume_of(&self.topology, &self.scene.shape, &self.positions)
+        volume_of(&self.topology, &self.positions)
     }
 
     /// The kept fibers.
@@ -308,15 +308,15 @@ impl Simulation {
         let du = match self.scene.solver.stepping {
             Stepping::Euler => {
                 let x = self.solve(&b1, target, prescribed)?;
-                self.to_increment(&x)
+                self.system.split_solution(&x)
             }
             Stepping::Heun => {
                 let xb = self.solve(&b1, 0.0, prescribed)?;
-                let (ub, pb) = self.to_increment(&xb);
+                let (ub, pb) = self.system.split_solution(&xb);
                 let (ut, pt) = if target != 0.0 {
                     let zero = vec![0.0; b1.len()];
                     let xt = self.solve(&zero, target, 0.0)?;
-                    self.to_increment(&xt)
+                    self.system.split_solution(&xt)
                 } else {
                     (vec![[0.0; 3]; s.len()], 0.0)
                 };
@@ -325,7 +325,7 @@ impl Simulation {
                 self.prepare_operator(&predicted)?;
                 let b2 = self.load_increment(&predicted, da, &force_inc);
                 let x2 = self.solve(&b2, 0.0, prescribed)?;
-                let (u2, p2) = self.to_increment(&x2);
+                let (u2, p2) = self.system.split_solution(&x2);
                 self.log.add(names::PREDICTOR, start.elapsed().as_secs_f64());
                 let u =
                     (0..s.len()).map(|i| add3(add3(scale3(ub[i], 0.5), scale3(u2[i], 0.5)), ut[i])).collect();
@@ -344,17 +344,13 @@ impl Simulation {
         Ok(())
     }
 
-    fn to_increment(&self, x: &[f64]) -> (Vec<Vec3>, f64) {
-        self.system.split_solution(x)
-    }
-
     /// Makes the factored operator describe shape `s` as the mode requires; returns the
     /// volume target for the last row.
     fn prepare_operator(&mut self, s: &[Vec3]) -> Result<f64> {
         match self.scene.solver.mode {
             Mode::Paper => Ok(0.0),
             Mode::Refresh => {
-                let areas = self.log.time(names::AREAS, || areas_of(&self.topology, &self.scene.shape, s));
+                let areas = self.log.time(names::AREAS, || areas_of(&self.topology, s));
                 let border = self.system.border_for(&areas);
                 let start = Instant::now();
                 self.system.matrix.set_border(&border);
@@ -367,7 +363,7 @@ impl Simulation {
                 Ok(target)
             }
             Mode::Nonlinear => {
-                let areas = self.log.time(names::AREAS, || areas_of(&self.topology, &self.scene.shape, s));
+                let areas = self.log.time(names::AREAS, || areas_of(&self.topology, s));
                 let start = Instant::now();
                 let system =
                     assemble_on(&self.scene, self.axes, &self.edges, &self.fibers, s, &self.rest, &areas)?;
@@ -391,7 +387,7 @@ impl Simulation {
     /// `G` the exact gradient, parallel to `S` (`G = S / (3C)` on a surface, `S / (2C)` on a
     /// polygon). So `t = (V0 - V) / r` with `r = sum |G_i| / sum |S_i|`.
     fn volume_target(&self, s: &[Vec3], areas: &[Vec3]) -> f64 {
-        let v = volume_of(&self.topology, &self.scene.shape, s);
+        let v = volume_of(&self.topology, s);
         let g = gradient_of(&self.topology, s);
         let sum_g: f64 = g.iter().map(|v| norm3(*v)).sum();
         let sum_s: f64 = areas.iter().map(|v| norm3(*v)).sum();
@@ -404,16 +400,16 @@ impl Simulation {
     /// using the current factorization.
     fn correct_volume(&mut self) -> Result<()> {
         for _ in 0..VOLUME_CORRECTIONS {
-            let v = volume_of(&self.topology, &self.scene.shape, &self.positions);
+            let v = volume_of(&self.topology, &self.positions);
             if (v / self.volume0 - 1.0).abs() <= VOLUME_TOLERANCE {
                 break;
             }
             let start = Instant::now();
-            let areas = areas_of(&self.topology, &self.scene.shape, &self.positions);
+            let areas = areas_of(&self.topology, &self.positions);
             let target = self.volume_target(&self.positions.clone(), &areas);
             let zero = vec![0.0; self.axes * self.positions.len()];
             let x = self.solve(&zero, target, 0.0)?;
-            let (du, dp) = self.to_increment(&x);
+            let (du, dp) = self.system.split_solution(&x);
             for (p, d) in self.positions.iter_mut().zip(&du) {
                 *p = add3(*p, *d);
             }
@@ -439,7 +435,7 @@ impl Simulation {
                 || s != self.positions.as_slice()
                 || self.border_areas.len() != n
             {
-                self.log.time(names::AREAS, || areas_of(&self.topology, &self.scene.shape, s))
+                self.log.time(names::AREAS, || areas_of(&self.topology, s))
             } else {
                 self.border_areas.clone()
             };
@@ -522,7 +518,7 @@ fn polygon_at(s: &[Vec3]) -> Option<Polygon> {
     Polygon::new(s.iter().map(|p| [p[0], p[1]]).collect())
 }
 
-fn areas_of(topology: &Topology, _shape: &Shape, s: &[Vec3]) -> Vec<Vec3> {
+fn areas_of(topology: &Topology, s: &[Vec3]) -> Vec<Vec3> {
     match topology {
         Topology::Surface { triangles } => vertex_area_vectors(s, triangles),
         Topology::Polygon => match polygon_at(s) {
@@ -532,7 +528,7 @@ fn areas_of(topology: &Topology, _shape: &Shape, s: &[Vec3]) -> Vec<Vec3> {
     }
 }
 
-fn volume_of(topology: &Topology, _shape: &Shape, s: &[Vec3]) -> f64 {
+fn volume_of(topology: &Topology, s: &[Vec3]) -> f64 {
     match topology {
         Topology::Surface { triangles } => volume(s, triangles),
         Topology::Polygon => polygon_at(s).map(|p| p.signed_area().abs()).unwrap_or(0.0),

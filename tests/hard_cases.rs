@@ -16,15 +16,7 @@ const BACKWARD_ERROR_F64: f64 = 1e-12;
 const REFRESH_VOLUME: f64 = 1e-6;
 
 fn file_of(mesh: TriMesh) -> MeshFile {
-    let n = mesh.n_vertices();
-    MeshFile {
-        path: "generated".into(),
-        file_positions: mesh.positions().to_vec(),
-        to_file: (0..n as u32).collect(),
-        validation: Default::default(),
-        notes: vec![],
-        mesh,
-    }
+    MeshFile::from_mesh("generated", mesh).expect("a closed surface")
 }
 
 /// A material for a body of size `diag` (bounding-box diagonal) that sags by a few percent

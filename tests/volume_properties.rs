@@ -40,14 +40,7 @@ fn scene(
 ) -> Scene {
     let n = mesh.n_vertices();
     let diag = mesh.diagonal();
-    let file = MeshFile {
-        path: "random".into(),
-        file_positions: mesh.positions().to_vec(),
-        to_file: (0..n as u32).collect(),
-        validation: Default::default(),
-        notes: vec![],
-        mesh,
-    };
+    let file = MeshFile::from_mesh("random", mesh).unwrap();
     // Sized so the sag stays a few percent of the body (see tests/hard_cases.rs).
     let y = young * 10.0 * density * 9.81 * diag;
     let mut s = Scene::from_mesh("random", file, Material::isotropic(y, y * gamma_ratio, density));
@@ -70,7 +63,7 @@ fn scene(
 fn arb_case() -> impl Strategy<Value = (Vec3, f64, f64, f64, f64, Vec3, Vec3, bool)> {
     (
         [0.5f64..2.0, 0.5f64..2.0, 0.5f64..2.0],
-        0.0f64..6.28,
+        0.0f64..std::f64::consts::TAU,
         0.5f64..4.0,
         prop_oneof![Just(0.0), 1e-3f64..1.0],
         prop_oneof![Just(0.0), 1.0f64..3000.0],

@@ -35,6 +35,20 @@ pub struct MeshFile {
 }
 
 impl MeshFile {
+    /// Wraps a mesh built in code (file order = mesh order, no notes). Validates it.
+    pub fn from_mesh(path: impl Into<PathBuf>, mut mesh: TriMesh) -> std::result::Result<Self, MeshError> {
+        let validation = mesh.validate()?;
+        let n = mesh.n_vertices() as u32;
+        Ok(Self {
+            path: path.into(),
+            file_positions: mesh.positions().to_vec(),
+            to_file: (0..n).collect(),
+            notes: validation.warnings.clone(),
+            validation,
+            mesh,
+        })
+    }
+
     /// The mesh index of the file's vertex `i`, or None if the vertex is unreferenced or
     /// out of range.
     pub fn from_file_index(&self, i: usize) -> Option<usize> {
