@@ -6,8 +6,6 @@
 //! `PartialPivLu` would copy the input and then split L and U into two more matrices,
 //! about a third of the factorization time at n = 3001 on two cores.)
 
-use std::time::Instant;
-
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::lu::partial_pivoting::factor::{lu_in_place, lu_in_place_scratch};
 use faer::linalg::lu::partial_pivoting::solve::{solve_in_place, solve_in_place_scratch};
@@ -15,9 +13,9 @@ use faer::perm::Perm;
 use faer::traits::ComplexField;
 use faer::{Mat, MatMut};
 
-use crate::dense::{check_dense_memory, dense_lu_cost};
-use crate::solver::{check_pivots, ensure_supported};
-use crate::{BorderedMatrix, FactorCost, FactorOptions, Factorization, LinearSolver, Precision, Result};
+use crate::dense::{DenseFactorization, DenseKernel};
+use crate::solver::check_pivots;
+use crate::{BorderedMatrix, FactorOptions, Factorization, LinearSolver, Precision, Result};
 
 /// Dense LU with partial pivoting from faer (the default dense backend).
 #[derive(Clone, Copy, Debug, Default)]
@@ -59,21 +57,15 @@ impl<T: ComplexField> Packed<T> {
     }
 }
 
-enum Lu {
+/// The factors in the precision they were made in.
+enum FaerKernel {
     F64(Packed<f64>),
     F32(Packed<f32>),
 }
 
-struct FaerLuFactorization {
-    matrix: BorderedMatrix,
-    opts: FactorOptions,
-    lu: Lu,
-    cost: FactorCost,
-}
-
 impl LinearSolver for FaerLu {
     fn name(&self) -> &'static str {
-        "faer-lu"
+        FaerKernel::NAME
     }
 
     fn supports(&self, _precision: Precision) -> bool {
@@ -81,71 +73,41 @@ impl LinearSolver for FaerLu {
     }
 
     fn factorize(&self, a: &BorderedMatrix, opts: &FactorOptions) -> Result<Box<dyn Factorization>> {
-        ensure_supported(self.name(), true, opts.precision)?;
-        let (lu, cost) = factor(a, opts.precision)?;
-        Ok(Box::new(FaerLuFactorization { matrix: a.clone(), opts: *opts, lu, cost }))
+        DenseFactorization::<FaerKernel>::boxed(a, opts)
     }
 }
 
-fn factor(a: &BorderedMatrix, precision: Precision) -> Result<(Lu, FactorCost)> {
-    let dim = a.dim();
-    // Before anything touches the matrix: a system too large to hold densely fails at once.
-    check_dense_memory(dim, 2)?;
-    a.check_finite()?;
-    let start = Instant::now();
-    let dense = a.to_dense();
-    let lu = match precision {
-        Precision::F64 => {
-            let lu = Packed::factor(dense);
-            check_pivots(a, (0..dim).map(|i| (i, lu.lu[(i, i)])))?;
-            Lu::F64(lu)
-        }
-        Precision::Mixed => {
-            let single = Mat::<f32>::from_fn(dim, dim, |i, j| dense[(i, j)] as f32);
-            drop(dense);
-            let lu = Packed::factor(single);
-            check_pivots(a, (0..dim).map(|i| (i, lu.lu[(i, i)] as f64)))?;
-            Lu::F32(lu)
-        }
-    };
-    let word = if precision == Precision::F64 { 8 } else { 4 };
-    Ok((lu, dense_lu_cost(dim, start.elapsed().as_secs_f64(), word)))
-}
+impl DenseKernel for FaerKernel {
+    const NAME: &'static str = "faer-lu";
 
-impl Factorization for FaerLuFactorization {
-    fn backend(&self) -> &'static str {
-        "faer-lu"
+    fn factor(a: &BorderedMatrix, precision: Precision) -> Result<Self> {
+        let dim = a.dim();
+        let dense = a.to_dense();
+        Ok(match precision {
+            Precision::F64 => {
+                let lu = Packed::factor(dense);
+                check_pivots(a, (0..dim).map(|i| (i, lu.lu[(i, i)])))?;
+                FaerKernel::F64(lu)
+            }
+            Precision::Mixed => {
+                let single = Mat::<f32>::from_fn(dim, dim, |i, j| dense[(i, j)] as f32);
+                drop(dense);
+                let lu = Packed::factor(single);
+                check_pivots(a, (0..dim).map(|i| (i, lu.lu[(i, i)] as f64)))?;
+                FaerKernel::F32(lu)
+            }
+        })
     }
 
-    fn matrix(&self) -> &BorderedMatrix {
-        &self.matrix
-    }
-
-    fn options(&self) -> &FactorOptions {
-        &self.opts
-    }
-
-    fn cost(&self) -> FactorCost {
-        self.cost
-    }
-
-    fn solve_unrefined(&self, rhs: &mut [f64]) {
+    fn solve(&self, rhs: &mut [f64]) {
         let n = rhs.len();
-        match &self.lu {
-            Lu::F64(lu) => lu.solve(MatMut::from_column_major_slice_mut(rhs, n, 1)),
-            Lu::F32(lu) => {
+        match self {
+            FaerKernel::F64(lu) => lu.solve(MatMut::from_column_major_slice_mut(rhs, n, 1)),
+            FaerKernel::F32(lu) => {
                 let mut b: Vec<f32> = rhs.iter().map(|v| *v as f32).collect();
                 lu.solve(MatMut::from_column_major_slice_mut(&mut b, n, 1));
                 rhs.iter_mut().zip(&b).for_each(|(d, s)| *d = *s as f64);
             }
         }
-    }
-
-    fn set_border(&mut self, border: &[Vec<f64>]) -> Result<FactorCost> {
-        self.matrix.set_border(border);
-        let (lu, cost) = factor(&self.matrix, self.opts.precision)?;
-        self.lu = lu;
-        self.cost = cost;
-        Ok(cost)
     }
 }

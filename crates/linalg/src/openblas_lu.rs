@@ -5,16 +5,12 @@
 //! rather than ndarray-linalg's `LUFactorized`, because the latter keeps the factors
 //! private and the pivots must be checked to name a singular one.
 
-use std::time::Instant;
-
 use lax::layout::MatrixLayout;
 use lax::{Lapack, Pivot, Transpose};
 
-use crate::dense::{check_dense_memory, dense_lu_cost};
+use crate::dense::{DenseFactorization, DenseKernel};
 use crate::solver::check_pivots;
-use crate::{
-    BorderedMatrix, FactorCost, FactorOptions, Factorization, LinalgError, LinearSolver, Precision, Result,
-};
+use crate::{BorderedMatrix, FactorOptions, Factorization, LinalgError, LinearSolver, Precision, Result};
 
 // ndarray-linalg is what selects and links the LAPACK implementation (openblas-system).
 use ndarray_linalg as _;
@@ -23,21 +19,15 @@ use ndarray_linalg as _;
 #[derive(Clone, Copy, Debug, Default)]
 pub struct OpenblasLu;
 
-enum Lu {
+/// The column-major packed factors and pivots, in the precision they were made in.
+enum OpenblasKernel {
     F64(Vec<f64>, Pivot),
     F32(Vec<f32>, Pivot),
 }
 
-struct OpenblasFactorization {
-    matrix: BorderedMatrix,
-    opts: FactorOptions,
-    lu: Lu,
-    cost: FactorCost,
-}
-
 impl LinearSolver for OpenblasLu {
     fn name(&self) -> &'static str {
-        "openblas-lu"
+        OpenblasKernel::NAME
     }
 
     fn supports(&self, _precision: Precision) -> bool {
@@ -45,8 +35,7 @@ impl LinearSolver for OpenblasLu {
     }
 
     fn factorize(&self, a: &BorderedMatrix, opts: &FactorOptions) -> Result<Box<dyn Factorization>> {
-        let (lu, cost) = factor(a, opts.precision)?;
-        Ok(Box::new(OpenblasFactorization { matrix: a.clone(), opts: *opts, lu, cost }))
+        DenseFactorization::<OpenblasKernel>::boxed(a, opts)
     }
 }
 
@@ -82,61 +71,43 @@ fn on_large_stack<T: Send>(f: impl FnOnce() -> T + Send) -> Result<T> {
     })
 }
 
-fn factor(a: &BorderedMatrix, precision: Precision) -> Result<(Lu, FactorCost)> {
-    let dim = a.dim();
-    // Before anything touches the matrix: a system too large to hold densely fails at once.
-    check_dense_memory(dim, 2)?;
-    a.check_finite()?;
-    let start = Instant::now();
-    // Column-major, as LAPACK takes it, factored in place.
-    let dense = a.to_dense_col_major();
-    let lu = match precision {
-        Precision::F64 => {
-            let mut buf = dense;
-            let piv = on_large_stack(|| f64::lu(layout(dim), &mut buf))?.map_err(|e| lapack_err(e, dim))?;
-            check_pivots(a, (0..dim).map(|i| (i, buf[i * dim + i])))?;
-            Lu::F64(buf, piv)
-        }
-        Precision::Mixed => {
-            let mut buf: Vec<f32> = dense.iter().map(|v| *v as f32).collect();
-            drop(dense);
-            let piv = on_large_stack(|| f32::lu(layout(dim), &mut buf))?.map_err(|e| lapack_err(e, dim))?;
-            check_pivots(a, (0..dim).map(|i| (i, buf[i * dim + i] as f64)))?;
-            Lu::F32(buf, piv)
-        }
-    };
-    let word = if precision == Precision::F64 { 8 } else { 4 };
-    Ok((lu, dense_lu_cost(dim, start.elapsed().as_secs_f64(), word)))
-}
+impl DenseKernel for OpenblasKernel {
+    const NAME: &'static str = "openblas-lu";
 
-impl Factorization for OpenblasFactorization {
-    fn backend(&self) -> &'static str {
-        "openblas-lu"
+    fn factor(a: &BorderedMatrix, precision: Precision) -> Result<Self> {
+        let dim = a.dim();
+        // Column-major, as LAPACK takes it, factored in place.
+        let dense = a.to_dense_col_major();
+        Ok(match precision {
+            Precision::F64 => {
+                let mut buf = dense;
+                let piv =
+                    on_large_stack(|| f64::lu(layout(dim), &mut buf))?.map_err(|e| lapack_err(e, dim))?;
+                check_pivots(a, (0..dim).map(|i| (i, buf[i * dim + i])))?;
+                OpenblasKernel::F64(buf, piv)
+            }
+            Precision::Mixed => {
+                let mut buf: Vec<f32> = dense.iter().map(|v| *v as f32).collect();
+                drop(dense);
+                let piv =
+                    on_large_stack(|| f32::lu(layout(dim), &mut buf))?.map_err(|e| lapack_err(e, dim))?;
+                check_pivots(a, (0..dim).map(|i| (i, buf[i * dim + i] as f64)))?;
+                OpenblasKernel::F32(buf, piv)
+            }
+        })
     }
 
-    fn matrix(&self) -> &BorderedMatrix {
-        &self.matrix
-    }
-
-    fn options(&self) -> &FactorOptions {
-        &self.opts
-    }
-
-    fn cost(&self) -> FactorCost {
-        self.cost
-    }
-
-    fn solve_unrefined(&self, rhs: &mut [f64]) {
+    fn solve(&self, rhs: &mut [f64]) {
         let dim = rhs.len();
-        match &self.lu {
-            Lu::F64(buf, piv) => {
-                // getrs only fails on argument errors, which the shapes rule out; a failure
-                // leaves NaN so the checked solve reports it.
+        // getrs only fails on argument errors, which the shapes rule out; a failure leaves
+        // NaN so the checked solve reports it.
+        match self {
+            OpenblasKernel::F64(buf, piv) => {
                 if f64::solve(layout(dim), Transpose::No, buf, piv, rhs).is_err() {
                     rhs.iter_mut().for_each(|v| *v = f64::NAN);
                 }
             }
-            Lu::F32(buf, piv) => {
+            OpenblasKernel::F32(buf, piv) => {
                 let mut b: Vec<f32> = rhs.iter().map(|v| *v as f32).collect();
                 if f32::solve(layout(dim), Transpose::No, buf, piv, &mut b).is_err() {
                     b.iter_mut().for_each(|v| *v = f32::NAN);
@@ -145,12 +116,18 @@ impl Factorization for OpenblasFactorization {
             }
         }
     }
+}
 
-    fn set_border(&mut self, border: &[Vec<f64>]) -> Result<FactorCost> {
-        self.matrix.set_border(border);
-        let (lu, cost) = factor(&self.matrix, self.opts.precision)?;
-        self.lu = lu;
-        self.cost = cost;
-        Ok(cost)
-    }
+// The C entry point OpenBLAS exports to change its thread count at run time.
+#[allow(unsafe_code)]
+unsafe extern "C" {
+    fn openblas_set_num_threads(num_threads: std::ffi::c_int);
+}
+
+/// Sets OpenBLAS's thread count (it reads `OPENBLAS_NUM_THREADS` only when it loads).
+#[allow(unsafe_code)]
+pub(crate) fn set_openblas_threads(n: usize) {
+    let n = n.clamp(1, std::ffi::c_int::MAX as usize) as std::ffi::c_int;
+    // SAFETY: a plain setter in the linked OpenBLAS; it takes any positive count.
+    unsafe { openblas_set_num_threads(n) }
 }

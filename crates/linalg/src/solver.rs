@@ -244,7 +244,3 @@ pub(crate) fn check_pivots(a: &BorderedMatrix, pivots: impl Iterator<Item = (usi
     }
     Ok(())
 }
-
-pub(crate) fn ensure_supported(backend: &'static str, supported: bool, p: Precision) -> Result<()> {
-    if supported { Ok(()) } else { Err(LinalgError::UnsupportedPrecision { backend, precision: p.name() }) }
-}

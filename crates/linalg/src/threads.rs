@@ -1,14 +1,17 @@
 //! Thread control for every backend.
 //!
 //! By default faer and rayon use every core. [`set_threads`] pins faer's global
-//! parallelism (and, once, rayon's global pool) to `n` threads; OpenBLAS reads
-//! `OPENBLAS_NUM_THREADS` when it loads, so set that variable in the environment of a
-//! process that compares backends (`fibfluid --threads 1` does all of this).
+//! parallelism, OpenBLAS's thread count (feature `openblas`) and, once, rayon's global pool
+//! to `n` threads (`fibfluid --threads 1` calls it). OpenBLAS threads keep spinning for a
+//! while after a call; compare backends in separate processes for clean timings.
 
-/// Sets faer's parallelism to `n` threads (1 = sequential) and, if it has not been built
-/// yet, rayon's global pool. Returns false when rayon's pool already existed.
+/// Sets faer's parallelism to `n` threads (1 = sequential), OpenBLAS's thread count when
+/// that backend is built, and, if it has not been built yet, rayon's global pool. Returns
+/// false when rayon's pool already existed.
 pub fn set_threads(n: usize) -> bool {
     let n = n.max(1);
+    #[cfg(feature = "openblas")]
+    crate::openblas_lu::set_openblas_threads(n);
     faer::set_global_parallelism(if n == 1 { faer::Par::Seq } else { faer::Par::rayon(n) });
     rayon::ThreadPoolBuilder::new().num_threads(n).build_global().is_ok()
 }
