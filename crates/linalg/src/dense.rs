@@ -97,6 +97,10 @@ impl<K: DenseKernel> Factorization for DenseFactorization<K> {
         self.kernel.solve(rhs);
     }
 
+    fn border_update_refactors(&self) -> bool {
+        true
+    }
+
     /// A dense factorization cannot reuse anything when the border changes: refactor.
     fn set_border(&mut self, border: &[Vec<f64>]) -> Result<FactorCost> {
         self.matrix.set_border(border);

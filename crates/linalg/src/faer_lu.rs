@@ -1,17 +1,18 @@
 //! faer partial-pivot LU of the dense bordered matrix.
 //!
-//! The LU is computed in place in the dense matrix built from the bordered one and kept
-//! packed (unit L strictly below the diagonal, U on and above it) with its row
-//! permutation: no copy of the n^2 matrix besides the dense form itself. (faer's
-//! `PartialPivLu` would copy the input and then split L and U into two more matrices,
-//! about a third of the factorization time at n = 3001 on two cores.)
+//! The LU is computed in place in the column-major dense form of the bordered matrix
+//! ([`BorderedMatrix::to_dense_col_major`], filled in parallel) and kept packed (unit L
+//! strictly below the diagonal, U on and above it) with its row permutation: no copy of
+//! the n^2 matrix besides the dense form itself. (faer's `PartialPivLu` would copy the input
+//! and then split L and U into two more matrices, about a third of the factorization time
+//! at n = 3001 on two cores.)
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::lu::partial_pivoting::factor::{lu_in_place, lu_in_place_scratch};
 use faer::linalg::lu::partial_pivoting::solve::{solve_in_place, solve_in_place_scratch};
 use faer::perm::Perm;
 use faer::traits::ComplexField;
-use faer::{Mat, MatMut};
+use faer::{MatMut, MatRef};
 
 use crate::dense::{DenseFactorization, DenseKernel};
 use crate::solver::check_pivots;
@@ -21,39 +22,40 @@ use crate::{BorderedMatrix, FactorOptions, Factorization, LinearSolver, Precisio
 #[derive(Clone, Copy, Debug, Default)]
 pub struct FaerLu;
 
-/// A packed LU and its row permutation.
+/// A packed LU (n x n, column-major) and its row permutation.
 struct Packed<T> {
-    lu: Mat<T>,
+    lu: Vec<T>,
+    n: usize,
     perm: Perm<usize>,
 }
 
 impl<T: ComplexField> Packed<T> {
-    /// Factors `a` in place (partial pivoting, faer's global parallelism).
-    fn factor(mut a: Mat<T>) -> Self {
-        let n = a.nrows();
+    /// Factors the column-major n x n matrix `a` in place (partial pivoting, faer's global
+    /// parallelism).
+    fn factor(mut a: Vec<T>, n: usize) -> Self {
         let par = faer::get_global_parallelism();
         let mut fwd = vec![0usize; n];
         let mut inv = vec![0usize; n];
         let mut mem = MemBuffer::new(lu_in_place_scratch::<usize, T>(n, n, par, Default::default()));
-        lu_in_place(a.as_mut(), &mut fwd, &mut inv, par, MemStack::new(&mut mem), Default::default());
+        let view = MatMut::from_column_major_slice_mut(&mut a, n, n);
+        lu_in_place(view, &mut fwd, &mut inv, par, MemStack::new(&mut mem), Default::default());
         let perm = Perm::new_checked(fwd.into_boxed_slice(), inv.into_boxed_slice(), n);
-        Self { lu: a, perm }
+        Self { lu: a, n, perm }
+    }
+
+    /// The pivot U_ii.
+    fn pivot(&self, i: usize) -> &T {
+        &self.lu[i * self.n + i]
     }
 
     /// Solves in place for the columns of `rhs`.
     fn solve(&self, rhs: MatMut<'_, T>) {
         let par = faer::get_global_parallelism();
-        let mut mem = MemBuffer::new(solve_in_place_scratch::<usize, T>(self.lu.nrows(), rhs.ncols(), par));
+        let mut mem = MemBuffer::new(solve_in_place_scratch::<usize, T>(self.n, rhs.ncols(), par));
+        let lu = MatRef::from_column_major_slice(&self.lu, self.n, self.n);
         // The unit lower solve reads only the strict lower triangle, the upper solve only
         // the upper one, so the packed matrix serves as both.
-        solve_in_place(
-            self.lu.as_ref(),
-            self.lu.as_ref(),
-            self.perm.as_ref(),
-            rhs,
-            par,
-            MemStack::new(&mut mem),
-        );
+        solve_in_place(lu, lu, self.perm.as_ref(), rhs, par, MemStack::new(&mut mem));
     }
 }
 
@@ -82,18 +84,18 @@ impl DenseKernel for FaerKernel {
 
     fn factor(a: &BorderedMatrix, precision: Precision) -> Result<Self> {
         let dim = a.dim();
-        let dense = a.to_dense();
+        let dense = a.to_dense_col_major();
         Ok(match precision {
             Precision::F64 => {
-                let lu = Packed::factor(dense);
-                check_pivots(a, (0..dim).map(|i| (i, lu.lu[(i, i)])))?;
+                let lu = Packed::factor(dense, dim);
+                check_pivots(a, (0..dim).map(|i| (i, *lu.pivot(i))))?;
                 FaerKernel::F64(lu)
             }
             Precision::Mixed => {
-                let single = Mat::<f32>::from_fn(dim, dim, |i, j| dense[(i, j)] as f32);
+                let single: Vec<f32> = dense.iter().map(|v| *v as f32).collect();
                 drop(dense);
-                let lu = Packed::factor(single);
-                check_pivots(a, (0..dim).map(|i| (i, lu.lu[(i, i)] as f64)))?;
+                let lu = Packed::factor(single, dim);
+                check_pivots(a, (0..dim).map(|i| (i, *lu.pivot(i) as f64)))?;
                 FaerKernel::F32(lu)
             }
         })

@@ -154,22 +154,33 @@ impl BorderedMatrix {
     }
 
     /// The dense (dN+1)^2 matrix in the paper's layout, column-major in one `Vec` (the
-    /// layout LAPACK and nalgebra take), written directly without an intermediate matrix.
+    /// layout LAPACK, nalgebra and the faer backend factor in place), written directly
+    /// without an intermediate matrix.
+    ///
+    /// The columns are filled in parallel (rayon's pool) and each is written whole, zeros
+    /// included: for a large fresh allocation the cost is the first touch of every page, and
+    /// this spreads those page faults over the threads instead of leaving them to the
+    /// factorization.
     pub fn to_dense_col_major(&self) -> Vec<f64> {
+        use rayon::prelude::*;
         let (n, d) = (self.n, self.axes());
         let dim = self.dim();
         let mut a = vec![0.0; dim * dim];
-        for c in 0..d {
-            let k = self.block(c);
-            let off = c * n;
-            for j in 0..n {
-                let col = (off + j) * dim;
-                a[col + off..col + off + n].copy_from_slice(k.col_as_slice(j));
-                a[col + dim - 1] = self.border[c][j];
+        a.par_chunks_mut(dim).enumerate().for_each(|(j, col)| {
+            if j == dim - 1 {
+                for c in 0..d {
+                    col[c * n..(c + 1) * n].copy_from_slice(&self.border[c]);
+                }
+                col[dim - 1] = 0.0;
+            } else {
+                let (c, jj) = (j / n, j % n);
+                let off = c * n;
+                col[..off].fill(0.0);
+                col[off..off + n].copy_from_slice(self.block(c).col_as_slice(jj));
+                col[off + n..dim - 1].fill(0.0);
+                col[dim - 1] = self.border[c][jj];
             }
-            let last = (dim - 1) * dim;
-            a[last + off..last + off + n].copy_from_slice(&self.border[c]);
-        }
+        });
         a
     }
 

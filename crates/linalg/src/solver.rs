@@ -87,6 +87,11 @@ pub trait Factorization: Send + Sync {
     fn cost(&self) -> FactorCost;
     /// One solve in the factorization's own precision, in place, without refinement.
     fn solve_unrefined(&self, rhs: &mut [f64]);
+    /// Whether [`set_border`](Self::set_border) refactors the whole matrix (dense backends)
+    /// rather than updating a Schur complement.
+    fn border_update_refactors(&self) -> bool {
+        false
+    }
     /// Replaces the border (a new *physical* `S`) and updates the factorization.
     /// The structured backend only redoes triangular solves; dense backends refactor.
     /// Returns what the update cost.
