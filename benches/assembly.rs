@@ -3,8 +3,9 @@
 //! `assemble/structured` times `fibfluid::assembly::assemble` (the K block, the border and
 //! the elimination of the fixed degrees of freedom) for the paper's sphere material
 //! (Y = gamma = 3000, rho = 1000; the vertices with y > 0.8 fixed); `assemble/to-dense`
-//! times the conversion of that system to the dense (3N+1)^2 matrix the dense backends
-//! factor. Vertex areas, edges and the fiber set (every pair: the sphere is convex) are
+//! times the conversion of that system to the dense (3N+1)^2 faer matrix, and
+//! `assemble/to-dense-col-major` the column-major `Vec` the dense backends factor in
+//! place. Vertex areas, edges and the fiber set (every pair: the sphere is convex) are
 //! built outside the timing.
 //!
 //! Run: `cargo bench --features openblas --bench assembly`.
@@ -68,6 +69,7 @@ fn assembly(c: &mut Criterion) {
     group.finish();
 
     let mut group = c.benchmark_group("assemble/to-dense");
+    let mut dense_systems = Vec::new();
     group.sample_size(10).warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(3));
     for s in &spheres {
         let n = s.mesh.n_vertices();
@@ -84,6 +86,19 @@ fn assembly(c: &mut Criterion) {
         group.bench_with_input(BenchmarkId::from_parameter(n), &system, |b, system| {
             b.iter(|| black_box(system.matrix.to_dense()))
         });
+        dense_systems.push(system);
+    }
+    group.finish();
+
+    let mut group = c.benchmark_group("assemble/to-dense-col-major");
+    group.sample_size(10).warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(3));
+    for system in &dense_systems {
+        group.throughput(Throughput::Bytes(system.matrix.dense_bytes() as u64));
+        group.bench_with_input(
+            BenchmarkId::from_parameter(system.matrix.n_vertices()),
+            system,
+            |b, system| b.iter(|| black_box(system.matrix.to_dense_col_major())),
+        );
     }
     group.finish();
 }

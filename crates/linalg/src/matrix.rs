@@ -312,6 +312,11 @@ impl BorderedMatrix {
             Blocks::PerAxis(ks) => ks.iter().collect(),
         };
         for (c, k) in blocks.iter().enumerate() {
+            // The cached absolute row sums are finite exactly when every entry is (barring
+            // an overflow of the sum, which the scan below then rules out): then no scan.
+            if self.block_row_sums[c].iter().all(|v| v.is_finite()) {
+                continue;
+            }
             for j in 0..n {
                 if let Some(i) = k.col(j).iter().position(|v| !v.is_finite()) {
                     return Err(LinalgError::NonFinite { row: c * n + i, col: c * n + j });
