@@ -17,8 +17,9 @@
 //! per factorization and criterion needs at least 11 of them.
 //!
 //! Groups run backend by backend (GEMM first, OpenBLAS last: its threads keep spinning
-//! after a call). Threads: `FIBFLUID_THREADS` (default every core) for faer and rayon,
-//! `OPENBLAS_NUM_THREADS` for OpenBLAS.
+//! after a call). Threads: `FIBFLUID_THREADS` (default every core) for faer, rayon and
+//! OpenBLAS (`fibfluid::bench::pin_threads`). OpenBLAS picks its kernels when it loads
+//! (`OPENBLAS_CORETYPE` overrides the choice); both settings are printed.
 //!
 //! Run: `cargo bench --features openblas --bench backends`.
 
@@ -135,10 +136,7 @@ fn vm_kib(field: &str) -> Option<u64> {
 
 fn backends(c: &mut Criterion) {
     let threads = pin_threads();
-    println!(
-        "threads: faer/rayon {threads}, OPENBLAS_NUM_THREADS = {}",
-        std::env::var("OPENBLAS_NUM_THREADS").unwrap_or_else(|_| "unset (every core)".into())
-    );
+    println!("{}", thread_note(threads));
     memory_report();
     let cases: Vec<Case> = SIZES.iter().map(|&n| case(n)).collect();
     let opts = FactorOptions::default();
@@ -277,6 +275,17 @@ fn resolve_with_new_border(
         });
     }
     group.finish();
+}
+
+/// The thread settings of this process, for the bench log.
+fn thread_note(threads: usize) -> String {
+    let env = |k: &str| std::env::var(k).unwrap_or_else(|_| "unset".into());
+    format!(
+        "threads: {threads} for faer, rayon and OpenBLAS (set at run time); at load \
+         OPENBLAS_NUM_THREADS = {}, OPENBLAS_CORETYPE = {}",
+        env("OPENBLAS_NUM_THREADS"),
+        env("OPENBLAS_CORETYPE")
+    )
 }
 
 criterion_group!(benches, backends);

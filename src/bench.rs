@@ -10,10 +10,11 @@ use crate::Result;
 /// Environment variable read by [`pin_threads`].
 pub const THREADS_ENV: &str = "FIBFLUID_THREADS";
 
-/// Pins faer's and rayon's thread count for a bench process: the value of
-/// `FIBFLUID_THREADS` if it is set to a positive integer, else every core the process may
-/// use. Returns the count. Call it before anything builds rayon's global pool. OpenBLAS is
-/// not affected: it reads `OPENBLAS_NUM_THREADS` itself when the library loads.
+/// Pins the thread count of a bench process through
+/// [`set_threads`](fibfluid_linalg::threads::set_threads) (faer, rayon's global pool and,
+/// when built, OpenBLAS at run time): the value of `FIBFLUID_THREADS` if it is set to a
+/// positive integer, else every core the process may use. Returns the count. Call it
+/// before anything builds rayon's global pool.
 pub fn pin_threads() -> usize {
     let n = std::env::var(THREADS_ENV)
         .ok()
