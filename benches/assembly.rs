@@ -28,6 +28,20 @@ struct Sphere {
     constraints: Constraints,
 }
 
+impl Sphere {
+    /// The body the assembly sees.
+    fn body(&self) -> Body<'_> {
+        Body {
+            axes: 3,
+            positions: self.mesh.positions(),
+            vertex_areas: &self.areas,
+            edges: &self.edges,
+            fibers: &self.fibers,
+            rest_positions: None,
+        }
+    }
+}
+
 fn sphere(level: u32) -> Sphere {
     let mesh = icosphere(level, 1.0);
     let n = mesh.n_vertices();
@@ -55,14 +69,7 @@ fn assembly(c: &mut Criterion) {
         let n = s.mesh.n_vertices();
         group.throughput(Throughput::Elements(s.fibers.kept() as u64));
         group.bench_with_input(BenchmarkId::from_parameter(n), s, |b, s| {
-            let body = Body {
-                axes: 3,
-                positions: s.mesh.positions(),
-                vertex_areas: &s.areas,
-                edges: &s.edges,
-                fibers: &s.fibers,
-                rest_positions: None,
-            };
+            let body = s.body();
             b.iter(|| black_box(assemble(&body, &material, &s.constraints, &opts).expect("assemble")))
         });
     }
@@ -73,14 +80,7 @@ fn assembly(c: &mut Criterion) {
     group.sample_size(10).warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(3));
     for s in &spheres {
         let n = s.mesh.n_vertices();
-        let body = Body {
-            axes: 3,
-            positions: s.mesh.positions(),
-            vertex_areas: &s.areas,
-            edges: &s.edges,
-            fibers: &s.fibers,
-            rest_positions: None,
-        };
+        let body = s.body();
         let system = assemble(&body, &material, &s.constraints, &opts).expect("assemble");
         group.throughput(Throughput::Bytes(system.matrix.dense_bytes() as u64));
         group.bench_with_input(BenchmarkId::from_parameter(n), &system, |b, system| {

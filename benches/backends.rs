@@ -136,7 +136,7 @@ fn vm_kib(field: &str) -> Option<u64> {
 
 fn backends(c: &mut Criterion) {
     let threads = pin_threads();
-    println!("{}", thread_note(threads));
+    println!("{}", fibfluid::bench::thread_note(threads));
     memory_report();
     let cases: Vec<Case> = SIZES.iter().map(|&n| case(n)).collect();
     let opts = FactorOptions::default();
@@ -275,17 +275,6 @@ fn resolve_with_new_border(
         });
     }
     group.finish();
-}
-
-/// The thread settings of this process, for the bench log.
-fn thread_note(threads: usize) -> String {
-    let env = |k: &str| std::env::var(k).unwrap_or_else(|_| "unset".into());
-    format!(
-        "threads: {threads} for faer, rayon and OpenBLAS (set at run time); at load \
-         OPENBLAS_NUM_THREADS = {}, OPENBLAS_CORETYPE = {}",
-        env("OPENBLAS_NUM_THREADS"),
-        env("OPENBLAS_CORETYPE")
-    )
 }
 
 criterion_group!(benches, backends);

@@ -64,7 +64,7 @@ fn skipped(backend: &str, n: usize) -> Option<&'static str> {
 
 fn step(c: &mut Criterion) {
     let threads = pin_threads();
-    println!("{}", thread_note(threads));
+    println!("{}", fibfluid::bench::thread_note(threads));
     // Backend by backend (OpenBLAS last: its threads keep spinning after a call).
     for backend in backend_names() {
         for mode in [Mode::Paper, Mode::Refresh] {
@@ -137,17 +137,6 @@ fn prepare(level: u32, backend: &str, mode: Mode) -> (Simulation, bool) {
     // Long steps run about 11 times in all: no rewinding (12 load steps are 1.2 times the
     // scene's load, still in range).
     (sim, one <= 0.15)
-}
-
-/// The thread settings of this process, for the bench log.
-fn thread_note(threads: usize) -> String {
-    let env = |k: &str| std::env::var(k).unwrap_or_else(|_| "unset".into());
-    format!(
-        "threads: {threads} for faer, rayon and OpenBLAS (set at run time); at load \
-         OPENBLAS_NUM_THREADS = {}, OPENBLAS_CORETYPE = {}",
-        env("OPENBLAS_NUM_THREADS"),
-        env("OPENBLAS_CORETYPE")
-    )
 }
 
 criterion_group!(benches, step);

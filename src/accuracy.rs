@@ -222,29 +222,35 @@ fn point_of(config: Config, rt: &RoundTrip, reference: &RoundTrip, n: usize, dia
     }
 }
 
+/// The measured columns of a point, formatted by `num` (missing values by `missing`).
+fn measured_cells(p: &Point, num: impl Fn(f64) -> String, missing: &str) -> Vec<String> {
+    let f = |v: Option<f64>| v.map(&num).unwrap_or_else(|| missing.to_string());
+    let c = &p.config;
+    vec![
+        c.mode.clone(),
+        c.stepping.clone(),
+        c.steps.to_string(),
+        c.precision.clone(),
+        c.backend.clone(),
+        f(p.roundtrip_error),
+        f(p.volume_drift),
+        f(p.reference_distance),
+        f(p.residual_max),
+        p.factorizations.map(|v| v.to_string()).unwrap_or_else(|| missing.to_string()),
+    ]
+}
+
 /// The study as CSV (one row per point).
 pub fn to_csv(study: &Study) -> String {
     let mut out = String::from(
         "mode,stepping,steps,precision,backend,roundtrip_error,volume_drift,reference_distance,residual_max,factorizations,seconds,error\n",
     );
-    let f = |v: Option<f64>| v.map(|x| format!("{x:e}")).unwrap_or_default();
     for p in &study.points {
-        let c = &p.config;
-        out.push_str(&format!(
-            "{},{},{},{},{},{},{},{},{},{},{},{}\n",
-            c.mode,
-            c.stepping,
-            c.steps,
-            c.precision,
-            c.backend,
-            f(p.roundtrip_error),
-            f(p.volume_drift),
-            f(p.reference_distance),
-            f(p.residual_max),
-            p.factorizations.map(|v| v.to_string()).unwrap_or_default(),
-            f(p.seconds),
-            p.error.as_deref().unwrap_or("").replace(',', ";").replace('\n', " ")
-        ));
+        let mut cells = measured_cells(p, |x| format!("{x:e}"), "");
+        cells.push(p.seconds.map(|x| format!("{x:e}")).unwrap_or_default());
+        cells.push(p.error.as_deref().unwrap_or("").replace(',', ";").replace('\n', " "));
+        out.push_str(&cells.join(","));
+        out.push('\n');
     }
     out
 }
@@ -287,28 +293,15 @@ pub fn to_markdown(study: &Study, title: &str) -> String {
         study.reference.backend
     );
     out.push_str("| mode | stepping | steps | precision | backend | round-trip error | volume drift | distance to reference | residual | factorizations | seconds | |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
-    let f = |v: Option<f64>| v.map(|x| format!("{x:.2e}")).unwrap_or_else(|| "—".into());
     for (i, p) in study.points.iter().enumerate() {
-        let c = &p.config;
-        out.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
-            c.mode,
-            c.stepping,
-            c.steps,
-            c.precision,
-            c.backend,
-            f(p.roundtrip_error),
-            f(p.volume_drift),
-            f(p.reference_distance),
-            f(p.residual_max),
-            p.factorizations.map(|v| v.to_string()).unwrap_or_else(|| "—".into()),
-            p.seconds.map(|s| format!("{s:.4}")).unwrap_or_else(|| "—".into()),
-            if front.contains(&i) {
-                "*".to_string()
-            } else {
-                p.error.clone().map(|e| format!("failed: {e}")).unwrap_or_default()
-            }
-        ));
+        let mut cells = measured_cells(p, |x| format!("{x:.2e}"), "—");
+        cells.push(p.seconds.map(|s| format!("{s:.4}")).unwrap_or_else(|| "—".into()));
+        cells.push(if front.contains(&i) {
+            "*".to_string()
+        } else {
+            p.error.clone().map(|e| format!("failed: {e}")).unwrap_or_default()
+        });
+        out.push_str(&format!("| {} |\n", cells.join(" | ")));
     }
     for (c, why) in &study.skipped {
         out.push_str(&format!(

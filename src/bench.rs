@@ -66,3 +66,15 @@ pub fn synthetic_system(n: usize, method: ConstraintMethod) -> Result<System> {
         if method == ConstraintMethod::Eliminate { PressureScaling::Auto } else { PressureScaling::None };
     Ok(assemble(&body, &material, &c, &AssemblyOptions { method, pressure_scaling: scaling })?)
 }
+
+/// One line describing the thread settings of this process, for bench logs: the count
+/// [`pin_threads`] set, and the OpenBLAS variables read when the library loads.
+pub fn thread_note(threads: usize) -> String {
+    let env = |k: &str| std::env::var(k).unwrap_or_else(|_| "unset".into());
+    format!(
+        "threads: {threads} for faer, rayon and OpenBLAS (set at run time); at load \
+         OPENBLAS_NUM_THREADS = {}, OPENBLAS_CORETYPE = {}",
+        env("OPENBLAS_NUM_THREADS"),
+        env("OPENBLAS_CORETYPE")
+    )
+}

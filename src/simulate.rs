@@ -437,13 +437,14 @@ impl Simulation {
             // opposite increment but the same "down".
             let g = self.scene.gravity;
             let h = self.log.time(names::DEPTHS, || depths(s, g));
-            let areas = if self.scene.solver.mode == Mode::Paper
-                || s != self.positions.as_slice()
-                || self.border_areas.len() != n
-            {
-                self.log.time(names::AREAS, || areas_of(&self.topology, s))
+            // Paper mode keeps the rest border, so the load needs S of `s`; the other modes
+            // have just made the border describe `s` (prepare_operator runs first).
+            let computed;
+            let areas: &[Vec3] = if self.scene.solver.mode == Mode::Paper {
+                computed = self.log.time(names::AREAS, || areas_of(&self.topology, s));
+                &computed
             } else {
-                self.border_areas.clone()
+                &self.border_areas
             };
             let gdot = g[0] * da[0] + g[1] * da[1] + g[2] * da[2];
             let signed = if gdot >= 0.0 { mag } else { -mag };
