@@ -37,7 +37,7 @@ use faer::{Accum, Mat};
 use fibfluid::assembly::{ConstraintMethod, System};
 use fibfluid::bench::{fibonacci_sphere, pin_threads, synthetic_system};
 use fibfluid::linalg::{
-    FactorOptions, FactorizationExt, LinearSolver, all_backends, backend_by_name, lu_flops,
+    FactorOptions, FactorizationExt, LinearSolver, all_backends, lu_flops,
 };
 
 /// Vertex counts N (dense size 3N + 1).
@@ -103,7 +103,7 @@ fn memory_report() {
     let system = synthetic_system(MEMORY_N, ConstraintMethod::Eliminate).expect("synthetic system");
     let held_before = vm_kib("VmRSS");
     let reset = std::fs::write("/proc/self/clear_refs", "5").is_ok();
-    let solver = backend_by_name("structured").expect("structured backend");
+    let solver = fibfluid::Backend::Structured.solver().expect("structured backend");
     let f = solver.factorize(&system.matrix, &FactorOptions::default()).expect("factorization");
     let peak = vm_kib("VmHWM");
     let cost = f.cost();

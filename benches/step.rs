@@ -4,7 +4,7 @@
 //! the paper's sphere material (Y = gamma = 3000, rho = 1000), the vertices with y > 0.8
 //! fixed (elimination), gravity (0, -10, 0) ramped over 10 steps. `Simulation::new`
 //! (assembly and the first factorization) runs outside the timing; the timing covers
-//! `sim.step(k, 10, Direction::Load)`: in paper mode the load increment, the right-hand
+//! `sim.step_load((k + 1) / 10)`: in paper mode the load increment, the right-hand
 //! side, the checked solve and the position update; refresh mode adds the new border and
 //! volume target (triangular solves for the structured backend, a refactorization for the
 //! dense ones) and the volume-correction solves that follow the step (up to
@@ -24,15 +24,14 @@
 use std::time::{Duration, Instant};
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use fibfluid::assembly::{ConstraintMethod, Material, Selector};
+use fibfluid::assembly::{Material, Selector};
 use fibfluid::bench::pin_threads;
 use fibfluid::geometry::{MeshFile, icosphere};
-use fibfluid::linalg::backend_names;
-use fibfluid::{Direction, Mode, Scene, Simulation};
+use fibfluid::{Backend, ConstraintKind, Direction, Mode, RunOptions, Scene, Simulation};
 
 const STEPS: usize = 10;
 
-fn scene(level: u32, backend: &str, mode: Mode) -> Scene {
+fn scene(level: u32, backend: Backend, mode: Mode) -> Scene {
     let mesh = icosphere(level, 1.0);
     let n = mesh.n_vertices();
     let file = MeshFile {
@@ -51,24 +50,24 @@ fn scene(level: u32, backend: &str, mode: Mode) -> Scene {
         .expect("the top cap exists");
     scene.gravity = [0.0, -10.0, 0.0];
     scene.steps = STEPS;
-    scene.solver.backend = backend.into();
+    scene.solver.backend = backend;
     scene.solver.mode = mode;
-    scene.solver.constraints = ConstraintMethod::Eliminate;
+    scene.solver.constraints = ConstraintKind::Eliminate;
     scene
 }
 
 /// Why a case is left out, if it is.
-fn skipped(backend: &str, n: usize) -> Option<&'static str> {
-    (backend == "nalgebra-lu" && n > 1000).then_some("unblocked LU of the 7687^2 matrix takes minutes")
+fn skipped(backend: Backend, n: usize) -> Option<&'static str> {
+    (backend == Backend::NalgebraLu && n > 1000).then_some("unblocked LU of the 7687^2 matrix takes minutes")
 }
 
 fn step(c: &mut Criterion) {
     let threads = pin_threads();
     println!("{}", fibfluid::bench::thread_note(threads));
     // Backend by backend (OpenBLAS last: its threads keep spinning after a call).
-    for backend in backend_names() {
+    for backend in Backend::compiled() {
         for mode in [Mode::Paper, Mode::Refresh] {
-            let mut group = c.benchmark_group(format!("step/{}/{backend}", mode.name()));
+            let mut group = c.benchmark_group(format!("step/{}/{backend}", mode));
             // Criterion switches to one step per sample (flat sampling) by itself when a
             // step is long.
             group
@@ -78,7 +77,7 @@ fn step(c: &mut Criterion) {
             for level in [3, 4] {
                 let n = 10 * 4usize.pow(level) + 2;
                 if let Some(why) = skipped(backend, n) {
-                    println!("step/{}/{backend} at N = {n}: skipped ({why})", mode.name());
+                    println!("step/{}/{backend} at N = {n}: skipped ({why})", mode);
                     continue;
                 }
                 // Built on first use, so a criterion filter skips the setup of other cases.
@@ -90,13 +89,12 @@ fn step(c: &mut Criterion) {
                         let mut timed = Duration::ZERO;
                         for _ in 0..iters {
                             let start = Instant::now();
-                            sim.step(k, STEPS, Direction::Load).expect("load step");
+                            sim.step_load((k + 1) as f64 / STEPS as f64).expect("load step");
                             timed += start.elapsed();
                             k += 1;
                             if k == STEPS && *rewind {
-                                for u in 0..STEPS {
-                                    sim.step(u, STEPS, Direction::Unload).expect("unload step");
-                                }
+                                sim.run_steps(STEPS, Direction::Unload, &RunOptions::default())
+                                    .expect("unload steps");
                             }
                             k %= STEPS;
                         }
@@ -106,10 +104,10 @@ fn step(c: &mut Criterion) {
                 if let Some((sim, _)) = &state {
                     println!(
                         "step/{}/{backend} N = {n}: {} solves, largest residual {:.1e}, at most {} refinement steps",
-                        mode.name(),
-                        sim.solves(),
-                        sim.residual_max(),
-                        sim.refinement_steps_max()
+                        mode,
+                        sim.counters().solves,
+                        sim.counters().residual_max,
+                        sim.counters().refinement_steps_max
                     );
                 }
             }
@@ -120,19 +118,19 @@ fn step(c: &mut Criterion) {
 
 /// The simulation (assembly and first factorization untimed), after one untimed load and
 /// unload step; the flag says whether steps are short enough to rewind the load.
-fn prepare(level: u32, backend: &str, mode: Mode) -> (Simulation, bool) {
+fn prepare(level: u32, backend: Backend, mode: Mode) -> (Simulation, bool) {
     let scene = scene(level, backend, mode);
     let n = scene.n_vertices();
     let start = Instant::now();
     let mut sim = Simulation::new(scene).expect("simulation");
     let setup = start.elapsed().as_secs_f64();
     let start = Instant::now();
-    sim.step(0, STEPS, Direction::Load).expect("step");
+    sim.step_load(1.0 / STEPS as f64).expect("step");
     let one = start.elapsed().as_secs_f64();
-    sim.step(STEPS - 1, STEPS, Direction::Unload).expect("step");
+    sim.step_load(0.0).expect("step");
     println!(
         "step/{}/{backend} N = {n}: setup (assembly + factorization) {setup:.3} s, first step {one:.4} s",
-        mode.name()
+        mode
     );
     // Long steps run about 11 times in all: no rewinding (12 load steps are 1.2 times the
     // scene's load, still in range).

@@ -18,7 +18,7 @@ fn main() -> Result<(), fibfluid::Error> {
     let held =
         scene.constraints.fix_selected(&Selector::Bottom { axis: 1, within: 0.01 }, &positions, [true; 3])?;
     println!("{n} vertices, {held} held");
-    scene.solver.backend = "structured".into();
+    scene.solver.backend = fibfluid::Backend::Structured;
 
     // Factor once.
     let mut sim = Simulation::new(scene)?;

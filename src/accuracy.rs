@@ -3,7 +3,7 @@
 
 use serde::Serialize;
 
-use fibfluid_linalg::Precision;
+use fibfluid_linalg::{Backend, Precision};
 
 use crate::report::{RoundTrip, roundtrip};
 use crate::{Mode, RunOptions, Scene, Stepping};
@@ -12,15 +12,15 @@ use crate::{Mode, RunOptions, Scene, Stepping};
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Config {
     /// Stepping mode.
-    pub mode: String,
+    pub mode: Mode,
     /// Stepping scheme.
-    pub stepping: String,
+    pub stepping: Stepping,
     /// Load steps each way.
     pub steps: usize,
     /// Precision.
-    pub precision: String,
+    pub precision: Precision,
     /// Backend.
-    pub backend: String,
+    pub backend: Backend,
 }
 
 impl Config {
@@ -65,7 +65,7 @@ pub struct Grid {
     /// Precisions.
     pub precisions: Vec<Precision>,
     /// Backends.
-    pub backends: Vec<String>,
+    pub backends: Vec<Backend>,
     /// Dense backends refactor the (3N+1)^2 matrix at every step outside paper mode (a new
     /// border or a new K); above this many vertices they are run only up to
     /// `dense_refactor_max_steps` there.
@@ -77,11 +77,11 @@ pub struct Grid {
 impl Default for Grid {
     fn default() -> Self {
         Self {
-            modes: Mode::ALL.to_vec(),
+            modes: <Mode as fibfluid_linalg::Choice>::ALL.to_vec(),
             steppings: vec![Stepping::Euler, Stepping::Heun],
             steps: vec![1, 3, 10, 30, 100],
             precisions: vec![Precision::F64, Precision::Mixed],
-            backends: fibfluid_linalg::backend_names().into_iter().map(String::from).collect(),
+            backends: Backend::compiled(),
             dense_refactor_vertex_limit: 500,
             dense_refactor_max_steps: 10,
         }
@@ -107,11 +107,11 @@ pub fn run_study(scene: &Scene, grid: &Grid, progress: &dyn Fn(usize, usize)) ->
     reference_scene.solver.mode = Mode::Nonlinear;
     reference_scene.solver.stepping = Stepping::Heun;
     reference_scene.solver.precision = Precision::F64;
-    reference_scene.solver.backend = "structured".into();
+    reference_scene.solver.backend = Backend::Structured;
     // Warm-up (thread pools, page faults) so the first measured point is not penalized.
     let mut warm = scene.clone();
     warm.steps = 1;
-    warm.solver.backend = "structured".into();
+    warm.solver.backend = Backend::Structured;
     let _ = roundtrip(warm, &RunOptions::default());
     let reference_run = roundtrip(reference_scene.clone(), &RunOptions::default())?;
     let reference = config_of(&reference_scene);
@@ -124,16 +124,15 @@ pub fn run_study(scene: &Scene, grid: &Grid, progress: &dyn Fn(usize, usize)) ->
     for &mode in &grid.modes {
         for &stepping in &grid.steppings {
             for &precision in &grid.precisions {
-                for backend in &grid.backends {
+                for &backend in &grid.backends {
                     for &steps in &grid.steps {
                         let mut s = scene.clone();
                         s.steps = steps;
                         s.solver.mode = mode;
                         s.solver.stepping = stepping;
                         s.solver.precision = precision;
-                        s.solver.backend = backend.clone();
-                        let dense = backend != "structured";
-                        if dense
+                        s.solver.backend = backend;
+                        if backend.is_dense()
                             && mode != Mode::Paper
                             && n > grid.dense_refactor_vertex_limit
                             && steps > grid.dense_refactor_max_steps
@@ -195,11 +194,11 @@ pub const REPEAT_BUDGET: f64 = 0.2;
 
 fn config_of(s: &Scene) -> Config {
     Config {
-        mode: s.solver.mode.name().into(),
-        stepping: s.solver.stepping.name().into(),
+        mode: s.solver.mode,
+        stepping: s.solver.stepping,
         steps: s.steps,
-        precision: s.solver.precision.name().into(),
-        backend: s.solver.backend.clone(),
+        precision: s.solver.precision,
+        backend: s.solver.backend,
     }
 }
 
@@ -227,11 +226,11 @@ fn measured_cells(p: &Point, num: impl Fn(f64) -> String, missing: &str) -> Vec<
     let f = |v: Option<f64>| v.map(&num).unwrap_or_else(|| missing.to_string());
     let c = &p.config;
     vec![
-        c.mode.clone(),
-        c.stepping.clone(),
+        c.mode.to_string(),
+        c.stepping.to_string(),
         c.steps.to_string(),
-        c.precision.clone(),
-        c.backend.clone(),
+        c.precision.to_string(),
+        c.backend.to_string(),
         f(p.roundtrip_error),
         f(p.volume_drift),
         f(p.reference_distance),
@@ -255,27 +254,17 @@ pub fn to_csv(study: &Study) -> String {
     out
 }
 
-/// Indices of the points on the Pareto front of (seconds, error) for an error measure.
+/// Indices of the points on the Pareto front of (seconds, error) for an error measure
+/// (failed points and zero errors left out; see [`PARETO_MARGIN`]).
 pub fn pareto(study: &Study, error: impl Fn(&Point) -> Option<f64>) -> Vec<usize> {
     let idx: Vec<usize> = (0..study.points.len())
         .filter(|&i| study.points[i].seconds.is_some() && error(&study.points[i]).is_some_and(|e| e > 0.0))
         .collect();
-    let mut order = idx;
-    order.sort_by(|&a, &b| {
-        study.points[a].seconds.unwrap_or(0.0).total_cmp(&study.points[b].seconds.unwrap_or(0.0))
-    });
-    // Keep a point when it is at least PARETO_MARGIN more accurate than every faster one
-    // (ties within rounding would otherwise all count as non-dominated).
-    let mut best = f64::INFINITY;
-    let mut front = Vec::new();
-    for i in order {
-        let e = error(&study.points[i]).unwrap_or(f64::INFINITY);
-        if e < best * (1.0 - PARETO_MARGIN) {
-            best = e;
-            front.push(i);
-        }
-    }
-    front
+    let xy: Vec<(f64, f64)> = idx
+        .iter()
+        .map(|&i| (study.points[i].seconds.unwrap_or(0.0), error(&study.points[i]).unwrap_or(f64::INFINITY)))
+        .collect();
+    fibfluid_render::pareto_front_with_margin(&xy, PARETO_MARGIN).into_iter().map(|k| idx[k]).collect()
 }
 
 /// Relative improvement a slower point needs to count on the Pareto front.
@@ -320,8 +309,8 @@ pub fn chart(
     title: &str,
     y_label: &str,
     error: impl Fn(&Point) -> Option<f64> + Copy,
-    precision: &str,
-    backend: &str,
+    precision: Precision,
+    backend: Backend,
 ) -> crate::Result<Vec<u8>> {
     let mut series: Vec<fibfluid_render::Series> = Vec::new();
     for p in study.points.iter().filter(|p| p.config.precision == precision && p.config.backend == backend) {

@@ -1,18 +1,16 @@
-//! The facade's error type.
+//! The facade's error types.
 
+use std::fmt;
 use std::path::PathBuf;
+
+use fibfluid_linalg::ParseChoiceError;
 
 /// Everything that can go wrong in a fibfluid run.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     /// A scene file is malformed or holds an invalid value.
-    #[error("{path}: {message}")]
-    Scene {
-        /// The scene file.
-        path: PathBuf,
-        /// What is wrong, naming the key.
-        message: String,
-    },
+    #[error(transparent)]
+    Scene(Box<SceneError>),
     /// A mesh file could not be read or is not a valid closed surface.
     #[error(transparent)]
     Geometry(#[from] fibfluid_geometry::GeometryError),
@@ -22,20 +20,175 @@ pub enum Error {
     /// A linear solve failed (singular system, residual too large).
     #[error("linear solver: {0}")]
     Linalg(#[from] fibfluid_linalg::LinalgError),
-    /// Writing an output failed.
-    #[error("{path}: {source}")]
+    /// Reading or writing a file failed.
+    #[error("{}: {source}", path.display())]
     Io {
         /// The file or directory.
         path: PathBuf,
         /// The I/O error.
         source: std::io::Error,
     },
+    /// An output cannot be written where it should go.
+    #[error("{}: {problem}", path.display())]
+    OutputBlocked {
+        /// The path in the way.
+        path: PathBuf,
+        /// What is in the way.
+        problem: &'static str,
+    },
     /// Rendering a picture failed.
     #[error("render: {0}")]
     Render(#[from] fibfluid_render::RenderError),
-    /// An option given in code or on the command line is invalid.
+    /// A load or query names a vertex the body does not have.
+    #[error("vertex {vertex} does not exist: the body has {vertices} vertices")]
+    VertexOutOfRange {
+        /// The vertex asked for.
+        vertex: usize,
+        /// Vertex count.
+        vertices: usize,
+    },
+    /// The plan needs more memory than the limit; refused before anything was allocated.
+    #[error(
+        "{scene}: the plan needs {needed} bytes ({:.2} GiB) at its largest stage ({stage}), but {available} bytes ({:.2} GiB) are available; {hint}",
+        *needed as f64 / GIB, *available as f64 / GIB
+    )]
+    TooLarge {
+        /// Scene name.
+        scene: String,
+        /// The stage that needs the most memory.
+        stage: &'static str,
+        /// Bytes needed.
+        needed: u64,
+        /// Bytes available (the machine's memory or the given limit).
+        available: u64,
+        /// What to change.
+        hint: &'static str,
+    },
+    /// Serializing a report failed.
+    #[error("writing JSON: {0}")]
+    Json(#[from] serde_json::Error),
+}
+
+const GIB: f64 = 1024.0 * 1024.0 * 1024.0;
+
+impl From<SceneError> for Error {
+    fn from(e: SceneError) -> Self {
+        Error::Scene(Box::new(e))
+    }
+}
+
+/// A problem in a scene file: the file, the line when it can be found, the key
+/// (`[load].steps`, `[[fix]] #2.vertices`) and what is wrong.
+#[derive(Debug)]
+pub struct SceneError {
+    /// The scene file.
+    pub path: PathBuf,
+    /// 1-based line of the key or of the syntax error, when known.
+    pub line: Option<usize>,
+    /// The table and key concerned, when there is one.
+    pub key: Option<String>,
+    /// What is wrong.
+    pub problem: SceneProblem,
+}
+
+impl fmt::Display for SceneError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.path.display())?;
+        if let Some(l) = self.line {
+            write!(f, ":{l}")?;
+        }
+        f.write_str(": ")?;
+        if let Some(k) = &self.key {
+            write!(f, "{k}: ")?;
+        }
+        write!(f, "{}", self.problem)
+    }
+}
+
+impl std::error::Error for SceneError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match &self.problem {
+            SceneProblem::Mesh(e) => Some(e),
+            SceneProblem::Constraint(e) => Some(e),
+            SceneProblem::Choice(e) => Some(e),
+            _ => None,
+        }
+    }
+}
+
+/// What is wrong in a scene file.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneProblem {
+    /// The path is a directory.
+    #[error("is a directory, not a scene file")]
+    IsDirectory,
+    /// The file is not UTF-8 text.
+    #[error("not a text file (invalid UTF-8)")]
+    NotUtf8,
+    /// TOML syntax or a value of the wrong type.
+    #[error("{message}{}", column.map(|c| format!(" (column {c})")).unwrap_or_default())]
+    Toml {
+        /// The parser's message, on one line.
+        message: String,
+        /// 1-based column, when known.
+        column: Option<usize>,
+    },
+    /// A name that is not one of the accepted choices.
+    #[error(transparent)]
+    Choice(ParseChoiceError),
+    /// A number out of its range.
+    #[error("must be {rule}, got {value}")]
+    Range {
+        /// The rule (`positive`, `>= 0`).
+        rule: &'static str,
+        /// The value given.
+        value: String,
+    },
+    /// An axis name that is not x, y or z.
+    #[error("`{given}` is not an axis (x, y or z)")]
+    NotAnAxis {
+        /// The name given.
+        given: String,
+    },
+    /// Keys that contradict each other, or a missing table.
     #[error("{0}")]
-    Invalid(String),
+    Conflict(&'static str),
+    /// The mesh file does not exist.
+    #[error("`{given}` does not exist (resolved to {})", resolved.display())]
+    MeshNotFound {
+        /// The path as written.
+        given: String,
+        /// The path it resolved to.
+        resolved: PathBuf,
+    },
+    /// The mesh file is not a valid closed surface.
+    #[error(transparent)]
+    Mesh(fibfluid_geometry::GeometryError),
+    /// A vertex index beyond the mesh file's vertices.
+    #[error("vertex {vertex} is out of range (the mesh file has {count} vertices, 0-based)")]
+    VertexOutOfRange {
+        /// The index given.
+        vertex: i64,
+        /// Vertices in the file.
+        count: usize,
+    },
+    /// A vertex no face uses.
+    #[error("vertex {vertex} is not used by any face")]
+    VertexUnused {
+        /// The index given.
+        vertex: i64,
+    },
+    /// A constraint that cannot be applied.
+    #[error(transparent)]
+    Constraint(fibfluid_assembly::AssemblyError),
+    /// Nothing is fixed along an axis.
+    #[error(
+        "no vertex is fixed along {axis}; with the volume conserved the body could still translate freely (add a [[fix]] table)"
+    )]
+    Unconstrained {
+        /// The axis.
+        axis: char,
+    },
 }
 
 /// Result alias of the facade.

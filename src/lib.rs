@@ -18,24 +18,38 @@
 //! ```
 //!
 //! Linear backends are chosen at build time by Cargo features (`faer-lu`, `nalgebra-lu`
-//! by default, `openblas`) and at run time by name (`structured`, always built).
+//! by default, `openblas`) and at run time by [`Backend`] (`structured` is always built).
+//! Every choice ([`Backend`], [`Mode`], [`Stepping`], [`Precision`], [`ConstraintKind`])
+//! is an enum with one parser shared by scene files, the command line and reports.
+//! [`Plan::from_scene`] says, before any work, which stages a scene needs, what they cost,
+//! and refuses a scene that would not fit in memory.
 
 pub mod accuracy;
 pub mod bench;
 mod error;
+mod info;
 mod output;
+pub mod plan;
 mod report;
 mod scene;
 mod simulate;
 pub mod stages;
 
-pub use error::{Error, Result};
+pub use error::{Error, Result, SceneError, SceneProblem};
+pub use info::MeshInfo;
 pub use output::{
     OUTPUT_FILES, render_png, write_fibers_vtk, write_files_atomically, write_outputs, write_vtk,
 };
-pub use report::{Report, RoundTrip, roundtrip, roundtrip_error};
-pub use scene::{ForceTiming, Mode, PointForce, Scene, Shape, SolverOptions, Stepping};
-pub use simulate::{Direction, RunOptions, Simulation};
+pub use plan::{Plan, PlannedStage};
+pub use report::{Report, RoundTrip, SkippedStage, roundtrip, roundtrip_error};
+pub use scene::{ForceTiming, MAX_STEPS, Mode, PointForce, Scene, Shape, SolverOptions, Stepping};
+pub use simulate::{
+    BodyShape, Counters, Direction, RunOptions, SetupOptions, Simulation, State, VOLUME_CORRECTIONS,
+    VOLUME_TOLERANCE,
+};
+
+pub use fibfluid_assembly::ConstraintKind;
+pub use fibfluid_linalg::{Backend, Choice, ParseChoiceError, Precision};
 
 pub use fibfluid_assembly as assembly;
 pub use fibfluid_geometry as geometry;

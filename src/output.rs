@@ -94,7 +94,7 @@ pub fn render_png(sim: &Simulation) -> Result<Vec<u8>> {
             positions: now,
             triangles: &tris,
             scalar: &mag,
-            title: format!("deformed ({} steps, {})", sim.scene().steps, sim.scene().solver.mode.name()),
+            title: format!("deformed ({} steps, {})", sim.scene().steps, sim.scene().solver.mode),
         },
     ];
     Ok(fibfluid_render::render_surfaces(&panels, None, &opts)?)
@@ -119,13 +119,16 @@ pub fn write_outputs(dir: &Path, sim: &Simulation, report: &Report) -> Result<Ve
     };
     let disp: Vec<Vec3> =
         positions.iter().zip(&rest_file).map(|(p, r)| [p[0] - r[0], p[1] - r[1], p[2] - r[2]]).collect();
-    let mem = |e: std::io::Error| Error::Invalid(e.to_string());
+    let io = |name: &str| {
+        let path = dir.join(name);
+        move |source| Error::Io { path, source }
+    };
     let mut obj = Vec::new();
-    fibfluid_geometry::write_obj_to(&mut obj, &positions, triangles).map_err(mem)?;
+    fibfluid_geometry::write_obj_to(&mut obj, &positions, triangles).map_err(io(OUTPUT_FILES[0]))?;
     let mut vtk = Vec::new();
     write_vtk(&mut vtk, &format!("fibfluid {}", sim.scene().name), &positions, triangles, &disp)
-        .map_err(mem)?;
-    let json = serde_json::to_string_pretty(report).map_err(|e| Error::Invalid(e.to_string()))? + "\n";
+        .map_err(io(OUTPUT_FILES[1]))?;
+    let json = serde_json::to_string_pretty(report)? + "\n";
     let png = render_png(sim)?;
     let files = [
         (OUTPUT_FILES[0], obj),
@@ -141,6 +144,8 @@ pub fn write_outputs(dir: &Path, sim: &Simulation, report: &Report) -> Result<Ve
 /// leaves `dir` (and any file the user had there) untouched. Files of the same names are
 /// replaced; other files in `dir` are left alone.
 pub fn write_files_atomically(dir: &Path, files: &[(&str, Vec<u8>)]) -> Result<Vec<PathBuf>> {
+    // Errors name what the user gave (`dir` and the files in it), never the temporary
+    // directory, which is an implementation detail.
     let io = |path: &Path| {
         let path = path.to_path_buf();
         move |source| Error::Io { path, source }
@@ -150,24 +155,24 @@ pub fn write_files_atomically(dir: &Path, files: &[(&str, Vec<u8>)]) -> Result<V
         _ => PathBuf::from("."),
     };
     if dir.exists() && !dir.is_dir() {
-        return Err(Error::Invalid(format!("{}: exists and is not a directory", dir.display())));
+        return Err(Error::OutputBlocked { path: dir.to_path_buf(), problem: "exists and is not a directory" });
     }
     // A directory in the way of one output would stop the moves half-way: refuse up front.
-    if let Some(blocked) = OUTPUT_FILES.iter().map(|name| dir.join(name)).find(|p| p.is_dir()) {
-        return Err(Error::Invalid(format!(
-            "{}: is a directory, where an output file would go (nothing was written)",
-            blocked.display()
-        )));
+    if let Some(blocked) = files.iter().map(|(name, _)| dir.join(name)).find(|p| p.is_dir()) {
+        return Err(Error::OutputBlocked {
+            path: blocked,
+            problem: "is a directory, where an output file would go (nothing was written)",
+        });
     }
-    std::fs::create_dir_all(&parent).map_err(io(&parent))?;
+    std::fs::create_dir_all(&parent).map_err(io(dir))?;
     let tmp = parent.join(format!(".fibfluid-tmp-{}-{}", std::process::id(), nanos()));
-    std::fs::create_dir(&tmp).map_err(io(&tmp))?;
+    std::fs::create_dir(&tmp).map_err(io(dir))?;
     let result = (|| -> Result<()> {
         for (name, bytes) in files {
             let p = tmp.join(name);
-            let mut f = std::fs::File::create(&p).map_err(io(&p))?;
-            f.write_all(bytes).map_err(io(&p))?;
-            f.sync_all().map_err(io(&p))?;
+            let mut f = std::fs::File::create(&p).map_err(io(&dir.join(name)))?;
+            f.write_all(bytes).map_err(io(&dir.join(name)))?;
+            f.sync_all().map_err(io(&dir.join(name)))?;
         }
         std::fs::create_dir_all(dir).map_err(io(dir))
     })();

@@ -1,9 +1,21 @@
 //! The run report (`report.json`) and the round-trip measure (Eq. 9).
 
+use fibfluid_assembly::ConstraintKind;
+use fibfluid_linalg::{Backend, Precision};
 use serde::Serialize;
 
+use crate::scene::{Mode, Stepping};
 use crate::simulate::Simulation;
-use crate::stages::{SkippedStage, StageRecord};
+use crate::stages::StageRecord;
+
+/// A stage the plan left out, and why.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct SkippedStage {
+    /// Stage name.
+    pub name: String,
+    /// Why it was not needed.
+    pub reason: String,
+}
 
 /// What a run did and how accurate it was.
 #[derive(Clone, Debug, Serialize, PartialEq)]
@@ -11,15 +23,18 @@ pub struct Report {
     /// Scene name.
     pub scene: String,
     /// Linear backend.
-    pub backend: String,
+    pub backend: Backend,
     /// Stepping mode.
-    pub mode: String,
+    pub mode: Mode,
     /// Stepping scheme.
-    pub stepping: String,
+    pub stepping: Stepping,
     /// Factorization precision.
-    pub precision: String,
+    pub precision: Precision,
     /// Constraint method (`penalty` or `eliminate`).
-    pub constraints: String,
+    pub constraints: ConstraintKind,
+    /// The penalty's diagonal value, when `constraints` is `penalty`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub penalty: Option<f64>,
     /// Vertex count.
     pub vertices: usize,
     /// Face count (edges for a polygon).
@@ -56,7 +71,10 @@ pub struct Report {
     pub blocks_factored: usize,
     /// Linear solves made.
     pub solves: usize,
-    /// Stages that ran, with their seconds.
+    /// Peak memory the plan estimated, in bytes.
+    pub memory_bytes_planned: u64,
+    /// Stages that ran, with their seconds; a stage with a `parent` ran inside it, so the
+    /// top-level seconds add up to at most `seconds_total`.
     pub stages: Vec<StageRecord>,
     /// Stages the plan left out, with the reason.
     pub skipped: Vec<SkippedStage>,
@@ -80,21 +98,19 @@ impl Report {
         let fixed = scene.constraints.fully_fixed_vertices(sim.axes());
         let (v0, v1) = (sim.volume_initial(), sim.volume());
         let mut stages: Vec<StageRecord> = extra_stages.to_vec();
-        stages.extend(sim.log().stages.iter().cloned());
+        stages.extend(sim.log().records().iter().cloned());
         let faces = match &scene.shape {
             crate::Shape::Surface(m) => m.mesh.n_faces(),
             crate::Shape::Polygon(p) => p.n_vertices(),
         };
         Report {
             scene: scene.name.clone(),
-            backend: scene.solver.backend.clone(),
-            mode: scene.solver.mode.name().into(),
-            stepping: scene.solver.stepping.name().into(),
-            precision: scene.solver.precision.name().into(),
-            constraints: match scene.solver.constraints {
-                fibfluid_assembly::ConstraintMethod::Penalty { .. } => "penalty".into(),
-                fibfluid_assembly::ConstraintMethod::Eliminate => "eliminate".into(),
-            },
+            backend: scene.solver.backend,
+            mode: scene.solver.mode,
+            stepping: scene.solver.stepping,
+            precision: scene.solver.precision,
+            constraints: scene.solver.constraints,
+            penalty: (scene.solver.constraints == ConstraintKind::Penalty).then_some(scene.solver.penalty),
             vertices: rest.len(),
             faces,
             convex: sim.convex(),
@@ -108,13 +124,18 @@ impl Report {
             mean_displacement: disp.iter().sum::<f64>() / disp.len().max(1) as f64,
             fixed_max_displacement: fixed.iter().map(|&i| disp[i]).fold(0.0, f64::max),
             pressure: sim.pressure(),
-            residual_max: sim.residual_max(),
-            refinement_steps_max: sim.refinement_steps_max(),
-            factorizations: sim.factorizations(),
+            residual_max: sim.counters().residual_max,
+            refinement_steps_max: sim.counters().refinement_steps_max,
+            factorizations: sim.counters().factorizations,
             blocks_factored: sim.system().stats.blocks,
-            solves: sim.solves(),
+            solves: sim.counters().solves,
+            memory_bytes_planned: sim.plan().memory_bytes,
             stages,
-            skipped: sim.log().skipped.clone(),
+            skipped: sim
+                .plan()
+                .skipped()
+                .map(|s| SkippedStage { name: s.name.to_string(), reason: s.reason.clone() })
+                .collect(),
             notes,
             seconds_total: sim.elapsed() + extra_stages.iter().map(|s| s.seconds).sum::<f64>(),
         }
@@ -140,13 +161,13 @@ pub struct RoundTrip {
     /// Steps each way.
     pub steps: usize,
     /// Mode.
-    pub mode: String,
+    pub mode: Mode,
     /// Stepping scheme.
-    pub stepping: String,
+    pub stepping: Stepping,
     /// Backend.
-    pub backend: String,
+    pub backend: Backend,
     /// Precision.
-    pub precision: String,
+    pub precision: Precision,
     /// Eq. 9 error (a fraction).
     pub roundtrip_error: f64,
     /// |V/V0 - 1| at the end of compression.
@@ -180,16 +201,16 @@ pub fn roundtrip(scene: crate::Scene, opts: &crate::RunOptions) -> crate::Result
     let s = sim.scene();
     Ok(RoundTrip {
         steps,
-        mode: s.solver.mode.name().into(),
-        stepping: s.solver.stepping.name().into(),
-        backend: s.solver.backend.clone(),
-        precision: s.solver.precision.name().into(),
+        mode: s.solver.mode,
+        stepping: s.solver.stepping,
+        backend: s.solver.backend,
+        precision: s.solver.precision,
         roundtrip_error: roundtrip_error(sim.rest_positions(), sim.positions()),
         volume_drift,
         max_displacement,
         compressed,
-        residual_max: sim.residual_max(),
-        factorizations: sim.factorizations(),
+        residual_max: sim.counters().residual_max,
+        factorizations: sim.counters().factorizations,
         seconds: sim.elapsed(),
     })
 }

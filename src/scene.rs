@@ -2,11 +2,14 @@
 
 use std::path::{Path, PathBuf};
 
-use fibfluid_assembly::{ConstraintMethod, Constraints, Material, Selector, StiffnessLaw};
+use fibfluid_assembly::{
+    ConstraintKind, ConstraintMethod, Constraints, DEFAULT_PENALTY, Material, Selector, StiffnessLaw,
+};
 use fibfluid_geometry::{MeshFile, Polygon, Vec3, load_mesh};
-use fibfluid_linalg::Precision;
+use fibfluid_linalg::{Backend, Choice, Precision, impl_choice};
 use serde::Deserialize;
 
+use crate::error::{SceneError, SceneProblem};
 use crate::{Error, Result};
 
 /// How load steps are taken (REFERENCE §4–5).
@@ -24,29 +27,18 @@ pub enum Mode {
     Nonlinear,
 }
 
-impl Mode {
-    /// Scene and report name.
-    pub fn name(self) -> &'static str {
+impl Choice for Mode {
+    const WHAT: &'static str = "mode";
+    const ALL: &'static [Self] = &[Mode::Paper, Mode::Refresh, Mode::Nonlinear];
+    fn name(self) -> &'static str {
         match self {
             Mode::Paper => "paper",
             Mode::Refresh => "refresh",
             Mode::Nonlinear => "nonlinear",
         }
     }
-
-    /// Parses a scene or command-line name.
-    pub fn parse(s: &str) -> Option<Self> {
-        match s {
-            "paper" => Some(Mode::Paper),
-            "refresh" => Some(Mode::Refresh),
-            "nonlinear" => Some(Mode::Nonlinear),
-            _ => None,
-        }
-    }
-
-    /// Every mode.
-    pub const ALL: [Mode; 3] = [Mode::Paper, Mode::Refresh, Mode::Nonlinear];
 }
+impl_choice!(Mode);
 
 /// The load-stepping scheme.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -59,24 +51,17 @@ pub enum Stepping {
     Heun,
 }
 
-impl Stepping {
-    /// Scene and report name.
-    pub fn name(self) -> &'static str {
+impl Choice for Stepping {
+    const WHAT: &'static str = "stepping scheme";
+    const ALL: &'static [Self] = &[Stepping::Euler, Stepping::Heun];
+    fn name(self) -> &'static str {
         match self {
             Stepping::Euler => "euler",
             Stepping::Heun => "heun",
         }
     }
-
-    /// Parses a scene or command-line name.
-    pub fn parse(s: &str) -> Option<Self> {
-        match s {
-            "euler" => Some(Stepping::Euler),
-            "heun" => Some(Stepping::Heun),
-            _ => None,
-        }
-    }
 }
+impl_choice!(Stepping);
 
 /// When a point force is applied.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -87,6 +72,18 @@ pub enum ForceTiming {
     /// Spread evenly over the load steps.
     Ramp,
 }
+
+impl Choice for ForceTiming {
+    const WHAT: &'static str = "force timing";
+    const ALL: &'static [Self] = &[ForceTiming::Last, ForceTiming::Ramp];
+    fn name(self) -> &'static str {
+        match self {
+            ForceTiming::Last => "last",
+            ForceTiming::Ramp => "ramp",
+        }
+    }
+}
+impl_choice!(ForceTiming);
 
 /// A point force on a vertex (mesh index).
 #[derive(Clone, Debug, PartialEq)]
@@ -102,8 +99,8 @@ pub struct PointForce {
 /// Solver choices.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SolverOptions {
-    /// Linear backend name (`structured`, `faer-lu`, `nalgebra-lu`, `openblas-lu`).
-    pub backend: String,
+    /// Linear backend.
+    pub backend: Backend,
     /// Stepping mode.
     pub mode: Mode,
     /// Stepping scheme.
@@ -111,18 +108,28 @@ pub struct SolverOptions {
     /// Factorization precision.
     pub precision: Precision,
     /// How fixed degrees of freedom are imposed.
-    pub constraints: ConstraintMethod,
+    pub constraints: ConstraintKind,
+    /// The penalty's diagonal value (used when `constraints` is `penalty`).
+    pub penalty: f64,
+}
+
+impl SolverOptions {
+    /// The constraint method these options describe.
+    pub fn constraint_method(&self) -> ConstraintMethod {
+        ConstraintMethod::of_kind(self.constraints, self.penalty)
+    }
 }
 
 impl Default for SolverOptions {
     /// Structured backend, refresh mode, Euler steps, f64, elimination.
     fn default() -> Self {
         Self {
-            backend: "structured".into(),
+            backend: Backend::Structured,
             mode: Mode::Refresh,
             stepping: Stepping::Euler,
             precision: Precision::F64,
-            constraints: ConstraintMethod::Eliminate,
+            constraints: ConstraintKind::Eliminate,
+            penalty: DEFAULT_PENALTY,
         }
     }
 }
@@ -192,49 +199,107 @@ impl Scene {
         }
     }
 
-    /// Reads a scene file; paths inside are relative to it.
+    /// Reads a scene file; paths inside are relative to it. Every problem is a
+    /// [`SceneError`] naming the file, the key and, where it can be found, the line.
     pub fn load(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
-        let err = |message: String| Error::Scene { path: path.to_path_buf(), message };
+        let at = |key: Option<String>, line: Option<usize>, problem: SceneProblem| {
+            Error::Scene(Box::new(SceneError { path: path.to_path_buf(), line, key, problem }))
+        };
         if path.is_dir() {
-            return Err(err("is a directory, not a scene file".into()));
+            return Err(at(None, None, SceneProblem::IsDirectory));
         }
         let text = std::fs::read(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
-        let text = String::from_utf8(text).map_err(|_| err("not a text file (invalid UTF-8)".into()))?;
-        let spec: SceneToml = toml::from_str(&text).map_err(|e| err(toml_message(&text, &e)))?;
+        let text = String::from_utf8(text).map_err(|_| at(None, None, SceneProblem::NotUtf8))?;
+        let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+        let spec: SceneToml = toml::from_str(text).map_err(|e| {
+            let (line, key, problem) = toml_problem(text, &e);
+            at(key, line, problem)
+        })?;
         let dir = path.parent().unwrap_or(Path::new("."));
         let name = path.file_stem().and_then(|s| s.to_str()).unwrap_or("scene").to_string();
-        build(spec, dir, name, path).map_err(|e| match e {
-            Error::Invalid(message) => err(message),
-            // A bad mesh file: name the scene and its key too, not only the mesh file.
-            Error::Geometry(g) => err(format!("[mesh].path: {g}")),
-            other => other,
+        build(spec, dir, name, path).map_err(|Invalid { key, problem }| {
+            let line = key.as_deref().and_then(|k| line_of_key(text, k));
+            at(key, line, problem)
         })
     }
 }
 
-/// One line for a TOML error: the key it concerns (with its table), what is wrong, and
-/// where (toml's own text is several lines with a source excerpt).
-fn toml_message(text: &str, e: &toml::de::Error) -> String {
-    let msg = e.message().split_whitespace().collect::<Vec<_>>().join(" ");
-    let Some(span) = e.span() else { return msg };
-    if span.start == 0 && span.end >= text.trim_end().len() {
-        return msg; // about the whole document, e.g. a missing top-level table
+/// A problem found while building a scene, before the file is known.
+struct Invalid {
+    key: Option<String>,
+    problem: SceneProblem,
+}
+
+fn invalid(key: impl Into<String>, problem: SceneProblem) -> Invalid {
+    Invalid { key: Some(key.into()), problem }
+}
+
+fn range(key: impl Into<String>, rule: &'static str, value: impl std::fmt::Display) -> Invalid {
+    invalid(key, SceneProblem::Range { rule, value: value.to_string() })
+}
+
+fn choice<T: Choice>(key: &str, value: Option<String>, default: T) -> std::result::Result<T, Invalid> {
+    match value {
+        None => Ok(default),
+        Some(v) => T::parse_name(&v).map_err(|e| invalid(key, SceneProblem::Choice(e))),
     }
+}
+
+/// The line, key and problem of a TOML error (toml's own text is several lines with a
+/// source excerpt).
+fn toml_problem(text: &str, e: &toml::de::Error) -> (Option<usize>, Option<String>, SceneProblem) {
+    let message = e.message().split_whitespace().collect::<Vec<_>>().join(" ");
+    let Some(span) = e.span().filter(|s| !(s.start == 0 && s.end >= text.trim_end().len())) else {
+        // About the whole document, e.g. a missing top-level table.
+        return (None, None, SceneProblem::Toml { message, column: None });
+    };
     let before = text.get(..span.start).unwrap_or(text);
     let line = before.matches('\n').count() + 1;
     let column = before.rsplit('\n').next().unwrap_or("").chars().count() + 1;
     let (table, key) = key_at(text, line);
-    let place = match (table, key) {
-        // The key itself is named by the message; the table is what it lacks.
-        (Some(t), _) if msg.starts_with("unknown field") => format!("{t}: "),
-        (_, _) if msg.starts_with("unknown field") => String::new(),
-        (Some(t), Some(k)) => format!("{t}.{k}: "),
-        (None, Some(k)) => format!("{k}: "),
-        (Some(t), None) => format!("{t}: "),
-        (None, None) => String::new(),
+    let key = match (table, key) {
+        // An unknown key is named by the message; the table is what it lacks.
+        (t, _) if message.starts_with("unknown field") => t,
+        (Some(t), Some(k)) => Some(format!("{t}.{k}")),
+        (t, k) => t.or(k),
     };
-    format!("{place}{msg} (line {line}, column {column})")
+    (Some(line), key, SceneProblem::Toml { message, column: Some(column) })
+}
+
+/// The 1-based line where `key` (`[load].steps`, `[[fix]] #2.vertices`, `[mesh]`) is
+/// written, found by a light scan of the text.
+fn line_of_key(text: &str, key: &str) -> Option<usize> {
+    let close = key.rfind(']')?;
+    let header = &key[..=close];
+    let (nth, field) = match key[close + 1..].split_once('.') {
+        Some((n, f)) => (n, Some(f)),
+        None => (&key[close + 1..], None),
+    };
+    let nth = match nth.trim().strip_prefix('#') {
+        Some(k) => k.parse::<usize>().ok()?,
+        None => 1,
+    };
+    let mut seen = 0;
+    let mut inside = false;
+    for (i, raw) in text.lines().enumerate() {
+        let l = raw.split('#').next().unwrap_or("").trim();
+        if l.starts_with('[') {
+            inside = l == header && {
+                seen += 1;
+                seen == nth
+            };
+            if inside && field.is_none() {
+                return Some(i + 1);
+            }
+        } else if inside
+            && let Some(f) = field
+            && l.split_once('=').is_some_and(|(k, _)| k.trim() == f)
+        {
+            return Some(i + 1);
+        }
+    }
+    None
 }
 
 /// The table (`[load]`, `[[fix]] #2`) and the key whose value covers 1-based `line`,
@@ -377,31 +442,29 @@ struct SolverToml {
     penalty: Option<f64>,
 }
 
-fn axis_index(s: &str, key: &str) -> Result<usize> {
+fn axis_index(s: &str, key: &str) -> std::result::Result<usize, Invalid> {
     match s {
         "x" => Ok(0),
         "y" => Ok(1),
         "z" => Ok(2),
-        other => Err(Error::Invalid(format!("{key}: `{other}` is not an axis (x, y or z)"))),
+        other => Err(invalid(key, SceneProblem::NotAnAxis { given: other.to_string() })),
     }
 }
 
-fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> Result<Scene> {
-    let inv = |m: String| Error::Invalid(m);
+fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> std::result::Result<Scene, Invalid> {
     let shape = match (spec.mesh, spec.polygon) {
         (Some(m), None) => {
             let mesh_path = dir.join(&m.path);
             if !mesh_path.exists() {
-                return Err(inv(format!(
-                    "[mesh].path: `{}` does not exist (resolved to {})",
-                    m.path,
-                    mesh_path.display()
-                )));
+                return Err(invalid(
+                    "[mesh].path",
+                    SceneProblem::MeshNotFound { given: m.path.clone(), resolved: mesh_path },
+                ));
             }
-            let mut file = load_mesh(&mesh_path)?;
+            let mut file = load_mesh(&mesh_path).map_err(|e| invalid("[mesh].path", SceneProblem::Mesh(e)))?;
             if let Some(s) = m.scale {
                 if !(s.is_finite() && s > 0.0) {
-                    return Err(inv(format!("[mesh].scale must be positive, got {s}")));
+                    return Err(range("[mesh].scale", "positive", s));
                 }
                 let scaled: Vec<Vec3> = file.mesh.positions().iter().map(|p| p.map(|c| c * s)).collect();
                 file.mesh.set_positions(scaled);
@@ -409,12 +472,15 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> Result
             }
             Shape::Surface(Box::new(file))
         }
-        (None, Some(p)) => Shape::Polygon(
-            Polygon::new(p.points)
-                .ok_or_else(|| inv("[polygon].points: at least 3 finite points are needed".into()))?,
-        ),
-        (Some(_), Some(_)) => return Err(inv("give either [mesh] or [polygon], not both".into())),
-        (None, None) => return Err(inv("missing [mesh] (or [polygon]) table".into())),
+        (None, Some(p)) => Shape::Polygon(Polygon::new(p.points).ok_or_else(|| {
+            invalid("[polygon].points", SceneProblem::Conflict("at least 3 finite points are needed"))
+        })?),
+        (Some(_), Some(_)) => {
+            return Err(Invalid { key: None, problem: SceneProblem::Conflict("give either [mesh] or [polygon], not both") });
+        }
+        (None, None) => {
+            return Err(Invalid { key: None, problem: SceneProblem::Conflict("missing [mesh] (or [polygon]) table") });
+        }
     };
     let axes = if matches!(shape, Shape::Polygon(_)) { 2 } else { 3 };
     let young = match spec.material.young {
@@ -423,48 +489,43 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> Result
     };
     for (c, y) in young.iter().enumerate().take(axes) {
         if !(y.is_finite() && *y > 0.0) {
-            return Err(inv(format!(
-                "[material].young: must be positive, got {y} along {}",
-                ['x', 'y', 'z'][c]
-            )));
+            return Err(range("[material].young", "positive", format!("{y} along {}", ['x', 'y', 'z'][c])));
         }
     }
     let gamma = spec.material.surface_tension;
     if !(gamma.is_finite() && gamma >= 0.0) {
-        return Err(inv(format!("[material].surface_tension: must be >= 0, got {gamma}")));
+        return Err(range("[material].surface_tension", ">= 0", gamma));
     }
     let law = match spec.material.stiffening {
         None => StiffnessLaw::Linear,
         Some(c) if c.is_finite() && c >= 0.0 => StiffnessLaw::Quadratic { c },
-        Some(c) => return Err(inv(format!("[material].stiffening: must be >= 0, got {c}"))),
+        Some(c) => return Err(range("[material].stiffening", ">= 0", c)),
     };
     let density = spec.fluid.map(|f| f.density).unwrap_or(0.0);
     if !(density.is_finite() && density >= 0.0) {
-        return Err(inv(format!("[fluid].density: must be >= 0, got {density}")));
+        return Err(range("[fluid].density", ">= 0", density));
     }
     let steps = spec.load.and_then(|l| l.steps).unwrap_or(1);
-    if !(1..=1_000_000).contains(&steps) {
-        return Err(inv(format!("[load].steps: must be between 1 and 1000000, got {steps}")));
+    if !(1..=MAX_STEPS as i64).contains(&steps) {
+        return Err(range("[load].steps", "between 1 and 1000000", steps));
     }
     let gravity = spec.gravity.map(|g| g.acceleration).unwrap_or([0.0; 3]);
-    if gravity.iter().any(|c| !c.is_finite()) {
-        return Err(inv("[gravity].acceleration: must be finite".into()));
+    if let Some(c) = gravity.iter().find(|c| !c.is_finite()) {
+        return Err(range("[gravity].acceleration", "finite", c));
     }
     let (n, positions, file) = match &shape {
         Shape::Surface(m) => (m.mesh.n_vertices(), m.mesh.positions().to_vec(), Some(m.as_ref())),
         Shape::Polygon(p) => (p.n_vertices(), p.positions_3d(), None),
     };
-    let to_mesh_index = |v: i64, key: &str| -> Result<usize> {
+    let to_mesh_index = |v: i64, key: &str| -> std::result::Result<usize, Invalid> {
         let count = file.map(|f| f.file_vertex_count()).unwrap_or(n);
         if v < 0 || v as usize >= count {
-            return Err(inv(format!(
-                "{key}: vertex {v} is out of range (the mesh file has {count} vertices, 0-based)"
-            )));
+            return Err(invalid(key, SceneProblem::VertexOutOfRange { vertex: v, count }));
         }
         match file {
-            Some(f) => f
-                .from_file_index(v as usize)
-                .ok_or_else(|| inv(format!("{key}: vertex {v} is not used by any face"))),
+            Some(f) => {
+                f.from_file_index(v as usize).ok_or_else(|| invalid(key, SceneProblem::VertexUnused { vertex: v }))
+            }
             None => Ok(v as usize),
         }
     };
@@ -476,12 +537,12 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> Result
             None => dofs[..axes].iter_mut().for_each(|d| *d = true),
             Some(list) => {
                 if list.is_empty() {
-                    return Err(inv(format!("{key}.dofs: empty list")));
+                    return Err(invalid(format!("{key}.dofs"), SceneProblem::Conflict("empty list")));
                 }
                 for d in list {
                     let c = axis_index(d, &format!("{key}.dofs"))?;
                     if c >= axes {
-                        return Err(inv(format!("{key}.dofs: a 2D scene has no z axis")));
+                        return Err(invalid(format!("{key}.dofs"), SceneProblem::Conflict("a 2D scene has no z axis")));
                     }
                     dofs[c] = true;
                 }
@@ -497,22 +558,28 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> Result
             fix.bbox.is_some(),
         ];
         if kinds.iter().filter(|k| **k).count() != 1 {
-            return Err(inv(format!("{key}: give exactly one of above, below, top, bottom, vertices, box")));
+            return Err(invalid(
+                key,
+                SceneProblem::Conflict("give exactly one of above, below, top, bottom, vertices, box"),
+            ));
         }
-        let need_axis =
-            || axis.ok_or_else(|| inv(format!("{key}: `axis` is required with above/below/top/bottom")));
+        let need_axis = || {
+            axis.ok_or_else(|| {
+                invalid(key.clone(), SceneProblem::Conflict("`axis` is required with above/below/top/bottom"))
+            })
+        };
         let selector = if let Some(v) = fix.above {
             Selector::Above { axis: need_axis()?, value: v }
         } else if let Some(v) = fix.below {
             Selector::Below { axis: need_axis()?, value: v }
         } else if let Some(v) = fix.top {
             if v.is_nan() || v < 0.0 {
-                return Err(inv(format!("{key}.top: must be >= 0")));
+                return Err(range(format!("{key}.top"), ">= 0", v));
             }
             Selector::Top { axis: need_axis()?, within: v }
         } else if let Some(v) = fix.bottom {
             if v.is_nan() || v < 0.0 {
-                return Err(inv(format!("{key}.bottom: must be >= 0")));
+                return Err(range(format!("{key}.bottom"), ">= 0", v));
             }
             Selector::Bottom { axis: need_axis()?, within: v }
         } else if let Some(b) = fix.bbox {
@@ -522,68 +589,38 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> Result
             let idx = list
                 .iter()
                 .map(|&v| to_mesh_index(v, &format!("{key}.vertices")))
-                .collect::<Result<Vec<_>>>()?;
+                .collect::<std::result::Result<Vec<_>, _>>()?;
             Selector::Vertices(idx)
         };
-        constraints.fix_selected(&selector, &positions, dofs).map_err(|e| inv(format!("{key}: {e}")))?;
+        constraints
+            .fix_selected(&selector, &positions, dofs)
+            .map_err(|e| invalid(key.clone(), SceneProblem::Constraint(e)))?;
     }
     let mut forces = Vec::new();
     for (k, f) in spec.force.iter().enumerate() {
         let key = format!("[[force]] #{}", k + 1);
         let vertex = to_mesh_index(f.vertex, &format!("{key}.vertex"))?;
-        if f.value.iter().any(|c| !c.is_finite()) {
-            return Err(inv(format!("{key}.value: must be finite")));
+        if let Some(c) = f.value.iter().find(|c| !c.is_finite()) {
+            return Err(range(format!("{key}.value"), "finite", c));
         }
-        let timing = match f.at.as_deref() {
-            None | Some("last") => ForceTiming::Last,
-            Some("ramp") => ForceTiming::Ramp,
-            Some(o) => return Err(inv(format!("{key}.at: `{o}` is not `last` or `ramp`"))),
-        };
+        let timing = choice(&format!("{key}.at"), f.at.clone(), ForceTiming::Last)?;
         forces.push(PointForce { vertex, value: f.value, timing });
     }
     let mut solver = SolverOptions::default();
     if let Some(s) = spec.solver {
-        if let Some(b) = s.backend {
-            if !fibfluid_linalg::backend_names().contains(&b.as_str()) {
-                return Err(inv(format!(
-                    "[solver].backend: `{b}` is not compiled in (available: {})",
-                    fibfluid_linalg::backend_names().join(", ")
-                )));
-            }
-            solver.backend = b;
-        }
-        if let Some(m) = s.mode {
-            solver.mode = Mode::parse(&m)
-                .ok_or_else(|| inv(format!("[solver].mode: `{m}` is not paper, refresh or nonlinear")))?;
-        }
-        if let Some(m) = s.stepping {
-            solver.stepping = Stepping::parse(&m)
-                .ok_or_else(|| inv(format!("[solver].stepping: `{m}` is not euler or heun")))?;
-        }
-        if let Some(p) = s.precision {
-            solver.precision = match p.as_str() {
-                "f64" => Precision::F64,
-                "mixed" => Precision::Mixed,
-                o => return Err(inv(format!("[solver].precision: `{o}` is not f64 or mixed"))),
-            };
-        }
-        let big = s.penalty.unwrap_or(1e9);
-        if !(big.is_finite() && big > 0.0) {
-            return Err(inv(format!("[solver].penalty: must be positive, got {big}")));
-        }
-        match s.constraints.as_deref() {
-            None => {}
-            Some("penalty") => solver.constraints = ConstraintMethod::Penalty { big },
-            Some("eliminate") => solver.constraints = ConstraintMethod::Eliminate,
-            Some(o) => return Err(inv(format!("[solver].constraints: `{o}` is not penalty or eliminate"))),
+        solver.backend = choice("[solver].backend", s.backend, solver.backend)?;
+        solver.mode = choice("[solver].mode", s.mode, solver.mode)?;
+        solver.stepping = choice("[solver].stepping", s.stepping, solver.stepping)?;
+        solver.precision = choice("[solver].precision", s.precision, solver.precision)?;
+        solver.constraints = choice("[solver].constraints", s.constraints, solver.constraints)?;
+        solver.penalty = s.penalty.unwrap_or(DEFAULT_PENALTY);
+        if !(solver.penalty.is_finite() && solver.penalty > 0.0) {
+            return Err(range("[solver].penalty", "positive", solver.penalty));
         }
     }
     for c in 0..axes {
         if constraints.count(c) == 0 {
-            return Err(inv(format!(
-                "[[fix]]: no vertex is fixed along {}; with the volume conserved the body could still translate freely (add a [[fix]] table)",
-                ['x', 'y', 'z'][c]
-            )));
+            return Err(Invalid { key: Some("[[fix]]".into()), problem: SceneProblem::Unconstrained { axis: ['x', 'y', 'z'][c] } });
         }
     }
     let material = Material { young, surface_tension: gamma, density, law };
@@ -599,3 +636,6 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> Result
         solver,
     })
 }
+
+/// The largest number of load steps a scene may ask for.
+pub const MAX_STEPS: usize = 1_000_000;

@@ -27,9 +27,9 @@ fn sphere42_matches_the_independent_computation_with_every_backend() {
         .fold(0.0, f64::max);
     // README: largest displacement 0.8578067874.
     assert!((max_disp - 0.8578067874).abs() < 1e-9);
-    for backend in fibfluid::linalg::backend_names() {
+    for backend in fibfluid::Backend::compiled() {
         let mut scene = Scene::load("fixtures/golden/sphere42-gravity.toml").unwrap();
-        scene.solver.backend = backend.to_string();
+        scene.solver.backend = backend;
         let mut sim = Simulation::new(scene).unwrap();
         sim.run(&RunOptions::default()).unwrap();
         let file = match &sim.scene().shape {

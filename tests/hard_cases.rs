@@ -5,9 +5,10 @@
 //! physical checks: fixed points stay, volume as the mode promises. The numbers found are
 //! recorded in docs/stability.md.
 
-use fibfluid::assembly::{ConstraintMethod, Material, Selector};
+use fibfluid::assembly::{Material, Selector};
 use fibfluid::geometry::{MeshFile, TriMesh, Vec3, icosphere, load_mesh};
-use fibfluid::linalg::{Precision, backend_names};
+use fibfluid::linalg::Precision;
+use fibfluid::{Backend, ConstraintKind};
 use fibfluid::{Mode, Report, RunOptions, Scene, Simulation, Stepping};
 
 /// Componentwise backward error accepted for an f64 solve (after refinement).
@@ -37,7 +38,7 @@ fn hanging(file: MeshFile, material: Material, within: f64, steps: usize) -> Sce
     scene.gravity = [0.0, -9.81, 0.0];
     scene.steps = steps;
     scene.solver.mode = Mode::Refresh;
-    scene.solver.constraints = ConstraintMethod::Eliminate;
+    scene.solver.constraints = ConstraintKind::Eliminate;
     scene
 }
 
@@ -51,7 +52,7 @@ fn run_checked(scene: Scene, tag: &str) -> (Simulation, Report) {
     assert!(sim.positions().iter().flatten().all(|v| v.is_finite()), "{tag}: non-finite position");
     assert!(sim.pressure().is_finite(), "{tag}: non-finite pressure");
     assert!(report.residual_max <= BACKWARD_ERROR_F64, "{tag}: backward error {:e}", report.residual_max);
-    if method == ConstraintMethod::Eliminate {
+    if method == ConstraintKind::Eliminate {
         assert_eq!(report.fixed_max_displacement, 0.0, "{tag}: a fixed vertex moved");
     }
     if mode != Mode::Paper {
@@ -76,14 +77,14 @@ fn paper_sphere() -> Scene {
 #[test]
 fn penalty_and_elimination_in_f64_and_mixed_precision() {
     let mut reference: Option<Vec<Vec3>> = None;
-    for backend in backend_names() {
-        for method in [ConstraintMethod::PAPER, ConstraintMethod::Eliminate] {
+    for backend in Backend::compiled() {
+        for method in [ConstraintKind::Penalty, ConstraintKind::Eliminate] {
             for precision in [Precision::F64, Precision::Mixed] {
                 let mut s = paper_sphere();
-                s.solver.backend = backend.into();
+                s.solver.backend = backend;
                 s.solver.constraints = method;
                 s.solver.precision = precision;
-                let tag = format!("{backend} {method:?} {}", precision.name());
+                let tag = format!("{backend} {method:?} {}", precision);
                 let (sim, report) = run_checked(s, &tag);
                 if precision == Precision::Mixed {
                     // f32 factors, f64 refinement: the f64 backward error within 3 steps.
@@ -145,10 +146,10 @@ fn near_coincident(eps: f64) -> TriMesh {
 #[test]
 fn nearly_coincident_vertices() {
     // Body size 2; vertices 2e-9 apart (1e-9 of the size).
-    for backend in backend_names() {
+    for backend in Backend::compiled() {
         let mesh = near_coincident(2e-9);
         let mut scene = hanging(file_of(mesh), moderate(2.0 * 3f64.sqrt(), 1000.0), 0.2, 3);
-        scene.solver.backend = backend.into();
+        scene.solver.backend = backend;
         run_checked(scene, &format!("near-coincident {backend}"));
     }
 }
@@ -165,9 +166,9 @@ fn extreme_material_ratios_and_densities() {
             let material = Material::isotropic(young, gamma, density);
             let mut scene = hanging(file_of(icosphere(2, 1.0)), material, 0.2, 3);
             scene.gravity = [0.0, -9.81 * 1e3 / density, 0.0];
-            for backend in backend_names() {
+            for backend in Backend::compiled() {
                 let mut s = scene.clone();
-                s.solver.backend = backend.into();
+                s.solver.backend = backend;
                 run_checked(s, &format!("Y/gamma {ratio:e}, rho {density:e}, {backend}"));
             }
         }
@@ -194,10 +195,10 @@ fn metres_and_millimetres_give_the_same_deformation() {
     let mm_mat = Material::isotropic(y / (l * l), g / l, 1000.0 / (l * l * l));
     let a = hanging(file_of(metres), m_mat, 0.01, 5);
     let b = hanging(file_of(mm), mm_mat, 0.01 * l, 5);
-    for backend in backend_names() {
+    for backend in Backend::compiled() {
         let (mut sa, mut sb) = (a.clone(), b.clone());
-        sa.solver.backend = backend.into();
-        sb.solver.backend = backend.into();
+        sa.solver.backend = backend;
+        sb.solver.backend = backend;
         let (sim_a, ra) = run_checked(sa, &format!("metres {backend}"));
         let (sim_b, _) = run_checked(sb, &format!("millimetres {backend}"));
         let ua: Vec<Vec3> = sim_a
@@ -248,7 +249,7 @@ fn a_rotated_body_gives_the_rotated_result() {
         s.steps = 4;
         s.solver.mode = Mode::Refresh;
         s.solver.stepping = Stepping::Heun;
-        s.solver.constraints = ConstraintMethod::Eliminate;
+        s.solver.constraints = ConstraintKind::Eliminate;
         s
     };
     let (g, f) = ([0.0, -9.81, 0.0], [100.0, 0.0, -50.0]);
@@ -268,15 +269,15 @@ fn large_structured_and_dense_systems() {
     assert!(r.fibers_kept < r.fibers_total);
     // The dense backends: liver2 (1170 vertices, n = 3511, 99 MB per dense copy) for the
     // multithreaded ones, a 642-vertex icosphere (n = 1927) for single-threaded nalgebra.
-    for backend in backend_names().into_iter().filter(|b| *b != "structured") {
-        let file = if backend == "nalgebra-lu" {
+    for backend in Backend::compiled().into_iter().filter(|b| *b != Backend::Structured) {
+        let file = if backend == Backend::NalgebraLu {
             file_of(icosphere(3, 1.0))
         } else {
             load_mesh("fixtures/meshes/liver2.obj").unwrap()
         };
         let material = moderate(file.mesh.diagonal(), 1000.0);
         let mut s = hanging(file, material, 0.08, 1);
-        s.solver.backend = backend.into();
+        s.solver.backend = backend;
         // Paper mode: one factorization (refresh would refactor the dense matrix per step).
         s.solver.mode = Mode::Paper;
         let (sim, _) = run_checked(s, &format!("large {backend}"));
@@ -300,9 +301,9 @@ fn concave_and_genus_one_bodies_and_a_single_fixed_vertex() {
     for (path, within, structured_only) in cases {
         let file = load_mesh(path).unwrap();
         let material = moderate(file.mesh.diagonal(), 1000.0);
-        for backend in backend_names().into_iter().filter(|b| !structured_only || *b == "structured") {
+        for backend in Backend::compiled().into_iter().filter(|b| !structured_only || *b == Backend::Structured) {
             let mut s = hanging(file.clone(), material.clone(), within, 2);
-            s.solver.backend = backend.into();
+            s.solver.backend = backend;
             let (sim, _) = run_checked(s, &format!("{path} {backend}"));
             assert!(
                 sim.fibers().kept() < sim.fibers().total(),
@@ -312,7 +313,7 @@ fn concave_and_genus_one_bodies_and_a_single_fixed_vertex() {
     }
     // One vertex fixed in x, y, z: each K block is a Laplacian with one Dirichlet vertex,
     // still positive definite (the model has no rotational null mode).
-    for backend in backend_names() {
+    for backend in Backend::compiled() {
         let mut s = Scene::from_mesh("one fixed", file_of(icosphere(2, 1.0)), moderate(3.46, 1000.0));
         s.constraints.fix(0, [true; 3]).unwrap();
         s.forces = vec![fibfluid::PointForce {
@@ -320,8 +321,8 @@ fn concave_and_genus_one_bodies_and_a_single_fixed_vertex() {
             value: [1.0, 2.0, -3.0],
             timing: fibfluid::ForceTiming::Ramp,
         }];
-        s.solver.constraints = ConstraintMethod::Eliminate;
-        s.solver.backend = backend.into();
+        s.solver.constraints = ConstraintKind::Eliminate;
+        s.solver.backend = backend;
         s.steps = 2;
         run_checked(s, &format!("single fixed vertex {backend}"));
     }

@@ -27,8 +27,50 @@ impl Default for ConstraintMethod {
 
 impl ConstraintMethod {
     /// The paper's penalty with big = 1e9.
-    pub const PAPER: ConstraintMethod = ConstraintMethod::Penalty { big: 1e9 };
+    pub const PAPER: ConstraintMethod = ConstraintMethod::Penalty { big: DEFAULT_PENALTY };
+
+    /// The method of this kind; `big` is used by the penalty only.
+    pub fn of_kind(kind: ConstraintKind, big: f64) -> Self {
+        match kind {
+            ConstraintKind::Penalty => ConstraintMethod::Penalty { big },
+            ConstraintKind::Eliminate => ConstraintMethod::Eliminate,
+        }
+    }
+
+    /// Which kind of method this is.
+    pub fn kind(self) -> ConstraintKind {
+        match self {
+            ConstraintMethod::Penalty { .. } => ConstraintKind::Penalty,
+            ConstraintMethod::Eliminate => ConstraintKind::Eliminate,
+        }
+    }
 }
+
+/// The paper's penalty value ("big").
+pub const DEFAULT_PENALTY: f64 = 1e9;
+
+/// How fixed degrees of freedom are imposed, by name (`penalty`, `eliminate`); the
+/// penalty value is a separate setting, so choosing the kind never drops it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum ConstraintKind {
+    /// The paper's penalty ([`ConstraintMethod::Penalty`]).
+    Penalty,
+    /// Elimination ([`ConstraintMethod::Eliminate`]).
+    #[default]
+    Eliminate,
+}
+
+impl fibfluid_linalg::Choice for ConstraintKind {
+    const WHAT: &'static str = "constraint method";
+    const ALL: &'static [Self] = &[ConstraintKind::Penalty, ConstraintKind::Eliminate];
+    fn name(self) -> &'static str {
+        match self {
+            ConstraintKind::Penalty => "penalty",
+            ConstraintKind::Eliminate => "eliminate",
+        }
+    }
+}
+fibfluid_linalg::impl_choice!(ConstraintKind);
 
 /// Which vertices a constraint applies to.
 #[derive(Clone, Debug, PartialEq)]

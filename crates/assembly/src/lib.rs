@@ -25,8 +25,8 @@ mod loads;
 mod material;
 mod system;
 
-pub use constraints::{ConstraintMethod, Constraints, Selector};
-pub use loads::{depths, load_vector};
+pub use constraints::{ConstraintKind, ConstraintMethod, Constraints, DEFAULT_PENALTY, Selector};
+pub use loads::{Loads, depths, load_vector};
 pub use material::{Material, StiffnessLaw};
 pub use system::{AssemblyOptions, AssemblyStats, Body, PressureScaling, System, assemble};
 

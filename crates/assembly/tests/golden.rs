@@ -1,10 +1,10 @@
 //! The paper's golden cases (REFERENCE §4), built through the public API.
 
 use fibfluid_assembly::{
-    AssemblyOptions, Body, ConstraintMethod, Constraints, Material, PressureScaling, assemble, load_vector,
+    AssemblyOptions, Body, ConstraintMethod, Constraints, Material, PressureScaling, assemble, load_vector, Loads,
 };
 use fibfluid_geometry::{FiberSet, Polygon, icosphere};
-use fibfluid_linalg::{FactorizationExt, LinearSolverExt, backend_by_name};
+use fibfluid_linalg::{FactorizationExt, LinearSolverExt, Backend};
 
 fn rectangle() -> (Polygon, fibfluid_assembly::System) {
     // Vertices in the paper's order: (15, 20), (15, -20), (-15, -20), (-15, 20).
@@ -75,10 +75,10 @@ fn rectangle_solution_matches_the_paper() {
     let pos = poly.positions_3d();
     let s: Vec<[f64; 3]> = poly.vertex_area_vectors().iter().map(|v| [v[0], v[1], 0.0]).collect();
     let forces = [(0, [0.0, 1680.0, 0.0]), (3, [0.0, 1680.0, 0.0])];
-    let b = load_vector(2, &pos, &s, &forces, [0.0; 3], 0.0);
+    let b = load_vector(2, &pos, &s, &Loads { acceleration: [0.0; 3], down: None, density: 0.0, forces: &forces }).unwrap();
     let rhs = sys.rhs(&b, 0.0, &s, 1.0);
-    for name in fibfluid_linalg::backend_names() {
-        let f = backend_by_name(name).unwrap().factorize_default(&sys.matrix).unwrap();
+    for backend in fibfluid_linalg::Backend::compiled() {
+        let f = backend.solver().unwrap().factorize_default(&sys.matrix).unwrap();
         let sol = f.solve(&rhs).unwrap();
         let (u, p) = sys.split_solution(&sol.x);
         // Paper: u_x = -4 on the right corners, u_y = 16/3 on the upper corners, P = 32.
@@ -86,17 +86,17 @@ fn rectangle_solution_matches_the_paper() {
         let tol = 4.0 * 1680.0 / 1e9;
         assert!(
             (u[0][0] + 4.0).abs() < tol && (u[1][0] + 4.0).abs() < tol,
-            "{name}: u_x right = {:?}",
+            "{backend}: u_x right = {:?}",
             (u[0][0], u[1][0])
         );
         assert!(
             (u[0][1] - 16.0 / 3.0).abs() < tol && (u[3][1] - 16.0 / 3.0).abs() < tol,
-            "{name}: u_y top {:?}",
+            "{backend}: u_y top {:?}",
             (u[0][1], u[3][1], u[1][1], u[2][1])
         );
-        assert!((p - 32.0).abs() < 1e-5, "{name}: P = {p}");
+        assert!((p - 32.0).abs() < 1e-5, "{backend}: P = {p}");
         let vol_row: f64 = (0..4).map(|i| s[i][0] * u[i][0] + s[i][1] * u[i][1]).sum();
-        assert!(vol_row.abs() < 1e-9, "{name}: volume row {vol_row}");
+        assert!(vol_row.abs() < 1e-9, "{backend}: volume row {vol_row}");
     }
 }
 
@@ -122,8 +122,8 @@ fn rectangle_eliminate_gives_exact_fixed_dofs() {
     let opts =
         AssemblyOptions { method: ConstraintMethod::Eliminate, pressure_scaling: PressureScaling::Auto };
     let sys = assemble(&body, &material, &c, &opts).unwrap();
-    let b = load_vector(2, &pos, &s, &[(0, [0.0, 1680.0, 0.0]), (3, [0.0, 1680.0, 0.0])], [0.0; 3], 0.0);
-    let f = backend_by_name("structured").unwrap().factorize_default(&sys.matrix).unwrap();
+    let b = load_vector(2, &pos, &s, &Loads { acceleration: [0.0; 3], down: None, density: 0.0, forces: &[(0, [0.0, 1680.0, 0.0]), (3, [0.0, 1680.0, 0.0])] }).unwrap();
+    let f = Backend::Structured.solver().unwrap().factorize_default(&sys.matrix).unwrap();
     let (u, p) = sys.split_solution(&f.solve(&sys.rhs(&b, 0.0, &s, 1.0)).unwrap().x);
     assert_eq!(u[2], [0.0, 0.0, 0.0]);
     assert_eq!(u[1][1], 0.0);

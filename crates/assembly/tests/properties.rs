@@ -21,10 +21,10 @@ use faer::linalg::solvers::DenseSolveCore;
 use faer::{Mat, Side};
 use fibfluid_assembly::{
     AssemblyError, AssemblyOptions, Body, ConstraintMethod, Constraints, Material, PressureScaling, Selector,
-    System, assemble, load_vector,
+    System, assemble, load_vector, Loads,
 };
 use fibfluid_geometry::{FiberSet, TriMesh, icosphere};
-use fibfluid_linalg::{FactorizationExt, LinearSolverExt, all_backends, backend_by_name};
+use fibfluid_linalg::{FactorizationExt, LinearSolverExt, all_backends, Backend};
 use proptest::prelude::*;
 
 const EPS: f64 = f64::EPSILON;
@@ -530,12 +530,12 @@ fn cond2(sys: &System) -> f64 {
 
 /// Gravity on the paper's sphere: a = 10 along -y, rho = 1000 (load_vector).
 fn gravity(shape: &Shape) -> Vec<f64> {
-    load_vector(3, &shape.pos, &shape.s, &[], [0.0, -10.0, 0.0], 1000.0)
+    load_vector(3, &shape.pos, &shape.s, &Loads { acceleration: [0.0, -10.0, 0.0], down: None, density: 1000.0, forces: &[] }).unwrap()
 }
 
 fn solve_displacements(shape: &Shape, sys: &System) -> Vec<[f64; 3]> {
     let rhs = sys.rhs(&gravity(shape), 0.0, &shape.s, 1.0);
-    let f = backend_by_name("structured").unwrap().factorize_default(&sys.matrix).unwrap();
+    let f = Backend::Structured.solver().unwrap().factorize_default(&sys.matrix).unwrap();
     sys.split_solution(&f.solve(&rhs).unwrap().x).0
 }
 
@@ -813,7 +813,7 @@ proptest! {
 
         // Every solve satisfies the volume row.
         let g = [accel_dir[0] * accel, accel_dir[1] * accel, accel_dir[2] * accel];
-        let b = load_vector(3, &shape.pos, &shape.s, &[(41, [1.0, -2.0, 0.5])], g, material.density);
+        let b = load_vector(3, &shape.pos, &shape.s, &Loads { acceleration: g, down: None, density: material.density, forces: &[(41, [1.0, -2.0, 0.5])] }).unwrap();
         for (method, scaling) in [(PENALTY, PressureScaling::None), (ConstraintMethod::Eliminate, PressureScaling::Auto)] {
             let sys = shape.assemble(&material, &c, method, scaling).unwrap();
             let vol = check_volume_row(&shape, &sys, &b, target);

@@ -3,69 +3,45 @@
 use std::path::Path;
 
 use fibfluid::accuracy::{Grid, chart, run_study, to_csv, to_markdown};
-use fibfluid::linalg::Precision;
-use fibfluid::{Error, Mode, Scene, Stepping};
+use fibfluid::{Backend, ConstraintKind, Mode, Precision, Scene, Stepping};
 use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::CliError;
+
+/// The grid flags of `fibfluid accuracy`; each replaces its axis of the default grid.
+pub struct GridFlags {
+    /// Step counts.
+    pub steps: Vec<usize>,
+    /// Backends.
+    pub backends: Option<Vec<Backend>>,
+    /// Modes.
+    pub modes: Option<Vec<Mode>>,
+    /// Stepping schemes.
+    pub steppings: Option<Vec<Stepping>>,
+    /// Precisions.
+    pub precisions: Option<Vec<Precision>>,
+    /// The scene's constraint method, overridden.
+    pub constraints: Option<ConstraintKind>,
+}
 
 /// Runs the grid and writes accuracy.csv, accuracy.md, accuracy.png and
 /// accuracy-reference.png into `out` (all or nothing).
-pub fn run(
-    scene_path: &Path,
-    out: &Path,
-    steps: &[usize],
-    backends: Option<Vec<String>>,
-    modes: Option<Vec<String>>,
-    steppings: Option<Vec<String>>,
-    precisions: Option<Vec<String>>,
-    constraints: Option<String>,
-) -> Result<(), Error> {
+pub fn run(scene_path: &Path, out: &Path, flags: GridFlags) -> Result<(), CliError> {
     let mut scene = Scene::load(scene_path)?;
-    if let Some(c) = constraints {
-        scene.solver.constraints = match c.as_str() {
-            "penalty" => fibfluid::assembly::ConstraintMethod::PAPER,
-            "eliminate" => fibfluid::assembly::ConstraintMethod::Eliminate,
-            o => return Err(Error::Invalid(format!("--constraints: `{o}` is not penalty or eliminate"))),
-        };
+    scene.solver.constraints = flags.constraints.unwrap_or(scene.solver.constraints);
+    if let Some(&n) = flags.steps.iter().find(|&&n| !(1..=fibfluid::MAX_STEPS).contains(&n)) {
+        return Err(CliError::Flag { flag: "steps", value: n.to_string(), problem: "give step counts from 1 to 1000000" });
     }
-    let mut grid = Grid { steps: steps.to_vec(), ..Grid::default() };
-    if steps.is_empty() || steps.contains(&0) {
-        return Err(Error::Invalid("--steps: give positive step counts".into()));
-    }
-    if let Some(b) = backends {
-        for name in &b {
-            fibfluid::linalg::backend_by_name(name)?;
+    let mut grid = Grid { steps: flags.steps, ..Grid::default() };
+    if let Some(b) = flags.backends {
+        for backend in &b {
+            backend.solver().map_err(fibfluid::Error::from)?;
         }
         grid.backends = b;
     }
-    if let Some(m) = modes {
-        grid.modes = m
-            .iter()
-            .map(|s| {
-                Mode::parse(s).ok_or_else(|| {
-                    Error::Invalid(format!("--modes: `{s}` is not paper, refresh or nonlinear"))
-                })
-            })
-            .collect::<Result<_, _>>()?;
-    }
-    if let Some(m) = steppings {
-        grid.steppings = m
-            .iter()
-            .map(|s| {
-                Stepping::parse(s)
-                    .ok_or_else(|| Error::Invalid(format!("--steppings: `{s}` is not euler or heun")))
-            })
-            .collect::<Result<_, _>>()?;
-    }
-    if let Some(p) = precisions {
-        grid.precisions = p
-            .iter()
-            .map(|s| match s.as_str() {
-                "f64" => Ok(Precision::F64),
-                "mixed" => Ok(Precision::Mixed),
-                o => Err(Error::Invalid(format!("--precisions: `{o}` is not f64 or mixed"))),
-            })
-            .collect::<Result<_, _>>()?;
-    }
+    grid.modes = flags.modes.unwrap_or(grid.modes);
+    grid.steppings = flags.steppings.unwrap_or(grid.steppings);
+    grid.precisions = flags.precisions.unwrap_or(grid.precisions);
     let bar = ProgressBar::new(0);
     bar.set_style(
         ProgressStyle::with_template("accuracy [{bar:30}] {pos}/{len} runs ({elapsed})")
@@ -87,16 +63,16 @@ pub fn run(
         &format!("{title}: round-trip error vs time"),
         "round-trip error (Eq. 9)",
         |p| p.roundtrip_error,
-        "f64",
-        "structured",
+        Precision::F64,
+        Backend::Structured,
     )?;
     let png_ref = chart(
         &study,
         &format!("{title}: distance to the converged reference vs time"),
         "distance to reference",
         |p| p.reference_distance,
-        "f64",
-        "structured",
+        Precision::F64,
+        Backend::Structured,
     )?;
     let files = [
         ("accuracy.csv", csv.into_bytes()),

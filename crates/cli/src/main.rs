@@ -6,12 +6,12 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use clap::{Parser, Subcommand};
-use fibfluid::geometry::{VisibilityOptions, cull_fibers, load_mesh, self_intersections};
-use fibfluid::linalg::{FactorizationExt, Precision};
-use fibfluid::stages::StageRecord;
-use fibfluid::{Error, Mode, Report, RunOptions, Scene, Simulation, Stepping};
+use fibfluid::stages::{StageRecord, names};
+use fibfluid::{
+    Backend, ConstraintKind, Error, MeshInfo, Mode, Plan, Precision, Report, RunOptions, Scene, SetupOptions,
+    Simulation, Stepping,
+};
 use indicatif::{ProgressBar, ProgressStyle};
-use serde_json::json;
 
 mod accuracy;
 
@@ -24,6 +24,30 @@ struct Cli {
     threads: Option<usize>,
     #[command(subcommand)]
     command: Command,
+}
+
+/// What the command line can get wrong before the library is called.
+#[derive(Debug, thiserror::Error)]
+enum CliError {
+    /// An error of the library.
+    #[error(transparent)]
+    Fibfluid(#[from] Error),
+    /// A flag value out of its range.
+    #[error("--{flag} {value}: {problem}")]
+    Flag {
+        /// The flag.
+        flag: &'static str,
+        /// The value given.
+        value: String,
+        /// What is wrong.
+        problem: &'static str,
+    },
+}
+
+impl From<fibfluid::geometry::GeometryError> for CliError {
+    fn from(e: fibfluid::geometry::GeometryError) -> Self {
+        CliError::Fibfluid(e.into())
+    }
 }
 
 #[derive(Subcommand)]
@@ -51,6 +75,17 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Print the plan of a scene: which stages run, which are skipped and why, their
+    /// memory and flops; exit 2 when it does not fit in memory.
+    Plan {
+        /// Scene TOML file.
+        scene: PathBuf,
+        #[command(flatten)]
+        over: Overrides,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
     /// Run a scene; write deformed.obj, deformed.vtk, report.json and render.png.
     Run {
         /// Scene TOML file.
@@ -76,6 +111,9 @@ enum Command {
         /// Vertex counts N (systems of size 3N+1).
         #[arg(long, value_delimiter = ',', default_value = "250,1000")]
         sizes: Vec<usize>,
+        /// Timed repeats per backend and size (the median is reported).
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
         /// Print a JSON array.
         #[arg(long)]
         json: bool,
@@ -92,93 +130,102 @@ enum Command {
         steps: Vec<usize>,
         /// Backends (default: every compiled-in one).
         #[arg(long, value_delimiter = ',')]
-        backends: Option<Vec<String>>,
+        backends: Option<Vec<Backend>>,
         /// Modes (default: paper, refresh, nonlinear).
         #[arg(long, value_delimiter = ',')]
-        modes: Option<Vec<String>>,
+        modes: Option<Vec<Mode>>,
         /// Stepping schemes (default: euler, heun).
         #[arg(long, value_delimiter = ',')]
-        steppings: Option<Vec<String>>,
+        steppings: Option<Vec<Stepping>>,
         /// Precisions (default: f64, mixed).
         #[arg(long, value_delimiter = ',')]
-        precisions: Option<Vec<String>>,
+        precisions: Option<Vec<Precision>>,
         /// Override the scene's constraint method (penalty, eliminate).
         #[arg(long)]
-        constraints: Option<String>,
+        constraints: Option<ConstraintKind>,
     },
 }
 
-/// Command-line overrides of the scene's [solver] and [load] settings.
+/// Command-line overrides of the scene's [solver] and [load] settings; each flag
+/// overrides only its own scene key.
 #[derive(clap::Args, Clone, Default)]
 struct Overrides {
     /// Linear backend (structured, faer-lu, nalgebra-lu, openblas-lu).
     #[arg(long)]
-    backend: Option<String>,
+    backend: Option<Backend>,
     /// Stepping mode (paper, refresh, nonlinear).
     #[arg(long)]
-    mode: Option<String>,
+    mode: Option<Mode>,
     /// Stepping scheme (euler, heun).
     #[arg(long)]
-    stepping: Option<String>,
+    stepping: Option<Stepping>,
     /// Load steps.
     #[arg(long)]
     steps: Option<usize>,
     /// Precision (f64, mixed).
     #[arg(long)]
-    precision: Option<String>,
-    /// Constraint method (penalty, eliminate).
+    precision: Option<Precision>,
+    /// Constraint method (penalty, eliminate); the scene's `penalty` value is kept.
     #[arg(long)]
-    constraints: Option<String>,
+    constraints: Option<ConstraintKind>,
+    /// Refuse the scene when its plan needs more than this many bytes (default: the
+    /// machine's memory).
+    #[arg(long, value_name = "BYTES")]
+    max_memory: Option<u64>,
 }
 
 impl Overrides {
-    fn apply(&self, scene: &mut Scene) -> Result<(), Error> {
-        let bad =
-            |what: &str, v: &str, ok: &str| Error::Invalid(format!("--{what}: `{v}` is not one of {ok}"));
-        if let Some(b) = &self.backend {
-            fibfluid::linalg::backend_by_name(b)?;
-            scene.solver.backend = b.clone();
+    fn apply(&self, scene: &mut Scene) -> Result<(), CliError> {
+        let s = &mut scene.solver;
+        if let Some(b) = self.backend {
+            b.solver().map_err(Error::from)?;
+            s.backend = b;
         }
-        if let Some(m) = &self.mode {
-            scene.solver.mode = Mode::parse(m).ok_or_else(|| bad("mode", m, "paper, refresh, nonlinear"))?;
-        }
-        if let Some(s) = &self.stepping {
-            scene.solver.stepping = Stepping::parse(s).ok_or_else(|| bad("stepping", s, "euler, heun"))?;
-        }
+        s.mode = self.mode.unwrap_or(s.mode);
+        s.stepping = self.stepping.unwrap_or(s.stepping);
+        s.precision = self.precision.unwrap_or(s.precision);
+        s.constraints = self.constraints.unwrap_or(s.constraints);
         if let Some(n) = self.steps {
-            if n == 0 {
-                return Err(Error::Invalid("--steps: must be at least 1".into()));
+            if !(1..=fibfluid::MAX_STEPS).contains(&n) {
+                return Err(CliError::Flag { flag: "steps", value: n.to_string(), problem: "must be between 1 and 1000000" });
             }
             scene.steps = n;
         }
-        if let Some(p) = &self.precision {
-            scene.solver.precision = match p.as_str() {
-                "f64" => Precision::F64,
-                "mixed" => Precision::Mixed,
-                _ => return Err(bad("precision", p, "f64, mixed")),
-            };
-        }
-        if let Some(c) = &self.constraints {
-            scene.solver.constraints = match c.as_str() {
-                "penalty" => fibfluid::assembly::ConstraintMethod::PAPER,
-                "eliminate" => fibfluid::assembly::ConstraintMethod::Eliminate,
-                _ => return Err(bad("constraints", c, "penalty, eliminate")),
-            };
-        }
         Ok(())
     }
+
+    fn setup(&self) -> SetupOptions {
+        SetupOptions { max_memory: self.max_memory, ..Default::default() }
+    }
 }
+
+/// Most threads `--threads` sets; more are clamped with a note.
+const MAX_THREADS: usize = 256;
 
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         Err(e) => {
+            if e.use_stderr() {
+                // clap's message is several lines; keep the one that says what is wrong.
+                let text = e.to_string();
+                let first = text.lines().find(|l| !l.trim().is_empty()).unwrap_or("invalid arguments");
+                eprintln!("{}", first.trim());
+                return ExitCode::from(2);
+            }
             let _ = e.print();
-            return if e.use_stderr() { ExitCode::from(2) } else { ExitCode::SUCCESS };
+            return ExitCode::SUCCESS;
         }
     };
     if let Some(n) = cli.threads {
-        fibfluid::linalg::threads::set_threads(n);
+        if n == 0 {
+            eprintln!("error: --threads 0: must be at least 1");
+            return ExitCode::from(2);
+        }
+        if n > MAX_THREADS {
+            eprintln!("note: --threads {n} is more than {MAX_THREADS}; using {MAX_THREADS}");
+        }
+        fibfluid::linalg::threads::set_threads(n.min(MAX_THREADS));
     }
     match run(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
@@ -212,127 +259,132 @@ fn progress(total: usize, what: &str) -> Option<Arc<dyn Fn(usize, usize) + Send 
     }))
 }
 
-fn run(command: Command) -> Result<(), Error> {
+fn run(command: Command) -> Result<(), CliError> {
     match command {
         Command::MeshInfo { mesh, json, fibers } => mesh_info(&mesh, json, fibers.as_deref()),
         Command::Icosphere { level, radius, out } => {
             if level > 7 {
-                return Err(Error::Invalid(format!("--level {level}: at most 7 (655362 vertices)")));
+                return Err(CliError::Flag { flag: "level", value: level.to_string(), problem: "at most 7 (655362 vertices)" });
             }
             if !(radius.is_finite() && radius > 0.0) {
-                return Err(Error::Invalid(format!("--radius {radius}: must be positive")));
+                return Err(CliError::Flag { flag: "radius", value: radius.to_string(), problem: "must be positive" });
             }
             let m = fibfluid::geometry::icosphere(level, radius);
             fibfluid::geometry::write_obj(&out, m.positions(), m.triangles())?;
             eprintln!("wrote {} ({} vertices, {} faces)", out.display(), m.n_vertices(), m.n_faces());
             Ok(())
         }
+        Command::Plan { scene, over, json } => plan(&scene, &over, json),
         Command::Run { scene, out, over } => run_scene(&scene, &out, &over),
         Command::Roundtrip { scene, over, json } => roundtrip(&scene, &over, json),
-        Command::Bench { sizes, json } => bench(&sizes, json),
+        Command::Bench { sizes, repeats, json } => bench(&sizes, repeats, json),
         Command::Accuracy { scene, out, steps, backends, modes, steppings, precisions, constraints } => {
-            accuracy::run(&scene, &out, &steps, backends, modes, steppings, precisions, constraints)
+            let grid = accuracy::GridFlags { steps, backends, modes, steppings, precisions, constraints };
+            accuracy::run(&scene, &out, grid)
         }
     }
 }
 
-fn mesh_info(path: &Path, json: bool, fibers_out: Option<&Path>) -> Result<(), Error> {
-    let start = Instant::now();
-    let file = load_mesh(path)?;
-    let mesh = &file.mesh;
-    let (fibers, vis) = cull_fibers(mesh, &VisibilityOptions::default());
-    let seconds = start.elapsed().as_secs_f64();
-    let crossings = self_intersections(mesh);
-    let mut notes = file.notes.clone();
-    if !crossings.is_empty() {
-        notes.push(format!(
-            "the surface intersects itself: {} face pairs cross (e.g. faces {} and {}); fibers near them may be culled inconsistently",
-            crossings.len(),
-            crossings[0].0,
-            crossings[0].1
-        ));
-    }
-    let area = mesh.area();
-    let s_sum: f64 = mesh.vertex_area_vectors().iter().map(|s| fibfluid::geometry::vec3::norm(*s)).sum();
+fn mesh_info(path: &Path, json: bool, fibers_out: Option<&Path>) -> Result<(), CliError> {
+    let (info, fibers) = MeshInfo::of_file(path)?;
     if let Some(out) = fibers_out {
-        let mut f = std::io::BufWriter::new(
-            std::fs::File::create(out).map_err(|source| Error::Io { path: out.into(), source })?,
-        );
-        fibfluid::write_fibers_vtk(&mut f, mesh.positions(), &fibers)
-            .map_err(|source| Error::Io { path: out.into(), source })?;
-        std::io::Write::flush(&mut f).map_err(|source| Error::Io { path: out.into(), source })?;
+        let io = |source| Error::Io { path: out.into(), source };
+        let file = fibfluid::geometry::load_mesh(path)?;
+        let mut f = std::io::BufWriter::new(std::fs::File::create(out).map_err(io)?);
+        fibfluid::write_fibers_vtk(&mut f, file.mesh.positions(), &fibers).map_err(io)?;
+        std::io::Write::flush(&mut f).map_err(io)?;
     }
     if json {
-        let v = json!({
-            "path": path.display().to_string(),
-            "vertices": mesh.n_vertices(),
-            "faces": mesh.n_faces(),
-            "file_vertices": file.file_vertex_count(),
-            "area": area,
-            "vertex_area_sum": s_sum,
-            "volume": mesh.volume(),
-            "closed": true,
-            "genus": file.validation.genus,
-            "flipped": file.validation.flipped,
-            "convex": vis.convex,
-            "fibers_total": fibers.total(),
-            "fibers_kept": fibers.kept(),
-            "fibers_removed_exit": vis.removed_by_exit,
-            "fibers_removed_crossing": vis.removed_by_crossing,
-            "self_intersections": crossings.len(),
-            "notes": notes,
-            "seconds": seconds,
-        });
-        println!("{v}");
-    } else {
-        let (lo, hi) = mesh.bounding_box();
-        println!("{}", path.display());
-        println!("  vertices        {} ({} in the file)", mesh.n_vertices(), file.file_vertex_count());
-        println!("  faces           {}", mesh.n_faces());
-        println!("  closed          yes, genus {}", file.validation.genus);
-        println!(
-            "  bounding box    [{:.4}, {:.4}, {:.4}] .. [{:.4}, {:.4}, {:.4}]",
-            lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
-        );
-        println!("  area            {area:.6}  (sum |S_i| = {s_sum:.6})");
-        println!("  volume          {:.6}", mesh.volume());
-        println!(
-            "  convex          {}",
-            if vis.convex { "yes (every fiber kept, no test ran)" } else { "no" }
-        );
-        println!(
-            "  fibers          {} of {} kept ({:.1} %; exit test removed {}, crossing test {})",
-            fibers.kept(),
-            fibers.total(),
-            100.0 * fibers.kept() as f64 / fibers.total().max(1) as f64,
-            vis.removed_by_exit,
-            vis.removed_by_crossing
-        );
-        println!("  seconds         {seconds:.3} (load, check, cull)");
-        for n in &notes {
-            println!("  note: {n}");
-        }
+        println!("{}", serde_json::to_string(&info).map_err(Error::from)?);
+        return Ok(());
+    }
+    let (lo, hi) = (info.bbox_min, info.bbox_max);
+    println!("{}", info.path);
+    println!("  vertices        {} ({} in the file)", info.vertices, info.file_vertices);
+    println!("  faces           {}", info.faces);
+    println!("  closed          yes, genus {}", info.genus);
+    println!(
+        "  bounding box    [{:.4}, {:.4}, {:.4}] .. [{:.4}, {:.4}, {:.4}]",
+        lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+    );
+    println!("  area            {:.6}  (sum |S_i| = {:.6})", info.area, info.vertex_area_sum);
+    println!("  volume          {:.6}", info.volume);
+    println!("  convex          {}", if info.convex { "yes (every fiber kept, no test ran)" } else { "no" });
+    println!(
+        "  fibers          {} of {} kept ({:.1} %; exit test removed {}, crossing test {})",
+        info.fibers_kept,
+        info.fibers_total,
+        100.0 * info.fibers_kept as f64 / info.fibers_total.max(1) as f64,
+        info.fibers_removed_exit,
+        info.fibers_removed_crossing
+    );
+    println!("  seconds         {:.3} (load, check, cull)", info.seconds);
+    for n in &info.notes {
+        println!("  note: {n}");
     }
     Ok(())
 }
 
-fn load_scene(path: &Path, over: &Overrides) -> Result<(Scene, StageRecord), Error> {
+fn load_scene(path: &Path, over: &Overrides) -> Result<(Scene, StageRecord), CliError> {
     let start = Instant::now();
     let mut scene = Scene::load(path)?;
     over.apply(&mut scene)?;
-    let rec =
-        StageRecord { name: "load scene and mesh".into(), seconds: start.elapsed().as_secs_f64(), count: 1 };
+    let rec = StageRecord {
+        name: names::LOAD_SCENE.into(),
+        parent: None,
+        seconds: start.elapsed().as_secs_f64(),
+        count: 1,
+    };
     Ok((scene, rec))
 }
 
-fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), Error> {
+fn plan(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> {
+    let (scene, _) = load_scene(path, over)?;
+    let plan = Plan::from_scene(&scene);
+    let limit = Plan::memory_limit(over.max_memory);
+    if json {
+        println!("{}", serde_json::to_string_pretty(&plan).map_err(Error::from)?);
+    } else {
+        println!(
+            "{}: {} vertices, {} steps ({} / {} / {} / {})",
+            scene.name,
+            scene.n_vertices(),
+            scene.steps,
+            scene.solver.backend,
+            scene.solver.mode,
+            scene.solver.stepping,
+            scene.solver.precision
+        );
+        println!("  {:<24} {:>4} {:>12} {:>12}  why", "stage", "run", "MiB", "GFLOP");
+        for s in &plan.stages {
+            println!(
+                "  {:<24} {:>4} {:>12.1} {:>12.3}  {}",
+                s.name,
+                if s.run { "yes" } else { "no" },
+                s.bytes as f64 / 1048576.0,
+                s.flops / 1e9,
+                s.reason
+            );
+        }
+        println!(
+            "  total: {:.1} MiB peak (limit {:.1} MiB), {:.3} GFLOP",
+            plan.memory_bytes as f64 / 1048576.0,
+            limit as f64 / 1048576.0,
+            plan.flops / 1e9
+        );
+    }
+    plan.check_memory(&scene.name, limit, scene.solver.backend)?;
+    Ok(())
+}
+
+fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> {
     let (scene, load) = load_scene(path, over)?;
     let notes = match &scene.shape {
         fibfluid::Shape::Surface(m) => m.notes.clone(),
         _ => vec![],
     };
     let steps = scene.steps;
-    let mut sim = Simulation::new(scene)?;
+    let mut sim = Simulation::with_options(scene, &over.setup())?;
     let opts = RunOptions { progress: progress(steps, "run") };
     sim.run(&opts)?;
     let start = Instant::now();
@@ -361,26 +413,20 @@ fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), Error> {
     Ok(())
 }
 
-fn roundtrip(path: &Path, over: &Overrides, json: bool) -> Result<(), Error> {
+fn roundtrip(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> {
     let (scene, _) = load_scene(path, over)?;
     let steps = scene.steps;
-    let rt = fibfluid::roundtrip(
-        scene,
-        &RunOptions {
-            progress: progress(2 * steps, "round trip").map(|p| {
-                let p2: Arc<dyn Fn(usize, usize) + Send + Sync> = Arc::new({
-                    let done = std::sync::atomic::AtomicUsize::new(0);
-                    move |_k, _n| {
-                        let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-                        p(d, 2 * steps);
-                    }
-                });
-                p2
-            }),
-        },
-    )?;
+    let progress = progress(2 * steps, "round trip").map(|p| {
+        let done = std::sync::atomic::AtomicUsize::new(0);
+        let both_ways: Arc<dyn Fn(usize, usize) + Send + Sync> = Arc::new(move |_k, _n| {
+            let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            p(d, 2 * steps);
+        });
+        both_ways
+    });
+    let rt = fibfluid::roundtrip(scene, &RunOptions { progress })?;
     if json {
-        println!("{}", serde_json::to_string(&rt).map_err(|e| Error::Invalid(e.to_string()))?);
+        println!("{}", serde_json::to_string(&rt).map_err(Error::from)?);
     } else {
         println!(
             "round trip, {} steps each way ({} / {} / {}): error {:.3e} ({:.4} %), volume drift {:.3e}, {:.3} s",
@@ -397,64 +443,44 @@ fn roundtrip(path: &Path, over: &Overrides, json: bool) -> Result<(), Error> {
     Ok(())
 }
 
-fn bench(sizes: &[usize], json: bool) -> Result<(), Error> {
+fn bench(sizes: &[usize], repeats: usize, json: bool) -> Result<(), CliError> {
+    if let Some(&n) = sizes.iter().find(|n| !fibfluid::bench::BENCH_SIZES.contains(n)) {
+        return Err(CliError::Flag { flag: "sizes", value: n.to_string(), problem: "out of range (4..20000)" });
+    }
+    if !(1..=1000).contains(&repeats) {
+        return Err(CliError::Flag { flag: "repeats", value: repeats.to_string(), problem: "must be between 1 and 1000" });
+    }
     let mut rows = Vec::new();
     for &n in sizes {
-        if !(4..=20000).contains(&n) {
-            return Err(Error::Invalid(format!("--sizes: {n} is out of range (4..20000)")));
-        }
-        let system = fibfluid::bench::synthetic_system(n, fibfluid::assembly::ConstraintMethod::Eliminate)?;
-        let rhs: Vec<f64> =
-            (0..system.matrix.dim()).map(|i| ((i * 7919) % 1000) as f64 / 1000.0 - 0.5).collect();
-        for backend in fibfluid::linalg::all_backends() {
-            let name = backend.name();
-            let f = match backend.factorize(&system.matrix, &Default::default()) {
-                Ok(f) => f,
-                Err(e) => {
-                    eprintln!("{name} at N = {n}: {e}");
-                    continue;
-                }
-            };
-            let cost = f.cost();
-            let reps = 5;
-            let start = Instant::now();
-            let mut residual: f64 = 0.0;
-            for _ in 0..reps {
-                residual = residual.max(f.solve(&rhs)?.relative_residual);
+        for row in fibfluid::bench::bench_backends(n, repeats)? {
+            match row {
+                Ok(r) => rows.push(r),
+                Err((backend, e)) => eprintln!("{backend} at N = {n}: {}", one_line(&e.to_string())),
             }
-            let solve_seconds = start.elapsed().as_secs_f64() / reps as f64;
-            rows.push(json!({
-                "backend": name,
-                "n_vertices": n,
-                "dim": system.matrix.dim(),
-                "factor_seconds": cost.seconds,
-                "solve_seconds": solve_seconds,
-                "factor_gflops": cost.flops / cost.seconds.max(1e-12) / 1e9,
-                "memory_bytes": cost.bytes,
-                "residual": residual,
-            }));
         }
     }
     if json {
-        println!("{}", serde_json::Value::Array(rows));
-    } else {
-        println!(
-            "{:<12} {:>6} {:>7} {:>12} {:>12} {:>9} {:>10}",
-            "backend", "N", "dim", "factor s", "solve s", "GFLOP/s", "MiB"
-        );
-        for r in rows {
-            println!(
-                "{:<12} {:>6} {:>7} {:>12.5} {:>12.6} {:>9.2} {:>10.1}",
-                r["backend"].as_str().unwrap_or(""),
-                r["n_vertices"],
-                r["dim"],
-                r["factor_seconds"].as_f64().unwrap_or(0.0),
-                r["solve_seconds"].as_f64().unwrap_or(0.0),
-                r["factor_gflops"].as_f64().unwrap_or(0.0),
-                r["memory_bytes"].as_f64().unwrap_or(0.0) / 1048576.0
-            );
-        }
-        println!("(the structured backend factors N x N blocks; the dense ones the (3N+1)^2 matrix)");
+        println!("{}", serde_json::to_string(&rows).map_err(Error::from)?);
+        return Ok(());
     }
+    println!(
+        "{:<12} {:>6} {:>7} {:>12} {:>12} {:>9} {:>10}",
+        "backend", "N", "dim", "factor s", "solve s", "GFLOP/s", "MiB"
+    );
+    for r in &rows {
+        println!(
+            "{:<12} {:>6} {:>7} {:>12.5} {:>12.6} {:>9.2} {:>10.1}",
+            r.backend.to_string(),
+            r.n_vertices,
+            r.dim,
+            r.factor_seconds,
+            r.solve_seconds,
+            r.factor_gflops,
+            r.memory_bytes as f64 / 1048576.0
+        );
+    }
+    println!(
+        "(medians of {repeats} warm runs after one warm-up; the structured backend factors N x N blocks, the dense ones the (3N+1)^2 matrix)"
+    );
     Ok(())
 }

@@ -13,6 +13,7 @@
 //!   paper's 2D example; [`icosphere`] for the sphere cases.
 
 mod adjacency;
+mod boundary;
 mod bvh;
 mod crossing;
 mod error;
@@ -24,6 +25,7 @@ mod polygon;
 pub mod vec3;
 
 pub use adjacency::Adjacency;
+pub use boundary::Boundary;
 pub use bvh::TriangleBvh;
 pub use crossing::{Crossing, segment_triangle};
 pub use error::{GeometryError, MeshError, Result};

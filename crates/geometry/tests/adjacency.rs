@@ -2,11 +2,10 @@
 //! lists, vertex–face lists that match the triangles, and the Euler characteristic
 //! (2 for the genus-0 bodies, 0 for the torus) reported by validation.
 
-mod common;
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use common::*;
+use crate::common::*;
 
 #[test]
 fn adjacency_matches_the_triangles() {

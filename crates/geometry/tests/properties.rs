@@ -3,9 +3,8 @@
 //! independent floating-point test away from grazing, and the documented grazing policy on
 //! configurations that are exact in f64.
 
-mod common;
 
-use common::*;
+use crate::common::*;
 use fibfluid_geometry::{
     Crossing, FiberSet, TriMesh, TriangleBvh, VisibilityOptions, cull_fibers, icosphere, segment_triangle,
 };

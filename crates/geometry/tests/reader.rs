@@ -2,12 +2,11 @@
 //! vertex order, flipping of inward files, OBJ write/read round trip, binary and ASCII STL,
 //! and a typed error for every kind of broken input.
 
-mod common;
 
 use std::path::{Path, PathBuf};
 use std::time::{SystemTime, UNIX_EPOCH};
 
-use common::*;
+use crate::common::*;
 use fibfluid_geometry::{
     GeometryError, MeshError, MeshFile, TriMesh, icosphere, load_mesh, read_obj_bytes, read_stl_bytes,
     write_obj,

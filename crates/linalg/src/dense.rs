@@ -11,8 +11,17 @@ pub const DENSE_MEMORY_FRACTION: f64 = 0.5;
 
 /// Bytes of memory currently available (Linux `MemAvailable`), if known.
 pub fn available_memory_bytes() -> Option<u64> {
+    meminfo_bytes("MemAvailable:")
+}
+
+/// Bytes of memory the machine has (Linux `MemTotal`), if known.
+pub fn total_memory_bytes() -> Option<u64> {
+    meminfo_bytes("MemTotal:")
+}
+
+fn meminfo_bytes(field: &str) -> Option<u64> {
     let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let line = text.lines().find(|l| l.starts_with(field))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb * 1024)
 }

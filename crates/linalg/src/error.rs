@@ -49,21 +49,17 @@ pub enum LinalgError {
         /// The limit.
         limit: f64,
     },
-    /// The backend cannot factor in that precision.
-    #[error("backend {backend} does not support {precision} precision")]
-    UnsupportedPrecision {
-        /// Backend name.
+    /// The backend exists but its Cargo feature is not compiled into this build.
+    #[error(
+        "backend `{backend}` is not compiled into this build (compiled in: {compiled}); rebuild with `--features {feature}`"
+    )]
+    NotCompiled {
+        /// The backend asked for.
         backend: &'static str,
-        /// Precision name.
-        precision: &'static str,
-    },
-    /// No backend of that name is compiled in.
-    #[error("unknown backend `{name}` (compiled in: {available})")]
-    UnknownBackend {
-        /// The name asked for.
-        name: String,
-        /// The backends available.
-        available: String,
+        /// The Cargo feature that compiles it in.
+        feature: &'static str,
+        /// The backends this build has.
+        compiled: String,
     },
     /// The dense matrix would not fit in memory.
     #[error(

@@ -27,6 +27,7 @@
 // Without a dense backend the shared dense helpers are unused.
 #![cfg_attr(not(any(feature = "faer-lu", feature = "nalgebra-lu", feature = "openblas")), allow(dead_code))]
 
+mod choice;
 mod dense;
 mod error;
 mod matrix;
@@ -41,7 +42,8 @@ mod nalgebra_lu;
 #[cfg(feature = "openblas")]
 mod openblas_lu;
 
-pub use dense::{DENSE_MEMORY_FRACTION, available_memory_bytes, check_dense_memory};
+pub use choice::{Choice, ParseChoiceError};
+pub use dense::{DENSE_MEMORY_FRACTION, available_memory_bytes, check_dense_memory, total_memory_bytes};
 pub use error::{LinalgError, Result};
 pub use matrix::{Blocks, BorderedMatrix};
 pub use solver::{
@@ -60,40 +62,89 @@ pub use openblas_lu::OpenblasLu;
 /// Re-export of the dense matrix type used throughout (faer's `Mat<f64>`).
 pub use faer::Mat;
 
-/// Names of the backends compiled into this build, in a stable order.
-pub fn backend_names() -> Vec<&'static str> {
-    let mut v = vec!["structured"];
-    if cfg!(feature = "faer-lu") {
-        v.push("faer-lu");
+/// A linear backend, by name. Every backend is named here whether or not its Cargo
+/// feature is compiled in, so asking for a missing one says how to get it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub enum Backend {
+    /// Cholesky of the stiffness blocks + Schur complement ([`Structured`], always built).
+    #[default]
+    Structured,
+    /// faer partial-pivot LU of the dense matrix (feature `faer-lu`).
+    FaerLu,
+    /// nalgebra LU of the dense matrix (feature `nalgebra-lu`).
+    NalgebraLu,
+    /// LAPACK getrf/getrs of the system OpenBLAS (feature `openblas`).
+    OpenblasLu,
+}
+
+impl Choice for Backend {
+    const WHAT: &'static str = "backend";
+    const ALL: &'static [Self] = &[Backend::Structured, Backend::FaerLu, Backend::NalgebraLu, Backend::OpenblasLu];
+    fn name(self) -> &'static str {
+        match self {
+            Backend::Structured => "structured",
+            Backend::FaerLu => "faer-lu",
+            Backend::NalgebraLu => "nalgebra-lu",
+            Backend::OpenblasLu => "openblas-lu",
+        }
     }
-    if cfg!(feature = "nalgebra-lu") {
-        v.push("nalgebra-lu");
+}
+impl_choice!(Backend);
+
+impl Backend {
+    /// The Cargo feature that compiles this backend in (`None`: always built).
+    pub fn feature(self) -> Option<&'static str> {
+        match self {
+            Backend::Structured => None,
+            Backend::FaerLu => Some("faer-lu"),
+            Backend::NalgebraLu => Some("nalgebra-lu"),
+            Backend::OpenblasLu => Some("openblas"),
+        }
     }
-    if cfg!(feature = "openblas") {
-        v.push("openblas-lu");
+
+    /// Whether this build has the backend.
+    pub fn is_compiled(self) -> bool {
+        match self {
+            Backend::Structured => true,
+            Backend::FaerLu => cfg!(feature = "faer-lu"),
+            Backend::NalgebraLu => cfg!(feature = "nalgebra-lu"),
+            Backend::OpenblasLu => cfg!(feature = "openblas"),
+        }
     }
-    v
+
+    /// Whether the backend forms and factors the dense (dN+1)^2 matrix.
+    pub fn is_dense(self) -> bool {
+        self != Backend::Structured
+    }
+
+    /// The backends compiled into this build, in a stable order.
+    pub fn compiled() -> Vec<Backend> {
+        Backend::ALL.iter().copied().filter(|b| b.is_compiled()).collect()
+    }
+
+    /// The solver, or [`LinalgError::NotCompiled`] naming the feature to enable.
+    pub fn solver(self) -> Result<Box<dyn LinearSolver>> {
+        match self {
+            Backend::Structured => Ok(Box::new(Structured)),
+            #[cfg(feature = "faer-lu")]
+            Backend::FaerLu => Ok(Box::new(FaerLu)),
+            #[cfg(feature = "nalgebra-lu")]
+            Backend::NalgebraLu => Ok(Box::new(NalgebraLu)),
+            #[cfg(feature = "openblas")]
+            Backend::OpenblasLu => Ok(Box::new(OpenblasLu)),
+            #[allow(unreachable_patterns)]
+            other => Err(LinalgError::NotCompiled {
+                backend: other.name(),
+                feature: other.feature().unwrap_or_default(),
+                compiled: Backend::compiled().iter().map(|b| b.name()).collect::<Vec<_>>().join(", "),
+            }),
+        }
+    }
 }
 
 /// Every backend compiled into this build.
 pub fn all_backends() -> Vec<Box<dyn LinearSolver>> {
-    backend_names().into_iter().filter_map(|n| backend_by_name(n).ok()).collect()
-}
-
-/// The backend with this run-time name, or an error listing the compiled-in ones.
-pub fn backend_by_name(name: &str) -> Result<Box<dyn LinearSolver>> {
-    match name {
-        "structured" => Ok(Box::new(Structured)),
-        #[cfg(feature = "faer-lu")]
-        "faer-lu" => Ok(Box::new(FaerLu)),
-        #[cfg(feature = "nalgebra-lu")]
-        "nalgebra-lu" => Ok(Box::new(NalgebraLu)),
-        #[cfg(feature = "openblas")]
-        "openblas-lu" => Ok(Box::new(OpenblasLu)),
-        _ => {
-            Err(LinalgError::UnknownBackend { name: name.to_string(), available: backend_names().join(", ") })
-        }
-    }
+    Backend::compiled().into_iter().filter_map(|b| b.solver().ok()).collect()
 }
 
 /// Model flop count of a dense LU of an n x n matrix, (2/3) n^3.

@@ -14,15 +14,17 @@ pub enum Precision {
     Mixed,
 }
 
-impl Precision {
-    /// The name used in scene files and reports (`f64`, `mixed`).
-    pub fn name(self) -> &'static str {
+impl crate::Choice for Precision {
+    const WHAT: &'static str = "precision";
+    const ALL: &'static [Self] = &[Precision::F64, Precision::Mixed];
+    fn name(self) -> &'static str {
         match self {
             Precision::F64 => "f64",
             Precision::Mixed => "mixed",
         }
     }
 }
+crate::impl_choice!(Precision);
 
 /// Options of a factorization and of the solves made with it.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -22,12 +22,12 @@ use faer::Mat;
 use faer::linalg::solvers::DenseSolveCore;
 use fibfluid_assembly::{
     AssemblyOptions, Body, ConstraintMethod, Constraints, Material, PressureScaling, Selector, System,
-    assemble, load_vector,
+    assemble, load_vector, Loads,
 };
 use fibfluid_geometry::{FiberSet, TriMesh, icosphere};
 use fibfluid_linalg::{
     Blocks, BorderedMatrix, DEFAULT_TARGET_RESIDUAL, FactorOptions, FactorizationExt, LinalgError,
-    LinearSolver, LinearSolverExt, Precision, all_backends, backend_by_name, backend_names,
+    Backend, Choice, LinearSolver, LinearSolverExt, Precision, all_backends,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -195,7 +195,7 @@ fn run_all_backends(case: &Case, cond: f64) -> (f64, f64, Vec<(&'static str, Vec
     let dense = case.matrix.to_dense();
     let dim = case.matrix.dim();
     let backends = all_backends();
-    assert_eq!(backends.len(), backend_names().len(), "every compiled backend is exercised");
+    assert_eq!(backends.len(), Backend::compiled().len(), "every compiled backend is exercised");
     let mut worst_residual = 0.0f64;
     let mut sols = Vec::new();
     for backend in &backends {
@@ -236,15 +236,25 @@ fn run_all_backends(case: &Case, cond: f64) -> (f64, f64, Vec<(&'static str, Vec
 #[test]
 fn every_compiled_backend_is_listed_and_reachable_by_name() {
     let names: Vec<&str> = all_backends().iter().map(|b| b.name()).collect();
-    assert_eq!(names, backend_names());
+    let compiled: Vec<&str> = Backend::compiled().into_iter().map(Backend::name).collect();
+    assert_eq!(names, compiled);
     assert!(names.contains(&"structured"), "the structured backend is always built");
     assert_eq!(names.contains(&"faer-lu"), cfg!(feature = "faer-lu"));
     assert_eq!(names.contains(&"nalgebra-lu"), cfg!(feature = "nalgebra-lu"));
     assert_eq!(names.contains(&"openblas-lu"), cfg!(feature = "openblas"));
     for name in &names {
-        assert_eq!(backend_by_name(name).unwrap().name(), *name);
+        let backend: Backend = name.parse().unwrap();
+        assert_eq!(backend.solver().unwrap().name(), *name);
+        assert_eq!(backend.to_string(), *name, "one name for parsing and printing");
     }
-    assert!(matches!(backend_by_name("no-such-backend"), Err(LinalgError::UnknownBackend { .. })));
+    let unknown = "no-such-backend".parse::<Backend>().unwrap_err();
+    assert!(unknown.to_string().contains("structured, faer-lu, nalgebra-lu, openblas-lu"), "{unknown}");
+    // A backend that exists but is not compiled in says which feature brings it.
+    for backend in Backend::ALL.iter().filter(|b| !b.is_compiled()) {
+        let Err(e) = backend.solver() else { panic!("{backend} is not compiled in") };
+        assert!(matches!(e, LinalgError::NotCompiled { .. }), "{e:?}");
+        assert!(e.to_string().contains(&format!("--features {}", backend.feature().unwrap())), "{e}");
+    }
 }
 
 #[test]
@@ -554,7 +564,7 @@ fn set_border_matches_a_fresh_factorization() {
     // Assembled sphere: the border of the deformed shape (the volume-drift correction of
     // REFERENCE §5 keeps K and replaces S).
     let (sys, rhs) = sphere_system(2, ConstraintMethod::Eliminate, PressureScaling::Auto, [3000.0; 3]);
-    let f = backend_by_name("structured").unwrap().factorize_default(&sys.matrix).unwrap();
+    let f = Backend::Structured.solver().unwrap().factorize_default(&sys.matrix).unwrap();
     let (u, _) = sys.split_solution(&f.solve(&rhs).unwrap().x);
     let mesh = icosphere(2, 1.0);
     let moved: Vec<[f64; 3]> =
@@ -601,7 +611,7 @@ fn sphere_system(
     let mut c = Constraints::new(n);
     c.fix_selected(&Selector::Above { axis: 1, value: 0.8 }, pos, [true; 3]).unwrap();
     let sys = assemble(&body, &material, &c, &AssemblyOptions { method, pressure_scaling }).unwrap();
-    let b = load_vector(3, pos, &s, &[(0, [-300.0; 3])], [0.0, -10.0, 0.0], 1000.0);
+    let b = load_vector(3, pos, &s, &Loads { acceleration: [0.0, -10.0, 0.0], down: None, density: 1000.0, forces: &[(0, [-300.0; 3])] }).unwrap();
     let rhs = sys.rhs(&b, 0.0, &s, 1.0);
     (sys, rhs)
 }
@@ -640,7 +650,7 @@ fn mixed_precision_refines_to_the_f64_target_on_the_eliminated_sphere() {
     let dense = sys.matrix.to_dense();
     let dim = sys.matrix.dim();
     let cond = cond1(&dense);
-    let reference = backend_by_name("structured").unwrap().factorize_default(&sys.matrix).unwrap();
+    let reference = Backend::Structured.solver().unwrap().factorize_default(&sys.matrix).unwrap();
     let x64 = reference.solve(&rhs).unwrap().x;
     let mut tested = 0;
     for backend in all_backends() {
@@ -676,7 +686,7 @@ fn mixed_precision_on_the_penalty_sphere_is_reported() {
     eprintln!("penalty sphere: cond_1 {:.2e}", cond1(&dense));
     let n3 = 3 * sys.matrix.n_vertices();
     let x64 =
-        backend_by_name("structured").unwrap().factorize_default(&sys.matrix).unwrap().solve(&rhs).unwrap().x;
+        Backend::Structured.solver().unwrap().factorize_default(&sys.matrix).unwrap().solve(&rhs).unwrap().x;
     for backend in all_backends().into_iter().filter(|b| b.supports(Precision::Mixed)) {
         match backend.factorize(&sys.matrix, &opts).and_then(|f| f.solve(&rhs)) {
             Ok(sol) => {

@@ -25,6 +25,13 @@ const PARETO_LABEL: &str = "Pareto front";
 /// smaller in at least one; exact duplicates of a front point are all kept.
 /// Points with a NaN or infinite coordinate are never on the front.
 pub fn pareto_front(points: &[(f64, f64)]) -> Vec<usize> {
+    pareto_front_with_margin(points, 0.0)
+}
+
+/// [`pareto_front`] where a point with a larger x must have a y at least `margin` (a
+/// fraction) below the front's last point to join it, so that ties within measurement
+/// noise do not all count as non-dominated.
+pub fn pareto_front_with_margin(points: &[(f64, f64)], margin: f64) -> Vec<usize> {
     let mut order: Vec<usize> =
         (0..points.len()).filter(|&i| points[i].0.is_finite() && points[i].1.is_finite()).collect();
     order.sort_by(|&a, &b| {
@@ -38,7 +45,7 @@ pub fn pareto_front(points: &[(f64, f64)]) -> Vec<usize> {
             None => front.push(i),
             Some(&last) => {
                 let q = points[last];
-                if p.1 < q.1 || p == q {
+                if p.1 < q.1 * (1.0 - margin) || p == q {
                     front.push(i);
                 }
             }

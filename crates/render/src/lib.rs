@@ -23,7 +23,7 @@ mod error;
 mod surface;
 mod text;
 
-pub use chart::{Series, loglog_chart, pareto_front};
+pub use chart::{Series, loglog_chart, pareto_front, pareto_front_with_margin};
 pub use error::{RenderError, Result};
 pub use surface::{Colormap, Surface, ViewOptions, render_surfaces};
 

@@ -1,8 +1,7 @@
 //! Tests of `loglog_chart` and `pareto_front`.
 
-mod common;
 
-use common::decode;
+use crate::common::decode;
 use fibfluid_render::{RenderError, Series, loglog_chart, pareto_front};
 
 fn series() -> Vec<Series> {

@@ -1,9 +1,8 @@
 //! Tests of `render_surfaces`: output size, coverage, colors, visibility,
 //! degenerate input and errors.
 
-mod common;
 
-use common::{bumpy_sphere, decode, icosahedron, split_cube};
+use crate::common::{bumpy_sphere, decode, icosahedron, split_cube};
 use fibfluid_render::{Colormap, RenderError, Surface, ViewOptions, render_surfaces};
 
 fn surface<'a>(p: &'a [[f64; 3]], t: &'a [[u32; 3]], s: &'a [f64], title: &str) -> Surface<'a> {

@@ -1,0 +1,4 @@
+//! The integration tests of this package, in one binary (one link instead of one per file).
+
+mod bad_inputs;
+mod cli_run;

@@ -1,0 +1,262 @@
+//! The plan of a run: which stages a scene needs, which it skips and why, and what each
+//! costs in memory and floating-point operations — decided before any work is done.
+//!
+//! [`Plan::from_scene`] reads only the scene (the mesh is already loaded; the convexity
+//! check is the one geometric test it makes, because it decides whether fibers need
+//! visibility tests). [`Plan::check_memory`] refuses a plan whose peak memory exceeds a
+//! limit, before anything large is allocated. The simulation follows the plan and the
+//! report lists its stages.
+
+use fibfluid_linalg::{Backend, Precision, cholesky_flops, lu_flops};
+use serde::Serialize;
+
+use crate::scene::{Mode, Scene, Shape, Stepping};
+use crate::simulate::VOLUME_CORRECTIONS;
+use crate::stages::names;
+use crate::{Error, Result};
+
+/// One stage of the plan.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PlannedStage {
+    /// Stage name (as in the report's stage list).
+    pub name: &'static str,
+    /// Whether the stage runs.
+    pub run: bool,
+    /// Why it runs (what it is for) or why it is skipped.
+    pub reason: String,
+    /// Estimated bytes the stage holds at its peak (live at the same time as the
+    /// earlier stages' data).
+    pub bytes: u64,
+    /// Estimated floating-point operations over the whole run.
+    pub flops: f64,
+}
+
+/// The stages of a run, decided from the scene alone.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Plan {
+    /// Every stage, in execution order, run or skipped.
+    pub stages: Vec<PlannedStage>,
+    /// Estimated peak memory of the run, in bytes.
+    pub memory_bytes: u64,
+    /// Estimated floating-point operations of the run.
+    pub flops: f64,
+}
+
+/// What the plan needs to know about the body.
+struct Size {
+    n: f64,
+    faces: f64,
+    axes: usize,
+    convex: bool,
+    polygon: bool,
+}
+
+impl Plan {
+    /// Plans the run of `scene` with its solver options and load steps.
+    pub fn from_scene(scene: &Scene) -> Plan {
+        let size = match &scene.shape {
+            Shape::Surface(m) => Size {
+                n: m.mesh.n_vertices() as f64,
+                faces: m.mesh.n_faces() as f64,
+                axes: 3,
+                convex: m.mesh.is_convex(),
+                polygon: false,
+            },
+            Shape::Polygon(p) => {
+                Size { n: p.n_vertices() as f64, faces: p.n_vertices() as f64, axes: 2, convex: true, polygon: true }
+            }
+        };
+        plan(scene, &size)
+    }
+
+    /// Whether stage `name` runs.
+    pub fn runs(&self, name: &str) -> bool {
+        self.stages.iter().any(|s| s.name == name && s.run)
+    }
+
+    /// The skipped stages and why.
+    pub fn skipped(&self) -> impl Iterator<Item = &PlannedStage> {
+        self.stages.iter().filter(|s| !s.run)
+    }
+
+    /// The stage holding the most memory.
+    pub fn largest_stage(&self) -> Option<&PlannedStage> {
+        self.stages.iter().filter(|s| s.run).max_by_key(|s| s.bytes)
+    }
+
+    /// Refuses the plan when its peak memory exceeds `limit` bytes.
+    pub fn check_memory(&self, scene: &str, limit: u64, backend: Backend) -> Result<()> {
+        if self.memory_bytes <= limit {
+            return Ok(());
+        }
+        Err(Error::TooLarge {
+            scene: scene.to_string(),
+            stage: self.largest_stage().map(|s| s.name).unwrap_or(names::FACTORIZATION),
+            needed: self.memory_bytes,
+            available: limit,
+            hint: if backend.is_dense() {
+                "use the `structured` backend (it never forms the dense matrix) or a coarser mesh"
+            } else {
+                "use a coarser mesh (the stiffness blocks are dense N x N)"
+            },
+        })
+    }
+
+    /// The memory limit a run is checked against: `max_memory` when given, else the
+    /// machine's total memory (unknown: no limit).
+    pub fn memory_limit(max_memory: Option<u64>) -> u64 {
+        max_memory.or_else(fibfluid_linalg::total_memory_bytes).unwrap_or(u64::MAX)
+    }
+}
+
+fn stage(name: &'static str, run: bool, reason: impl Into<String>, bytes: f64, flops: f64) -> PlannedStage {
+    PlannedStage { name, run, reason: reason.into(), bytes: if run { bytes as u64 } else { 0 }, flops: if run { flops } else { 0.0 } }
+}
+
+fn plan(scene: &Scene, size: &Size) -> Plan {
+    let Size { n, faces, axes, convex, polygon } = *size;
+    let d = axes as f64;
+    let solver = &scene.solver;
+    let steps = scene.steps as f64;
+    let heun = solver.stepping == Stepping::Heun;
+    let evaluations = if heun { 2.0 } else { 1.0 };
+    let shared = scene.material.is_isotropic() && scene.constraints.is_uniform(axes);
+    let blocks = if shared { 1.0 } else { d };
+    let block_bytes = blocks * n * n * 8.0;
+    let dim = d * n + 1.0;
+    let dense = solver.backend.is_dense();
+    let mixed = solver.precision == Precision::Mixed;
+    let mut st = Vec::new();
+
+    st.push(if polygon {
+        stage(names::CONVEXITY, false, "2D polygon: every fiber is kept", 0.0, 0.0)
+    } else {
+        stage(names::CONVEXITY, true, "decides whether fibers need visibility tests", 0.0, 6.0 * n * faces)
+    });
+    let fiber_bytes = n * n / 16.0 + 4.0 * n;
+    st.push(if polygon {
+        stage(names::VISIBILITY, false, "2D polygon: every fiber is kept", 0.0, 0.0)
+    } else if convex {
+        stage(names::VISIBILITY, false, "the mesh is convex: every fiber is kept", 0.0, 0.0)
+    } else {
+        let tests = n * (n - 1.0) / 2.0 * (faces.max(2.0).log2() * 30.0 + 20.0);
+        stage(names::VISIBILITY, true, "the mesh is concave: exit and crossing tests cull fibers", fiber_bytes, tests)
+    });
+    st.push(stage(names::AREAS, true, "vertex area vectors S (Eq. 2)", 0.0, 30.0 * faces));
+    let gamma = scene.material.surface_tension > 0.0;
+    let assembly_bytes = (1.0 + if gamma { 1.0 } else { 0.0 }) * n * n * 8.0 + block_bytes;
+    let blocks_reason = if shared {
+        "one shared N x N block (isotropic material, the same constraints on every axis)".to_string()
+    } else {
+        format!("{axes} N x N blocks (anisotropic material or different constraints per axis)")
+    };
+    st.push(stage(names::ASSEMBLY, true, format!("bulk fibers (Eq. 6); {blocks_reason}"), assembly_bytes, 25.0 * n * n));
+    st.push(if gamma {
+        stage(names::SURFACE_FIBERS, true, "surface tension > 0: fibers along mesh edges (Eq. 7)", 0.0, 20.0 * faces)
+    } else {
+        stage(names::SURFACE_FIBERS, false, "surface tension is 0", 0.0, 0.0)
+    });
+
+    // Factorizations: once, plus one per operator evaluation when the operator changes
+    // (nonlinear mode always; refresh mode with a dense backend, which refactors for a
+    // new border).
+    let refactors = match solver.mode {
+        Mode::Paper => 0.0,
+        Mode::Refresh if dense => steps * evaluations,
+        Mode::Refresh => 0.0,
+        Mode::Nonlinear => steps * evaluations,
+    };
+    let (factor_bytes, factor_flops, factor_reason) = if dense {
+        let copies = if mixed { 1.5 } else { 2.0 };
+        (copies * dim * dim * 8.0, lu_flops(dim as usize), format!("dense LU of the {dim} x {dim} matrix ({})", solver.backend))
+    } else {
+        let word = if mixed { 12.0 } else { 8.0 };
+        (
+            blocks * n * n * word,
+            blocks * cholesky_flops(n as usize),
+            format!("Cholesky of {blocks} N x N block(s) and the Schur complement ({})", solver.backend),
+        )
+    };
+    let factor_reason = match solver.mode {
+        Mode::Paper => format!("{factor_reason}; once, on the rest shape"),
+        Mode::Refresh if dense => format!("{factor_reason}; once, and again for each new border"),
+        Mode::Refresh => format!("{factor_reason}; once (a new border costs triangular solves only)"),
+        Mode::Nonlinear => format!("{factor_reason}; once per operator evaluation"),
+    };
+    st.push(stage(names::FACTORIZATION, true, factor_reason, factor_bytes, factor_flops * (1.0 + refactors)));
+
+    let hydrostatic = scene.material.density > 0.0 && scene.gravity != [0.0; 3];
+    let forces = !scene.forces.is_empty();
+    let loads_reason = match (hydrostatic, forces) {
+        (true, true) => format!("hydrostatic pressure and {} point force(s)", scene.forces.len()),
+        (true, false) => "hydrostatic pressure rho a h S".into(),
+        (false, true) => format!("{} point force(s)", scene.forces.len()),
+        (false, false) if scene.gravity != [0.0; 3] => {
+            "nothing acts: gravity acts through the fluid, and [fluid] density is 0".into()
+        }
+        (false, false) => "nothing acts: no gravity, no point forces".into(),
+    };
+    st.push(stage(
+        names::LOADS,
+        hydrostatic || forces,
+        loads_reason,
+        d * n * 8.0,
+        steps * evaluations * (10.0 + d * 2.0) * n,
+    ));
+
+    // Solves per step: one per evaluation; refresh and nonlinear add up to
+    // VOLUME_CORRECTIONS volume corrections (usually one or two).
+    let solve_flops = if dense { 2.0 * dim * dim } else { 4.0 * d * n * n };
+    st.push(match solver.mode {
+        Mode::Refresh => stage(
+            names::BORDER,
+            true,
+            if dense { "new border S from the current shape (refactors the dense matrix)" } else { "new border S from the current shape: K^-1 S by triangular solves" },
+            d * n * 8.0,
+            steps * evaluations * 2.0 * d * n * n,
+        ),
+        Mode::Paper => stage(names::BORDER, false, "paper mode keeps the rest-shape border", 0.0, 0.0),
+        Mode::Nonlinear => stage(names::BORDER, false, "nonlinear mode re-assembles everything", 0.0, 0.0),
+    });
+    st.push(match solver.mode {
+        Mode::Paper => stage(names::VOLUME, false, "paper mode asks the volume row for 0", 0.0, 0.0),
+        _ => stage(names::VOLUME, true, "volume row asks for V0 - V of the current shape", 0.0, steps * evaluations * 40.0 * faces),
+    });
+    st.push(match solver.mode {
+        Mode::Nonlinear => stage(
+            names::REASSEMBLY,
+            true,
+            "K, S and loads re-assembled on the current shape",
+            block_bytes + n * n * 8.0,
+            steps * evaluations * 25.0 * n * n,
+        ),
+        Mode::Paper => stage(names::REASSEMBLY, false, "paper mode factors once", 0.0, 0.0),
+        Mode::Refresh => stage(names::REASSEMBLY, false, "refresh mode keeps K's factorization", 0.0, 0.0),
+    });
+    st.push(stage(
+        names::SOLVE,
+        true,
+        format!("{} solve(s) per step", if heun { "two" } else { "one" }),
+        2.0 * dim * 8.0,
+        steps * evaluations * solve_flops,
+    ));
+    st.push(match solver.mode {
+        Mode::Paper => stage(names::VOLUME_CORRECTION, false, "paper mode lets the volume drift", 0.0, 0.0),
+        _ => stage(
+            names::VOLUME_CORRECTION,
+            true,
+            format!("up to {VOLUME_CORRECTIONS} solves per step pull the volume back to V0"),
+            0.0,
+            steps * 2.0 * solve_flops,
+        ),
+    });
+    st.push(if heun {
+        stage(names::PREDICTOR, true, "Heun: the step is evaluated again on the predicted shape", d * n * 8.0, 0.0)
+    } else {
+        stage(names::PREDICTOR, false, "Euler stepping", 0.0, 0.0)
+    });
+    st.push(stage(names::UPDATE, true, "positions += du", 0.0, steps * d * n));
+    let memory_bytes = st.iter().map(|s| s.bytes).sum();
+    let flops = st.iter().map(|s| s.flops).sum();
+    Plan { stages: st, memory_bytes, flops }
+}

@@ -1,0 +1,8 @@
+//! The integration tests of this package, in one binary (one link instead of one per file).
+
+mod fuzz_readers;
+mod golden_sphere42;
+mod hard_cases;
+mod memory_guard;
+mod scenes;
+mod volume_properties;
