@@ -36,9 +36,7 @@ use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat};
 use fibfluid::assembly::{ConstraintMethod, System};
 use fibfluid::bench::{fibonacci_sphere, pin_threads, synthetic_system};
-use fibfluid::linalg::{
-    FactorOptions, FactorizationExt, LinearSolver, all_backends, lu_flops,
-};
+use fibfluid::linalg::{FactorOptions, FactorizationExt, LinearSolver, all_backends, lu_flops};
 
 /// Vertex counts N (dense size 3N + 1).
 const SIZES: [usize; 5] = [100, 250, 500, 1000, 2000];

@@ -40,7 +40,10 @@ pub const BENCH_SIZES: std::ops::RangeInclusive<usize> = 4..=20_000;
 /// single cold run includes page faults and thread start-up and varies by 2x between
 /// runs). A backend that cannot factor the system (too large for memory) is returned as
 /// an error beside the rows.
-pub fn bench_backends(n: usize, repeats: usize) -> Result<Vec<std::result::Result<BenchRow, (Backend, crate::Error)>>> {
+pub fn bench_backends(
+    n: usize,
+    repeats: usize,
+) -> Result<Vec<std::result::Result<BenchRow, (Backend, crate::Error)>>> {
     let system = synthetic_system(n, ConstraintMethod::Eliminate)?;
     let dim = system.matrix.dim();
     let rhs: Vec<f64> = (0..dim).map(|i| ((i * 7919) % 1000) as f64 / 1000.0 - 0.5).collect();

@@ -155,7 +155,10 @@ pub fn write_files_atomically(dir: &Path, files: &[(&str, Vec<u8>)]) -> Result<V
         _ => PathBuf::from("."),
     };
     if dir.exists() && !dir.is_dir() {
-        return Err(Error::OutputBlocked { path: dir.to_path_buf(), problem: "exists and is not a directory" });
+        return Err(Error::OutputBlocked {
+            path: dir.to_path_buf(),
+            problem: "exists and is not a directory",
+        });
     }
     // A directory in the way of one output would stop the moves half-way: refuse up front.
     if let Some(blocked) = files.iter().map(|(name, _)| dir.join(name)).find(|p| p.is_dir()) {

@@ -62,9 +62,13 @@ impl Plan {
                 convex: m.mesh.is_convex(),
                 polygon: false,
             },
-            Shape::Polygon(p) => {
-                Size { n: p.n_vertices() as f64, faces: p.n_vertices() as f64, axes: 2, convex: true, polygon: true }
-            }
+            Shape::Polygon(p) => Size {
+                n: p.n_vertices() as f64,
+                faces: p.n_vertices() as f64,
+                axes: 2,
+                convex: true,
+                polygon: true,
+            },
         };
         plan(scene, &size)
     }
@@ -110,7 +114,13 @@ impl Plan {
 }
 
 fn stage(name: &'static str, run: bool, reason: impl Into<String>, bytes: f64, flops: f64) -> PlannedStage {
-    PlannedStage { name, run, reason: reason.into(), bytes: if run { bytes as u64 } else { 0 }, flops: if run { flops } else { 0.0 } }
+    PlannedStage {
+        name,
+        run,
+        reason: reason.into(),
+        bytes: if run { bytes as u64 } else { 0 },
+        flops: if run { flops } else { 0.0 },
+    }
 }
 
 fn plan(scene: &Scene, size: &Size) -> Plan {
@@ -140,7 +150,13 @@ fn plan(scene: &Scene, size: &Size) -> Plan {
         stage(names::VISIBILITY, false, "the mesh is convex: every fiber is kept", 0.0, 0.0)
     } else {
         let tests = n * (n - 1.0) / 2.0 * (faces.max(2.0).log2() * 30.0 + 20.0);
-        stage(names::VISIBILITY, true, "the mesh is concave: exit and crossing tests cull fibers", fiber_bytes, tests)
+        stage(
+            names::VISIBILITY,
+            true,
+            "the mesh is concave: exit and crossing tests cull fibers",
+            fiber_bytes,
+            tests,
+        )
     });
     st.push(stage(names::AREAS, true, "vertex area vectors S (Eq. 2)", 0.0, 30.0 * faces));
     let gamma = scene.material.surface_tension > 0.0;
@@ -150,9 +166,21 @@ fn plan(scene: &Scene, size: &Size) -> Plan {
     } else {
         format!("{axes} N x N blocks (anisotropic material or different constraints per axis)")
     };
-    st.push(stage(names::ASSEMBLY, true, format!("bulk fibers (Eq. 6); {blocks_reason}"), assembly_bytes, 25.0 * n * n));
+    st.push(stage(
+        names::ASSEMBLY,
+        true,
+        format!("bulk fibers (Eq. 6); {blocks_reason}"),
+        assembly_bytes,
+        25.0 * n * n,
+    ));
     st.push(if gamma {
-        stage(names::SURFACE_FIBERS, true, "surface tension > 0: fibers along mesh edges (Eq. 7)", 0.0, 20.0 * faces)
+        stage(
+            names::SURFACE_FIBERS,
+            true,
+            "surface tension > 0: fibers along mesh edges (Eq. 7)",
+            0.0,
+            20.0 * faces,
+        )
     } else {
         stage(names::SURFACE_FIBERS, false, "surface tension is 0", 0.0, 0.0)
     });
@@ -168,7 +196,11 @@ fn plan(scene: &Scene, size: &Size) -> Plan {
     };
     let (factor_bytes, factor_flops, factor_reason) = if dense {
         let copies = if mixed { 1.5 } else { 2.0 };
-        (copies * dim * dim * 8.0, lu_flops(dim as usize), format!("dense LU of the {dim} x {dim} matrix ({})", solver.backend))
+        (
+            copies * dim * dim * 8.0,
+            lu_flops(dim as usize),
+            format!("dense LU of the {dim} x {dim} matrix ({})", solver.backend),
+        )
     } else {
         let word = if mixed { 12.0 } else { 8.0 };
         (
@@ -211,7 +243,11 @@ fn plan(scene: &Scene, size: &Size) -> Plan {
         Mode::Refresh => stage(
             names::BORDER,
             true,
-            if dense { "new border S from the current shape (refactors the dense matrix)" } else { "new border S from the current shape: K^-1 S by triangular solves" },
+            if dense {
+                "new border S from the current shape (refactors the dense matrix)"
+            } else {
+                "new border S from the current shape: K^-1 S by triangular solves"
+            },
             d * n * 8.0,
             steps * evaluations * 2.0 * d * n * n,
         ),
@@ -220,7 +256,13 @@ fn plan(scene: &Scene, size: &Size) -> Plan {
     });
     st.push(match solver.mode {
         Mode::Paper => stage(names::VOLUME, false, "paper mode asks the volume row for 0", 0.0, 0.0),
-        _ => stage(names::VOLUME, true, "volume row asks for V0 - V of the current shape", 0.0, steps * evaluations * 40.0 * faces),
+        _ => stage(
+            names::VOLUME,
+            true,
+            "volume row asks for V0 - V of the current shape",
+            0.0,
+            steps * evaluations * 40.0 * faces,
+        ),
     });
     st.push(match solver.mode {
         Mode::Nonlinear => stage(
@@ -251,7 +293,13 @@ fn plan(scene: &Scene, size: &Size) -> Plan {
         ),
     });
     st.push(if heun {
-        stage(names::PREDICTOR, true, "Heun: the step is evaluated again on the predicted shape", d * n * 8.0, 0.0)
+        stage(
+            names::PREDICTOR,
+            true,
+            "Heun: the step is evaluated again on the predicted shape",
+            d * n * 8.0,
+            0.0,
+        )
     } else {
         stage(names::PREDICTOR, false, "Euler stepping", 0.0, 0.0)
     });

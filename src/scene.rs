@@ -451,7 +451,12 @@ fn axis_index(s: &str, key: &str) -> std::result::Result<usize, Invalid> {
     }
 }
 
-fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> std::result::Result<Scene, Invalid> {
+fn build(
+    spec: SceneToml,
+    dir: &Path,
+    name: String,
+    scene_path: &Path,
+) -> std::result::Result<Scene, Invalid> {
     let shape = match (spec.mesh, spec.polygon) {
         (Some(m), None) => {
             let mesh_path = dir.join(&m.path);
@@ -461,7 +466,8 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> std::r
                     SceneProblem::MeshNotFound { given: m.path.clone(), resolved: mesh_path },
                 ));
             }
-            let mut file = load_mesh(&mesh_path).map_err(|e| invalid("[mesh].path", SceneProblem::Mesh(e)))?;
+            let mut file =
+                load_mesh(&mesh_path).map_err(|e| invalid("[mesh].path", SceneProblem::Mesh(e)))?;
             if let Some(s) = m.scale {
                 if !(s.is_finite() && s > 0.0) {
                     return Err(range("[mesh].scale", "positive", s));
@@ -476,10 +482,16 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> std::r
             invalid("[polygon].points", SceneProblem::Conflict("at least 3 finite points are needed"))
         })?),
         (Some(_), Some(_)) => {
-            return Err(Invalid { key: None, problem: SceneProblem::Conflict("give either [mesh] or [polygon], not both") });
+            return Err(Invalid {
+                key: None,
+                problem: SceneProblem::Conflict("give either [mesh] or [polygon], not both"),
+            });
         }
         (None, None) => {
-            return Err(Invalid { key: None, problem: SceneProblem::Conflict("missing [mesh] (or [polygon]) table") });
+            return Err(Invalid {
+                key: None,
+                problem: SceneProblem::Conflict("missing [mesh] (or [polygon]) table"),
+            });
         }
     };
     let axes = if matches!(shape, Shape::Polygon(_)) { 2 } else { 3 };
@@ -523,9 +535,9 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> std::r
             return Err(invalid(key, SceneProblem::VertexOutOfRange { vertex: v, count }));
         }
         match file {
-            Some(f) => {
-                f.from_file_index(v as usize).ok_or_else(|| invalid(key, SceneProblem::VertexUnused { vertex: v }))
-            }
+            Some(f) => f
+                .from_file_index(v as usize)
+                .ok_or_else(|| invalid(key, SceneProblem::VertexUnused { vertex: v })),
             None => Ok(v as usize),
         }
     };
@@ -542,7 +554,10 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> std::r
                 for d in list {
                     let c = axis_index(d, &format!("{key}.dofs"))?;
                     if c >= axes {
-                        return Err(invalid(format!("{key}.dofs"), SceneProblem::Conflict("a 2D scene has no z axis")));
+                        return Err(invalid(
+                            format!("{key}.dofs"),
+                            SceneProblem::Conflict("a 2D scene has no z axis"),
+                        ));
                     }
                     dofs[c] = true;
                 }
@@ -620,7 +635,10 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> std::r
     }
     for c in 0..axes {
         if constraints.count(c) == 0 {
-            return Err(Invalid { key: Some("[[fix]]".into()), problem: SceneProblem::Unconstrained { axis: ['x', 'y', 'z'][c] } });
+            return Err(Invalid {
+                key: Some("[[fix]]".into()),
+                problem: SceneProblem::Unconstrained { axis: ['x', 'y', 'z'][c] },
+            });
         }
     }
     let material = Material { young, surface_tension: gamma, density, law };

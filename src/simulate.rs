@@ -9,7 +9,9 @@
 
 use std::time::Instant;
 
-use fibfluid_assembly::{AssemblyOptions, Body, ConstraintMethod, Loads, PressureScaling, System, assemble, load_vector};
+use fibfluid_assembly::{
+    AssemblyOptions, Body, ConstraintMethod, Loads, PressureScaling, System, assemble, load_vector,
+};
 use fibfluid_geometry::vec3::{add, norm, scale};
 use fibfluid_geometry::{Boundary, FiberSet, Vec3, VisibilityOptions, cull_fibers};
 use fibfluid_linalg::{FactorOptions, Factorization, FactorizationExt, LinearSolver};
@@ -155,9 +157,11 @@ impl Simulation {
         let volume0 = boundary.volume(&rest);
         let body = BodyShape { boundary, edges, fibers, convex, rest, volume0 };
         let system = log.time(names::ASSEMBLY, || assemble_on(&scene, &body, &body.rest, &areas))?;
-        let factorization = log.time(names::FACTORIZATION, || solver.factorize(&system.matrix, &factor_options))?;
+        let factorization =
+            log.time(names::FACTORIZATION, || solver.factorize(&system.matrix, &factor_options))?;
         let state = State { positions: body.rest.clone(), pressure: 0.0, load_factor: 0.0 };
-        let factored = Factored { system, factorization, solver, options: factor_options, border_areas: areas };
+        let factored =
+            Factored { system, factorization, solver, options: factor_options, border_areas: areas };
         let counters = Counters { factorizations: 1, ..Default::default() };
         Ok(Self { scene, plan, body, state, factored, counters, log, started })
     }

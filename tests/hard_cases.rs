@@ -301,7 +301,9 @@ fn concave_and_genus_one_bodies_and_a_single_fixed_vertex() {
     for (path, within, structured_only) in cases {
         let file = load_mesh(path).unwrap();
         let material = moderate(file.mesh.diagonal(), 1000.0);
-        for backend in Backend::compiled().into_iter().filter(|b| !structured_only || *b == Backend::Structured) {
+        for backend in
+            Backend::compiled().into_iter().filter(|b| !structured_only || *b == Backend::Structured)
+        {
             let mut s = hanging(file.clone(), material.clone(), within, 2);
             s.solver.backend = backend;
             let (sim, _) = run_checked(s, &format!("{path} {backend}"));

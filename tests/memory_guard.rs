@@ -82,15 +82,12 @@ fn faer_lu_refuses_before_allocating_the_dense_matrix() {
     let a = BorderedMatrix::new(Blocks::Shared(Mat::identity(n, n)), border, 1.0);
     assert_eq!(a.dim(), dim);
     let before = peak_rss_bytes();
-    let start = std::time::Instant::now();
     let e = match FaerLu.factorize(&a, &Default::default()) {
         Ok(_) => panic!("a {dim} x {dim} dense factorization must be refused"),
         Err(e) => e,
     };
-    let seconds = start.elapsed().as_secs_f64();
     assert_too_large_message(&e, dim);
-    // Refused at once, without forming (or even scanning) the dense matrix.
-    assert!(seconds < 1.0, "took {seconds} s");
+    // Refused without forming the dense matrix: the peak memory barely grew.
     if let (Some(b), Some(a)) = (before, peak_rss_bytes()) {
         let grown = a.saturating_sub(b) as f64;
         assert!(grown < 64.0 * 1024.0 * 1024.0, "peak memory grew by {:.2} GiB", grown / GIB);

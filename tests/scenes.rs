@@ -1,8 +1,8 @@
 //! Scenes end to end through the library: the paper's sphere and rectangle, the round
 //! trip's 1/n behaviour (REFERENCE §4), and the plan (only the stages a scene needs).
 
-use fibfluid::{Backend, ConstraintKind};
 use fibfluid::stages::names;
+use fibfluid::{Backend, ConstraintKind};
 use fibfluid::{Direction, Mode, Report, RunOptions, Scene, Simulation, Stepping, roundtrip};
 
 fn sphere() -> Scene {
@@ -162,7 +162,12 @@ fn the_plan_runs_only_the_stages_a_scene_needs() {
     bunny.steps = 1;
     let sim = run(bunny);
     let log = sim.log();
-    assert!(sim.plan().stages.iter().any(|s| s.name == names::LOADS && s.run && !s.reason.contains("hydrostatic")));
+    assert!(
+        sim.plan()
+            .stages
+            .iter()
+            .any(|s| s.name == names::LOADS && s.run && !s.reason.contains("hydrostatic"))
+    );
     assert!(log.ran(names::VISIBILITY));
     assert!(sim.fibers().kept() < sim.fibers().total());
     // Anisotropic material: three blocks.
@@ -206,4 +211,52 @@ fn the_report_lists_stages_and_skips() {
     assert!(report.residual_max < 1e-10);
     assert_eq!(report.fibers_kept, 162 * 161 / 2);
     assert!(report.stages.iter().all(|s| s.seconds >= 0.0 && s.count >= 1));
+}
+
+/// Every choice has one name, used alike by `FromStr`, `Display` and serde, and an
+/// unknown name lists the accepted ones.
+#[test]
+fn every_choice_parses_what_it_prints() {
+    fn check<T>()
+    where
+        T: fibfluid::Choice + std::fmt::Debug + std::str::FromStr<Err = fibfluid::ParseChoiceError>,
+        T: std::fmt::Display + serde::Serialize + serde::de::DeserializeOwned,
+    {
+        for &c in T::ALL {
+            assert_eq!(c.to_string().parse::<T>(), Ok(c));
+            let json = serde_json::to_string(&c).unwrap();
+            assert_eq!(json, format!("\"{c}\""));
+            assert_eq!(serde_json::from_str::<T>(&json).unwrap(), c);
+        }
+        let e = "no-such-name".parse::<T>().unwrap_err();
+        for &c in T::ALL {
+            assert!(e.to_string().contains(c.name()), "{e}");
+        }
+        assert!(serde_json::from_str::<T>("\"no-such-name\"").is_err());
+    }
+    check::<fibfluid::Backend>();
+    check::<fibfluid::Mode>();
+    check::<fibfluid::Stepping>();
+    check::<fibfluid::Precision>();
+    check::<fibfluid::ConstraintKind>();
+    check::<fibfluid::ForceTiming>();
+}
+
+/// The plan's memory estimate covers what the factorization really holds, for every
+/// backend and precision (the factorization reports its own bytes).
+#[test]
+fn the_plan_estimate_covers_the_factorization() {
+    for backend in Backend::compiled() {
+        for precision in [fibfluid::Precision::F64, fibfluid::Precision::Mixed] {
+            let mut scene = sphere();
+            scene.solver.backend = backend;
+            scene.solver.precision = precision;
+            scene.steps = 1;
+            let sim = Simulation::new(scene).unwrap();
+            let planned = sim.plan().stages.iter().find(|s| s.name == names::FACTORIZATION).unwrap().bytes;
+            let held = sim.factorization().cost().bytes as u64;
+            assert!(planned >= held, "{backend} {precision}: plan {planned} < factorization {held}");
+            assert!(planned <= 4 * held.max(1), "{backend} {precision}: plan {planned} far above {held}");
+        }
+    }
 }

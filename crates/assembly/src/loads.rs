@@ -48,7 +48,12 @@ impl Loads<'_> {
 ///
 /// `positions` and `vertex_areas` are of the shape the load acts on (the current shape in
 /// the paper's stepping). A force on a vertex the body does not have is an error.
-pub fn load_vector(axes: usize, positions: &[Vec3], vertex_areas: &[Vec3], loads: &Loads) -> Result<Vec<f64>> {
+pub fn load_vector(
+    axes: usize,
+    positions: &[Vec3],
+    vertex_areas: &[Vec3],
+    loads: &Loads,
+) -> Result<Vec<f64>> {
     let n = positions.len();
     let mut b = vec![0.0; axes * n];
     let down = loads.down.unwrap_or(loads.acceleration);

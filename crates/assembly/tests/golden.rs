@@ -1,10 +1,11 @@
 //! The paper's golden cases (REFERENCE §4), built through the public API.
 
 use fibfluid_assembly::{
-    AssemblyOptions, Body, ConstraintMethod, Constraints, Material, PressureScaling, assemble, load_vector, Loads,
+    AssemblyOptions, Body, ConstraintMethod, Constraints, Loads, Material, PressureScaling, assemble,
+    load_vector,
 };
 use fibfluid_geometry::{FiberSet, Polygon, icosphere};
-use fibfluid_linalg::{FactorizationExt, LinearSolverExt, Backend};
+use fibfluid_linalg::{Backend, FactorizationExt, LinearSolverExt};
 
 fn rectangle() -> (Polygon, fibfluid_assembly::System) {
     // Vertices in the paper's order: (15, 20), (15, -20), (-15, -20), (-15, 20).
@@ -75,7 +76,13 @@ fn rectangle_solution_matches_the_paper() {
     let pos = poly.positions_3d();
     let s: Vec<[f64; 3]> = poly.vertex_area_vectors().iter().map(|v| [v[0], v[1], 0.0]).collect();
     let forces = [(0, [0.0, 1680.0, 0.0]), (3, [0.0, 1680.0, 0.0])];
-    let b = load_vector(2, &pos, &s, &Loads { acceleration: [0.0; 3], down: None, density: 0.0, forces: &forces }).unwrap();
+    let b = load_vector(
+        2,
+        &pos,
+        &s,
+        &Loads { acceleration: [0.0; 3], down: None, density: 0.0, forces: &forces },
+    )
+    .unwrap();
     let rhs = sys.rhs(&b, 0.0, &s, 1.0);
     for backend in fibfluid_linalg::Backend::compiled() {
         let f = backend.solver().unwrap().factorize_default(&sys.matrix).unwrap();
@@ -122,7 +129,18 @@ fn rectangle_eliminate_gives_exact_fixed_dofs() {
     let opts =
         AssemblyOptions { method: ConstraintMethod::Eliminate, pressure_scaling: PressureScaling::Auto };
     let sys = assemble(&body, &material, &c, &opts).unwrap();
-    let b = load_vector(2, &pos, &s, &Loads { acceleration: [0.0; 3], down: None, density: 0.0, forces: &[(0, [0.0, 1680.0, 0.0]), (3, [0.0, 1680.0, 0.0])] }).unwrap();
+    let b = load_vector(
+        2,
+        &pos,
+        &s,
+        &Loads {
+            acceleration: [0.0; 3],
+            down: None,
+            density: 0.0,
+            forces: &[(0, [0.0, 1680.0, 0.0]), (3, [0.0, 1680.0, 0.0])],
+        },
+    )
+    .unwrap();
     let f = Backend::Structured.solver().unwrap().factorize_default(&sys.matrix).unwrap();
     let (u, p) = sys.split_solution(&f.solve(&sys.rhs(&b, 0.0, &s, 1.0)).unwrap().x);
     assert_eq!(u[2], [0.0, 0.0, 0.0]);
@@ -134,4 +152,57 @@ fn rectangle_eliminate_gives_exact_fixed_dofs() {
 fn icosphere_level1_matches_golden_vertex_layout() {
     let m = icosphere(1, 1.0);
     assert_eq!((m.n_vertices(), m.n_faces()), (42, 80));
+}
+
+/// The load path pinned to a case computed by hand: three vertices at heights 0, -1 and
+/// -2.5 below the top (y up), gravity 10 down, density 1000, so
+/// `b_i = rho |a| h_i S_i = 1e4 * (0, 1, 2.5) * S_i`, plus a point force on vertex 1.
+/// Unloading (the opposite increment, the same "down") gives exactly the negative.
+#[test]
+fn hydrostatic_load_by_hand() {
+    let pos = [[0.0, 0.0, 0.0], [3.0, -1.0, 0.0], [-1.0, -2.5, 2.0]];
+    let s = [[0.5, 1.0, 0.0], [0.0, -2.0, 1.0], [1.5, 0.25, -4.0]];
+    let force = [(1, [7.0, 0.0, -3.0])];
+    let g = [0.0, -10.0, 0.0];
+    let b = load_vector(3, &pos, &s, &Loads { acceleration: g, down: None, density: 1000.0, forces: &force })
+        .unwrap();
+    let h = [0.0, 1.0, 2.5];
+    for i in 0..3 {
+        for c in 0..3 {
+            let mut expected = 1e4 * h[i] * s[i][c];
+            if i == 1 {
+                expected += force[0].1[c];
+            }
+            assert_eq!(b[c * 3 + i], expected, "vertex {i}, axis {c}");
+        }
+    }
+    let unload = load_vector(
+        3,
+        &pos,
+        &s,
+        &Loads { acceleration: [0.0, 10.0, 0.0], down: Some(g), density: 1000.0, forces: &[] },
+    )
+    .unwrap();
+    for i in 0..3 {
+        for c in 0..3 {
+            assert_eq!(unload[c * 3 + i], -1e4 * h[i] * s[i][c]);
+        }
+    }
+    // Tilted gravity (3, -4, 0), |a| = 5: depth along (-0.6, 0.8, 0) from the top vertex.
+    let tilted = load_vector(
+        3,
+        &pos,
+        &s,
+        &Loads { acceleration: [3.0, -4.0, 0.0], down: None, density: 2.0, forces: &[] },
+    )
+    .unwrap();
+    let up = [-0.6, 0.8, 0.0];
+    let height: Vec<f64> = pos.iter().map(|p| p[0] * up[0] + p[1] * up[1]).collect();
+    let top = height.iter().copied().fold(f64::MIN, f64::max);
+    for i in 0..3 {
+        let expected = 2.0 * 5.0 * (top - height[i]) * s[i][1];
+        assert!((tilted[3 + i] - expected).abs() <= 1e-12 * expected.abs().max(1.0), "vertex {i}");
+    }
+    // A force on a vertex the body does not have is an error, not a panic.
+    assert!(load_vector(3, &pos, &s, &Loads { forces: &[(3, [1.0; 3])], ..Default::default() }).is_err());
 }

@@ -20,11 +20,11 @@ use std::collections::HashSet;
 use faer::linalg::solvers::DenseSolveCore;
 use faer::{Mat, Side};
 use fibfluid_assembly::{
-    AssemblyError, AssemblyOptions, Body, ConstraintMethod, Constraints, Material, PressureScaling, Selector,
-    System, assemble, load_vector, Loads,
+    AssemblyError, AssemblyOptions, Body, ConstraintMethod, Constraints, Loads, Material, PressureScaling,
+    Selector, System, assemble, load_vector,
 };
 use fibfluid_geometry::{FiberSet, TriMesh, icosphere};
-use fibfluid_linalg::{FactorizationExt, LinearSolverExt, all_backends, Backend};
+use fibfluid_linalg::{Backend, FactorizationExt, LinearSolverExt, all_backends};
 use proptest::prelude::*;
 
 const EPS: f64 = f64::EPSILON;
@@ -530,7 +530,13 @@ fn cond2(sys: &System) -> f64 {
 
 /// Gravity on the paper's sphere: a = 10 along -y, rho = 1000 (load_vector).
 fn gravity(shape: &Shape) -> Vec<f64> {
-    load_vector(3, &shape.pos, &shape.s, &Loads { acceleration: [0.0, -10.0, 0.0], down: None, density: 1000.0, forces: &[] }).unwrap()
+    load_vector(
+        3,
+        &shape.pos,
+        &shape.s,
+        &Loads { acceleration: [0.0, -10.0, 0.0], down: None, density: 1000.0, forces: &[] },
+    )
+    .unwrap()
 }
 
 fn solve_displacements(shape: &Shape, sys: &System) -> Vec<[f64; 3]> {

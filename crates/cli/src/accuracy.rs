@@ -30,7 +30,11 @@ pub fn run(scene_path: &Path, out: &Path, flags: GridFlags) -> Result<(), CliErr
     let mut scene = Scene::load(scene_path)?;
     scene.solver.constraints = flags.constraints.unwrap_or(scene.solver.constraints);
     if let Some(&n) = flags.steps.iter().find(|&&n| !(1..=fibfluid::MAX_STEPS).contains(&n)) {
-        return Err(CliError::Flag { flag: "steps", value: n.to_string(), problem: "give step counts from 1 to 1000000" });
+        return Err(CliError::Flag {
+            flag: "steps",
+            value: n.to_string(),
+            problem: "give step counts from 1 to 1000000",
+        });
     }
     let mut grid = Grid { steps: flags.steps, ..Grid::default() };
     if let Some(b) = flags.backends {

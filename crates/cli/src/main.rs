@@ -187,7 +187,11 @@ impl Overrides {
         s.constraints = self.constraints.unwrap_or(s.constraints);
         if let Some(n) = self.steps {
             if !(1..=fibfluid::MAX_STEPS).contains(&n) {
-                return Err(CliError::Flag { flag: "steps", value: n.to_string(), problem: "must be between 1 and 1000000" });
+                return Err(CliError::Flag {
+                    flag: "steps",
+                    value: n.to_string(),
+                    problem: "must be between 1 and 1000000",
+                });
             }
             scene.steps = n;
         }
@@ -264,10 +268,18 @@ fn run(command: Command) -> Result<(), CliError> {
         Command::MeshInfo { mesh, json, fibers } => mesh_info(&mesh, json, fibers.as_deref()),
         Command::Icosphere { level, radius, out } => {
             if level > 7 {
-                return Err(CliError::Flag { flag: "level", value: level.to_string(), problem: "at most 7 (655362 vertices)" });
+                return Err(CliError::Flag {
+                    flag: "level",
+                    value: level.to_string(),
+                    problem: "at most 7 (655362 vertices)",
+                });
             }
             if !(radius.is_finite() && radius > 0.0) {
-                return Err(CliError::Flag { flag: "radius", value: radius.to_string(), problem: "must be positive" });
+                return Err(CliError::Flag {
+                    flag: "radius",
+                    value: radius.to_string(),
+                    problem: "must be positive",
+                });
             }
             let m = fibfluid::geometry::icosphere(level, radius);
             fibfluid::geometry::write_obj(&out, m.positions(), m.triangles())?;
@@ -445,10 +457,18 @@ fn roundtrip(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> 
 
 fn bench(sizes: &[usize], repeats: usize, json: bool) -> Result<(), CliError> {
     if let Some(&n) = sizes.iter().find(|n| !fibfluid::bench::BENCH_SIZES.contains(n)) {
-        return Err(CliError::Flag { flag: "sizes", value: n.to_string(), problem: "out of range (4..20000)" });
+        return Err(CliError::Flag {
+            flag: "sizes",
+            value: n.to_string(),
+            problem: "out of range (4..20000)",
+        });
     }
     if !(1..=1000).contains(&repeats) {
-        return Err(CliError::Flag { flag: "repeats", value: repeats.to_string(), problem: "must be between 1 and 1000" });
+        return Err(CliError::Flag {
+            flag: "repeats",
+            value: repeats.to_string(),
+            problem: "must be between 1 and 1000",
+        });
     }
     let mut rows = Vec::new();
     for &n in sizes {

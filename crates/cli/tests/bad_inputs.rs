@@ -25,27 +25,66 @@ const EXPECTED: &[(&str, &str)] = &[
     ("mesh-truncated-facet.stl", ":12: the last facet has fewer than 3 vertices"),
     ("mesh-two-tetrahedra.obj", "2 disconnected components"),
     ("mesh-unknown-extension.ply", "unsupported mesh format"),
-    ("scene-bad-mesh.toml", "[mesh].path: "),
-    ("scene-fix-nothing-along-z.toml", "no vertex is fixed along z"),
-    ("scene-fix-selects-nothing.toml", "[[fix]] #1: constraint `y > 5` selects no vertex"),
-    ("scene-fix-vertex-out-of-range.toml", "[[fix]] #1.vertices: vertex 100 is out of range"),
-    ("scene-force-vertex-out-of-range.toml", "[[force]] #1.vertex: vertex 42 is out of range"),
+    ("scene-bad-mesh.toml", "scene-bad-mesh.toml:3: [mesh].path: "),
+    (
+        "scene-fix-nothing-along-z.toml",
+        "scene-fix-nothing-along-z.toml:10: [[fix]]: no vertex is fixed along z",
+    ),
+    (
+        "scene-fix-selects-nothing.toml",
+        "scene-fix-selects-nothing.toml:9: [[fix]] #1: constraint `y > 5` selects no vertex",
+    ),
+    (
+        "scene-fix-vertex-out-of-range.toml",
+        "scene-fix-vertex-out-of-range.toml:10: [[fix]] #1.vertices: vertex 100 is out of range",
+    ),
+    (
+        "scene-force-vertex-out-of-range.toml",
+        "scene-force-vertex-out-of-range.toml:14: [[force]] #1.vertex: vertex 42 is out of range",
+    ),
     ("scene-is-a-directory.toml", "is a directory, not a scene file"),
-    ("scene-malformed.toml", "unclosed table, expected `]` (line 2, column 6)"),
+    ("scene-malformed.toml", "scene-malformed.toml:2: unclosed table, expected `]` (column 6)"),
     ("scene-mesh-is-directory.toml", "mesh-is-a-directory.obj:0: is a directory, not a mesh file"),
-    ("scene-mesh-not-found.toml", "[mesh].path: `no-such-mesh.obj` does not exist"),
+    (
+        "scene-mesh-not-found.toml",
+        "scene-mesh-not-found.toml:3: [mesh].path: `no-such-mesh.obj` does not exist",
+    ),
     ("scene-missing-mesh.toml", "missing [mesh] (or [polygon]) table"),
-    ("scene-negative-density.toml", "[fluid].density: must be >= 0, got -1000"),
-    ("scene-negative-surface-tension.toml", "[material].surface_tension: must be >= 0, got -1"),
-    ("scene-steps-zero.toml", "[load].steps: must be between 1 and 1000000, got 0"),
-    ("scene-unknown-backend.toml", "[solver].backend: `cholmod` is not compiled in"),
-    ("scene-unknown-key-in-table.toml", "[material]: unknown field `youngs`"),
-    ("scene-unknown-key-top.toml", "unknown field `colour`"),
-    ("scene-unknown-mode.toml", "[solver].mode: `implicit` is not paper, refresh or nonlinear"),
-    ("scene-wrong-type-steps.toml", "[load].steps: invalid type: string \"ten\", expected i64"),
-    ("scene-wrong-type-young.toml", "[material].young: expected a number or an array of three numbers"),
-    ("scene-young-negative.toml", "[material].young: must be positive, got -5 along y"),
-    ("scene-young-zero.toml", "[material].young: must be positive, got 0 along x"),
+    (
+        "scene-negative-density.toml",
+        "scene-negative-density.toml:10: [fluid].density: must be >= 0, got -1000",
+    ),
+    (
+        "scene-negative-surface-tension.toml",
+        "scene-negative-surface-tension.toml:7: [material].surface_tension: must be >= 0, got -1",
+    ),
+    ("scene-steps-zero.toml", "scene-steps-zero.toml:10: [load].steps: must be between 1 and 1000000, got 0"),
+    (
+        "scene-unknown-backend.toml",
+        "scene-unknown-backend.toml:14: [solver].backend: `cholmod` is not a backend (expected one of: structured, faer-lu, nalgebra-lu, openblas-lu)",
+    ),
+    (
+        "scene-unknown-key-in-table.toml",
+        "scene-unknown-key-in-table.toml:6: [material]: unknown field `youngs`",
+    ),
+    ("scene-unknown-key-top.toml", "scene-unknown-key-top.toml:2: unknown field `colour`"),
+    (
+        "scene-unknown-mode.toml",
+        "scene-unknown-mode.toml:14: [solver].mode: `implicit` is not a mode (expected one of: paper, refresh, nonlinear)",
+    ),
+    (
+        "scene-wrong-type-steps.toml",
+        "scene-wrong-type-steps.toml:10: [load].steps: invalid type: string \"ten\", expected i64",
+    ),
+    (
+        "scene-wrong-type-young.toml",
+        "scene-wrong-type-young.toml:6: [material].young: expected a number or an array of three numbers",
+    ),
+    (
+        "scene-young-negative.toml",
+        "scene-young-negative.toml:6: [material].young: must be positive, got -5 along y",
+    ),
+    ("scene-young-zero.toml", "scene-young-zero.toml:6: [material].young: must be positive, got 0 along x"),
 ];
 
 /// Files of the folder that are not bad inputs.

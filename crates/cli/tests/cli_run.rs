@@ -195,3 +195,172 @@ fn bench_json_rows() {
         assert!(r["residual"].as_f64().unwrap() < 1e-10);
     }
 }
+
+fn json_of(out: &std::process::Output) -> serde_json::Value {
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+/// `fibfluid plan` works on every fixture scene, prints the documented JSON, and agrees
+/// with what a run then does: every stage the run timed is one the plan runs, and every
+/// stage the plan skips is absent from the run.
+#[test]
+fn plan_on_every_fixture_scene_matches_the_run() {
+    let dir = root().join("fixtures/scenes");
+    let mut scenes: Vec<PathBuf> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).collect();
+    scenes.sort();
+    assert!(scenes.len() >= 5);
+    for scene in &scenes {
+        let plan = json_of(&bin().arg("plan").arg(scene).arg("--json").output().unwrap());
+        let stages = plan["stages"].as_array().unwrap();
+        for s in stages {
+            for key in ["name", "run", "reason", "bytes", "flops"] {
+                assert!(s.get(key).is_some(), "{}: stage without `{key}`", scene.display());
+            }
+            assert!(!s["reason"].as_str().unwrap().is_empty());
+        }
+        let memory = plan["memory_bytes"].as_u64().unwrap();
+        let sum: u64 = stages.iter().map(|s| s["bytes"].as_u64().unwrap()).sum();
+        assert_eq!(memory, sum, "{}", scene.display());
+        assert!(plan["flops"].as_f64().unwrap() > 0.0);
+        // The bunny and the liver are large; a one-step run of the small scenes is enough to
+        // compare the plan with what ran.
+        let name = scene.file_name().unwrap().to_str().unwrap();
+        if !["sphere.toml", "rectangle.toml", "breast-prone.toml"].contains(&name) {
+            continue;
+        }
+        let tmp = tempfile::tempdir().unwrap();
+        let out =
+            bin().arg("run").arg(scene).arg("--out").arg(tmp.path()).args(["--steps", "2"]).output().unwrap();
+        assert!(out.status.success(), "{name}: {}", String::from_utf8_lossy(&out.stderr));
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(tmp.path().join("report.json")).unwrap()).unwrap();
+        let planned = |n: &str, run: bool| stages.iter().any(|s| s["name"] == n && s["run"] == run);
+        for s in report["stages"].as_array().unwrap() {
+            let n = s["name"].as_str().unwrap();
+            if n == "load scene and mesh" {
+                continue;
+            }
+            assert!(!planned(n, false), "{name}: `{n}` ran but the plan skips it");
+        }
+        for s in report["skipped"].as_array().unwrap() {
+            assert!(planned(s["name"].as_str().unwrap(), false), "{name}: {s}");
+        }
+        // Nested stages are sub-stages: the top-level times add up to at most the total.
+        let top: f64 = report["stages"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|s| s.get("parent").is_none())
+            .map(|s| s["seconds"].as_f64().unwrap())
+            .sum();
+        let total = report["seconds_total"].as_f64().unwrap();
+        assert!(top <= total, "{name}: top-level stages {top} s > total {total} s");
+    }
+}
+
+/// In refresh mode the volume-correction solves are sub-stages of "volume correction",
+/// not top-level solves counted twice.
+#[test]
+fn volume_correction_solves_are_sub_stages() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = root().join("fixtures/scenes/sphere.toml");
+    let out = bin()
+        .arg("run")
+        .arg(&scene)
+        .arg("--out")
+        .arg(tmp.path())
+        .args(["--mode", "refresh"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(tmp.path().join("report.json")).unwrap()).unwrap();
+    let stages = report["stages"].as_array().unwrap();
+    let correction = stages.iter().find(|s| s["name"] == "volume correction" && s.get("parent").is_none());
+    assert!(correction.is_some(), "{stages:?}");
+    assert!(
+        stages.iter().any(|s| s["name"] == "solve" && s["parent"] == "volume correction"),
+        "the correction's solves are listed under it: {stages:?}"
+    );
+    let solves: u64 =
+        stages.iter().filter(|s| s["name"] == "solve").map(|s| s["count"].as_u64().unwrap()).sum();
+    assert_eq!(solves, report["solves"].as_u64().unwrap(), "every solve counted once");
+}
+
+/// A flag overrides only its own scene key: `--constraints penalty` keeps the scene's
+/// `penalty` value. With big = 1e6 the penalty lets a fixed vertex move by about
+/// diag(K) |u| / big, a thousand times more than with the paper's 1e9, so the value is
+/// seen to act.
+#[test]
+fn a_flag_overrides_only_its_own_scene_key() {
+    let tmp = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(root().join("fixtures/scenes/sphere.toml")).unwrap();
+    let mesh = root().join("fixtures/meshes/icosphere-2.obj");
+    let text = text.replace("../meshes/icosphere-2.obj", mesh.to_str().unwrap());
+    assert!(
+        text.contains(mesh.to_str().unwrap()),
+        "the sphere scene names its mesh as ../meshes/icosphere-2.obj"
+    );
+    let run_with = |penalty: Option<f64>, tag: &str| {
+        let mut t = text.clone();
+        if let Some(p) = penalty {
+            t = if t.contains("[solver]") {
+                t.replace("[solver]", &format!("[solver]\npenalty = {p:e}"))
+            } else {
+                format!("{t}\n[solver]\npenalty = {p:e}\n")
+            };
+        }
+        let scene = tmp.path().join(format!("{tag}.toml"));
+        std::fs::write(&scene, t).unwrap();
+        let out = tmp.path().join(tag);
+        let o = bin()
+            .arg("run")
+            .arg(&scene)
+            .arg("--out")
+            .arg(&out)
+            .args(["--constraints", "penalty"])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{tag}: {}", String::from_utf8_lossy(&o.stderr));
+        let r: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+        (r["penalty"].as_f64().unwrap(), r["fixed_max_displacement"].as_f64().unwrap())
+    };
+    let (big_soft, moved_soft) = run_with(Some(1e6), "soft");
+    let (big_paper, moved_paper) = run_with(None, "paper");
+    assert_eq!(big_soft, 1e6);
+    assert_eq!(big_paper, 1e9);
+    assert!(moved_soft > 100.0 * moved_paper, "penalty 1e6 moved {moved_soft:e}, 1e9 moved {moved_paper:e}");
+}
+
+/// A plan that needs more memory than allowed is refused before anything runs: one line
+/// naming the bytes needed and available, exit 2, nothing written.
+#[test]
+fn a_plan_over_the_memory_limit_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = root().join("fixtures/scenes/sphere.toml");
+    for backend in compiled_backends() {
+        let out = tmp.path().join(&backend);
+        let o = bin()
+            .arg("run")
+            .arg(&scene)
+            .arg("--out")
+            .arg(&out)
+            .args(["--backend", &backend, "--max-memory", "100000"])
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "{backend}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(err.contains("but 100000 bytes") && err.contains("the plan needs"), "{err}");
+        assert!(!out.exists(), "{backend}: a refused run wrote {}", out.display());
+        let plan = bin()
+            .arg("plan")
+            .arg(&scene)
+            .args(["--backend", &backend, "--max-memory", "100000"])
+            .output()
+            .unwrap();
+        assert_eq!(plan.status.code(), Some(2), "{backend}: plan exits 2 when the scene does not fit");
+    }
+}

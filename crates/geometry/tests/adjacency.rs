@@ -2,7 +2,6 @@
 //! lists, vertex–face lists that match the triangles, and the Euler characteristic
 //! (2 for the genus-0 bodies, 0 for the torus) reported by validation.
 
-
 use std::collections::{BTreeMap, BTreeSet};
 
 use crate::common::*;

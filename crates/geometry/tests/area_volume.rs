@@ -1,7 +1,6 @@
 //! Area vectors and volume: the paper's Table 1, Eq. 1–2 on every fixture, outward vertex
 //! vectors, and the exact volume gradient `R_i / 3` against finite differences.
 
-
 use crate::common::*;
 use fibfluid_geometry::{Polygon, TriMesh, icosphere};
 use rand::{Rng, SeedableRng};

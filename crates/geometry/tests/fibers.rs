@@ -4,7 +4,6 @@
 //! every fiber with the tests forced, including the dome whose flat base makes many fibers
 //! run exactly in a face plane.
 
-
 use crate::common::*;
 use fibfluid_geometry::{
     EXIT_TOLERANCE, FiberSet, TriMesh, VisibilityOptions, crosses_surface_brute_force, cull_fibers,

@@ -1,8 +1,8 @@
 //! The integration tests of this package, in one binary (one link instead of one per file).
 
-mod common;
 mod adjacency;
 mod area_volume;
+mod common;
 mod fibers;
 mod properties;
 mod reader;

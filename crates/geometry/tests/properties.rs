@@ -3,7 +3,6 @@
 //! independent floating-point test away from grazing, and the documented grazing policy on
 //! configurations that are exact in f64.
 
-
 use crate::common::*;
 use fibfluid_geometry::{
     Crossing, FiberSet, TriMesh, TriangleBvh, VisibilityOptions, cull_fibers, icosphere, segment_triangle,

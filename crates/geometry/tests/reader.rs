@@ -2,7 +2,6 @@
 //! vertex order, flipping of inward files, OBJ write/read round trip, binary and ASCII STL,
 //! and a typed error for every kind of broken input.
 
-
 use std::path::{Path, PathBuf};
 use std::time::{SystemTime, UNIX_EPOCH};
 

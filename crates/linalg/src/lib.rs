@@ -79,7 +79,8 @@ pub enum Backend {
 
 impl Choice for Backend {
     const WHAT: &'static str = "backend";
-    const ALL: &'static [Self] = &[Backend::Structured, Backend::FaerLu, Backend::NalgebraLu, Backend::OpenblasLu];
+    const ALL: &'static [Self] =
+        &[Backend::Structured, Backend::FaerLu, Backend::NalgebraLu, Backend::OpenblasLu];
     fn name(self) -> &'static str {
         match self {
             Backend::Structured => "structured",

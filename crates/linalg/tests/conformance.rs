@@ -21,13 +21,13 @@
 use faer::Mat;
 use faer::linalg::solvers::DenseSolveCore;
 use fibfluid_assembly::{
-    AssemblyOptions, Body, ConstraintMethod, Constraints, Material, PressureScaling, Selector, System,
-    assemble, load_vector, Loads,
+    AssemblyOptions, Body, ConstraintMethod, Constraints, Loads, Material, PressureScaling, Selector, System,
+    assemble, load_vector,
 };
 use fibfluid_geometry::{FiberSet, TriMesh, icosphere};
 use fibfluid_linalg::{
-    Blocks, BorderedMatrix, DEFAULT_TARGET_RESIDUAL, FactorOptions, FactorizationExt, LinalgError,
-    Backend, Choice, LinearSolver, LinearSolverExt, Precision, all_backends,
+    Backend, Blocks, BorderedMatrix, Choice, DEFAULT_TARGET_RESIDUAL, FactorOptions, FactorizationExt,
+    LinalgError, LinearSolver, LinearSolverExt, Precision, all_backends,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -611,7 +611,13 @@ fn sphere_system(
     let mut c = Constraints::new(n);
     c.fix_selected(&Selector::Above { axis: 1, value: 0.8 }, pos, [true; 3]).unwrap();
     let sys = assemble(&body, &material, &c, &AssemblyOptions { method, pressure_scaling }).unwrap();
-    let b = load_vector(3, pos, &s, &Loads { acceleration: [0.0, -10.0, 0.0], down: None, density: 1000.0, forces: &[(0, [-300.0; 3])] }).unwrap();
+    let b = load_vector(
+        3,
+        pos,
+        &s,
+        &Loads { acceleration: [0.0, -10.0, 0.0], down: None, density: 1000.0, forces: &[(0, [-300.0; 3])] },
+    )
+    .unwrap();
     let rhs = sys.rhs(&b, 0.0, &s, 1.0);
     (sys, rhs)
 }

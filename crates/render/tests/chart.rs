@@ -1,6 +1,5 @@
 //! Tests of `loglog_chart` and `pareto_front`.
 
-
 use crate::common::decode;
 use fibfluid_render::{RenderError, Series, loglog_chart, pareto_front};
 

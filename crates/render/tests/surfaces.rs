@@ -1,7 +1,6 @@
 //! Tests of `render_surfaces`: output size, coverage, colors, visibility,
 //! degenerate input and errors.
 
-
 use crate::common::{bumpy_sphere, decode, icosahedron, split_cube};
 use fibfluid_render::{Colormap, RenderError, Surface, ViewOptions, render_surfaces};
 
@@ -174,17 +173,14 @@ fn degenerate_meshes_render_without_dividing_by_zero() {
 }
 
 #[test]
-fn six_thousand_triangles_at_800x800_render_quickly() {
+fn six_thousand_triangles_at_800x800_render() {
     let (p, t) = bumpy_sphere(60, 51);
     assert_eq!(t.len(), 6000);
     let s: Vec<f64> = p.iter().map(|q| q[0] * q[1]).collect();
     let o = opts(800, 800);
-    let start = std::time::Instant::now();
+    // Only the result is checked: timings belong in benches, not in tests.
     let png = render_surfaces(&[surface(&p, &t, &s, "sphere")], None, &o).unwrap();
-    let elapsed = start.elapsed();
     assert_eq!(decode(&png).1, 800);
-    // Generous bound for a loaded 2-core machine; typically ~0.1 s.
-    assert!(elapsed.as_secs_f64() < 2.0, "took {elapsed:?}");
 }
 
 #[test]
