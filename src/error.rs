@@ -47,6 +47,12 @@ pub enum Error {
         /// Vertex count.
         vertices: usize,
     },
+    /// A vertex fixed by the scene cannot be held somewhere else.
+    #[error("vertex {vertex} is fixed by the scene and cannot be held at a displacement")]
+    HeldFixedVertex {
+        /// The vertex.
+        vertex: usize,
+    },
     /// The plan needs more memory than the limit; refused before anything was allocated.
     #[error(
         "{scene}: the plan needs {needed} bytes ({:.2} GiB) at its largest stage ({stage}), but {available} bytes ({:.2} GiB) are available; {hint}",

@@ -44,8 +44,8 @@ pub use plan::{Plan, PlannedStage};
 pub use report::{Report, RoundTrip, SkippedStage, roundtrip, roundtrip_error};
 pub use scene::{ForceTiming, MAX_STEPS, Mode, PointForce, Scene, Shape, SolverOptions, Stepping};
 pub use simulate::{
-    BodyShape, Counters, Direction, RunOptions, SetupOptions, Simulation, State, VOLUME_CORRECTIONS,
-    VOLUME_TOLERANCE,
+    BodyShape, Counters, Direction, Response, RunOptions, SetupOptions, Simulation, State,
+    VOLUME_CORRECTIONS, VOLUME_TOLERANCE,
 };
 
 pub use fibfluid_assembly::ConstraintKind;

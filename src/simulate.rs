@@ -14,7 +14,7 @@ use fibfluid_assembly::{
 };
 use fibfluid_geometry::vec3::{add, norm, scale};
 use fibfluid_geometry::{Boundary, FiberSet, Vec3, VisibilityOptions, cull_fibers};
-use fibfluid_linalg::{FactorOptions, Factorization, FactorizationExt, LinearSolver};
+use fibfluid_linalg::{FactorOptions, Factorization, FactorizationExt, LinearSolver, PrescribedSet};
 use serde::Serialize;
 
 use crate::plan::Plan;
@@ -102,6 +102,19 @@ struct Factored {
     solver: Box<dyn LinearSolver>,
     options: FactorOptions,
     border_areas: Vec<Vec3>,
+    /// Vertices held by [`Simulation::respond_held`], on this factorization.
+    held: PrescribedSet,
+}
+
+/// The static response of a factored body to forces and held vertices.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Response {
+    /// Displacement of every vertex.
+    pub displacements: Vec<Vec3>,
+    /// Pressure change.
+    pub pressure: f64,
+    /// The force each held vertex needs to stay where it is held, in the order given.
+    pub reactions: Vec<(usize, Vec3)>,
 }
 
 /// A scene being simulated.
@@ -160,8 +173,14 @@ impl Simulation {
         let factorization =
             log.time(names::FACTORIZATION, || solver.factorize(&system.matrix, &factor_options))?;
         let state = State { positions: body.rest.clone(), pressure: 0.0, load_factor: 0.0 };
-        let factored =
-            Factored { system, factorization, solver, options: factor_options, border_areas: areas };
+        let factored = Factored {
+            system,
+            factorization,
+            solver,
+            options: factor_options,
+            border_areas: areas,
+            held: PrescribedSet::new(),
+        };
         let counters = Counters { factorizations: 1, ..Default::default() };
         Ok(Self { scene, plan, body, state, factored, counters, log, started })
     }
@@ -350,6 +369,61 @@ impl Simulation {
         Ok(self.factored.system.split_solution(&x))
     }
 
+    /// The static response of the current factorization to point forces with vertices
+    /// held at given displacements (no stepping, no position update): a tool grabbing the
+    /// body. The held set is a change of the constraints on the kept factorization: a
+    /// vertex held for the first time costs one solve per axis, releasing one costs a
+    /// k x k refactor, and each call one solve plus `O(k N)` (see
+    /// [`PrescribedSet`](fibfluid_linalg::PrescribedSet)), where refactoring with the
+    /// vertices eliminated would cost `N^3 / 3` per stiffness block.
+    pub fn respond_held(&mut self, forces: &[(usize, Vec3)], held: &[(usize, Vec3)]) -> Result<Response> {
+        let n = self.state.positions.len();
+        let axes = self.axes();
+        if let Some(&(v, _)) = forces.iter().chain(held).find(|(v, _)| *v >= n) {
+            return Err(Error::VertexOutOfRange { vertex: v, vertices: n });
+        }
+        if let Some(&(v, _)) =
+            held.iter().find(|(v, _)| (0..axes).any(|c| self.scene.constraints.get(*v, c).is_some()))
+        {
+            return Err(Error::HeldFixedVertex { vertex: v });
+        }
+        let wanted: Vec<usize> = held.iter().flat_map(|&(v, _)| (0..axes).map(move |c| c * n + v)).collect();
+        let f = &mut self.factored;
+        for &i in f.held.indices().to_vec().iter().filter(|i| !wanted.contains(i)) {
+            f.held.remove(i)?;
+        }
+        for &i in &wanted {
+            f.held.add(f.factorization.as_ref(), i)?;
+        }
+        let value_of =
+            |i: usize| held.iter().find(|(v, _)| *v == i % n).map(|(_, d)| d[i / n]).unwrap_or(0.0);
+        let values: Vec<f64> = f.held.indices().iter().map(|&i| value_of(i)).collect();
+        let loads = Loads { forces, ..Default::default() };
+        let b = load_vector(axes, &self.state.positions, &f.border_areas, &loads)?;
+        let rhs = f.system.rhs(&b, 0.0, &f.border_areas, 1.0);
+        let start = Instant::now();
+        let sol = f.held.solve(f.factorization.as_ref(), &rhs, &values)?;
+        self.log.add(names::SOLVE, start.elapsed().as_secs_f64());
+        self.counters.solves += 1;
+        let (displacements, pressure) = self.factored.system.split_solution(&sol.x);
+        let indices = self.factored.held.indices();
+        let reactions = held
+            .iter()
+            .map(|&(v, _)| {
+                let mut r = [0.0; 3];
+                for (c, rc) in r.iter_mut().enumerate().take(axes) {
+                    let k = indices
+                        .iter()
+                        .position(|&i| i == c * n + v)
+                        .expect("every held unknown is in the set");
+                    *rc = -sol.multipliers[k];
+                }
+                (v, r)
+            })
+            .collect();
+        Ok(Response { displacements, pressure, reactions })
+    }
+
     /// Makes the factored operator describe shape `s` as the mode requires; returns the
     /// volume target for the last row.
     fn prepare_operator(&mut self, s: &[Vec3]) -> Result<f64> {
@@ -357,6 +431,8 @@ impl Simulation {
         if mode == Mode::Paper {
             return Ok(0.0);
         }
+        // The held set was built on the operator about to change.
+        self.factored.held = PrescribedSet::new();
         let areas = self.log.time(names::AREAS, || self.body.boundary.vertex_area_vectors(s));
         match mode {
             Mode::Paper => unreachable!("handled above"),

@@ -260,3 +260,68 @@ fn the_plan_estimate_covers_the_factorization() {
         }
     }
 }
+
+/// Holding vertices on the kept factorization (a capacitance update, no refactorization)
+/// is checked against an independent path: the reactions it reports, applied as plain
+/// point forces through `respond`, give the same field, and the held vertices sit exactly
+/// where they were held. Every backend, one and three held vertices, then a release.
+#[test]
+fn held_vertices_match_their_reactions_applied_as_forces() {
+    for backend in Backend::compiled() {
+        let mut scene = Scene::load("fixtures/scenes/sphere.toml").unwrap();
+        scene.solver.backend = backend;
+        scene.solver.constraints = ConstraintKind::Eliminate;
+        let mut sim = Simulation::new(scene).unwrap();
+        let constraints = sim.scene().constraints.clone();
+        let fixed = |v: usize| constraints.get(v, 0).is_some();
+        let free: Vec<usize> = (0..sim.positions().len()).filter(|&v| !fixed(v)).collect();
+        let sets: [Vec<(usize, [f64; 3])>; 3] = [
+            vec![(free[5], [0.02, -0.05, 0.01])],
+            vec![
+                (free[5], [0.02, -0.05, 0.01]),
+                (free[40], [0.0, 0.03, 0.0]),
+                (free[90], [-0.01, 0.0, 0.02]),
+            ],
+            vec![(free[40], [0.0, 0.03, 0.0])],
+        ];
+        let extra = [(free[60], [5.0, 0.0, -10.0])];
+        let before = sim.counters().factorizations;
+        for held in &sets {
+            let r = sim.respond_held(&extra, held).unwrap();
+            for &(v, d) in held {
+                for c in 0..3 {
+                    assert!((r.displacements[v][c] - d[c]).abs() <= 1e-12, "{backend}: vertex {v} not held");
+                }
+            }
+            let mut forces: Vec<(usize, [f64; 3])> = r.reactions.clone();
+            forces.extend_from_slice(&extra);
+            let (u, p) = sim.respond(&forces).unwrap();
+            let scale = u.iter().flatten().fold(0.0f64, |m, x| m.max(x.abs()));
+            let diff = u
+                .iter()
+                .flatten()
+                .zip(r.displacements.iter().flatten())
+                .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            assert!(
+                diff <= 1e-7 * scale,
+                "{backend}, {} held: field differs by {diff:e} of {scale:e}",
+                held.len()
+            );
+            assert!(
+                (p - r.pressure).abs() <= 1e-7 * p.abs().max(1.0),
+                "{backend}: pressure {p} vs {}",
+                r.pressure
+            );
+        }
+        assert_eq!(sim.counters().factorizations, before, "{backend}: holding must not refactor");
+        let fixed_vertex = (0..sim.positions().len()).find(|&v| fixed(v)).unwrap();
+        assert!(matches!(
+            sim.respond_held(&[], &[(fixed_vertex, [0.0; 3])]),
+            Err(fibfluid::Error::HeldFixedVertex { .. })
+        ));
+        assert!(matches!(
+            sim.respond_held(&[], &[(10_000, [0.0; 3])]),
+            Err(fibfluid::Error::VertexOutOfRange { .. })
+        ));
+    }
+}

@@ -146,7 +146,7 @@ enum Command {
     },
 }
 
-/// Command-line overrides of the scene's [solver] and [load] settings; each flag
+/// Command-line overrides of the scene's `[solver]` and `[load]` settings; each flag
 /// overrides only its own scene key.
 #[derive(clap::Args, Clone, Default)]
 struct Overrides {

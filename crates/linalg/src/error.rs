@@ -73,6 +73,15 @@ pub enum LinalgError {
         /// GiB allowed.
         limit_gib: f64,
     },
+    /// Held unknowns that cannot be prescribed independently (their capacitance matrix is
+    /// singular: together they decide the volume, or repeat a fixed unknown).
+    #[error(
+        "the {held} held unknowns are not independent (together they fix the volume or a fixed degree of freedom)"
+    )]
+    DependentConstraints {
+        /// How many unknowns were held.
+        held: usize,
+    },
     /// A LAPACK routine reported a failure.
     #[error("LAPACK failed: {0}")]
     Lapack(String),

@@ -15,7 +15,7 @@
 //! [`FactorizationExt`] adds checked solves (residuals are always computed, and refined in
 //! mixed precision) and a condition estimate.
 //!
-//! Backends (each behind a Cargo feature, selectable at run time with [`backend_by_name`]):
+//! Backends (each behind a Cargo feature, selectable at run time through [`Backend`]):
 //! - `faer-lu` ([`FaerLu`]): faer partial-pivot LU of the dense matrix;
 //! - `nalgebra-lu` ([`NalgebraLu`]): nalgebra LU of the dense matrix;
 //! - `openblas-lu` (`OpenblasLu`, feature `openblas`): LAPACK getrf/getrs via ndarray-linalg,
@@ -31,6 +31,7 @@ mod choice;
 mod dense;
 mod error;
 mod matrix;
+mod prescribed;
 mod solver;
 mod structured;
 pub mod threads;
@@ -46,6 +47,7 @@ pub use choice::{Choice, ParseChoiceError};
 pub use dense::{DENSE_MEMORY_FRACTION, available_memory_bytes, check_dense_memory, total_memory_bytes};
 pub use error::{LinalgError, Result};
 pub use matrix::{Blocks, BorderedMatrix};
+pub use prescribed::{ConstrainedSolution, PrescribedSet};
 pub use solver::{
     DEFAULT_MAX_RESIDUAL, DEFAULT_TARGET_RESIDUAL, FactorCost, FactorOptions, Factorization,
     FactorizationExt, LinearSolver, LinearSolverExt, Precision, Solution, componentwise_backward_error,
