@@ -70,6 +70,35 @@ pub enum Error {
         /// What to change.
         hint: &'static str,
     },
+    /// A numeric failure during a load step, with its likely cause in the user's terms.
+    #[error("step {step} (load {from:.4} -> {to:.4}): {cause}; {hint} ({source})")]
+    Step {
+        /// The step (1-based).
+        step: usize,
+        /// Load factor at the start of the step.
+        from: f64,
+        /// Load factor the step was going to.
+        to: f64,
+        /// What went wrong, named (a vertex, a pivot).
+        cause: String,
+        /// What to try.
+        hint: &'static str,
+        /// The failure as the solver reported it.
+        source: Box<Error>,
+    },
+    /// A step guard fired under `[guards] on_failure = "error"`.
+    #[error("{0} (stopped: [guards] on_failure = \"error\")")]
+    Guard(crate::guards::GuardWarning),
+    /// Adaptive stepping could not meet its tolerance.
+    #[error(
+        "adaptive steps shrank below 1e-6 of the load at load factor {load_factor:.6} without meeting tolerance {tolerance:e}; the response may be unstable there: raise the tolerance or check the material and constraints"
+    )]
+    StepTooSmall {
+        /// Load factor reached.
+        load_factor: f64,
+        /// The tolerance asked for.
+        tolerance: f64,
+    },
     /// Serializing a report failed.
     #[error("writing JSON: {0}")]
     Json(#[from] serde_json::Error),

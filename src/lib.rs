@@ -27,6 +27,7 @@
 pub mod accuracy;
 pub mod bench;
 mod error;
+pub mod guards;
 mod info;
 mod output;
 pub mod plan;
@@ -44,7 +45,7 @@ pub use plan::{Plan, PlannedStage};
 pub use report::{Report, RoundTrip, SkippedStage, roundtrip, roundtrip_error};
 pub use scene::{ForceTiming, MAX_STEPS, Mode, PointForce, Scene, Shape, SolverOptions, Stepping};
 pub use simulate::{
-    BodyShape, Counters, Direction, Response, RunOptions, SetupOptions, Simulation, State,
+    BodyShape, Counters, Direction, MIN_ADAPTIVE_STEP, Response, RunOptions, SetupOptions, StepStats, Simulation, State,
     VOLUME_CORRECTIONS, VOLUME_TOLERANCE,
 };
 

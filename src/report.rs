@@ -45,8 +45,25 @@ pub struct Report {
     pub fibers_total: usize,
     /// Kept fibers.
     pub fibers_kept: usize,
-    /// Load steps.
+    /// Load steps asked for (with a tolerance: the first step's fraction is 1/steps).
     pub steps: usize,
+    /// Adaptive stepping tolerance, when set.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tolerance: Option<f64>,
+    /// Steps taken (accepted).
+    pub steps_taken: usize,
+    /// Adaptive steps rejected and retried at half the size.
+    pub steps_rejected: usize,
+    /// Steps skipped because their load did not change.
+    pub steps_skipped: usize,
+    /// Adaptive steps: the summed Euler/Heun error estimate over the largest
+    /// displacement (compare with `tolerance`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error_estimate: Option<f64>,
+    /// Step guards that fired.
+    pub warnings: Vec<crate::guards::GuardWarning>,
+    /// Faces inverted against the rest shape at the end.
+    pub inverted_faces: usize,
     /// Volume before.
     pub volume_initial: f64,
     /// Volume after.
@@ -117,6 +134,15 @@ impl Report {
             fibers_total: sim.fibers().total(),
             fibers_kept: sim.fibers().kept(),
             steps: scene.steps,
+            tolerance: scene.tolerance,
+            steps_taken: sim.step_stats().taken,
+            steps_rejected: sim.step_stats().rejected,
+            steps_skipped: sim.step_stats().skipped,
+            error_estimate: scene.tolerance.map(|_| {
+                sim.step_stats().error_estimate / disp.iter().copied().fold(0.0, f64::max).max(f64::MIN_POSITIVE)
+            }),
+            warnings: sim.warnings().to_vec(),
+            inverted_faces: crate::guards::inverted_faces(&sim.body().boundary, rest, sim.positions()),
             volume_initial: v0,
             volume_final: v1,
             volume_drift: (v1 / v0 - 1.0).abs(),

@@ -10,6 +10,7 @@ use fibfluid_linalg::{Backend, Choice, Precision, impl_choice};
 use serde::Deserialize;
 
 use crate::error::{SceneError, SceneProblem};
+use crate::guards::Guards;
 use crate::{Error, Result};
 
 /// How load steps are taken (REFERENCE §4–5).
@@ -160,8 +161,13 @@ pub struct Scene {
     pub gravity: Vec3,
     /// Point forces.
     pub forces: Vec<PointForce>,
-    /// Number of load steps.
+    /// Number of load steps (with `tolerance`: the first step is 1/steps of the load).
     pub steps: usize,
+    /// Adaptive load steps: the largest error estimate of a step, relative to the step's
+    /// displacement (`[load] tolerance`); `None`: `steps` equal steps.
+    pub tolerance: Option<f64>,
+    /// Step guards (`[guards]`).
+    pub guards: Guards,
     /// Solver choices.
     pub solver: SolverOptions,
 }
@@ -179,6 +185,8 @@ impl Scene {
             gravity: [0.0; 3],
             forces: vec![],
             steps: 1,
+            tolerance: None,
+            guards: Guards::default(),
             solver: SolverOptions::default(),
         }
     }
@@ -359,6 +367,7 @@ struct SceneToml {
     #[serde(default)]
     force: Vec<ForceToml>,
     solver: Option<SolverToml>,
+    guards: Option<GuardsToml>,
 }
 
 #[derive(Deserialize)]
@@ -401,6 +410,17 @@ struct FluidToml {
 #[serde(deny_unknown_fields)]
 struct LoadToml {
     steps: Option<i64>,
+    tolerance: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GuardsToml {
+    on_failure: Option<String>,
+    volume: Option<f64>,
+    increment: Option<f64>,
+    inverted: Option<i64>,
+    residual: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -517,9 +537,35 @@ fn build(
     if !(density.is_finite() && density >= 0.0) {
         return Err(range("[fluid].density", ">= 0", density));
     }
-    let steps = spec.load.and_then(|l| l.steps).unwrap_or(1);
+    let (steps, tolerance) = spec.load.map(|l| (l.steps, l.tolerance)).unwrap_or((None, None));
+    let steps = steps.unwrap_or(if tolerance.is_some() { 4 } else { 1 });
     if !(1..=MAX_STEPS as i64).contains(&steps) {
         return Err(range("[load].steps", "between 1 and 1000000", steps));
+    }
+    if let Some(t) = tolerance
+        && !(t.is_finite() && t > 0.0 && t < 1.0)
+    {
+        return Err(range("[load].tolerance", "between 0 and 1", t));
+    }
+    let mut guards = Guards::default();
+    if let Some(g) = spec.guards {
+        guards.on_failure = choice("[guards].on_failure", g.on_failure, guards.on_failure)?;
+        for (key, value) in [("volume", g.volume), ("increment", g.increment), ("residual", g.residual)] {
+            if let Some(v) = value
+                && !(v.is_finite() && v > 0.0)
+            {
+                return Err(range(format!("[guards].{key}"), "positive", v));
+            }
+        }
+        if let Some(k) = g.inverted
+            && k < 0
+        {
+            return Err(range("[guards].inverted", ">= 0", k));
+        }
+        guards.volume = g.volume;
+        guards.increment = g.increment;
+        guards.residual = g.residual;
+        guards.inverted = g.inverted.map(|k| k as usize);
     }
     let gravity = spec.gravity.map(|g| g.acceleration).unwrap_or([0.0; 3]);
     if let Some(c) = gravity.iter().find(|c| !c.is_finite()) {
@@ -651,6 +697,8 @@ fn build(
         gravity,
         forces,
         steps: steps as usize,
+        tolerance,
+        guards,
         solver,
     })
 }

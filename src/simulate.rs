@@ -12,11 +12,12 @@ use std::time::Instant;
 use fibfluid_assembly::{
     AssemblyOptions, Body, ConstraintMethod, Loads, PressureScaling, System, assemble, load_vector,
 };
-use fibfluid_geometry::vec3::{add, norm, scale};
+use fibfluid_geometry::vec3::{add, norm, scale, sub};
 use fibfluid_geometry::{Boundary, FiberSet, Vec3, VisibilityOptions, cull_fibers};
 use fibfluid_linalg::{FactorOptions, Factorization, FactorizationExt, LinearSolver, PrescribedSet};
 use serde::Serialize;
 
+use crate::guards::{Guard, GuardWarning, OnFailure, inverted_faces};
 use crate::plan::Plan;
 use crate::scene::{ForceTiming, Mode, Scene, Shape, Stepping};
 use crate::stages::{StageLog, names};
@@ -69,6 +70,8 @@ pub struct BodyShape {
     pub rest: Vec<Vec3>,
     /// Rest volume (area for a polygon).
     pub volume0: f64,
+    /// Diagonal of the rest shape's bounding box (the body's size).
+    pub diagonal: f64,
 }
 
 /// The state that load steps change.
@@ -94,6 +97,38 @@ pub struct Counters {
     /// Largest number of refinement steps of any solve.
     pub refinement_steps_max: usize,
 }
+
+/// Load steps so far.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct StepStats {
+    /// Steps taken (accepted).
+    pub taken: usize,
+    /// Adaptive steps rejected (undone, halved and retried).
+    pub rejected: usize,
+    /// Steps skipped because their load did not change (no solve needed).
+    pub skipped: usize,
+    /// Sum of the accepted adaptive steps' error estimates (largest vertex distance
+    /// between the Euler and Heun evaluations), in length units.
+    pub error_estimate: f64,
+}
+
+/// The increments of one step.
+struct Increment {
+    da: Vec3,
+    forces: Vec<(usize, Vec3)>,
+    prescribed: f64,
+    to: f64,
+}
+
+/// What a step did.
+struct StepOutcome {
+    /// Euler/Heun difference, when estimated.
+    estimate: Option<f64>,
+}
+
+/// Smallest adaptive step (a fraction of the load) before the stepper gives up.
+#[doc(alias = "tolerance")]
+pub const MIN_ADAPTIVE_STEP: f64 = 1e-6;
 
 /// The assembled system, its factorization and the shape its border describes.
 struct Factored {
@@ -125,6 +160,8 @@ pub struct Simulation {
     state: State,
     factored: Factored,
     counters: Counters,
+    stats: StepStats,
+    warnings: Vec<GuardWarning>,
     log: StageLog,
     started: Instant,
 }
@@ -168,7 +205,9 @@ impl Simulation {
         let convex = !plan.runs(names::VISIBILITY);
         let areas = log.time(names::AREAS, || boundary.vertex_area_vectors(&rest));
         let volume0 = boundary.volume(&rest);
-        let body = BodyShape { boundary, edges, fibers, convex, rest, volume0 };
+        let (lo, hi) = fibfluid_geometry::bounding_box(&rest);
+        let diagonal = norm(sub(hi, lo));
+        let body = BodyShape { boundary, edges, fibers, convex, rest, volume0, diagonal };
         let system = log.time(names::ASSEMBLY, || assemble_on(&scene, &body, &body.rest, &areas))?;
         let factorization =
             log.time(names::FACTORIZATION, || solver.factorize(&system.matrix, &factor_options))?;
@@ -182,7 +221,18 @@ impl Simulation {
             held: PrescribedSet::new(),
         };
         let counters = Counters { factorizations: 1, ..Default::default() };
-        Ok(Self { scene, plan, body, state, factored, counters, log, started })
+        Ok(Self {
+            scene,
+            plan,
+            body,
+            state,
+            factored,
+            counters,
+            stats: StepStats::default(),
+            warnings: vec![],
+            log,
+            started,
+        })
     }
 
     /// The scene.
@@ -270,9 +320,13 @@ impl Simulation {
         self.body.boundary.axes()
     }
 
-    /// Runs all the scene's load steps (load factor 0 -> 1).
+    /// Runs the scene's loads to full: `steps` equal steps, or adaptive steps when the
+    /// scene sets a `tolerance`.
     pub fn run(&mut self, opts: &RunOptions) -> Result<()> {
-        self.run_steps(self.scene.steps, Direction::Load, opts)
+        match self.scene.tolerance {
+            Some(tolerance) => self.run_adaptive(tolerance, opts),
+            None => self.run_steps(self.scene.steps, Direction::Load, opts),
+        }
     }
 
     /// Runs `steps` equal load steps in one direction.
@@ -294,66 +348,194 @@ impl Simulation {
     /// One load step: takes the load factor from its current value to `to` (1 = the
     /// scene's full load). Gravity, ramped forces and prescribed displacements change by
     /// `to - from` of their full value; forces applied at the last step act once the
-    /// factor reaches 1.
+    /// factor reaches 1. A step whose load does not change needs no solve: it is skipped
+    /// and counted ([`StepStats::skipped`]). The guards are checked after the step.
     pub fn step_load(&mut self, to: f64) -> Result<()> {
         let from = self.state.load_factor;
-        let delta = to - from;
-        let da = scale(self.scene.gravity, delta);
         let at_full = |x: f64| if x >= 1.0 { 1.0 } else { 0.0 };
-        let last = at_full(to) - at_full(from);
-        let forces: Vec<(usize, Vec3)> = self
+        let inc = self.increment(to - from, at_full(to) - at_full(from), to);
+        self.take_step(&inc, false).map(|_| ())
+    }
+
+    /// Adaptive load steps (`[load] tolerance`): each step is evaluated with Euler and
+    /// Heun (an embedded pair); their difference estimates the step's error, which must
+    /// stay below `tolerance` times the body's size (the bounding-box diagonal). The
+    /// step taken is Heun's, whatever `stepping` says (local extrapolation: the estimate
+    /// bounds the Euler error, so it is conservative for Heun). A rejected step is undone,
+    /// halved and retried; an accepted one sets the next size from the estimate
+    /// (`h * 0.9 sqrt(tol / est)`, between half and double). Ramped loads run first;
+    /// forces the scene applies at the last step are then ramped in a second phase, so
+    /// their effect is controlled too.
+    pub fn run_adaptive(&mut self, tolerance: f64, opts: &RunOptions) -> Result<()> {
+        let has_last = self.scene.forces.iter().any(|f| f.timing == ForceTiming::Last);
+        let phases = if has_last { 2 } else { 1 };
+        let mut h = 1.0 / self.scene.steps.max(1) as f64;
+        for phase in 0..phases {
+            let mut done = 0.0;
+            while done < 1.0 {
+                h = h.min(1.0 - done);
+                if h < MIN_ADAPTIVE_STEP {
+                    return Err(Error::StepTooSmall { load_factor: self.state.load_factor + done, tolerance });
+                }
+                let inc = match phase {
+                    0 => self.increment(h, 0.0, (done + h).min(1.0)),
+                    _ => Increment { da: [0.0; 3], forces: self.last_forces(h), prescribed: 0.0, to: 1.0 },
+                };
+                let saved = (self.state.clone(), self.stats.clone(), self.warnings.len());
+                let outcome = self.take_step(&inc, true)?;
+                let estimate = outcome.estimate.unwrap_or(0.0);
+                let allowed = tolerance * self.body.diagonal;
+                if estimate <= allowed || estimate == 0.0 {
+                    done = if 1.0 - (done + h) < 1e-12 { 1.0 } else { done + h };
+                    self.stats.error_estimate += estimate;
+                    let grow = if estimate > 0.0 { 0.9 * (allowed / estimate).sqrt() } else { 2.0 };
+                    h *= grow.clamp(0.5, 2.0);
+                    if let Some(p) = &opts.progress {
+                        p(((phase as f64 + done) * 1000.0) as usize, 1000 * phases);
+                    }
+                } else {
+                    (self.state, self.stats, _) = (saved.0, saved.1, ());
+                    self.warnings.truncate(saved.2);
+                    self.stats.rejected += 1;
+                    h *= 0.5;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The increments of one fixed step: `ramp` of gravity, ramped forces and
+    /// prescribed displacements, `last` of the forces applied at the last step.
+    fn increment(&self, ramp: f64, last: f64, to: f64) -> Increment {
+        let forces = self
             .scene
             .forces
             .iter()
             .filter_map(|f| {
                 let k = match f.timing {
-                    ForceTiming::Ramp => delta,
+                    ForceTiming::Ramp => ramp,
                     ForceTiming::Last => last,
                 };
                 (k != 0.0).then(|| (f.vertex, scale(f.value, k)))
             })
             .collect();
-        let s = self.state.positions.clone();
-        let target = self.prepare_operator(&s)?;
-        let b1 = self.load_increment(&s, da, &forces)?;
-        let (du, dp) = match self.scene.solver.stepping {
-            Stepping::Euler => {
-                let x = self.solve(&b1, target, delta)?;
-                self.factored.system.split_solution(&x)
-            }
-            Stepping::Heun => {
-                let xb = self.solve(&b1, 0.0, delta)?;
-                let (ub, pb) = self.factored.system.split_solution(&xb);
-                let (ut, pt) = if target != 0.0 {
-                    let zero = vec![0.0; b1.len()];
-                    let xt = self.solve(&zero, target, 0.0)?;
-                    self.factored.system.split_solution(&xt)
-                } else {
-                    (vec![[0.0; 3]; s.len()], 0.0)
-                };
-                let predicted: Vec<Vec3> = (0..s.len()).map(|i| add(add(s[i], ub[i]), ut[i])).collect();
-                let open = self.log.begin(names::PREDICTOR);
-                let corrected = self.prepare_operator(&predicted).and_then(|_| {
-                    let b2 = self.load_increment(&predicted, da, &forces)?;
-                    self.solve(&b2, 0.0, delta)
-                });
-                self.log.end(open);
-                let (u2, p2) = self.factored.system.split_solution(&corrected?);
-                let u = (0..s.len()).map(|i| add(scale(add(ub[i], u2[i]), 0.5), ut[i])).collect();
-                (u, 0.5 * (pb + p2) + pt)
-            }
-        };
+        Increment { da: scale(self.scene.gravity, ramp), forces, prescribed: ramp, to }
+    }
+
+    fn last_forces(&self, fraction: f64) -> Vec<(usize, Vec3)> {
+        self.scene
+            .forces
+            .iter()
+            .filter(|f| f.timing == ForceTiming::Last)
+            .map(|f| (f.vertex, scale(f.value, fraction)))
+            .collect()
+    }
+
+    /// Takes one step of increments `inc` (with the Euler/Heun error estimate when
+    /// `estimate`), then checks the guards. Numeric failures are explained.
+    fn take_step(&mut self, inc: &Increment, estimate: bool) -> Result<StepOutcome> {
+        let step = self.stats.taken + 1;
+        let from = self.state.load_factor;
+        let moves_prescribed = inc.prescribed != 0.0 && self.scene.constraints.has_nonzero();
+        let acts = inc.da != [0.0; 3] && self.scene.material.density > 0.0;
+        if !acts && inc.forces.is_empty() && !moves_prescribed {
+            self.state.load_factor = inc.to;
+            self.stats.skipped += 1;
+            return Ok(StepOutcome { estimate: Some(0.0) });
+        }
+        let before = self.state.positions.clone();
+        let residual_before = self.counters.residual_max;
+        self.counters.residual_max = 0.0;
+        let result = self.evaluate(inc, estimate);
+        let step_residual = self.counters.residual_max;
+        self.counters.residual_max = residual_before.max(step_residual);
+        let (du, dp, est) = result.map_err(|e| explain(e, step, from, inc.to, before.len()))?;
         self.log.time(names::UPDATE, || {
             for (p, d) in self.state.positions.iter_mut().zip(&du) {
                 *p = add(*p, *d);
             }
         });
         self.state.pressure += dp;
-        self.state.load_factor = to;
+        self.state.load_factor = inc.to;
         if self.scene.solver.mode != Mode::Paper {
-            self.correct_volume()?;
+            self.correct_volume().map_err(|e| explain(e, step, from, inc.to, before.len()))?;
+        }
+        self.stats.taken += 1;
+        let increment =
+            self.state.positions.iter().zip(&before).map(|(p, q)| norm(sub(*p, *q))).fold(0.0, f64::max);
+        self.check_guards(step, increment, step_residual)?;
+        Ok(StepOutcome { estimate: est })
+    }
+
+    /// The guards after step `step`; with `on_failure = "error"` the first one that fires
+    /// is returned as an error.
+    fn check_guards(&mut self, step: usize, increment: f64, residual: f64) -> Result<()> {
+        let mode = self.scene.solver.mode;
+        let guards = self.scene.guards;
+        let volume = (self.volume() / self.body.volume0 - 1.0).abs();
+        let inverted = inverted_faces(&self.body.boundary, &self.body.rest, &self.state.positions) as f64;
+        let measured = [
+            (Guard::Volume, volume),
+            (Guard::Increment, increment / self.body.diagonal),
+            (Guard::Inverted, inverted),
+            (Guard::Residual, residual),
+        ];
+        for (guard, value) in measured {
+            let limit = guards.limit(guard, mode);
+            if !(value <= limit) {
+                let w = GuardWarning { step, guard, value, limit };
+                if guards.on_failure == OnFailure::Error {
+                    return Err(Error::Guard(w));
+                }
+                self.warnings.push(w);
+            }
         }
         Ok(())
+    }
+
+    /// Evaluates a step from the current shape: the displacement and pressure increments
+    /// of the stepping scheme and, when asked, the Euler/Heun difference (largest vertex
+    /// distance) that estimates the step's error.
+    fn evaluate(&mut self, inc: &Increment, estimate: bool) -> Result<(Vec<Vec3>, f64, Option<f64>)> {
+        let s = self.state.positions.clone();
+        let target = self.prepare_operator(&s)?;
+        let b1 = self.load_increment(&s, inc.da, &inc.forces)?;
+        if self.scene.solver.stepping == Stepping::Euler && !estimate {
+            let x = self.solve(&b1, target, inc.prescribed)?;
+            let (u, p) = self.factored.system.split_solution(&x);
+            return Ok((u, p, None));
+        }
+        let xb = self.solve(&b1, 0.0, inc.prescribed)?;
+        let (ub, pb) = self.factored.system.split_solution(&xb);
+        let (ut, pt) = if target != 0.0 {
+            let zero = vec![0.0; b1.len()];
+            let xt = self.solve(&zero, target, 0.0)?;
+            self.factored.system.split_solution(&xt)
+        } else {
+            (vec![[0.0; 3]; s.len()], 0.0)
+        };
+        let predicted: Vec<Vec3> = (0..s.len()).map(|i| add(add(s[i], ub[i]), ut[i])).collect();
+        let open = self.log.begin(names::PREDICTOR);
+        let corrected = self.prepare_operator(&predicted).and_then(|_| {
+            let b2 = self.load_increment(&predicted, inc.da, &inc.forces)?;
+            self.solve(&b2, 0.0, inc.prescribed)
+        });
+        self.log.end(open);
+        let (u2, p2) = self.factored.system.split_solution(&corrected?);
+        // Heun minus Euler: half the difference of the two slopes.
+        let est = estimate.then(|| ub.iter().zip(&u2).map(|(a, b)| 0.5 * norm(sub(*b, *a))).fold(0.0, f64::max));
+        let u = (0..s.len()).map(|i| add(scale(add(ub[i], u2[i]), 0.5), ut[i])).collect();
+        Ok((u, 0.5 * (pb + p2) + pt, est))
+    }
+
+    /// Guard warnings so far.
+    pub fn warnings(&self) -> &[GuardWarning] {
+        &self.warnings
+    }
+
+    /// Steps taken, rejected and skipped, and the error estimate of adaptive steps.
+    pub fn step_stats(&self) -> &StepStats {
+        &self.stats
     }
 
     /// The static response of the current factorization to point forces alone (no
@@ -566,4 +748,42 @@ fn assemble_on(scene: &Scene, body: &BodyShape, positions: &[Vec3], areas: &[Vec
     };
     let opts = AssemblyOptions { method, pressure_scaling: scaling };
     Ok(assemble(&shape, &scene.material, &scene.constraints, &opts)?)
+}
+
+/// Puts a numeric failure of step `step` in the user's terms: the likely cause and what
+/// to try.
+fn explain(e: Error, step: usize, from: f64, to: f64, n: usize) -> Error {
+    use fibfluid_linalg::LinalgError as L;
+    let soft = "the body may have folded or collapsed under this load (material too soft, or steps too large): raise young, take more load steps, or set [load] tolerance";
+    let (cause, hint): (String, &'static str) = match &e {
+        Error::Linalg(L::NonFiniteRhs { index }) | Error::Linalg(L::NonFiniteSolution { index }) => {
+            (format!("a non-finite value at {}", unknown(*index, n)), soft)
+        }
+        Error::Linalg(L::NonFinite { row, .. }) => (format!("a non-finite stiffness at {}", unknown(*row, n)), soft),
+        Error::Assembly(fibfluid_assembly::AssemblyError::CoincidentVertices { i, j, .. }) => {
+            (format!("vertices {i} and {j} met"), soft)
+        }
+        Error::Linalg(L::NotPositiveDefinite { index, axis }) => (
+            format!("the stiffness is not positive definite at vertex {index} along {}", ['x', 'y', 'z'][*axis % 3]),
+            "a vertex may be left free, or the deformed shape is degenerate: check the [[fix]] tables, or take smaller steps",
+        ),
+        Error::Linalg(L::SingularPivot { index, .. }) => (
+            format!("a zero pivot at {}", unknown(*index, n)),
+            "a vertex may be left free (add a [[fix]]), or a step is too large",
+        ),
+        Error::Linalg(L::ResidualTooLarge { .. }) => (
+            "the solve did not reach its accuracy".into(),
+            "the system is ill-conditioned: use constraints = \"eliminate\" and precision = \"f64\"",
+        ),
+        _ => return e,
+    };
+    Error::Step { step, from, to, cause, hint, source: Box::new(e) }
+}
+
+/// An unknown of the bordered system, named: `vertex 12 (y)` or `the pressure`.
+fn unknown(index: usize, n: usize) -> String {
+    if n == 0 || index >= 3 * n {
+        return "the pressure".into();
+    }
+    format!("vertex {} ({})", index % n, ['x', 'y', 'z'][index / n])
 }

@@ -5,4 +5,5 @@ mod golden_sphere42;
 mod hard_cases;
 mod memory_guard;
 mod scenes;
+mod stepping;
 mod volume_properties;

@@ -399,6 +399,7 @@ fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> 
     let mut sim = Simulation::with_options(scene, &over.setup())?;
     let opts = RunOptions { progress: progress(steps, "run") };
     sim.run(&opts)?;
+    print_step_notes(&sim);
     let start = Instant::now();
     let mut report = Report::of(&sim, std::slice::from_ref(&load), notes);
     let written = fibfluid::write_outputs(out, &sim, &report)?;
@@ -424,6 +425,25 @@ fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> 
     }
     Ok(())
 }
+
+/// Guard warnings (one line each, at most [`MAX_WARNING_LINES`]) and skipped steps, on
+/// stderr.
+fn print_step_notes(sim: &Simulation) {
+    let warnings = sim.warnings();
+    for w in warnings.iter().take(MAX_WARNING_LINES) {
+        eprintln!("warning: {w}");
+    }
+    if warnings.len() > MAX_WARNING_LINES {
+        eprintln!("warning: {} more guard warnings in report.json", warnings.len() - MAX_WARNING_LINES);
+    }
+    let skipped = sim.step_stats().skipped;
+    if skipped > 0 {
+        eprintln!("note: {skipped} load steps changed no load (a force applied at the last step only) and were skipped without a solve");
+    }
+}
+
+/// Most guard warnings printed on stderr; the rest are in report.json.
+const MAX_WARNING_LINES: usize = 10;
 
 fn roundtrip(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> {
     let (scene, _) = load_scene(path, over)?;
