@@ -15,8 +15,10 @@ pub struct Config {
     pub mode: Mode,
     /// Stepping scheme.
     pub stepping: Stepping,
-    /// Load steps each way.
+    /// Load steps each way (adaptive: the steps taken, both ways).
     pub steps: usize,
+    /// Adaptive stepping tolerance (`None`: equal steps).
+    pub tolerance: Option<f64>,
     /// Precision.
     pub precision: Precision,
     /// Backend.
@@ -26,7 +28,15 @@ pub struct Config {
 impl Config {
     /// The configuration's line label (everything but the step count).
     pub fn series(&self) -> String {
-        format!("{} {} {} {}", self.mode, self.stepping, self.precision, self.backend)
+        format!("{} {} {} {}", self.mode, self.stepping_label(), self.precision, self.backend)
+    }
+
+    /// `euler`, `heun`, or `adaptive` for a tolerance point.
+    pub fn stepping_label(&self) -> String {
+        match self.tolerance {
+            Some(_) => "adaptive".into(),
+            None => self.stepping.to_string(),
+        }
     }
 }
 
@@ -62,6 +72,8 @@ pub struct Grid {
     pub steppings: Vec<Stepping>,
     /// Step counts.
     pub steps: Vec<usize>,
+    /// Adaptive stepping tolerances (one point per mode, precision and backend each).
+    pub tolerances: Vec<f64>,
     /// Precisions.
     pub precisions: Vec<Precision>,
     /// Backends.
@@ -80,6 +92,7 @@ impl Default for Grid {
             modes: <Mode as fibfluid_linalg::Choice>::ALL.to_vec(),
             steppings: vec![Stepping::Euler, Stepping::Heun],
             steps: vec![1, 3, 10, 30, 100],
+            tolerances: vec![1e-2, 1e-3, 1e-4],
             precisions: vec![Precision::F64, Precision::Mixed],
             backends: Backend::compiled(),
             dense_refactor_vertex_limit: 500,
@@ -104,6 +117,7 @@ pub fn run_study(scene: &Scene, grid: &Grid, progress: &dyn Fn(usize, usize)) ->
     let max_steps = grid.steps.iter().copied().max().unwrap_or(1);
     let mut reference_scene = scene.clone();
     reference_scene.steps = max_steps;
+    reference_scene.tolerance = None;
     reference_scene.solver.mode = Mode::Nonlinear;
     reference_scene.solver.stepping = Stepping::Heun;
     reference_scene.solver.precision = Precision::F64;
@@ -111,6 +125,7 @@ pub fn run_study(scene: &Scene, grid: &Grid, progress: &dyn Fn(usize, usize)) ->
     // Warm-up (thread pools, page faults) so the first measured point is not penalized.
     let mut warm = scene.clone();
     warm.steps = 1;
+    warm.tolerance = None;
     warm.solver.backend = Backend::Structured;
     let _ = roundtrip(warm, &RunOptions::default());
     let reference_run = roundtrip(reference_scene.clone(), &RunOptions::default())?;
@@ -125,17 +140,22 @@ pub fn run_study(scene: &Scene, grid: &Grid, progress: &dyn Fn(usize, usize)) ->
         for &stepping in &grid.steppings {
             for &precision in &grid.precisions {
                 for &backend in &grid.backends {
-                    for &steps in &grid.steps {
+                    let fixed = grid.steps.iter().map(|&n| (n, None));
+                    let adaptive =
+                        grid.tolerances.iter().filter(|_| stepping == Stepping::Heun).map(|&t| (4, Some(t)));
+                    for (steps, tolerance) in fixed.chain(adaptive) {
                         let mut s = scene.clone();
                         s.steps = steps;
+                        s.tolerance = tolerance;
                         s.solver.mode = mode;
                         s.solver.stepping = stepping;
                         s.solver.precision = precision;
                         s.solver.backend = backend;
+                        let costly = tolerance.is_some() || steps > grid.dense_refactor_max_steps;
                         if backend.is_dense()
                             && mode != Mode::Paper
                             && n > grid.dense_refactor_vertex_limit
-                            && steps > grid.dense_refactor_max_steps
+                            && costly
                         {
                             skipped.push((config_of(&s), format!("a dense refactorization per step at N = {n} costs too much beyond {} steps", grid.dense_refactor_max_steps)));
                             continue;
@@ -197,12 +217,16 @@ fn config_of(s: &Scene) -> Config {
         mode: s.solver.mode,
         stepping: s.solver.stepping,
         steps: s.steps,
+        tolerance: s.tolerance,
         precision: s.solver.precision,
         backend: s.solver.backend,
     }
 }
 
-fn point_of(config: Config, rt: &RoundTrip, reference: &RoundTrip, n: usize, diag: f64) -> Point {
+fn point_of(mut config: Config, rt: &RoundTrip, reference: &RoundTrip, n: usize, diag: f64) -> Point {
+    if config.tolerance.is_some() {
+        config.steps = rt.steps_taken;
+    }
     let dist: f64 = rt
         .compressed
         .iter()
@@ -227,8 +251,9 @@ fn measured_cells(p: &Point, num: impl Fn(f64) -> String, missing: &str) -> Vec<
     let c = &p.config;
     vec![
         c.mode.to_string(),
-        c.stepping.to_string(),
+        c.stepping_label(),
         c.steps.to_string(),
+        c.tolerance.map(|t| format!("{t:e}")).unwrap_or_default(),
         c.precision.to_string(),
         c.backend.to_string(),
         f(p.roundtrip_error),
@@ -242,7 +267,7 @@ fn measured_cells(p: &Point, num: impl Fn(f64) -> String, missing: &str) -> Vec<
 /// The study as CSV (one row per point).
 pub fn to_csv(study: &Study) -> String {
     let mut out = String::from(
-        "mode,stepping,steps,precision,backend,roundtrip_error,volume_drift,reference_distance,residual_max,factorizations,seconds,error\n",
+        "mode,stepping,steps,tolerance,precision,backend,roundtrip_error,volume_drift,reference_distance,residual_max,factorizations,seconds,error\n",
     );
     for p in &study.points {
         let mut cells = measured_cells(p, |x| format!("{x:e}"), "");
@@ -281,7 +306,7 @@ pub fn to_markdown(study: &Study, title: &str) -> String {
         study.reference.precision,
         study.reference.backend
     );
-    out.push_str("| mode | stepping | steps | precision | backend | round-trip error | volume drift | distance to reference | residual | factorizations | seconds | |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    out.push_str("| mode | stepping | steps | tolerance | precision | backend | round-trip error | volume drift | distance to reference | residual | factorizations | seconds | |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (i, p) in study.points.iter().enumerate() {
         let mut cells = measured_cells(p, |x| format!("{x:.2e}"), "—");
         cells.push(p.seconds.map(|s| format!("{s:.4}")).unwrap_or_else(|| "—".into()));
@@ -294,8 +319,13 @@ pub fn to_markdown(study: &Study, title: &str) -> String {
     }
     for (c, why) in &study.skipped {
         out.push_str(&format!(
-            "| {} | {} | {} | {} | {} | skipped: {why} |||||||\n",
-            c.mode, c.stepping, c.steps, c.precision, c.backend
+            "| {} | {} | {} | {} | {} | {} | skipped: {why} |||||||\n",
+            c.mode,
+            c.stepping_label(),
+            c.steps,
+            c.tolerance.map(|t| format!("{t:e}")).unwrap_or_default(),
+            c.precision,
+            c.backend
         ));
     }
     out
@@ -318,7 +348,7 @@ pub fn chart(
         if !(e > 0.0 && t > 0.0) {
             continue;
         }
-        let label = format!("{} {} ({precision}, {backend})", p.config.mode, p.config.stepping);
+        let label = format!("{} {} ({precision}, {backend})", p.config.mode, p.config.stepping_label());
         match series.iter_mut().find(|s| s.label == label) {
             Some(s) => s.points.push((t, e)),
             None => series.push(fibfluid_render::Series { label, points: vec![(t, e)] }),

@@ -136,7 +136,9 @@ impl std::fmt::Display for GuardWarning {
             Guard::Increment | Guard::Inverted => {
                 "the material may be too soft for this load: raise young, or take more steps ([load] steps or tolerance)"
             }
-            Guard::Residual => "the system is ill-conditioned: use constraints = \"eliminate\" and precision = \"f64\"",
+            Guard::Residual => {
+                "the system is ill-conditioned: use constraints = \"eliminate\" and precision = \"f64\""
+            }
         };
         write!(
             f,

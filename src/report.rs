@@ -139,7 +139,8 @@ impl Report {
             steps_rejected: sim.step_stats().rejected,
             steps_skipped: sim.step_stats().skipped,
             error_estimate: scene.tolerance.map(|_| {
-                sim.step_stats().error_estimate / disp.iter().copied().fold(0.0, f64::max).max(f64::MIN_POSITIVE)
+                sim.step_stats().error_estimate
+                    / disp.iter().copied().fold(0.0, f64::max).max(f64::MIN_POSITIVE)
             }),
             warnings: sim.warnings().to_vec(),
             inverted_faces: crate::guards::inverted_faces(&sim.body().boundary, rest, sim.positions()),
@@ -184,8 +185,13 @@ pub fn roundtrip_error(initial: &[[f64; 3]], finals: &[[f64; 3]]) -> f64 {
 /// Result of a compression–decompression round trip.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct RoundTrip {
-    /// Steps each way.
+    /// Steps each way (with a tolerance: the first step's fraction is 1/steps).
     pub steps: usize,
+    /// Adaptive stepping tolerance, when set.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tolerance: Option<f64>,
+    /// Steps taken, both ways.
+    pub steps_taken: usize,
     /// Mode.
     pub mode: Mode,
     /// Stepping scheme.
@@ -211,11 +217,12 @@ pub struct RoundTrip {
     pub seconds: f64,
 }
 
-/// Runs compression then decompression with `steps` steps each (REFERENCE §4).
+/// Runs compression then decompression (REFERENCE §4): `steps` equal steps each way, or
+/// adaptive steps when the scene sets a `tolerance`.
 pub fn roundtrip(scene: crate::Scene, opts: &crate::RunOptions) -> crate::Result<RoundTrip> {
     let steps = scene.steps;
     let mut sim = Simulation::new(scene)?;
-    sim.run_steps(steps, crate::Direction::Load, opts)?;
+    sim.run(opts)?;
     let compressed = sim.positions().to_vec();
     let volume_drift = (sim.volume() / sim.volume_initial() - 1.0).abs();
     let max_displacement = compressed
@@ -223,10 +230,12 @@ pub fn roundtrip(scene: crate::Scene, opts: &crate::RunOptions) -> crate::Result
         .zip(sim.rest_positions())
         .map(|(p, r)| ((p[0] - r[0]).powi(2) + (p[1] - r[1]).powi(2) + (p[2] - r[2]).powi(2)).sqrt())
         .fold(0.0, f64::max);
-    sim.run_steps(steps, crate::Direction::Unload, opts)?;
+    sim.unload(opts)?;
     let s = sim.scene();
     Ok(RoundTrip {
         steps,
+        tolerance: s.tolerance,
+        steps_taken: sim.step_stats().taken,
         mode: s.solver.mode,
         stepping: s.solver.stepping,
         backend: s.solver.backend,

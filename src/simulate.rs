@@ -83,6 +83,8 @@ pub struct State {
     pub pressure: f64,
     /// Fraction of the scene's load applied (0 at rest, 1 after [`Simulation::run`]).
     pub load_factor: f64,
+    /// Fraction of the forces applied at the last step (`at = "last"`) now acting.
+    pub last_forces: f64,
 }
 
 /// What the solves cost and how accurate they were.
@@ -117,7 +119,10 @@ struct Increment {
     da: Vec3,
     forces: Vec<(usize, Vec3)>,
     prescribed: f64,
+    /// Load factor after the step.
     to: f64,
+    /// Fraction of the last-step forces applied after the step.
+    last_to: f64,
 }
 
 /// What a step did.
@@ -211,7 +216,7 @@ impl Simulation {
         let system = log.time(names::ASSEMBLY, || assemble_on(&scene, &body, &body.rest, &areas))?;
         let factorization =
             log.time(names::FACTORIZATION, || solver.factorize(&system.matrix, &factor_options))?;
-        let state = State { positions: body.rest.clone(), pressure: 0.0, load_factor: 0.0 };
+        let state = State { positions: body.rest.clone(), pressure: 0.0, load_factor: 0.0, last_forces: 0.0 };
         let factored = Factored {
             system,
             factorization,
@@ -324,7 +329,7 @@ impl Simulation {
     /// scene sets a `tolerance`.
     pub fn run(&mut self, opts: &RunOptions) -> Result<()> {
         match self.scene.tolerance {
-            Some(tolerance) => self.run_adaptive(tolerance, opts),
+            Some(tolerance) => self.adaptive(Direction::Load, tolerance, opts),
             None => self.run_steps(self.scene.steps, Direction::Load, opts),
         }
     }
@@ -347,54 +352,88 @@ impl Simulation {
 
     /// One load step: takes the load factor from its current value to `to` (1 = the
     /// scene's full load). Gravity, ramped forces and prescribed displacements change by
-    /// `to - from` of their full value; forces applied at the last step act once the
-    /// factor reaches 1. A step whose load does not change needs no solve: it is skipped
+    /// `to - from` of their full value; forces applied at the last step act while the
+    /// factor is 1. A step whose load does not change needs no solve: it is skipped
     /// and counted ([`StepStats::skipped`]). The guards are checked after the step.
     pub fn step_load(&mut self, to: f64) -> Result<()> {
         let from = self.state.load_factor;
-        let at_full = |x: f64| if x >= 1.0 { 1.0 } else { 0.0 };
-        let inc = self.increment(to - from, at_full(to) - at_full(from), to);
+        let last_to = if to >= 1.0 { 1.0 } else { 0.0 };
+        let inc = self.increment(to - from, last_to - self.state.last_forces, to, last_to);
         self.take_step(&inc, false).map(|_| ())
     }
 
-    /// Adaptive load steps (`[load] tolerance`): each step is evaluated with Euler and
-    /// Heun (an embedded pair); their difference estimates the step's error, which must
-    /// stay below `tolerance` times the body's size (the bounding-box diagonal). The
-    /// step taken is Heun's, whatever `stepping` says (local extrapolation: the estimate
-    /// bounds the Euler error, so it is conservative for Heun). A rejected step is undone,
-    /// halved and retried; an accepted one sets the next size from the estimate
-    /// (`h * 0.9 sqrt(tol / est)`, between half and double). Ramped loads run first;
-    /// forces the scene applies at the last step are then ramped in a second phase, so
-    /// their effect is controlled too.
+    /// Removes the loads again: the reverse of [`run`](Self::run), with the same kind of
+    /// steps (equal ones, or adaptive ones when the scene sets a `tolerance`).
+    pub fn unload(&mut self, opts: &RunOptions) -> Result<()> {
+        match self.scene.tolerance {
+            Some(tolerance) => self.adaptive(Direction::Unload, tolerance, opts),
+            None => self.run_steps(self.scene.steps, Direction::Unload, opts),
+        }
+    }
+
+    /// Adaptive load steps (`[load] tolerance`) in one direction: each step is evaluated
+    /// with Euler and Heun (an embedded pair); their difference estimates the step's
+    /// error, which must stay below `tolerance` times the body's size (the bounding-box
+    /// diagonal). The step taken is Heun's, whatever `stepping` says (local
+    /// extrapolation: the estimate bounds the Euler error, so it is conservative for
+    /// Heun). A rejected step is undone, halved and retried; an accepted one sets the next
+    /// size from the estimate (`h * 0.9 sqrt(tol / est)`, between half and double).
+    /// Loading ramps gravity, ramped forces and prescribed displacements first, then the
+    /// forces the scene applies at the last step in a second phase, so their effect is
+    /// controlled too; unloading runs the phases backwards.
     pub fn run_adaptive(&mut self, tolerance: f64, opts: &RunOptions) -> Result<()> {
+        self.adaptive(Direction::Load, tolerance, opts)
+    }
+
+    fn adaptive(&mut self, direction: Direction, tolerance: f64, opts: &RunOptions) -> Result<()> {
+        #[derive(Clone, Copy, PartialEq)]
+        enum Phase {
+            Ramp,
+            Last,
+        }
         let has_last = self.scene.forces.iter().any(|f| f.timing == ForceTiming::Last);
-        let phases = if has_last { 2 } else { 1 };
+        let (sign, phases) = match (direction, has_last) {
+            (Direction::Load, true) => (1.0, vec![Phase::Ramp, Phase::Last]),
+            (Direction::Unload, true) => (-1.0, vec![Phase::Last, Phase::Ramp]),
+            (Direction::Load, false) => (1.0, vec![Phase::Ramp]),
+            (Direction::Unload, false) => (-1.0, vec![Phase::Ramp]),
+        };
+        let count = phases.len();
         let mut h = 1.0 / self.scene.steps.max(1) as f64;
-        for phase in 0..phases {
+        for (k, phase) in phases.into_iter().enumerate() {
+            let (lambda0, last0) = (self.state.load_factor, self.state.last_forces);
             let mut done = 0.0;
             while done < 1.0 {
                 h = h.min(1.0 - done);
                 if h < MIN_ADAPTIVE_STEP {
-                    return Err(Error::StepTooSmall { load_factor: self.state.load_factor + done, tolerance });
+                    return Err(Error::StepTooSmall { load_factor: self.state.load_factor, tolerance });
                 }
+                let next = if 1.0 - (done + h) < 1e-12 { 1.0 } else { done + h };
                 let inc = match phase {
-                    0 => self.increment(h, 0.0, (done + h).min(1.0)),
-                    _ => Increment { da: [0.0; 3], forces: self.last_forces(h), prescribed: 0.0, to: 1.0 },
+                    Phase::Ramp => self.increment(sign * h, 0.0, lambda0 + sign * next, last0),
+                    Phase::Last => Increment {
+                        da: [0.0; 3],
+                        forces: self.last_forces(sign * h),
+                        prescribed: 0.0,
+                        to: lambda0,
+                        last_to: last0 + sign * next,
+                    },
                 };
                 let saved = (self.state.clone(), self.stats.clone(), self.warnings.len());
                 let outcome = self.take_step(&inc, true)?;
                 let estimate = outcome.estimate.unwrap_or(0.0);
                 let allowed = tolerance * self.body.diagonal;
-                if estimate <= allowed || estimate == 0.0 {
-                    done = if 1.0 - (done + h) < 1e-12 { 1.0 } else { done + h };
+                if estimate <= allowed {
+                    done = next;
                     self.stats.error_estimate += estimate;
                     let grow = if estimate > 0.0 { 0.9 * (allowed / estimate).sqrt() } else { 2.0 };
                     h *= grow.clamp(0.5, 2.0);
                     if let Some(p) = &opts.progress {
-                        p(((phase as f64 + done) * 1000.0) as usize, 1000 * phases);
+                        p(((k as f64 + done) * 1000.0) as usize, 1000 * count);
                     }
                 } else {
-                    (self.state, self.stats, _) = (saved.0, saved.1, ());
+                    self.state = saved.0;
+                    self.stats = saved.1;
                     self.warnings.truncate(saved.2);
                     self.stats.rejected += 1;
                     h *= 0.5;
@@ -406,7 +445,7 @@ impl Simulation {
 
     /// The increments of one fixed step: `ramp` of gravity, ramped forces and
     /// prescribed displacements, `last` of the forces applied at the last step.
-    fn increment(&self, ramp: f64, last: f64, to: f64) -> Increment {
+    fn increment(&self, ramp: f64, last: f64, to: f64, last_to: f64) -> Increment {
         let forces = self
             .scene
             .forces
@@ -419,7 +458,7 @@ impl Simulation {
                 (k != 0.0).then(|| (f.vertex, scale(f.value, k)))
             })
             .collect();
-        Increment { da: scale(self.scene.gravity, ramp), forces, prescribed: ramp, to }
+        Increment { da: scale(self.scene.gravity, ramp), forces, prescribed: ramp, to, last_to }
     }
 
     fn last_forces(&self, fraction: f64) -> Vec<(usize, Vec3)> {
@@ -440,6 +479,7 @@ impl Simulation {
         let acts = inc.da != [0.0; 3] && self.scene.material.density > 0.0;
         if !acts && inc.forces.is_empty() && !moves_prescribed {
             self.state.load_factor = inc.to;
+            self.state.last_forces = inc.last_to;
             self.stats.skipped += 1;
             return Ok(StepOutcome { estimate: Some(0.0) });
         }
@@ -457,6 +497,7 @@ impl Simulation {
         });
         self.state.pressure += dp;
         self.state.load_factor = inc.to;
+        self.state.last_forces = inc.last_to;
         if self.scene.solver.mode != Mode::Paper {
             self.correct_volume().map_err(|e| explain(e, step, from, inc.to, before.len()))?;
         }
@@ -523,7 +564,8 @@ impl Simulation {
         self.log.end(open);
         let (u2, p2) = self.factored.system.split_solution(&corrected?);
         // Heun minus Euler: half the difference of the two slopes.
-        let est = estimate.then(|| ub.iter().zip(&u2).map(|(a, b)| 0.5 * norm(sub(*b, *a))).fold(0.0, f64::max));
+        let est =
+            estimate.then(|| ub.iter().zip(&u2).map(|(a, b)| 0.5 * norm(sub(*b, *a))).fold(0.0, f64::max));
         let u = (0..s.len()).map(|i| add(scale(add(ub[i], u2[i]), 0.5), ut[i])).collect();
         Ok((u, 0.5 * (pb + p2) + pt, est))
     }
@@ -759,12 +801,17 @@ fn explain(e: Error, step: usize, from: f64, to: f64, n: usize) -> Error {
         Error::Linalg(L::NonFiniteRhs { index }) | Error::Linalg(L::NonFiniteSolution { index }) => {
             (format!("a non-finite value at {}", unknown(*index, n)), soft)
         }
-        Error::Linalg(L::NonFinite { row, .. }) => (format!("a non-finite stiffness at {}", unknown(*row, n)), soft),
+        Error::Linalg(L::NonFinite { row, .. }) => {
+            (format!("a non-finite stiffness at {}", unknown(*row, n)), soft)
+        }
         Error::Assembly(fibfluid_assembly::AssemblyError::CoincidentVertices { i, j, .. }) => {
             (format!("vertices {i} and {j} met"), soft)
         }
         Error::Linalg(L::NotPositiveDefinite { index, axis }) => (
-            format!("the stiffness is not positive definite at vertex {index} along {}", ['x', 'y', 'z'][*axis % 3]),
+            format!(
+                "the stiffness is not positive definite at vertex {index} along {}",
+                ['x', 'y', 'z'][*axis % 3]
+            ),
             "a vertex may be left free, or the deformed shape is degenerate: check the [[fix]] tables, or take smaller steps",
         ),
         Error::Linalg(L::SingularPivot { index, .. }) => (

@@ -42,7 +42,8 @@ fn fired(sim: &Simulation) -> Vec<Guard> {
 
 #[test]
 fn every_fixture_scene_runs_without_a_guard_warning() {
-    let mut scenes: Vec<_> = std::fs::read_dir("fixtures/scenes").unwrap().map(|e| e.unwrap().path()).collect();
+    let mut scenes: Vec<_> =
+        std::fs::read_dir("fixtures/scenes").unwrap().map(|e| e.unwrap().path()).collect();
     scenes.sort();
     for path in scenes {
         let sim = run(Scene::load(&path).unwrap()).unwrap();
@@ -157,8 +158,12 @@ fn adaptive_steps_meet_their_tolerance() {
                 .zip(reference.rest_positions())
                 .map(|(p, r)| norm(sub(*p, *r)))
                 .fold(0.0, f64::max);
-            let diff =
-                sim.positions().iter().zip(reference.positions()).map(|(a, b)| norm(sub(*a, *b))).fold(0.0, f64::max);
+            let diff = sim
+                .positions()
+                .iter()
+                .zip(reference.positions())
+                .map(|(a, b)| norm(sub(*a, *b)))
+                .fold(0.0, f64::max);
             let stats = sim.step_stats();
             assert!(
                 diff <= 10.0 * TOLERANCE * umax,

@@ -12,6 +12,8 @@ use crate::CliError;
 pub struct GridFlags {
     /// Step counts.
     pub steps: Vec<usize>,
+    /// Adaptive stepping tolerances.
+    pub tolerances: Vec<f64>,
     /// Backends.
     pub backends: Option<Vec<Backend>>,
     /// Modes.
@@ -36,7 +38,14 @@ pub fn run(scene_path: &Path, out: &Path, flags: GridFlags) -> Result<(), CliErr
             problem: "give step counts from 1 to 1000000",
         });
     }
-    let mut grid = Grid { steps: flags.steps, ..Grid::default() };
+    if let Some(&t) = flags.tolerances.iter().find(|&&t| !(t > 0.0 && t < 1.0)) {
+        return Err(CliError::Flag {
+            flag: "tolerances",
+            value: t.to_string(),
+            problem: "give tolerances between 0 and 1",
+        });
+    }
+    let mut grid = Grid { steps: flags.steps, tolerances: flags.tolerances, ..Grid::default() };
     if let Some(b) = flags.backends {
         for backend in &b {
             backend.solver().map_err(fibfluid::Error::from)?;

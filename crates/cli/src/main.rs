@@ -128,6 +128,9 @@ enum Command {
         /// Step counts of the grid.
         #[arg(long, value_delimiter = ',', default_value = "1,3,10,30,100")]
         steps: Vec<usize>,
+        /// Adaptive stepping tolerances of the grid (`--tolerances ""`: none).
+        #[arg(long, value_delimiter = ',', default_value = "1e-2,1e-3,1e-4")]
+        tolerances: Vec<f64>,
         /// Backends (default: every compiled-in one).
         #[arg(long, value_delimiter = ',')]
         backends: Option<Vec<Backend>>,
@@ -290,8 +293,26 @@ fn run(command: Command) -> Result<(), CliError> {
         Command::Run { scene, out, over } => run_scene(&scene, &out, &over),
         Command::Roundtrip { scene, over, json } => roundtrip(&scene, &over, json),
         Command::Bench { sizes, repeats, json } => bench(&sizes, repeats, json),
-        Command::Accuracy { scene, out, steps, backends, modes, steppings, precisions, constraints } => {
-            let grid = accuracy::GridFlags { steps, backends, modes, steppings, precisions, constraints };
+        Command::Accuracy {
+            scene,
+            out,
+            steps,
+            tolerances,
+            backends,
+            modes,
+            steppings,
+            precisions,
+            constraints,
+        } => {
+            let grid = accuracy::GridFlags {
+                steps,
+                tolerances,
+                backends,
+                modes,
+                steppings,
+                precisions,
+                constraints,
+            };
             accuracy::run(&scene, &out, grid)
         }
     }
@@ -438,7 +459,9 @@ fn print_step_notes(sim: &Simulation) {
     }
     let skipped = sim.step_stats().skipped;
     if skipped > 0 {
-        eprintln!("note: {skipped} load steps changed no load (a force applied at the last step only) and were skipped without a solve");
+        eprintln!(
+            "note: {skipped} load steps changed no load (a force applied at the last step only) and were skipped without a solve"
+        );
     }
 }
 
