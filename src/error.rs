@@ -99,6 +99,16 @@ pub enum Error {
         /// The tolerance asked for.
         tolerance: f64,
     },
+    /// The contact active set kept changing.
+    #[error(
+        "step {step}: the plate contacts did not settle after {iterations} active-set iterations; take more load steps"
+    )]
+    ContactNotConverged {
+        /// The step.
+        step: usize,
+        /// Iterations made.
+        iterations: usize,
+    },
     /// Serializing a report failed.
     #[error("writing JSON: {0}")]
     Json(#[from] serde_json::Error),
@@ -216,6 +226,17 @@ pub enum SceneProblem {
     /// A constraint that cannot be applied.
     #[error(transparent)]
     Constraint(fibfluid_assembly::AssemblyError),
+    /// A plate whose normal points away from the body.
+    #[error("the plate faces away from the body (its normal must point towards the body)")]
+    PlateFacesAway,
+    /// A plate that cuts the body at rest.
+    #[error("the plate already cuts the body at rest: vertex {vertex} is {depth:e} through it")]
+    PlateCutsBody {
+        /// The deepest vertex (file order).
+        vertex: usize,
+        /// How far through.
+        depth: f64,
+    },
     /// Nothing is fixed along an axis.
     #[error(
         "no vertex is fixed along {axis}; with the volume conserved the body could still translate freely (add a [[fix]] table)"

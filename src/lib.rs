@@ -26,6 +26,7 @@
 
 pub mod accuracy;
 pub mod bench;
+pub mod contact;
 mod error;
 pub mod guards;
 mod info;

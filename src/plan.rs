@@ -292,6 +292,24 @@ fn plan(scene: &Scene, size: &Size) -> Plan {
             steps * 2.0 * solve_flops,
         ),
     });
+    st.push(if scene.plates.is_empty() {
+        stage(names::CONTACT, false, "no plates", 0.0, 0.0)
+    } else {
+        // A contact costs one solve when it joins the set (again after each new operator
+        // outside paper mode); assume a tenth of the vertices touch.
+        let contacts = (n / 10.0).max(1.0);
+        let rebuilds = if solver.mode == Mode::Paper { 1.0 } else { steps * evaluations };
+        stage(
+            names::CONTACT,
+            true,
+            format!(
+                "{} plate(s): frictionless contact, an active set per step, held by a capacitance update of the kept factorization",
+                scene.plates.len()
+            ),
+            contacts * dim * 8.0,
+            rebuilds * contacts * solve_flops,
+        )
+    });
     st.push(if heun {
         stage(
             names::PREDICTOR,

@@ -64,6 +64,10 @@ pub struct Report {
     pub warnings: Vec<crate::guards::GuardWarning>,
     /// Faces inverted against the rest shape at the end.
     pub inverted_faces: usize,
+    /// Each plate's force, contact area, contacts and gap after every step (empty
+    /// without plates).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub plates: Vec<crate::contact::PlateRecord>,
     /// Volume before.
     pub volume_initial: f64,
     /// Volume after.
@@ -144,6 +148,7 @@ impl Report {
             }),
             warnings: sim.warnings().to_vec(),
             inverted_faces: crate::guards::inverted_faces(&sim.body().boundary, rest, sim.positions()),
+            plates: sim.plate_records().to_vec(),
             volume_initial: v0,
             volume_final: v1,
             volume_drift: (v1 / v0 - 1.0).abs(),

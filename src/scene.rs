@@ -9,6 +9,7 @@ use fibfluid_geometry::{MeshFile, Polygon, Vec3, load_mesh};
 use fibfluid_linalg::{Backend, Choice, Precision, impl_choice};
 use serde::Deserialize;
 
+use crate::contact::{Plate, PlateProblem, check_plates};
 use crate::error::{SceneError, SceneProblem};
 use crate::guards::Guards;
 use crate::{Error, Result};
@@ -168,6 +169,8 @@ pub struct Scene {
     pub tolerance: Option<f64>,
     /// Step guards (`[guards]`).
     pub guards: Guards,
+    /// Rigid plates (`[[plate]]`), moving along their normals over the load.
+    pub plates: Vec<Plate>,
     /// Solver choices.
     pub solver: SolverOptions,
 }
@@ -187,6 +190,7 @@ impl Scene {
             steps: 1,
             tolerance: None,
             guards: Guards::default(),
+            plates: vec![],
             solver: SolverOptions::default(),
         }
     }
@@ -368,6 +372,17 @@ struct SceneToml {
     force: Vec<ForceToml>,
     solver: Option<SolverToml>,
     guards: Option<GuardsToml>,
+    #[serde(default)]
+    plate: Vec<PlateToml>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PlateToml {
+    point: [f64; 3],
+    normal: [f64; 3],
+    #[serde(default)]
+    travel: f64,
 }
 
 #[derive(Deserialize)]
@@ -687,6 +702,35 @@ fn build(
             });
         }
     }
+    let mut plates = Vec::with_capacity(spec.plate.len());
+    for (k, p) in spec.plate.iter().enumerate() {
+        let key = format!("[[plate]] #{}", k + 1);
+        if p.point.iter().any(|c| !c.is_finite()) {
+            return Err(range(format!("{key}.point"), "finite", format!("{:?}", p.point)));
+        }
+        if !p.travel.is_finite() {
+            return Err(range(format!("{key}.travel"), "finite", p.travel));
+        }
+        let plate = Plate::new(p.point, p.normal, p.travel).ok_or_else(|| {
+            range(format!("{key}.normal"), "finite and non-zero", format!("{:?}", p.normal))
+        })?;
+        plates.push(plate);
+    }
+    let (lo, hi) = fibfluid_geometry::bounding_box(&positions);
+    let diagonal = fibfluid_geometry::vec3::norm(fibfluid_geometry::vec3::sub(hi, lo));
+    if let Err((k, problem)) = check_plates(&plates, &positions, PLATE_REST_TOLERANCE * diagonal) {
+        let key = format!("[[plate]] #{}", k + 1);
+        return Err(invalid(
+            key,
+            match problem {
+                PlateProblem::FacesAway => SceneProblem::PlateFacesAway,
+                PlateProblem::CutsBody { vertex, depth } => {
+                    let vertex = file.map(|f| f.to_file[vertex] as usize).unwrap_or(vertex);
+                    SceneProblem::PlateCutsBody { vertex, depth }
+                }
+            },
+        ));
+    }
     let material = Material { young, surface_tension: gamma, density, law };
     Ok(Scene {
         name,
@@ -699,9 +743,13 @@ fn build(
         steps: steps as usize,
         tolerance,
         guards,
+        plates,
         solver,
     })
 }
+
+/// A plate may touch the body at rest by this fraction of the body's diagonal.
+pub const PLATE_REST_TOLERANCE: f64 = 1e-6;
 
 /// The largest number of load steps a scene may ask for.
 pub const MAX_STEPS: usize = 1_000_000;

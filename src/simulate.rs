@@ -12,11 +12,14 @@ use std::time::Instant;
 use fibfluid_assembly::{
     AssemblyOptions, Body, ConstraintMethod, Loads, PressureScaling, System, assemble, load_vector,
 };
-use fibfluid_geometry::vec3::{add, norm, scale, sub};
+use fibfluid_geometry::vec3::{add, dot, norm, scale, sub};
 use fibfluid_geometry::{Boundary, FiberSet, Vec3, VisibilityOptions, cull_fibers};
 use fibfluid_linalg::{FactorOptions, Factorization, FactorizationExt, LinearSolver, PrescribedSet};
 use serde::Serialize;
 
+use crate::contact::{
+    Contact, MAX_ACTIVE_SET_ITERATIONS, PENETRATION_TOLERANCE, PlateRecord, TENSION_TOLERANCE,
+};
 use crate::guards::{Guard, GuardWarning, OnFailure, inverted_faces};
 use crate::plan::Plan;
 use crate::scene::{ForceTiming, Mode, Scene, Shape, Stepping};
@@ -85,6 +88,8 @@ pub struct State {
     pub load_factor: f64,
     /// Fraction of the forces applied at the last step (`at = "last"`) now acting.
     pub last_forces: f64,
+    /// Vertices in contact with a plate, and the plates' forces on them.
+    pub contacts: Vec<Contact>,
 }
 
 /// What the solves cost and how accurate they were.
@@ -115,6 +120,7 @@ pub struct StepStats {
 }
 
 /// The increments of one step.
+#[derive(Clone)]
 struct Increment {
     da: Vec3,
     forces: Vec<(usize, Vec3)>,
@@ -144,6 +150,8 @@ struct Factored {
     border_areas: Vec<Vec3>,
     /// Vertices held by [`Simulation::respond_held`], on this factorization.
     held: PrescribedSet,
+    /// Contact constraints, on this factorization.
+    contact: PrescribedSet,
 }
 
 /// The static response of a factored body to forces and held vertices.
@@ -167,6 +175,12 @@ pub struct Simulation {
     counters: Counters,
     stats: StepStats,
     warnings: Vec<GuardWarning>,
+    /// Contacts of the current solves: (plate, vertex), the step's normal motion onto the
+    /// plate, and the multipliers accumulated over the step.
+    contact_active: Vec<(usize, usize)>,
+    contact_values: Vec<f64>,
+    contact_increment: Vec<f64>,
+    plate_records: Vec<PlateRecord>,
     log: StageLog,
     started: Instant,
 }
@@ -216,7 +230,13 @@ impl Simulation {
         let system = log.time(names::ASSEMBLY, || assemble_on(&scene, &body, &body.rest, &areas))?;
         let factorization =
             log.time(names::FACTORIZATION, || solver.factorize(&system.matrix, &factor_options))?;
-        let state = State { positions: body.rest.clone(), pressure: 0.0, load_factor: 0.0, last_forces: 0.0 };
+        let state = State {
+            positions: body.rest.clone(),
+            pressure: 0.0,
+            load_factor: 0.0,
+            last_forces: 0.0,
+            contacts: vec![],
+        };
         let factored = Factored {
             system,
             factorization,
@@ -224,8 +244,10 @@ impl Simulation {
             options: factor_options,
             border_areas: areas,
             held: PrescribedSet::new(),
+            contact: PrescribedSet::new(),
         };
         let counters = Counters { factorizations: 1, ..Default::default() };
+        let plates = scene.plates.len();
         Ok(Self {
             scene,
             plan,
@@ -235,6 +257,10 @@ impl Simulation {
             counters,
             stats: StepStats::default(),
             warnings: vec![],
+            contact_active: vec![],
+            contact_values: vec![],
+            contact_increment: vec![],
+            plate_records: vec![PlateRecord::default(); plates],
             log,
             started,
         })
@@ -471,41 +497,146 @@ impl Simulation {
     }
 
     /// Takes one step of increments `inc` (with the Euler/Heun error estimate when
-    /// `estimate`), then checks the guards. Numeric failures are explained.
+    /// `estimate`), then checks the guards. With plates, the step is repeated until its
+    /// contact active set is stable. Numeric failures are explained.
     fn take_step(&mut self, inc: &Increment, estimate: bool) -> Result<StepOutcome> {
         let step = self.stats.taken + 1;
         let from = self.state.load_factor;
         let moves_prescribed = inc.prescribed != 0.0 && self.scene.constraints.has_nonzero();
         let acts = inc.da != [0.0; 3] && self.scene.material.density > 0.0;
-        if !acts && inc.forces.is_empty() && !moves_prescribed {
+        let plates_move = from != inc.to && self.scene.plates.iter().any(|p| p.travel != 0.0);
+        if !acts && inc.forces.is_empty() && !moves_prescribed && !plates_move {
             self.state.load_factor = inc.to;
             self.state.last_forces = inc.last_to;
             self.stats.skipped += 1;
             return Ok(StepOutcome { estimate: Some(0.0) });
         }
-        let before = self.state.positions.clone();
-        let residual_before = self.counters.residual_max;
-        self.counters.residual_max = 0.0;
-        let result = self.evaluate(inc, estimate);
-        let step_residual = self.counters.residual_max;
-        self.counters.residual_max = residual_before.max(step_residual);
-        let (du, dp, est) = result.map_err(|e| explain(e, step, from, inc.to, before.len()))?;
-        self.log.time(names::UPDATE, || {
-            for (p, d) in self.state.positions.iter_mut().zip(&du) {
-                *p = add(*p, *d);
+        let before = self.state.clone();
+        let n = before.positions.len();
+        let explained = |e| explain(e, step, from, inc.to, n);
+        let mut active = before.contacts.clone();
+        let mut released: Vec<(usize, Vec3)> = vec![];
+        let mut iterations = 0;
+        let (est, step_residual) = loop {
+            iterations += 1;
+            self.state = before.clone();
+            let mut inc_here = inc.clone();
+            inc_here.forces.extend_from_slice(&released);
+            self.set_contacts(&active, inc.to);
+            let residual_before = self.counters.residual_max;
+            self.counters.residual_max = 0.0;
+            let result = self.evaluate(&inc_here, estimate);
+            let step_residual = self.counters.residual_max;
+            self.counters.residual_max = residual_before.max(step_residual);
+            let (du, dp, est, multipliers) = result.map_err(explained)?;
+            self.log.time(names::UPDATE, || {
+                for (p, d) in self.state.positions.iter_mut().zip(&du) {
+                    *p = add(*p, *d);
+                }
+            });
+            self.state.pressure += dp;
+            self.state.load_factor = inc.to;
+            self.state.last_forces = inc.last_to;
+            self.contact_increment = multipliers;
+            if self.scene.solver.mode != Mode::Paper {
+                self.correct_volume().map_err(explained)?;
             }
-        });
-        self.state.pressure += dp;
-        self.state.load_factor = inc.to;
-        self.state.last_forces = inc.last_to;
-        if self.scene.solver.mode != Mode::Paper {
-            self.correct_volume().map_err(|e| explain(e, step, from, inc.to, before.len()))?;
-        }
+            if self.scene.plates.is_empty() {
+                break (est, step_residual);
+            }
+            // Contact forces after the step: the multipliers are the increments of minus
+            // the force along each contact's normal.
+            for (c, r) in active.iter_mut().zip(&self.contact_increment) {
+                c.force -= r;
+            }
+            let (changed, next, newly_released) = self.update_active_set(&active, inc.to);
+            if !changed {
+                self.state.contacts = active;
+                break (est, step_residual);
+            }
+            if iterations >= MAX_ACTIVE_SET_ITERATIONS {
+                return Err(Error::ContactNotConverged { step, iterations });
+            }
+            // Released contacts stop pushing: their force before the step is taken off.
+            for (plate, vertex) in newly_released {
+                if let Some(c) = before.contacts.iter().find(|c| c.plate == plate && c.vertex == vertex) {
+                    released.push((vertex, scale(self.scene.plates[plate].normal, -c.force)));
+                }
+            }
+            active = next;
+        };
         self.stats.taken += 1;
-        let increment =
-            self.state.positions.iter().zip(&before).map(|(p, q)| norm(sub(*p, *q))).fold(0.0, f64::max);
+        if !self.scene.plates.is_empty() {
+            self.record_plates(iterations);
+        }
+        let increment = self
+            .state
+            .positions
+            .iter()
+            .zip(&before.positions)
+            .map(|(p, q)| norm(sub(*p, *q)))
+            .fold(0.0, f64::max);
         self.check_guards(step, increment, step_residual)?;
         Ok(StepOutcome { estimate: est })
+    }
+
+    /// The contacts for the next solves: their constraint rows (free axes of the vertex,
+    /// the plate's normal) and the normal displacement that puts each vertex on its
+    /// plate at load factor `to`.
+    fn set_contacts(&mut self, active: &[Contact], to: f64) {
+        self.contact_values = active
+            .iter()
+            .map(|c| -self.scene.plates[c.plate].gap(self.state.positions[c.vertex], to))
+            .collect();
+        self.contact_active = active.iter().map(|c| (c.plate, c.vertex)).collect();
+    }
+
+    /// The next active set after a step: contacts turned tensile are released, vertices
+    /// through a plate join. Returns whether it changed, the new set and the released
+    /// (plate, vertex) pairs.
+    fn update_active_set(&self, active: &[Contact], to: f64) -> (bool, Vec<Contact>, Vec<(usize, usize)>) {
+        let largest = active.iter().map(|c| c.force.abs()).fold(0.0, f64::max);
+        let (keep, drop): (Vec<Contact>, Vec<Contact>) =
+            active.iter().partition(|c| c.force >= -TENSION_TOLERANCE * largest.max(f64::MIN_POSITIVE));
+        let mut next = keep;
+        let depth = PENETRATION_TOLERANCE * self.body.diagonal;
+        let axes = self.axes();
+        for (k, plate) in self.scene.plates.iter().enumerate() {
+            for (v, x) in self.state.positions.iter().enumerate() {
+                let fully_fixed = (0..axes).all(|c| self.scene.constraints.get(v, c).is_some());
+                if fully_fixed || active.iter().any(|c| c.plate == k && c.vertex == v) {
+                    continue;
+                }
+                if plate.gap(*x, to) < -depth {
+                    next.push(Contact { plate: k, vertex: v, force: 0.0 });
+                }
+            }
+        }
+        let released: Vec<(usize, usize)> = drop.iter().map(|c| (c.plate, c.vertex)).collect();
+        (next.len() != active.len() || !released.is_empty(), next, released)
+    }
+
+    /// Appends this step's force, contact area, contacts and gap to each plate's record.
+    fn record_plates(&mut self, iterations: usize) {
+        let areas = self.body.boundary.vertex_area_vectors(&self.state.positions);
+        let lambda = self.state.load_factor;
+        let plates = &self.scene.plates;
+        for (k, plate) in plates.iter().enumerate() {
+            let mine: Vec<&Contact> = self.state.contacts.iter().filter(|c| c.plate == k).collect();
+            let gap = match plates.get((k + 1) % plates.len()).filter(|_| plates.len() > 1) {
+                Some(other) => dot(plate.normal, sub(other.point_at(lambda), plate.point_at(lambda))).abs(),
+                None => {
+                    let h: Vec<f64> = self.state.positions.iter().map(|x| dot(plate.normal, *x)).collect();
+                    h.iter().copied().fold(f64::MIN, f64::max) - h.iter().copied().fold(f64::MAX, f64::min)
+                }
+            };
+            let r = &mut self.plate_records[k];
+            r.force.push(mine.iter().map(|c| c.force).sum());
+            r.contact_area.push(mine.iter().map(|c| norm(areas[c.vertex])).sum());
+            r.contact_vertices.push(mine.len());
+            r.gap.push(gap);
+            r.active_set_iterations.push(iterations);
+        }
     }
 
     /// The guards after step `step`; with `on_failure = "error"` the first one that fires
@@ -537,37 +668,44 @@ impl Simulation {
     /// Evaluates a step from the current shape: the displacement and pressure increments
     /// of the stepping scheme and, when asked, the Euler/Heun difference (largest vertex
     /// distance) that estimates the step's error.
-    fn evaluate(&mut self, inc: &Increment, estimate: bool) -> Result<(Vec<Vec3>, f64, Option<f64>)> {
+    fn evaluate(
+        &mut self,
+        inc: &Increment,
+        estimate: bool,
+    ) -> Result<(Vec<Vec3>, f64, Option<f64>, Vec<f64>)> {
         let s = self.state.positions.clone();
         let target = self.prepare_operator(&s)?;
         let b1 = self.load_increment(&s, inc.da, &inc.forces)?;
         if self.scene.solver.stepping == Stepping::Euler && !estimate {
-            let x = self.solve(&b1, target, inc.prescribed)?;
+            let (x, r) = self.solve(&b1, target, inc.prescribed, true)?;
             let (u, p) = self.factored.system.split_solution(&x);
-            return Ok((u, p, None));
+            return Ok((u, p, None, r));
         }
-        let xb = self.solve(&b1, 0.0, inc.prescribed)?;
+        let (xb, rb) = self.solve(&b1, 0.0, inc.prescribed, true)?;
         let (ub, pb) = self.factored.system.split_solution(&xb);
-        let (ut, pt) = if target != 0.0 {
+        let (ut, pt, rt) = if target != 0.0 {
             let zero = vec![0.0; b1.len()];
-            let xt = self.solve(&zero, target, 0.0)?;
-            self.factored.system.split_solution(&xt)
+            let (xt, rt) = self.solve(&zero, target, 0.0, false)?;
+            let (ut, pt) = self.factored.system.split_solution(&xt);
+            (ut, pt, rt)
         } else {
-            (vec![[0.0; 3]; s.len()], 0.0)
+            (vec![[0.0; 3]; s.len()], 0.0, vec![0.0; rb.len()])
         };
         let predicted: Vec<Vec3> = (0..s.len()).map(|i| add(add(s[i], ub[i]), ut[i])).collect();
         let open = self.log.begin(names::PREDICTOR);
         let corrected = self.prepare_operator(&predicted).and_then(|_| {
             let b2 = self.load_increment(&predicted, inc.da, &inc.forces)?;
-            self.solve(&b2, 0.0, inc.prescribed)
+            self.solve(&b2, 0.0, inc.prescribed, true)
         });
         self.log.end(open);
-        let (u2, p2) = self.factored.system.split_solution(&corrected?);
+        let (x2, r2) = corrected?;
+        let (u2, p2) = self.factored.system.split_solution(&x2);
         // Heun minus Euler: half the difference of the two slopes.
         let est =
             estimate.then(|| ub.iter().zip(&u2).map(|(a, b)| 0.5 * norm(sub(*b, *a))).fold(0.0, f64::max));
+        let r = (0..rb.len()).map(|k| 0.5 * (rb[k] + r2[k]) + rt[k]).collect();
         let u = (0..s.len()).map(|i| add(scale(add(ub[i], u2[i]), 0.5), ut[i])).collect();
-        Ok((u, 0.5 * (pb + p2) + pt, est))
+        Ok((u, 0.5 * (pb + p2) + pt, est, r))
     }
 
     /// Guard warnings so far.
@@ -580,6 +718,11 @@ impl Simulation {
         &self.stats
     }
 
+    /// Each plate's force, contact area, contacts and gap after every step.
+    pub fn plate_records(&self) -> &[PlateRecord] {
+        &self.plate_records
+    }
+
     /// The static response of the current factorization to point forces alone (no
     /// stepping, no position update): the interactive use of a factored body.
     pub fn respond(&mut self, forces: &[(usize, Vec3)]) -> Result<(Vec<Vec3>, f64)> {
@@ -589,7 +732,7 @@ impl Simulation {
         }
         let loads = Loads { forces, ..Default::default() };
         let b = load_vector(self.axes(), &self.state.positions, &self.factored.border_areas, &loads)?;
-        let x = self.solve(&b, 0.0, 1.0)?;
+        let (x, _) = self.solve(&b, 0.0, 1.0, false)?;
         Ok(self.factored.system.split_solution(&x))
     }
 
@@ -613,15 +756,15 @@ impl Simulation {
         }
         let wanted: Vec<usize> = held.iter().flat_map(|&(v, _)| (0..axes).map(move |c| c * n + v)).collect();
         let f = &mut self.factored;
-        for &i in f.held.indices().to_vec().iter().filter(|i| !wanted.contains(i)) {
-            f.held.remove(i)?;
+        for &key in f.held.keys().to_vec().iter().filter(|&&k| !wanted.contains(&(k as usize))) {
+            f.held.remove_key(key)?;
         }
         for &i in &wanted {
             f.held.add(f.factorization.as_ref(), i)?;
         }
         let value_of =
             |i: usize| held.iter().find(|(v, _)| *v == i % n).map(|(_, d)| d[i / n]).unwrap_or(0.0);
-        let values: Vec<f64> = f.held.indices().iter().map(|&i| value_of(i)).collect();
+        let values: Vec<f64> = f.held.keys().iter().map(|&i| value_of(i as usize)).collect();
         let loads = Loads { forces, ..Default::default() };
         let b = load_vector(axes, &self.state.positions, &f.border_areas, &loads)?;
         let rhs = f.system.rhs(&b, 0.0, &f.border_areas, 1.0);
@@ -630,15 +773,15 @@ impl Simulation {
         self.log.add(names::SOLVE, start.elapsed().as_secs_f64());
         self.counters.solves += 1;
         let (displacements, pressure) = self.factored.system.split_solution(&sol.x);
-        let indices = self.factored.held.indices();
+        let keys = self.factored.held.keys();
         let reactions = held
             .iter()
             .map(|&(v, _)| {
                 let mut r = [0.0; 3];
                 for (c, rc) in r.iter_mut().enumerate().take(axes) {
-                    let k = indices
+                    let k = keys
                         .iter()
-                        .position(|&i| i == c * n + v)
+                        .position(|&i| i as usize == c * n + v)
                         .expect("every held unknown is in the set");
                     *rc = -sol.multipliers[k];
                 }
@@ -655,8 +798,9 @@ impl Simulation {
         if mode == Mode::Paper {
             return Ok(0.0);
         }
-        // The held set was built on the operator about to change.
+        // The held and contact sets were built on the operator about to change.
         self.factored.held = PrescribedSet::new();
+        self.factored.contact = PrescribedSet::new();
         let areas = self.log.time(names::AREAS, || self.body.boundary.vertex_area_vectors(s));
         match mode {
             Mode::Paper => unreachable!("handled above"),
@@ -719,7 +863,10 @@ impl Simulation {
                 let areas = self.body.boundary.vertex_area_vectors(&positions);
                 let target = self.volume_target(&positions, &areas);
                 let zero = vec![0.0; self.axes() * positions.len()];
-                let x = self.solve(&zero, target, 0.0)?;
+                let (x, r) = self.solve(&zero, target, 0.0, false)?;
+                for (acc, rk) in self.contact_increment.iter_mut().zip(&r) {
+                    *acc += rk;
+                }
                 let (du, dp) = self.factored.system.split_solution(&x);
                 for (p, d) in self.state.positions.iter_mut().zip(&du) {
                     *p = add(*p, *d);
@@ -753,16 +900,71 @@ impl Simulation {
         Ok(self.log.time(names::LOADS, || load_vector(axes, s, areas, &loads))?)
     }
 
-    fn solve(&mut self, b: &[f64], target: f64, prescribed_scale: f64) -> Result<Vec<f64>> {
+    /// One solve with the current factorization; with active contacts, under their
+    /// constraints (`step`: each contact's vertex moves onto its plate; otherwise it
+    /// keeps its normal position). Returns the solution and the contacts' multipliers,
+    /// in the order of the active contacts.
+    fn solve(
+        &mut self,
+        b: &[f64],
+        target: f64,
+        prescribed_scale: f64,
+        step: bool,
+    ) -> Result<(Vec<f64>, Vec<f64>)> {
+        if !self.contact_active.is_empty() {
+            self.sync_contact_set()?;
+        }
         let f = &self.factored;
         let rhs = f.system.rhs(b, target, &f.border_areas, prescribed_scale);
         let start = Instant::now();
-        let sol = f.factorization.solve(&rhs)?;
+        let (x, multipliers) = if self.contact_active.is_empty() {
+            let sol = f.factorization.solve(&rhs)?;
+            self.counters.residual_max = self.counters.residual_max.max(sol.relative_residual);
+            self.counters.refinement_steps_max = self.counters.refinement_steps_max.max(sol.refinement_steps);
+            (sol.x, vec![])
+        } else {
+            // The set's order is its insertion order; values and multipliers follow it.
+            let keys = f.contact.keys();
+            let order: Vec<usize> = self
+                .contact_active
+                .iter()
+                .map(|&(p, v)| keys.iter().position(|&k| k == Contact::key(p, v)).expect("synced"))
+                .collect();
+            let mut values = vec![0.0; keys.len()];
+            if step {
+                for (i, &j) in order.iter().enumerate() {
+                    values[j] = self.contact_values[i];
+                }
+            }
+            let sol = f.contact.solve(f.factorization.as_ref(), &rhs, &values)?;
+            let r = order.iter().map(|&j| sol.multipliers[j]).collect();
+            (sol.x, r)
+        };
         self.log.add(names::SOLVE, start.elapsed().as_secs_f64());
         self.counters.solves += 1;
-        self.counters.residual_max = self.counters.residual_max.max(sol.relative_residual);
-        self.counters.refinement_steps_max = self.counters.refinement_steps_max.max(sol.refinement_steps);
-        Ok(sol.x)
+        Ok((x, multipliers))
+    }
+
+    /// Makes the factorization's contact constraints those of the active contacts.
+    fn sync_contact_set(&mut self) -> Result<()> {
+        let n = self.state.positions.len();
+        let axes = self.axes();
+        let wanted: Vec<u64> = self.contact_active.iter().map(|&(p, v)| Contact::key(p, v)).collect();
+        let f = &mut self.factored;
+        for key in f.contact.keys().to_vec().into_iter().filter(|k| !wanted.contains(k)) {
+            f.contact.remove_key(key)?;
+        }
+        let start = Instant::now();
+        for &(p, v) in &self.contact_active {
+            let normal = self.scene.plates[p].normal;
+            let row: Vec<(usize, f64)> = (0..axes)
+                .filter(|&c| self.scene.constraints.get(v, c).is_none())
+                .map(|c| (c * n + v, normal[c]))
+                .collect();
+            f.contact.add_row(f.factorization.as_ref(), Contact::key(p, v), &row)?;
+        }
+        self.log.add(names::CONTACT, start.elapsed().as_secs_f64());
+        Ok(())
     }
 }
 

@@ -126,6 +126,8 @@ pub mod names {
     pub const VOLUME_CORRECTION: &str = "volume correction";
     /// Heun's predictor evaluation.
     pub const PREDICTOR: &str = "predictor";
+    /// Contact constraints set up on the kept factorization (one solve per new contact).
+    pub const CONTACT: &str = "contact constraints";
     /// Position update.
     pub const UPDATE: &str = "geometry update";
     /// Writing the output files.

@@ -4,6 +4,7 @@ mod fuzz_readers;
 mod golden_sphere42;
 mod hard_cases;
 mod memory_guard;
+mod plates;
 mod scenes;
 mod stepping;
 mod volume_properties;

@@ -1,16 +1,16 @@
 //! A constraint set that changes on a kept factorization: prescribed unknowns by a
 //! capacitance (Sherman–Morrison–Woodbury) correction instead of a refactorization.
 //!
-//! To hold unknowns `P = {p_1 .. p_k}` of `A x = b` at values `g`, add one multiplier per
-//! held unknown, `A x + E r = b`, `E' x = g`, where `E` holds the columns of the identity
-//! at `P`. With `W = A^-1 E` (k solves with the kept factorization) and the k x k
-//! capacitance `C = E' W`:
+//! To impose k linear constraints `E' x = g` on `A x = b` (each column of `E` a sparse
+//! row: a held unknown is a column of the identity, a contact the normal at a vertex), add
+//! one multiplier per constraint, `A x + E r = b`. With `W = A^-1 E` (k solves with the
+//! kept factorization) and the k x k capacitance `C = E' W`:
 //!
 //! ```text
 //! y = A^-1 b,    C r = E' y - g,    x = y - W r
 //! ```
 //!
-//! `-r` is the force the constraint applies to hold each unknown (its reaction). On the
+//! `-r` is the force each constraint applies along its row (its reaction). On the
 //! bordered FFM system `C` is a block of the projected compliance
 //! `K^-1 - K^-1 S (S' K^-1 S)^-1 S' K^-1`: symmetric positive definite unless the held
 //! unknowns alone decide the volume, which is reported as an error.
@@ -28,11 +28,14 @@ use faer::{Mat, Side};
 
 use crate::{Factorization, FactorizationExt, LinalgError, Result};
 
-/// Unknowns held at prescribed values on a kept factorization (see the module docs).
+/// Linear constraints on the unknowns, imposed on a kept factorization (see the module
+/// docs). Each constraint has a key chosen by the caller.
 #[derive(Clone, Debug, Default)]
 pub struct PrescribedSet {
-    indices: Vec<usize>,
-    /// `W = A^-1 E`, one column per held unknown.
+    keys: Vec<u64>,
+    /// The constraint rows, sparse: (unknown, coefficient).
+    rows: Vec<Vec<(usize, f64)>>,
+    /// `W = A^-1 E`, one column per constraint.
     columns: Vec<Vec<f64>>,
     /// Cholesky factor of the capacitance `C = E' W`.
     capacitance: Option<faer::linalg::solvers::Llt<f64>>,
@@ -43,8 +46,8 @@ pub struct PrescribedSet {
 pub struct ConstrainedSolution {
     /// The solution, with the held unknowns at their values.
     pub x: Vec<f64>,
-    /// One multiplier per held unknown, in the set's order: the constraint adds `-r` to
-    /// the right-hand side row of that unknown, so `-r` is its reaction force.
+    /// One multiplier per constraint, in the set's order: the constraint adds `-r` times
+    /// its row to the right-hand side, so `-r` is its reaction along the row.
     pub multipliers: Vec<f64>,
 }
 
@@ -54,79 +57,95 @@ impl PrescribedSet {
         Self::default()
     }
 
-    /// The held unknowns, in order.
-    pub fn indices(&self) -> &[usize] {
-        &self.indices
+    /// The constraint keys, in order.
+    pub fn keys(&self) -> &[u64] {
+        &self.keys
     }
 
-    /// Number of held unknowns.
+    /// Number of constraints.
     pub fn len(&self) -> usize {
-        self.indices.len()
+        self.keys.len()
     }
 
-    /// Whether nothing is held.
+    /// Whether there is no constraint.
     pub fn is_empty(&self) -> bool {
-        self.indices.is_empty()
+        self.keys.is_empty()
     }
 
-    /// Holds unknown `index` (one solve with `f`); holding it twice is a no-op.
+    /// Holds unknown `index` (the constraint `x[index] = value`, keyed by the index).
     pub fn add(&mut self, f: &dyn Factorization, index: usize) -> Result<()> {
-        if self.indices.contains(&index) {
+        self.add_row(f, index as u64, &[(index, 1.0)])
+    }
+
+    /// Adds the constraint `row . x = value` under `key` (one solve with `f`); a key
+    /// already present is left as it is.
+    pub fn add_row(&mut self, f: &dyn Factorization, key: u64, row: &[(usize, f64)]) -> Result<()> {
+        if self.keys.contains(&key) {
             return Ok(());
         }
         let dim = f.matrix().dim();
-        assert!(index < dim, "unknown {index} of a {dim}-unknown system");
         let mut e = vec![0.0; dim];
-        e[index] = 1.0;
+        for &(i, c) in row {
+            assert!(i < dim, "unknown {i} of a {dim}-unknown system");
+            e[i] += c;
+        }
         let w = f.solve(&e)?.x;
-        self.indices.push(index);
+        self.keys.push(key);
+        self.rows.push(row.to_vec());
         self.columns.push(w);
         self.refactor()
     }
 
-    /// Releases unknown `index` (a refactor of the small capacitance only).
+    /// Releases unknown `index` (held by [`add`](Self::add)).
     pub fn remove(&mut self, index: usize) -> Result<()> {
-        if let Some(k) = self.indices.iter().position(|&i| i == index) {
-            self.indices.remove(k);
+        self.remove_key(index as u64)
+    }
+
+    /// Drops the constraint under `key` (a refactor of the small capacitance only).
+    pub fn remove_key(&mut self, key: u64) -> Result<()> {
+        if let Some(k) = self.keys.iter().position(|&i| i == key) {
+            self.keys.remove(k);
+            self.rows.remove(k);
             self.columns.remove(k);
             self.refactor()?;
         }
         Ok(())
     }
 
+    /// `row . v` for constraint `k`.
+    fn apply_row(&self, k: usize, v: &[f64]) -> f64 {
+        self.rows[k].iter().map(|&(i, c)| c * v[i]).sum()
+    }
+
     fn refactor(&mut self) -> Result<()> {
-        let k = self.indices.len();
+        let k = self.keys.len();
         if k == 0 {
             self.capacitance = None;
             return Ok(());
         }
         let c = Mat::from_fn(k, k, |i, j| {
-            0.5 * (self.columns[j][self.indices[i]] + self.columns[i][self.indices[j]])
+            0.5 * (self.apply_row(i, &self.columns[j]) + self.apply_row(j, &self.columns[i]))
         });
         let llt = c.llt(Side::Lower).map_err(|_| LinalgError::DependentConstraints { held: k })?;
         self.capacitance = Some(llt);
         Ok(())
     }
 
-    /// Solves `A x = b` with the held unknowns at `values` (in the set's order).
+    /// Solves `A x = b` with each constraint's `row . x` at `values` (in the set's order).
     pub fn solve(&self, f: &dyn Factorization, b: &[f64], values: &[f64]) -> Result<ConstrainedSolution> {
-        assert_eq!(values.len(), self.indices.len(), "one value per held unknown");
+        assert_eq!(values.len(), self.keys.len(), "one value per constraint");
         let mut y = f.solve(b)?.x;
         let Some(llt) = &self.capacitance else {
             return Ok(ConstrainedSolution { x: y, multipliers: vec![] });
         };
-        let k = self.indices.len();
-        let rhs = Mat::from_fn(k, 1, |i, _| y[self.indices[i]] - values[i]);
+        let k = self.keys.len();
+        let rhs = Mat::from_fn(k, 1, |i, _| self.apply_row(i, &y) - values[i]);
         let r = llt.solve(&rhs);
         let multipliers: Vec<f64> = (0..k).map(|i| r[(i, 0)]).collect();
         for (w, &ri) in self.columns.iter().zip(&multipliers) {
             for (yi, wi) in y.iter_mut().zip(w) {
                 *yi -= wi * ri;
             }
-        }
-        // The held unknowns are exact up to rounding; set them to their values.
-        for (&i, &v) in self.indices.iter().zip(values) {
-            y[i] = v;
         }
         if let Some(i) = y.iter().position(|v| !v.is_finite()) {
             return Err(LinalgError::NonFiniteSolution { index: i });

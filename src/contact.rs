@@ -1,0 +1,128 @@
+//! Rigid plates and frictionless unilateral contact with them.
+//!
+//! A [`Plate`] is a plane through `point` with a unit `normal` pointing towards the body;
+//! it moves along its normal by `travel` over the load (`travel * lambda` at load factor
+//! `lambda`). A vertex is in contact when it would pass through the plate: its normal
+//! displacement is then prescribed so that it lies on the plate, while it slides freely
+//! along it. A contact whose reaction turns tensile (the plate would have to pull) is
+//! released. Each step iterates this active set until it no longer changes
+//! ([`MAX_ACTIVE_SET_ITERATIONS`] at most).
+//!
+//! A change of the active set is a change of the constraints on the kept factorization:
+//! one solve per new contact and a k x k refactor of the capacitance
+//! ([`PrescribedSet`](fibfluid_linalg::PrescribedSet)), never a refactorization of the
+//! stiffness blocks.
+
+use fibfluid_geometry::Vec3;
+use fibfluid_geometry::vec3::{add, dot, norm, scale, sub};
+use serde::Serialize;
+
+/// A rigid plate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Plate {
+    /// A point of the plate's plane at rest.
+    pub point: Vec3,
+    /// Unit normal pointing towards the body.
+    pub normal: Vec3,
+    /// Motion along the normal over the whole load (reached at load factor 1).
+    pub travel: f64,
+}
+
+impl Plate {
+    /// The plate with `normal` scaled to unit length; `None` for a zero or non-finite
+    /// normal.
+    pub fn new(point: Vec3, normal: Vec3, travel: f64) -> Option<Self> {
+        let len = norm(normal);
+        (len.is_finite() && len > 0.0 && point.iter().all(|c| c.is_finite()) && travel.is_finite())
+            .then(|| Plate { point, normal: scale(normal, 1.0 / len), travel })
+    }
+
+    /// A point of the plane at load factor `lambda`.
+    pub fn point_at(&self, lambda: f64) -> Vec3 {
+        add(self.point, scale(self.normal, self.travel * lambda))
+    }
+
+    /// Signed distance of `x` from the plane at load factor `lambda`: positive on the
+    /// body's side, negative through the plate.
+    pub fn gap(&self, x: Vec3, lambda: f64) -> f64 {
+        dot(self.normal, sub(x, self.point_at(lambda)))
+    }
+}
+
+/// A vertex in contact with a plate, and the force the plate applies to it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Contact {
+    /// Plate index.
+    pub plate: usize,
+    /// Vertex.
+    pub vertex: usize,
+    /// Force along the plate's normal (positive: pushing the body).
+    pub force: f64,
+}
+
+impl Contact {
+    /// The key of the contact's constraint in the kept factorization's constraint set.
+    pub(crate) fn key(plate: usize, vertex: usize) -> u64 {
+        ((plate as u64) << 40) | vertex as u64
+    }
+}
+
+/// One plate's record over the steps (`report.json` `plates`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct PlateRecord {
+    /// Sum of the contact forces along the normal after each step.
+    pub force: Vec<f64>,
+    /// Sum of the vertex areas |S_i| in contact after each step.
+    pub contact_area: Vec<f64>,
+    /// Vertices in contact after each step.
+    pub contact_vertices: Vec<usize>,
+    /// Distance to the next plate (or, for a single plate, the body's extent along the
+    /// normal) after each step.
+    pub gap: Vec<f64>,
+    /// Active-set iterations of each step.
+    pub active_set_iterations: Vec<usize>,
+}
+
+/// At most this many active-set iterations per step.
+pub const MAX_ACTIVE_SET_ITERATIONS: usize = 50;
+
+/// A vertex further than this fraction of the body's diagonal through a plate joins the
+/// active set; no vertex ends further through a plate than this.
+pub const PENETRATION_TOLERANCE: f64 = 1e-9;
+
+/// A contact whose force is below minus this fraction of the largest contact force is
+/// released (tensile).
+pub const TENSION_TOLERANCE: f64 = 1e-9;
+
+/// The rest-shape check of the plates against a body: `Err` names the first plate that
+/// faces away from the body or already cuts it by more than `tolerance`.
+pub fn check_plates(plates: &[Plate], rest: &[Vec3], tolerance: f64) -> Result<(), (usize, PlateProblem)> {
+    let n = rest.len().max(1) as f64;
+    let centroid = scale(rest.iter().fold([0.0; 3], |a, p| add(a, *p)), 1.0 / n);
+    for (k, p) in plates.iter().enumerate() {
+        if p.gap(centroid, 0.0) <= 0.0 {
+            return Err((k, PlateProblem::FacesAway));
+        }
+        if let Some((v, g)) =
+            rest.iter().enumerate().map(|(v, x)| (v, p.gap(*x, 0.0))).min_by(|a, b| a.1.total_cmp(&b.1))
+            && g < -tolerance
+        {
+            return Err((k, PlateProblem::CutsBody { vertex: v, depth: -g }));
+        }
+    }
+    Ok(())
+}
+
+/// What is wrong with a plate at rest.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PlateProblem {
+    /// The body's centroid is behind the plate.
+    FacesAway,
+    /// A vertex is through the plate at rest.
+    CutsBody {
+        /// The deepest vertex.
+        vertex: usize,
+        /// How deep.
+        depth: f64,
+    },
+}
