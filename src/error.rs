@@ -33,6 +33,9 @@ pub enum Error {
     /// Rendering a picture failed.
     #[error("render: {0}")]
     Render(#[from] fibfluid_render::RenderError),
+    /// Probing failed: a bad tool path (file and line) or a refused body.
+    #[error(transparent)]
+    Probe(#[from] crate::probe::ProbeError),
     /// An option given in code or on the command line is invalid.
     #[error("{0}")]
     Invalid(String),

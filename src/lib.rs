@@ -24,6 +24,7 @@ pub mod accuracy;
 pub mod bench;
 mod error;
 mod output;
+pub mod probe;
 mod report;
 mod scene;
 mod simulate;

@@ -14,6 +14,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
 mod accuracy;
+mod probe;
 
 /// Soft tissue as fluid held by elastic fibers: the fiber–fluid method.
 #[derive(Parser)]
@@ -106,6 +107,9 @@ enum Command {
         #[arg(long)]
         constraints: Option<String>,
     },
+    /// Replay a tool path (grabs or forces per frame) on the scene's precomputed response;
+    /// write frames.csv, final.obj, report.json and probe.png.
+    Probe(probe::ProbeArgs),
 }
 
 /// Command-line overrides of the scene's [solver] and [load] settings.
@@ -233,6 +237,7 @@ fn run(command: Command) -> Result<(), Error> {
         Command::Accuracy { scene, out, steps, backends, modes, steppings, precisions, constraints } => {
             accuracy::run(&scene, &out, &steps, backends, modes, steppings, precisions, constraints)
         }
+        Command::Probe(args) => probe::run(&args),
     }
 }
 

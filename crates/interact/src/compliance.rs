@@ -100,6 +100,14 @@ pub struct MemoryEstimate {
     pub peak: u64,
 }
 
+/// The bytes a precompute may use: `limit` when given, else [`DENSE_MEMORY_FRACTION`] of
+/// the available memory (8 GiB when that is unknown), the dense backends' budget.
+pub fn memory_budget(limit: Option<u64>) -> u64 {
+    limit.unwrap_or_else(|| {
+        available_memory_bytes().map(|b| (b as f64 * DENSE_MEMORY_FRACTION) as u64).unwrap_or(8 * 1024 * 1024 * 1024)
+    })
+}
+
 /// Columns inverted per pass of the blocked inverse.
 const INVERSE_BLOCK: usize = 256;
 
@@ -147,8 +155,14 @@ pub struct Compliance {
 impl Compliance {
     /// The memory a precompute of `system` with `storage` needs.
     pub fn estimate(system: &System, storage: Storage) -> MemoryEstimate {
-        let n = system.matrix.n_vertices() as u64;
-        let nblocks = if system.matrix.is_shared() { 1 } else { system.axes() as u64 };
+        let nblocks = if system.matrix.is_shared() { 1 } else { system.axes() };
+        Self::estimate_for(system.matrix.n_vertices(), nblocks, storage)
+    }
+
+    /// The memory a precompute of `nblocks` distinct N x N blocks needs (before anything,
+    /// even the system, is assembled).
+    pub fn estimate_for(n: usize, nblocks: usize, storage: Storage) -> MemoryEstimate {
+        let (n, nblocks) = (n as u64, nblocks as u64);
         let block = n * n;
         let stored = nblocks * block * storage.word_bytes() as u64;
         let work = block * 8 + n * INVERSE_BLOCK as u64 * 8;
@@ -173,11 +187,7 @@ impl Compliance {
         let a = &system.matrix;
         let (n, axes) = (a.n_vertices(), a.axes());
         let est = Self::estimate(system, opts.storage);
-        let budget = opts.max_memory_bytes.unwrap_or_else(|| {
-            available_memory_bytes()
-                .map(|b| (b as f64 * DENSE_MEMORY_FRACTION) as u64)
-                .unwrap_or(8 * 1024 * 1024 * 1024)
-        });
+        let budget = memory_budget(opts.max_memory_bytes);
         if est.peak > budget {
             return Err(InteractError::OutOfMemory { bytes: est.peak, available: budget });
         }
