@@ -63,9 +63,17 @@ pub enum ProbeError {
         /// The path file.
         path: PathBuf,
     },
-    /// The body refused a request or could not be built.
+    /// The body refused a request.
     #[error("probe: {0}")]
     Body(#[from] InteractError),
+    /// The scene's body cannot be built (too large for the memory, singular).
+    #[error("{scene}: {source}")]
+    Build {
+        /// The scene file (or the scene's name when built in code).
+        scene: String,
+        /// Why.
+        source: InteractError,
+    },
     /// The scene is a 2D polygon.
     #[error("probe needs a surface mesh; this scene is a 2D polygon")]
     NotASurface,
@@ -398,8 +406,10 @@ pub fn build_body(scene: &Scene, opts: &ProbeOptions) -> Result<ProbeBody> {
     let system_bytes = 2 * (nblocks * n * n * 8) as u64;
     let need = est.peak + system_bytes;
     let budget = memory_budget(opts.max_memory_bytes);
+    let scene_name = scene.source.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| scene.name.clone());
+    let build = |source: InteractError| ProbeError::Build { scene: scene_name.clone(), source };
     if need > budget {
-        return Err(ProbeError::Body(InteractError::OutOfMemory { bytes: need, available: budget }).into());
+        return Err(build(InteractError::OutOfMemory { bytes: need, available: budget }).into());
     }
     let start = Instant::now();
     let mut sim = Simulation::new(linearized_scene(scene))?;
@@ -413,12 +423,12 @@ pub fn build_body(scene: &Scene, opts: &ProbeOptions) -> Result<ProbeBody> {
     let base_pressure = sim.pressure();
     let base_seconds = start.elapsed().as_secs_f64();
     let copts = ComplianceOptions { storage: opts.storage, max_memory_bytes: Some(budget - system_bytes) };
-    let compliance = Compliance::from_system(sim.system(), &copts).map_err(ProbeError::from)?;
+    let compliance = Compliance::from_system(sim.system(), &copts).map_err(build)?;
     let precompute_seconds = compliance.seconds();
     let rest = sim.rest_positions().to_vec();
     drop(sim);
-    let mut body = FfmBody::new(compliance, rest).map_err(ProbeError::from)?;
-    body.set_base(base, base_pressure).map_err(ProbeError::from)?;
+    let mut body = FfmBody::new(compliance, rest).map_err(build)?;
+    body.set_base(base, base_pressure).map_err(build)?;
     Ok(ProbeBody { body, base_seconds, precompute_seconds })
 }
 
