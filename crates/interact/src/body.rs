@@ -42,6 +42,10 @@ pub struct FfmBody {
     compliance: Compliance,
     rest: Vec<Vec3>,
     base: Vec<Vec3>,
+    /// The base displacement axis by axis (`c * N + i`), the layout the field is summed in.
+    base_axes: Vec<f64>,
+    /// Scratch of the same layout.
+    field_axes: Vec<f64>,
     base_pressure: f64,
     pending: BTreeMap<usize, Hold>,
     field: Vec<Vec3>,
@@ -74,6 +78,8 @@ impl FfmBody {
         }
         Ok(Self {
             base: vec![[0.0; 3]; n],
+            base_axes: vec![0.0; compliance.axes() * n],
+            field_axes: vec![0.0; compliance.axes() * n],
             base_pressure: 0.0,
             pending: BTreeMap::new(),
             field: vec![[0.0; 3]; n],
@@ -106,6 +112,12 @@ impl FfmBody {
         }
         if !pressure.is_finite() {
             return Err(InteractError::Invalid(format!("base pressure {pressure} is not finite")));
+        }
+        let d = self.compliance.axes();
+        for c in 0..d {
+            for i in 0..n {
+                self.base_axes[c * n + i] = displacement[i][c];
+            }
         }
         self.base = displacement;
         self.base_pressure = pressure;
@@ -328,10 +340,17 @@ impl Interactive for FfmBody {
             self.capacitance = fresh;
         }
         let p = self.compliance.pressure_of(&self.forces);
-        self.field.clone_from(&self.base);
-        self.compliance.add_field(&self.forces, p, &mut self.field);
+        self.field_axes.copy_from_slice(&self.base_axes);
+        self.compliance.add_field_axes(&self.forces, p, &mut self.field_axes);
+        let (n, d) = (self.rest.len(), self.compliance.axes());
+        let u = &self.field_axes;
+        for (i, ((fi, pi), ri)) in self.field.iter_mut().zip(self.positions.iter_mut()).zip(&self.rest).enumerate() {
+            for c in 0..d {
+                fi[c] = u[c * n + i];
+                pi[c] = ri[c] + fi[c];
+            }
+        }
         self.pressure = self.base_pressure + p;
-        self.refresh_positions();
         self.reactions = reactions;
         self.frame += 1;
         self.field_current = true;

@@ -363,16 +363,46 @@ impl Compliance {
     }
 
     /// Adds the field of point forces (already effective) whose pressure change is
-    /// `pressure` to `field`: `field_i += sum_v C[i, v] f_v - w_i P`. `O(N)` per force.
+    /// `pressure` to `u`, stored axis by axis as the system's unknowns are (`u[c * N + i]`,
+    /// `axes * N` entries): `u_c += sum_v C_c[:, v] f_v,c - w_c P`. One streamed column of
+    /// `C` per force and axis, `O(N)` per force.
     ///
     /// # Panics
-    /// If `field` does not have N entries or a vertex is out of range (programming errors).
+    /// If `u` does not have `axes * N` entries or a vertex is out of range (programming
+    /// errors).
+    #[track_caller]
+    pub fn add_field_axes(&self, forces: &[(usize, Vec3)], pressure: f64, u: &mut [f64]) {
+        let n = self.n;
+        assert_eq!(u.len(), self.axes * n, "field length");
+        for (c, uc) in u.chunks_exact_mut(n).enumerate() {
+            for (ui, wi) in uc.iter_mut().zip(&self.w[c]) {
+                *ui -= wi * pressure;
+            }
+            for &(v, f) in forces {
+                if f[c] != 0.0 {
+                    match &self.blocks {
+                        Blocks::F64(b) => axpy(uc, b[if b.len() == 1 { 0 } else { c }].col_as_slice(v), f[c]),
+                        Blocks::F32(b) => axpy(uc, b[if b.len() == 1 { 0 } else { c }].col_as_slice(v), f[c]),
+                    }
+                }
+            }
+        }
+    }
+
+    /// [`add_field_axes`](Self::add_field_axes) on a field stored vertex by vertex.
+    ///
+    /// # Panics
+    /// If `field` does not have N entries or a vertex is out of range.
     #[track_caller]
     pub fn add_field(&self, forces: &[(usize, Vec3)], pressure: f64, field: &mut [Vec3]) {
-        assert_eq!(field.len(), self.n, "field length");
-        match &self.blocks {
-            Blocks::F64(b) => add_field_impl(b, &self.w, self.axes, forces, pressure, field),
-            Blocks::F32(b) => add_field_impl(b, &self.w, self.axes, forces, pressure, field),
+        let n = self.n;
+        assert_eq!(field.len(), n, "field length");
+        let mut u = vec![0.0; self.axes * n];
+        self.add_field_axes(forces, pressure, &mut u);
+        for (i, fi) in field.iter_mut().enumerate() {
+            for c in 0..self.axes {
+                fi[c] += u[c * n + i];
+            }
         }
     }
 
@@ -429,69 +459,11 @@ impl Entry for f32 {
     }
 }
 
-/// Forces per pass over the field (columns streamed together).
-const FIELD_CHUNK: usize = 8;
-
-fn add_field_impl<T: Entry>(
-    blocks: &[Mat<T>],
-    w: &[Vec<f64>],
-    axes: usize,
-    forces: &[(usize, Vec3)],
-    pressure: f64,
-    field: &mut [Vec3],
-) {
-    let n = field.len();
-    if blocks.len() == 1 {
-        let k = &blocks[0];
-        // The first pass also applies the pressure term.
-        let mut first = true;
-        for chunk in forces.chunks(FIELD_CHUNK) {
-            let cols: Vec<&[T]> = chunk.iter().map(|&(v, _)| k.col_as_slice(v)).collect();
-            let fs: Vec<Vec3> = chunk.iter().map(|&(_, f)| f).collect();
-            for i in 0..n {
-                let mut acc = field[i];
-                if first {
-                    for c in 0..axes {
-                        acc[c] -= w[c][i] * pressure;
-                    }
-                }
-                for (col, f) in cols.iter().zip(&fs) {
-                    let cij = col[i].f64();
-                    acc[0] += cij * f[0];
-                    acc[1] += cij * f[1];
-                    acc[2] += cij * f[2];
-                }
-                field[i] = acc;
-            }
-            first = false;
-        }
-        if first {
-            for (i, u) in field.iter_mut().enumerate() {
-                for c in 0..axes {
-                    u[c] -= w[c][i] * pressure;
-                }
-            }
-        }
-        if axes == 2 {
-            // A polygon has no z: nothing may leak into it.
-            field.iter_mut().for_each(|u| u[2] = 0.0);
-        }
-    } else {
-        for c in 0..axes {
-            let k = &blocks[c];
-            for (i, u) in field.iter_mut().enumerate() {
-                u[c] -= w[c][i] * pressure;
-            }
-            for &(v, f) in forces {
-                if f[c] == 0.0 {
-                    continue;
-                }
-                let col = k.col_as_slice(v);
-                for (u, cij) in field.iter_mut().zip(col) {
-                    u[c] += cij.f64() * f[c];
-                }
-            }
-        }
+/// `y += a x` with x converted to f64 (vectorized by the compiler).
+#[inline]
+fn axpy<T: Entry>(y: &mut [f64], x: &[T], a: f64) {
+    for (yi, xi) in y.iter_mut().zip(x) {
+        *yi += xi.f64() * a;
     }
 }
 

@@ -174,7 +174,9 @@ pub trait FactorizationExt: Factorization {
     /// Solves `count` right-hand sides stored one after another in `b` (each `dim()` long)
     /// as [`solve`](Self::solve) does each of them (same refinement, same checks), with
     /// every solve and refinement round made by one
-    /// [`solve_many_unrefined`](Factorization::solve_many_unrefined) call over the columns
+    /// [`solve_many_unrefined`](Factorization::solve_many_unrefined) call, and every
+    /// residual check by one [`apply_many`](BorderedMatrix::apply_many) /
+    /// [`apply_abs_many`](BorderedMatrix::apply_abs_many) pass, over the right-hand sides
     /// that still need it.
     ///
     /// # Panics
@@ -190,28 +192,34 @@ pub trait FactorizationExt: Factorization {
         let opts = *self.options();
         let mut x = b.to_vec();
         self.solve_many_unrefined(&mut x, count);
-        let mut r = vec![0.0; dim];
-        let mut denom = vec![0.0; dim];
         let mut rel = vec![f64::INFINITY; count];
         let mut steps = vec![0usize; count];
         let mut active: Vec<usize> = (0..count).collect();
         loop {
-            let mut corrections = Vec::new();
-            let mut refine = Vec::new();
+            // Residuals of every active right-hand side in one pass over the blocks.
+            let mut xs = Vec::with_capacity(active.len() * dim);
             for &k in &active {
                 let xk = &x[k * dim..(k + 1) * dim];
-                let bk = &b[k * dim..(k + 1) * dim];
                 if let Some(i) = xk.iter().position(|v| !v.is_finite()) {
                     return Err(LinalgError::NonFiniteSolution { index: i });
                 }
-                a.apply(xk, &mut r);
-                for (ri, bi) in r.iter_mut().zip(bk) {
+                xs.extend_from_slice(xk);
+            }
+            let mut r = vec![0.0; xs.len()];
+            let mut denom = vec![0.0; xs.len()];
+            a.apply_many(&xs, &mut r, active.len());
+            a.apply_abs_many(&xs, &mut denom, active.len());
+            let mut corrections = Vec::new();
+            let mut refine = Vec::new();
+            for (j, &k) in active.iter().enumerate() {
+                let bk = &b[k * dim..(k + 1) * dim];
+                let rk = &mut r[j * dim..(j + 1) * dim];
+                for (ri, bi) in rk.iter_mut().zip(bk) {
                     *ri = bi - *ri;
                 }
-                a.apply_abs(xk, &mut denom);
-                rel[k] = componentwise_backward_error(&r, &denom, bk);
+                rel[k] = componentwise_backward_error(rk, &denom[j * dim..(j + 1) * dim], bk);
                 if rel[k] > opts.target_residual && steps[k] < opts.max_refinement_steps {
-                    corrections.extend_from_slice(&r);
+                    corrections.extend_from_slice(rk);
                     refine.push(k);
                 }
             }

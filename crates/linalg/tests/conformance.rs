@@ -753,3 +753,28 @@ fn solve_many_matches_separate_solves_in_every_backend() {
         }
     }
 }
+
+#[test]
+fn apply_many_matches_apply_per_vector() {
+    // Against the one-vector products, which `apply_and_to_dense_agree` pins to the dense
+    // matrix; shared and per-axis blocks, Laplacian (z-matrix) and Gram blocks.
+    for case in random_cases() {
+        let dim = case.matrix.dim();
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let x: Vec<f64> = (0..3 * dim).map(|_| rng.random_range(-1.0..1.0)).collect();
+        let (mut y, mut ya) = (vec![0.0; 3 * dim], vec![0.0; 3 * dim]);
+        case.matrix.apply_many(&x, &mut y, 3);
+        case.matrix.apply_abs_many(&x, &mut ya, 3);
+        for k in 0..3 {
+            let (mut y1, mut ya1) = (vec![0.0; dim], vec![0.0; dim]);
+            case.matrix.apply(&x[k * dim..(k + 1) * dim], &mut y1);
+            case.matrix.apply_abs(&x[k * dim..(k + 1) * dim], &mut ya1);
+            assert!(relative_difference(&y[k * dim..(k + 1) * dim], &y1) <= 1e-14, "{}: apply, vector {k}", case.name);
+            assert!(
+                relative_difference(&ya[k * dim..(k + 1) * dim], &ya1) <= 1e-14,
+                "{}: apply_abs, vector {k}",
+                case.name
+            );
+        }
+    }
+}
