@@ -196,7 +196,9 @@ fn probe(c: &mut Criterion) {
                 black_box(a.x[0] + b2.x[0])
             })
         });
-        g.bench_function("solve_many(2)", |b| b.iter(|| black_box(f.solve_many(&two, 2).expect("solve_many")[1].x[0])));
+        g.bench_function("solve_many(2)", |b| {
+            b.iter(|| black_box(f.solve_many(&two, 2).expect("solve_many")[1].x[0]))
+        });
         // Streaming the factor's bytes twice: one N x N f64 buffer (as large as the
         // factor) summed twice.
         let buffer = vec![1.0f64; n * n];

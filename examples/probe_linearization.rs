@@ -27,7 +27,13 @@ fn dist(a: Vec3, b: Vec3) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
-fn reference(scene: &Scene, v: usize, r: Vec3, mode: Mode, steps: usize) -> Result<Vec<Vec3>, fibfluid::Error> {
+fn reference(
+    scene: &Scene,
+    v: usize,
+    r: Vec3,
+    mode: Mode,
+    steps: usize,
+) -> Result<Vec<Vec3>, fibfluid::Error> {
     let mut s = scene.clone();
     s.solver.mode = mode;
     s.solver.stepping = Stepping::Heun;
@@ -79,7 +85,10 @@ fn main() -> Result<(), fibfluid::Error> {
         let b = reference(&scene, v, r, Mode::Nonlinear, 80)?;
         let umax = b.iter().zip(&rest).map(|(p, q)| dist(*p, *q)).fold(0.0, f64::max);
         let diff = a.iter().zip(&b).map(|(p, q)| dist(*p, *q)).fold(0.0, f64::max);
-        println!("\nnonlinear reference, grab {s}: 40 vs 80 Heun steps differ by {:.2e} of max|u|", diff / umax);
+        println!(
+            "\nnonlinear reference, grab {s}: 40 vs 80 Heun steps differ by {:.2e} of max|u|",
+            diff / umax
+        );
     }
     Ok(())
 }

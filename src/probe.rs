@@ -83,7 +83,9 @@ pub enum ProbeError {
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum PathProblem {
     /// The first line is not one of the two headers.
-    #[error("bad header `{found}`: expected `frame,vertex,ux,uy,uz` (grab) or `frame,vertex,fx,fy,fz` (force)")]
+    #[error(
+        "bad header `{found}`: expected `frame,vertex,ux,uy,uz` (grab) or `frame,vertex,fx,fy,fz` (force)"
+    )]
     Header {
         /// The line found.
         found: String,
@@ -235,7 +237,8 @@ impl ToolPath {
     /// Parses the text of a path file; `source` names it in errors.
     pub fn parse(source: impl Into<PathBuf>, text: &str) -> std::result::Result<Self, ProbeError> {
         let source = source.into();
-        let err = |line: usize, problem: PathProblem| ProbeError::Path { path: source.clone(), line, problem };
+        let err =
+            |line: usize, problem: PathProblem| ProbeError::Path { path: source.clone(), line, problem };
         let mut lines = text
             .lines()
             .enumerate()
@@ -332,7 +335,8 @@ pub fn check_path(path: &ToolPath, scene: &Scene) -> std::result::Result<Vec<Vec
     let to_mesh: HashMap<usize, usize> =
         file.to_file.iter().enumerate().map(|(m, &f)| (f as usize, m)).collect();
     let count = file.file_vertex_count();
-    let err = |line: usize, problem: PathProblem| ProbeError::Path { path: path.source.clone(), line, problem };
+    let err =
+        |line: usize, problem: PathProblem| ProbeError::Path { path: path.source.clone(), line, problem };
     let mut frames: Vec<Vec<PathHold>> = vec![Vec::new(); path.frames()];
     for row in &path.rows {
         let Some(fv) = row.vertex else { continue };
@@ -352,7 +356,10 @@ pub fn check_path(path: &ToolPath, scene: &Scene) -> std::result::Result<Vec<Vec
         }
         let frame = &mut frames[row.frame];
         if let Some(first) = frame.iter().find(|h| h.vertex == v) {
-            return Err(err(row.line, PathProblem::Duplicate { vertex: fv, frame: row.frame, first: first.line }));
+            return Err(err(
+                row.line,
+                PathProblem::Duplicate { vertex: fv, frame: row.frame, first: first.line },
+            ));
         }
         frame.push(PathHold { line: row.line, vertex: v, file_vertex: fv, value: row.value });
     }
@@ -406,7 +413,8 @@ pub fn build_body(scene: &Scene, opts: &ProbeOptions) -> Result<ProbeBody> {
     let system_bytes = 2 * (nblocks * n * n * 8) as u64;
     let need = est.peak + system_bytes;
     let budget = memory_budget(opts.max_memory_bytes);
-    let scene_name = scene.source.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| scene.name.clone());
+    let scene_name =
+        scene.source.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| scene.name.clone());
     let build = |source: InteractError| ProbeError::Build { scene: scene_name.clone(), source };
     if need > budget {
         return Err(build(InteractError::OutOfMemory { bytes: need, available: budget }).into());
@@ -479,7 +487,12 @@ pub fn replay(
         let reactions = body.reactions();
         for h in holds {
             let force = reactions.iter().find(|(v, _)| *v == h.vertex).map(|(_, f)| *f).unwrap_or([0.0; 3]);
-            rows.push(FrameRow { frame: k, file_vertex: h.file_vertex, force, displacement: body.field()[h.vertex] });
+            rows.push(FrameRow {
+                frame: k,
+                file_vertex: h.file_vertex,
+                force,
+                displacement: body.field()[h.vertex],
+            });
         }
     }
     Ok(Replay { rows, latency_us, frames: frames.len() })
@@ -609,8 +622,12 @@ pub fn probe_chart(title: &str, frames: usize, rows: &[FrameRow]) -> Result<Vec<
 
 fn final_obj(file: &MeshFile, positions: &[Vec3]) -> Result<Vec<u8>> {
     let mut obj = Vec::new();
-    fibfluid_geometry::write_obj_to(&mut obj, &file.positions_in_file_order(positions), &file.triangles_in_file_order())
-        .map_err(|e| Error::Invalid(e.to_string()))?;
+    fibfluid_geometry::write_obj_to(
+        &mut obj,
+        &file.positions_in_file_order(positions),
+        &file.triangles_in_file_order(),
+    )
+    .map_err(|e| Error::Invalid(e.to_string()))?;
     Ok(obj)
 }
 
@@ -657,7 +674,12 @@ pub fn run_probe(scene: &Scene, path: &ToolPath, out: &Path, opts: &ProbeOptions
         final_pressure: pb.body.pressure(),
         seconds_total: 0.0,
     };
-    let title = format!("{}: force at the probed vertices ({} path, ffm, {})", scene.name, path.kind.name(), opts.storage);
+    let title = format!(
+        "{}: force at the probed vertices ({} path, ffm, {})",
+        scene.name,
+        path.kind.name(),
+        opts.storage
+    );
     let png = probe_chart(&title, replay.frames, &replay.rows)?;
     let obj = final_obj(file, pb.body.positions())?;
     report.seconds_total = start.elapsed().as_secs_f64();

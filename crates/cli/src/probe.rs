@@ -27,8 +27,7 @@ pub struct ProbeArgs {
 
 /// Runs `fibfluid probe`.
 pub fn run(args: &ProbeArgs) -> Result<(), Error> {
-    let storage: Storage =
-        args.precision.parse().map_err(|e| Error::Invalid(format!("--precision: {e}")))?;
+    let storage: Storage = args.precision.parse().map_err(|e| Error::Invalid(format!("--precision: {e}")))?;
     let scene = Scene::load(&args.scene)?;
     let path = ToolPath::load(&args.path)?;
     let opts = ProbeOptions { storage, max_memory_bytes: args.max_memory };

@@ -271,9 +271,21 @@ const BAD_PATHS: &[(&str, &str, &str)] = &[
         "frame,vertex,ux,uy,uz\n0,36,0,0,0\n2,36,0,0,0\n1,36,0,0,0\n",
         ":4: frame 1 comes after frame 2",
     ),
-    ("path-negative-frame.csv", "frame,vertex,ux,uy,uz\n-1,36,0,0,0\n", ":2: frame: `-1` is not a frame number"),
-    ("path-negative-vertex.csv", "frame,vertex,ux,uy,uz\n0,-3,0,0,0\n", ":2: vertex: `-3` is not a vertex index"),
-    ("path-field-count.csv", "frame,vertex,ux,uy,uz\n0,36,0,0\n", ":2: expected 5 comma-separated fields, found 4"),
+    (
+        "path-negative-frame.csv",
+        "frame,vertex,ux,uy,uz\n-1,36,0,0,0\n",
+        ":2: frame: `-1` is not a frame number",
+    ),
+    (
+        "path-negative-vertex.csv",
+        "frame,vertex,ux,uy,uz\n0,-3,0,0,0\n",
+        ":2: vertex: `-3` is not a vertex index",
+    ),
+    (
+        "path-field-count.csv",
+        "frame,vertex,ux,uy,uz\n0,36,0,0\n",
+        ":2: expected 5 comma-separated fields, found 4",
+    ),
     (
         "path-duplicate-vertex.csv",
         "frame,vertex,ux,uy,uz\n0,36,0,0,0\n0,36,0,0.1,0\n",

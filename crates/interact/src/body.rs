@@ -12,6 +12,9 @@ use fibfluid_geometry::Vec3;
 
 use crate::{Compliance, Hold, InteractError, Interactive, Result};
 
+/// Point forces by vertex.
+type Forces = Vec<(usize, Vec3)>;
+
 /// Factored capacitance matrix of one grabbed set.
 #[derive(Clone, Debug)]
 struct Capacitance {
@@ -198,10 +201,16 @@ impl FfmBody {
             ),
         };
         let mut mem = MemBuffer::new(cholesky_in_place_scratch::<f64>(dim, Par::Seq, Default::default()));
-        cholesky_in_place(g.as_mut(), Default::default(), Par::Seq, MemStack::new(&mut mem), Default::default())
-            .map_err(|e| match e {
-                faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index } => singular(index),
-            })?;
+        cholesky_in_place(
+            g.as_mut(),
+            Default::default(),
+            Par::Seq,
+            MemStack::new(&mut mem),
+            Default::default(),
+        )
+        .map_err(|e| match e {
+            faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index } => singular(index),
+        })?;
         let tol = CAPACITANCE_PIVOT_FACTOR * dim as f64 * c.storage().epsilon();
         for (i, gii) in diag.iter().enumerate() {
             let lii = g[(i, i)];
@@ -215,7 +224,7 @@ impl FfmBody {
     /// Computes the reactions of the pending holds and the force list of the frame
     /// (`self.forces`: pushes, then the grabbed vertices' reactions). Returns the new
     /// capacitance if the grabbed set changed. Leaves the current frame untouched on error.
-    fn solve_reactions(&mut self) -> Result<(Option<Capacitance>, Vec<(usize, Vec3)>)> {
+    fn solve_reactions(&mut self) -> Result<(Option<Capacitance>, Forces)> {
         let c = &self.compliance;
         let d = c.axes();
         let mut forces: Vec<(usize, Vec3)> = Vec::with_capacity(self.pending.len());
@@ -344,7 +353,9 @@ impl Interactive for FfmBody {
         self.compliance.add_field_axes(&self.forces, p, &mut self.field_axes);
         let (n, d) = (self.rest.len(), self.compliance.axes());
         let u = &self.field_axes;
-        for (i, ((fi, pi), ri)) in self.field.iter_mut().zip(self.positions.iter_mut()).zip(&self.rest).enumerate() {
+        for (i, ((fi, pi), ri)) in
+            self.field.iter_mut().zip(self.positions.iter_mut()).zip(&self.rest).enumerate()
+        {
             for c in 0..d {
                 fi[c] = u[c * n + i];
                 pi[c] = ri[c] + fi[c];

@@ -5,10 +5,10 @@ use std::fmt;
 use std::str::FromStr;
 use std::time::Instant;
 
+use faer::Mat;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{LltError, cholesky_in_place, cholesky_in_place_scratch};
 use faer::linalg::triangular_solve::{solve_lower_triangular_in_place, solve_upper_triangular_in_place};
-use faer::Mat;
 use fibfluid_assembly::{AXES, ConstraintMethod, System};
 use fibfluid_geometry::Vec3;
 use fibfluid_linalg::{DENSE_MEMORY_FRACTION, available_memory_bytes};
@@ -104,7 +104,9 @@ pub struct MemoryEstimate {
 /// the available memory (8 GiB when that is unknown), the dense backends' budget.
 pub fn memory_budget(limit: Option<u64>) -> u64 {
     limit.unwrap_or_else(|| {
-        available_memory_bytes().map(|b| (b as f64 * DENSE_MEMORY_FRACTION) as u64).unwrap_or(8 * 1024 * 1024 * 1024)
+        available_memory_bytes()
+            .map(|b| (b as f64 * DENSE_MEMORY_FRACTION) as u64)
+            .unwrap_or(8 * 1024 * 1024 * 1024)
     })
 }
 
@@ -193,7 +195,8 @@ impl Compliance {
         }
         a.check_finite().map_err(|e| InteractError::Invalid(format!("the assembled system: {e}")))?;
         let scale = a.pressure_scale();
-        let border: Vec<Vec<f64>> = (0..axes).map(|c| a.border(c).iter().map(|b| b / scale).collect()).collect();
+        let border: Vec<Vec<f64>> =
+            (0..axes).map(|c| a.border(c).iter().map(|b| b / scale).collect()).collect();
         let constraints = system.constraints();
         let eliminate = system.method() == ConstraintMethod::Eliminate;
         let mut constrained = vec![[false; 3]; n];
@@ -237,7 +240,8 @@ impl Compliance {
                 }
             }
         }
-        let schur: f64 = (0..axes).map(|c| border[c].iter().zip(&w[c]).map(|(s, w)| s * w).sum::<f64>()).sum();
+        let schur: f64 =
+            (0..axes).map(|c| border[c].iter().zip(&w[c]).map(|(s, w)| s * w).sum::<f64>()).sum();
         let s2: f64 = border.iter().flatten().map(|v| v * v).sum();
         if !(schur > 0.0) || !schur.is_finite() {
             return Err(InteractError::Singular {
@@ -481,8 +485,8 @@ fn invert_spd(k: &faer::Mat<f64>) -> std::result::Result<Mat<f64>, usize> {
         let mut mem = MemBuffer::new(cholesky_in_place_scratch::<f64>(n, par, Default::default()));
         cholesky_in_place(a.as_mut(), Default::default(), par, MemStack::new(&mut mem), Default::default())
             .map_err(|e| match e {
-                LltError::NonPositivePivot { index } => index,
-            })?;
+            LltError::NonPositivePivot { index } => index,
+        })?;
     }
     // As the structured backend does: a tiny positive pivot is a singular block.
     let tol = n as f64 * f64::EPSILON;

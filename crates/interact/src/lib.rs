@@ -81,6 +81,8 @@ mod error;
 mod interactive;
 
 pub use body::FfmBody;
-pub use compliance::{Compliance, ComplianceOptions, MemoryEstimate, ParseStorageError, Storage, memory_budget};
+pub use compliance::{
+    Compliance, ComplianceOptions, MemoryEstimate, ParseStorageError, Storage, memory_budget,
+};
 pub use error::{InteractError, Result};
 pub use interactive::{Hold, Interactive};

@@ -59,7 +59,8 @@ fn full_solve(scene: &Scene, extra: &[(usize, Vec3)]) -> Vec<Vec3> {
 
 /// Largest vertex distance between two surfaces over the largest displacement of `b`.
 fn relative_difference(a: &[Vec3], b: &[Vec3], rest: &[Vec3]) -> f64 {
-    let dist = |p: Vec3, q: Vec3| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
+    let dist =
+        |p: Vec3, q: Vec3| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
     let diff = a.iter().zip(b).map(|(p, q)| dist(*p, *q)).fold(0.0, f64::max);
     let scale = b.iter().zip(rest).map(|(p, q)| dist(*p, *q)).fold(0.0, f64::max);
     diff / scale
@@ -183,7 +184,10 @@ fn bad_requests_are_typed_errors_and_change_nothing() {
     let fixed = (0..n).find(|&v| b.is_fixed(v)).expect("the top cap is fixed");
     let free = mesh_index(&scene, 36);
     assert_eq!(b.grab(n, [0.0; 3]), Err(InteractError::UnknownVertex { vertex: n, vertices: n }));
-    assert!(matches!(b.grab(fixed, [0.0, 0.1, 0.0]), Err(InteractError::FixedVertex { action: "grabbed", .. })));
+    assert!(matches!(
+        b.grab(fixed, [0.0, 0.1, 0.0]),
+        Err(InteractError::FixedVertex { action: "grabbed", .. })
+    ));
     assert!(matches!(b.push(fixed, [1.0; 3]), Err(InteractError::FixedVertex { action: "pushed", .. })));
     assert!(matches!(b.grab(free, [0.0, f64::NAN, 0.0]), Err(InteractError::NonFinite { .. })));
     assert!(matches!(b.push(free, [f64::INFINITY, 0.0, 0.0]), Err(InteractError::NonFinite { .. })));

@@ -276,7 +276,14 @@ impl BorderedMatrix {
                 for (c, k) in ks.iter().enumerate() {
                     let xm = Mat::<f64>::from_fn(n, count, |i, kk| val(x[kk * dim + c * n + i]));
                     let mut ym = Mat::<f64>::zeros(n, count);
-                    faer::linalg::matmul::matmul(ym.as_mut(), Accum::Replace, k.as_ref(), xm.as_ref(), 1.0, par);
+                    faer::linalg::matmul::matmul(
+                        ym.as_mut(),
+                        Accum::Replace,
+                        k.as_ref(),
+                        xm.as_ref(),
+                        1.0,
+                        par,
+                    );
                     for kk in 0..count {
                         for i in 0..n {
                             y[kk * dim + c * n + i] = ym[(i, kk)];

@@ -228,7 +228,8 @@ pub trait FactorizationExt: Factorization {
             }
             self.solve_many_unrefined(&mut corrections, refine.len());
             for (j, &k) in refine.iter().enumerate() {
-                for (xi, di) in x[k * dim..(k + 1) * dim].iter_mut().zip(&corrections[j * dim..(j + 1) * dim]) {
+                for (xi, di) in x[k * dim..(k + 1) * dim].iter_mut().zip(&corrections[j * dim..(j + 1) * dim])
+                {
                     *xi += di;
                 }
                 steps[k] += 1;

@@ -769,7 +769,11 @@ fn apply_many_matches_apply_per_vector() {
             let (mut y1, mut ya1) = (vec![0.0; dim], vec![0.0; dim]);
             case.matrix.apply(&x[k * dim..(k + 1) * dim], &mut y1);
             case.matrix.apply_abs(&x[k * dim..(k + 1) * dim], &mut ya1);
-            assert!(relative_difference(&y[k * dim..(k + 1) * dim], &y1) <= 1e-14, "{}: apply, vector {k}", case.name);
+            assert!(
+                relative_difference(&y[k * dim..(k + 1) * dim], &y1) <= 1e-14,
+                "{}: apply, vector {k}",
+                case.name
+            );
             assert!(
                 relative_difference(&ya[k * dim..(k + 1) * dim], &ya1) <= 1e-14,
                 "{}: apply_abs, vector {k}",

@@ -303,6 +303,20 @@ fn linear_axis_range(lo: f64, hi: f64, from_zero: bool) -> (f64, f64) {
     (lo, hi + pad)
 }
 
+/// A tick label of a linear axis: plain with trailing zeros trimmed (`200`, `0.25`), or
+/// `1.5e-5` style for very small and very large magnitudes.
+fn format_linear_tick(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 || !v.is_finite() {
+        return "0".into();
+    }
+    if !(1e-3..1e7).contains(&a) {
+        return format!("{v:.2e}");
+    }
+    let s = format!("{v:.6}");
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
 /// Draws a chart with linear axes and returns PNG bytes of `width` × `height`: each
 /// series a line in its own color (Tableau 10, repeating) with small markers when it has
 /// few points, listed in a legend when there is more than one series. The y axis starts
@@ -336,9 +350,8 @@ pub fn line_chart(
     if all.is_empty() {
         return Err(RenderError::EmptyInput { what: "the chart has no points".into() });
     }
-    let fold = |f: fn(&(f64, f64)) -> f64, init: f64, pick: fn(f64, f64) -> f64| {
-        all.iter().map(f).fold(init, pick)
-    };
+    let fold =
+        |f: fn(&(f64, f64)) -> f64, init: f64, pick: fn(f64, f64) -> f64| all.iter().map(f).fold(init, pick);
     let (x_lo, x_hi) = (fold(|p| p.0, f64::INFINITY, f64::min), fold(|p| p.0, f64::NEG_INFINITY, f64::max));
     let (y_lo, y_hi) = (fold(|p| p.1, f64::INFINITY, f64::min), fold(|p| p.1, f64::NEG_INFINITY, f64::max));
     let (x_lo, x_hi) = if x_hi > x_lo { (x_lo, x_hi) } else { linear_axis_range(x_lo, x_hi, false) };
@@ -372,6 +385,8 @@ pub fn line_chart(
             .y_desc(y_label)
             .label_style((FAMILY, label_size))
             .axis_desc_style((FAMILY, desc_size))
+            .x_label_formatter(&|v| format_linear_tick(*v))
+            .y_label_formatter(&|v| format_linear_tick(*v))
             .bold_line_style(RGBColor(200, 200, 200))
             .light_line_style(RGBColor(235, 235, 235))
             .draw()
@@ -436,6 +451,15 @@ mod tests {
         assert_eq!(linear_axis_range(-2.0, 8.0, true), (-2.5, 8.5));
         let (lo, hi) = linear_axis_range(3.0, 3.0, false);
         assert!(lo < 3.0 && hi > 3.0);
+    }
+
+    #[test]
+    fn linear_ticks_are_trimmed() {
+        assert_eq!(format_linear_tick(200.0), "200");
+        assert_eq!(format_linear_tick(0.25), "0.25");
+        assert_eq!(format_linear_tick(-2.5), "-2.5");
+        assert_eq!(format_linear_tick(0.0), "0");
+        assert_eq!(format_linear_tick(2e-5), "2.00e-5");
     }
 
     #[test]
