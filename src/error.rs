@@ -109,6 +109,9 @@ pub enum Error {
         /// Iterations made.
         iterations: usize,
     },
+    /// Probing failed: a bad tool path (file and line) or a refused body.
+    #[error(transparent)]
+    Probe(#[from] crate::probe::ProbeError),
     /// Serializing a report failed.
     #[error("writing JSON: {0}")]
     Json(#[from] serde_json::Error),

@@ -32,6 +32,7 @@ pub mod guards;
 mod info;
 mod output;
 pub mod plan;
+pub mod probe;
 mod report;
 mod scene;
 mod simulate;

@@ -131,6 +131,18 @@ struct Increment {
     last_to: f64,
 }
 
+/// One evaluation of a step from the current shape.
+struct Evaluation {
+    /// Displacement increments.
+    du: Vec<Vec3>,
+    /// Pressure increment.
+    dp: f64,
+    /// Euler/Heun difference, when estimated.
+    estimate: Option<f64>,
+    /// Contact multipliers, in the order of the active contacts.
+    multipliers: Vec<f64>,
+}
+
 /// What a step did.
 struct StepOutcome {
     /// Euler/Heun difference, when estimated.
@@ -528,7 +540,7 @@ impl Simulation {
             let result = self.evaluate(&inc_here, estimate);
             let step_residual = self.counters.residual_max;
             self.counters.residual_max = residual_before.max(step_residual);
-            let (du, dp, est, multipliers) = result.map_err(explained)?;
+            let Evaluation { du, dp, estimate: est, multipliers } = result.map_err(explained)?;
             self.log.time(names::UPDATE, || {
                 for (p, d) in self.state.positions.iter_mut().zip(&du) {
                     *p = add(*p, *d);
@@ -668,18 +680,14 @@ impl Simulation {
     /// Evaluates a step from the current shape: the displacement and pressure increments
     /// of the stepping scheme and, when asked, the Euler/Heun difference (largest vertex
     /// distance) that estimates the step's error.
-    fn evaluate(
-        &mut self,
-        inc: &Increment,
-        estimate: bool,
-    ) -> Result<(Vec<Vec3>, f64, Option<f64>, Vec<f64>)> {
+    fn evaluate(&mut self, inc: &Increment, estimate: bool) -> Result<Evaluation> {
         let s = self.state.positions.clone();
         let target = self.prepare_operator(&s)?;
         let b1 = self.load_increment(&s, inc.da, &inc.forces)?;
         if self.scene.solver.stepping == Stepping::Euler && !estimate {
             let (x, r) = self.solve(&b1, target, inc.prescribed, true)?;
             let (u, p) = self.factored.system.split_solution(&x);
-            return Ok((u, p, None, r));
+            return Ok(Evaluation { du: u, dp: p, estimate: None, multipliers: r });
         }
         let (xb, rb) = self.solve(&b1, 0.0, inc.prescribed, true)?;
         let (ub, pb) = self.factored.system.split_solution(&xb);
@@ -705,7 +713,7 @@ impl Simulation {
             estimate.then(|| ub.iter().zip(&u2).map(|(a, b)| 0.5 * norm(sub(*b, *a))).fold(0.0, f64::max));
         let r = (0..rb.len()).map(|k| 0.5 * (rb[k] + r2[k]) + rt[k]).collect();
         let u = (0..s.len()).map(|i| add(scale(add(ub[i], u2[i]), 0.5), ut[i])).collect();
-        Ok((u, 0.5 * (pb + p2) + pt, est, r))
+        Ok(Evaluation { du: u, dp: 0.5 * (pb + p2) + pt, estimate: est, multipliers: r })
     }
 
     /// Guard warnings so far.

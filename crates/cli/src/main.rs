@@ -14,6 +14,7 @@ use fibfluid::{
 use indicatif::{ProgressBar, ProgressStyle};
 
 mod accuracy;
+mod probe;
 
 /// Soft tissue as fluid held by elastic fibers: the fiber–fluid method.
 #[derive(Parser)]
@@ -147,6 +148,9 @@ enum Command {
         #[arg(long)]
         constraints: Option<ConstraintKind>,
     },
+    /// Replay a tool path (grabs or forces per frame) on the scene's precomputed response;
+    /// write frames.csv, final.obj, report.json and probe.png.
+    Probe(probe::ProbeArgs),
 }
 
 /// Command-line overrides of the scene's `[solver]` and `[load]` settings; each flag
@@ -315,6 +319,7 @@ fn run(command: Command) -> Result<(), CliError> {
             };
             accuracy::run(&scene, &out, grid)
         }
+        Command::Probe(args) => probe::run(&args),
     }
 }
 

@@ -284,3 +284,106 @@ fn a_run_that_cannot_place_an_output_moves_none_of_them() {
     }
     assert!(problems.is_empty(), "{}", problems.join("\n"));
 }
+
+/// Bad tool paths for `fibfluid probe` on the sphere scene, written on the fly: name,
+/// content, and a fragment the one error line must hold (besides the file's name).
+const BAD_PATHS: &[(&str, &str, &str)] = &[
+    ("path-empty.csv", "frame,vertex,ux,uy,uz\n", "the path is empty"),
+    ("path-blank.csv", "", "the path is empty"),
+    ("path-bad-header.csv", "time,vertex,ux,uy,uz\n0,36,0,0,0\n", ":1: bad header `time,vertex,ux,uy,uz`"),
+    ("path-unknown-vertex.csv", "frame,vertex,ux,uy,uz\n0,500,0,0,0\n", ":2: vertex 500 does not exist"),
+    (
+        "path-fixed-vertex.csv",
+        "frame,vertex,ux,uy,uz\n0,36,0,0,0\n1,0,0,0.1,0\n",
+        ":3: vertex 0 is fixed along x by the scene and cannot be grabbed",
+    ),
+    (
+        "path-force-on-fixed.csv",
+        "frame,vertex,fx,fy,fz\n0,0,1,1,1\n",
+        ":2: vertex 0 is fixed along x by the scene and cannot be pushed",
+    ),
+    ("path-not-a-number.csv", "frame,vertex,ux,uy,uz\n0,36,abc,0,0\n", ":2: ux: `abc` is not a number"),
+    ("path-nan.csv", "frame,vertex,ux,uy,uz\n0,36,0,NaN,0\n", ":2: uy: NaN is not finite"),
+    ("path-infinite.csv", "frame,vertex,fx,fy,fz\n0,36,0,0,inf\n", ":2: fz: inf is not finite"),
+    (
+        "path-decreasing-frames.csv",
+        "frame,vertex,ux,uy,uz\n0,36,0,0,0\n2,36,0,0,0\n1,36,0,0,0\n",
+        ":4: frame 1 comes after frame 2",
+    ),
+    (
+        "path-negative-frame.csv",
+        "frame,vertex,ux,uy,uz\n-1,36,0,0,0\n",
+        ":2: frame: `-1` is not a frame number",
+    ),
+    (
+        "path-negative-vertex.csv",
+        "frame,vertex,ux,uy,uz\n0,-3,0,0,0\n",
+        ":2: vertex: `-3` is not a vertex index",
+    ),
+    (
+        "path-field-count.csv",
+        "frame,vertex,ux,uy,uz\n0,36,0,0\n",
+        ":2: expected 5 comma-separated fields, found 4",
+    ),
+    (
+        "path-duplicate-vertex.csv",
+        "frame,vertex,ux,uy,uz\n0,36,0,0,0\n0,36,0,0.1,0\n",
+        ":3: vertex 36 appears twice in frame 0 (first on line 2)",
+    ),
+    ("path-values-without-vertex.csv", "frame,vertex,ux,uy,uz\n0,,1,0,0\n", ":2: a row without a vertex"),
+    (
+        "path-huge-frame.csv",
+        "frame,vertex,ux,uy,uz\n99999999999,36,0,0,0\n",
+        ":2: frame 99999999999 is beyond the largest allowed frame number",
+    ),
+];
+
+#[test]
+fn every_bad_probe_path_gives_one_clean_error_and_writes_nothing() {
+    let scene = fixtures_dir().join("scenes/sphere.toml");
+    let dir = tempfile::tempdir().unwrap();
+    let mut problems = Vec::new();
+    for (name, content, fragment) in BAD_PATHS {
+        let path = dir.path().join(name);
+        std::fs::write(&path, content).unwrap();
+        let (parent, out) = out_with_user_file();
+        let output = fibfluid(
+            &[
+                "probe".as_ref(),
+                scene.as_os_str(),
+                "--path".as_ref(),
+                path.as_os_str(),
+                "--out".as_ref(),
+                out.as_os_str(),
+            ],
+            parent.path(),
+        );
+        problems.extend(check_failure(name, fragment, &output));
+        problems.extend(check_untouched(name, parent.path(), &out));
+    }
+    // A precompute over the memory budget is refused with the bytes it needs; a bad
+    // --precision names the flag.
+    let good = fixtures_dir().join("paths/sphere-poke.csv");
+    for (flag, value, name, fragment) in [
+        ("--max-memory", "1000", "sphere.toml", "bytes (0.00 GiB) at its peak, but only 1000 bytes"),
+        ("--precision", "f16", "--precision", "`f16` is not a storage precision (f64, f32)"),
+    ] {
+        let (parent, out) = out_with_user_file();
+        let output = fibfluid(
+            &[
+                "probe".as_ref(),
+                scene.as_os_str(),
+                "--path".as_ref(),
+                good.as_os_str(),
+                "--out".as_ref(),
+                out.as_os_str(),
+                flag.as_ref(),
+                value.as_ref(),
+            ],
+            parent.path(),
+        );
+        problems.extend(check_failure(name, fragment, &output));
+        problems.extend(check_untouched(name, parent.path(), &out));
+    }
+    assert!(problems.is_empty(), "{} problems:\n{}", problems.len(), problems.join("\n"));
+}

@@ -364,3 +364,89 @@ fn a_plan_over_the_memory_limit_is_refused() {
         assert_eq!(plan.status.code(), Some(2), "{backend}: plan exits 2 when the scene does not fit");
     }
 }
+
+fn read_json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+#[test]
+fn probe_replays_the_poke_path_in_both_precisions() {
+    let scene = root().join("fixtures/scenes/sphere.toml");
+    let path = root().join("fixtures/paths/sphere-poke.csv");
+    let tmp = tempfile::tempdir().unwrap();
+    // The independent reference for the last frame (nothing held): `run` in paper mode with
+    // one step, the scene's loads in full.
+    let run_out = tmp.path().join("run");
+    let status = bin()
+        .arg("run")
+        .arg(&scene)
+        .arg("--out")
+        .arg(&run_out)
+        .args(["--mode", "paper", "--steps", "1", "--backend", "structured"])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let reference = read_obj_positions(&run_out.join("deformed.obj"));
+    let rest = read_obj_positions(&root().join("fixtures/meshes/icosphere-2.obj"));
+    let scale = reference
+        .iter()
+        .zip(&rest)
+        .map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).abs()).fold(0.0, f64::max))
+        .fold(0.0, f64::max);
+    for (precision, tol) in [("f64", 1e-9), ("f32", 8.0 * f32::EPSILON as f64)] {
+        let out = tmp.path().join(precision);
+        let o = bin()
+            .arg("probe")
+            .arg(&scene)
+            .arg("--path")
+            .arg(&path)
+            .arg("--out")
+            .arg(&out)
+            .args(["--precision", precision])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        for f in ["frames.csv", "final.obj", "report.json", "probe.png"] {
+            assert!(out.join(f).is_file(), "{precision}: {f} missing");
+        }
+        let report = read_json(&out.join("report.json"));
+        let probe = &report["probe"];
+        assert_eq!(probe["frames"], 24);
+        assert_eq!(probe["vertices"], 162);
+        assert_eq!(report["precision"], precision);
+        let word = if precision == "f64" { 8 } else { 4 };
+        assert!(probe["memory_bytes"].as_u64().unwrap() >= 162 * 162 * word);
+        for k in ["p50", "p99", "max"] {
+            assert!(probe["latency_us"][k].as_f64().unwrap() > 0.0, "latency {k}");
+        }
+        // frames.csv: one row per held frame (1..=20), the grabbed vertex exactly where the
+        // path puts it, with full-precision values.
+        let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
+        let mut lines = csv.lines();
+        assert_eq!(lines.next(), Some("frame,vertex,fx,fy,fz,ux,uy,uz"));
+        let rows: Vec<Vec<f64>> =
+            lines.map(|l| l.split(',').map(|t| t.parse::<f64>().unwrap()).collect()).collect();
+        assert_eq!(rows.len(), 20);
+        for (k, r) in rows.iter().enumerate() {
+            let frame = k + 1;
+            assert_eq!((r[0], r[1]), (frame as f64, 36.0));
+            let want = [-0.022 + 0.01 * frame as f64, -1.012, -0.022];
+            for c in 0..3 {
+                assert!((r[5 + c] - want[c]).abs() <= 1e-12, "{precision} frame {frame}: u = {:?}", &r[5..]);
+            }
+        }
+        // Dragging along +x needs a growing +x pull.
+        assert!(rows[19][2] > rows[0][2] && rows[19][2] > 0.0);
+        // The last frames hold nothing: the surface is the base state, i.e. `run`'s.
+        let last = read_obj_positions(&out.join("final.obj"));
+        assert_eq!(last.len(), reference.len());
+        let d = last
+            .iter()
+            .zip(&reference)
+            .map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).abs()).fold(0.0, f64::max))
+            .fold(0.0, f64::max);
+        assert!(d <= tol * scale, "{precision}: final.obj vs run: {d:e}");
+        let png = std::fs::read(out.join("probe.png")).unwrap();
+        assert_eq!(&png[1..4], b"PNG");
+    }
+}

@@ -225,6 +225,87 @@ impl BorderedMatrix {
         y[dim - 1] = last;
     }
 
+    /// `y_k = A x_k` for `count` vectors stored one after another (each [`dim`](Self::dim)
+    /// long): one matrix product per block for all of them (the axes of every vector form
+    /// an N x (d * count) matrix for a shared block), so the blocks are read once, not
+    /// `count` times.
+    #[track_caller]
+    pub fn apply_many(&self, x: &[f64], y: &mut [f64], count: usize) {
+        self.apply_many_with(x, y, count, false);
+    }
+
+    /// `y_k = |A| |x_k|` for `count` vectors stored one after another, as
+    /// [`apply_abs`](Self::apply_abs) does each, in one pass over a shared block of a
+    /// weighted Laplacian (otherwise vector by vector).
+    #[track_caller]
+    pub fn apply_abs_many(&self, x: &[f64], y: &mut [f64], count: usize) {
+        let dim = self.dim();
+        assert!(x.len() == count * dim && y.len() == count * dim, "apply_abs_many: vector length");
+        if self.is_shared() && self.block_is_z_matrix[0] {
+            self.apply_many_with(x, y, count, true);
+        } else {
+            for (xk, yk) in x.chunks_exact(dim).zip(y.chunks_exact_mut(dim)) {
+                self.apply_abs(xk, yk);
+            }
+        }
+    }
+
+    /// `A x` (or, with `abs`, `|A| |x|` for a shared weighted Laplacian, through
+    /// `2 D |x| - K |x|`) for several vectors in one product per block.
+    fn apply_many_with(&self, x: &[f64], y: &mut [f64], count: usize, abs: bool) {
+        use faer::{Accum, Mat};
+        let (n, d, dim) = (self.n, self.axes(), self.dim());
+        assert!(x.len() == count * dim && y.len() == count * dim, "apply_many: vector length");
+        let val = |v: f64| if abs { v.abs() } else { v };
+        let par = if n >= 512 { faer::get_global_parallelism() } else { faer::Par::Seq };
+        let sign = if abs { -1.0 } else { 1.0 };
+        match &self.blocks {
+            Blocks::Shared(k) => {
+                let xm = Mat::<f64>::from_fn(n, d * count, |i, j| val(x[(j / d) * dim + (j % d) * n + i]));
+                let mut ym = Mat::<f64>::zeros(n, d * count);
+                faer::linalg::matmul::matmul(ym.as_mut(), Accum::Replace, k.as_ref(), xm.as_ref(), sign, par);
+                for j in 0..d * count {
+                    let (kk, c) = (j / d, j % d);
+                    let out = &mut y[kk * dim + c * n..kk * dim + (c + 1) * n];
+                    for i in 0..n {
+                        out[i] = ym[(i, j)] + if abs { 2.0 * k[(i, i)] * xm[(i, j)] } else { 0.0 };
+                    }
+                }
+            }
+            Blocks::PerAxis(ks) => {
+                for (c, k) in ks.iter().enumerate() {
+                    let xm = Mat::<f64>::from_fn(n, count, |i, kk| val(x[kk * dim + c * n + i]));
+                    let mut ym = Mat::<f64>::zeros(n, count);
+                    faer::linalg::matmul::matmul(
+                        ym.as_mut(),
+                        Accum::Replace,
+                        k.as_ref(),
+                        xm.as_ref(),
+                        1.0,
+                        par,
+                    );
+                    for kk in 0..count {
+                        for i in 0..n {
+                            y[kk * dim + c * n + i] = ym[(i, kk)];
+                        }
+                    }
+                }
+            }
+        }
+        for (xk, yk) in x.chunks_exact(dim).zip(y.chunks_exact_mut(dim)) {
+            let p = val(xk[dim - 1]);
+            let mut last = 0.0;
+            for c in 0..d {
+                let b = &self.border[c];
+                for i in 0..n {
+                    yk[c * n + i] += val(b[i]) * p;
+                    last += val(b[i]) * val(xk[c * n + i]);
+                }
+            }
+            yk[dim - 1] = last;
+        }
+    }
+
     /// `y = |A| |x|` (entrywise absolute values), the denominator of the componentwise
     /// backward error.
     #[track_caller]

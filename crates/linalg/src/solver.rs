@@ -89,6 +89,24 @@ pub trait Factorization: Send + Sync {
     fn cost(&self) -> FactorCost;
     /// One solve in the factorization's own precision, in place, without refinement.
     fn solve_unrefined(&self, rhs: &mut [f64]);
+    /// Solves `count` right-hand sides stored one after another in `rhs` (each `dim()` long,
+    /// the layout of one [`solve_unrefined`](Self::solve_unrefined) call), in place,
+    /// without refinement. A backend that can read its factor once for all of them
+    /// overrides this: the structured backend solves the N x (d * count) block of every
+    /// axis and right-hand side in one pass over a shared Cholesky factor (each triangular
+    /// solve is bound by reading the factor, so k right-hand sides cost about one). The
+    /// default solves them one by one.
+    ///
+    /// # Panics
+    /// If `rhs.len() != count * dim()` (a programming error).
+    #[track_caller]
+    fn solve_many_unrefined(&self, rhs: &mut [f64], count: usize) {
+        let dim = self.matrix().dim();
+        assert_eq!(rhs.len(), count * dim, "solve_many: rhs length");
+        for r in rhs.chunks_exact_mut(dim) {
+            self.solve_unrefined(r);
+        }
+    }
     /// Whether [`set_border`](Self::set_border) refactors the whole matrix (dense backends)
     /// rather than updating a Schur complement.
     fn border_update_refactors(&self) -> bool {
@@ -153,6 +171,83 @@ pub trait FactorizationExt: Factorization {
             return Err(LinalgError::ResidualTooLarge { residual: rel, limit: opts.max_residual });
         }
         Ok(Solution { x, relative_residual: rel, refinement_steps: steps })
+    }
+
+    /// Solves `count` right-hand sides stored one after another in `b` (each `dim()` long)
+    /// as [`solve`](Self::solve) does each of them (same refinement, same checks), with
+    /// every solve and refinement round made by one
+    /// [`solve_many_unrefined`](Factorization::solve_many_unrefined) call, and every
+    /// residual check by one [`apply_many`](BorderedMatrix::apply_many) /
+    /// [`apply_abs_many`](BorderedMatrix::apply_abs_many) pass, over the right-hand sides
+    /// that still need it.
+    ///
+    /// # Panics
+    /// If `b.len() != count * dim()` (a programming error).
+    #[track_caller]
+    fn solve_many(&self, b: &[f64], count: usize) -> Result<Vec<Solution>> {
+        let a = self.matrix();
+        let dim = a.dim();
+        assert_eq!(b.len(), count * dim, "solve_many: rhs length");
+        if let Some(i) = b.iter().position(|v| !v.is_finite()) {
+            return Err(LinalgError::NonFiniteRhs { index: i % dim });
+        }
+        let opts = *self.options();
+        let mut x = b.to_vec();
+        self.solve_many_unrefined(&mut x, count);
+        let mut rel = vec![f64::INFINITY; count];
+        let mut steps = vec![0usize; count];
+        let mut active: Vec<usize> = (0..count).collect();
+        loop {
+            // Residuals of every active right-hand side in one pass over the blocks.
+            let mut xs = Vec::with_capacity(active.len() * dim);
+            for &k in &active {
+                let xk = &x[k * dim..(k + 1) * dim];
+                if let Some(i) = xk.iter().position(|v| !v.is_finite()) {
+                    return Err(LinalgError::NonFiniteSolution { index: i });
+                }
+                xs.extend_from_slice(xk);
+            }
+            let mut r = vec![0.0; xs.len()];
+            let mut denom = vec![0.0; xs.len()];
+            a.apply_many(&xs, &mut r, active.len());
+            a.apply_abs_many(&xs, &mut denom, active.len());
+            let mut corrections = Vec::new();
+            let mut refine = Vec::new();
+            for (j, &k) in active.iter().enumerate() {
+                let bk = &b[k * dim..(k + 1) * dim];
+                let rk = &mut r[j * dim..(j + 1) * dim];
+                for (ri, bi) in rk.iter_mut().zip(bk) {
+                    *ri = bi - *ri;
+                }
+                rel[k] = componentwise_backward_error(rk, &denom[j * dim..(j + 1) * dim], bk);
+                if rel[k] > opts.target_residual && steps[k] < opts.max_refinement_steps {
+                    corrections.extend_from_slice(rk);
+                    refine.push(k);
+                }
+            }
+            if refine.is_empty() {
+                break;
+            }
+            self.solve_many_unrefined(&mut corrections, refine.len());
+            for (j, &k) in refine.iter().enumerate() {
+                for (xi, di) in x[k * dim..(k + 1) * dim].iter_mut().zip(&corrections[j * dim..(j + 1) * dim])
+                {
+                    *xi += di;
+                }
+                steps[k] += 1;
+            }
+            active = refine;
+        }
+        if let Some(k) = (0..count).find(|&k| !(rel[k] <= opts.max_residual)) {
+            return Err(LinalgError::ResidualTooLarge { residual: rel[k], limit: opts.max_residual });
+        }
+        Ok((0..count)
+            .map(|k| Solution {
+                x: x[k * dim..(k + 1) * dim].to_vec(),
+                relative_residual: rel[k],
+                refinement_steps: steps[k],
+            })
+            .collect())
     }
 
     /// Estimates the reciprocal condition number in the 1-norm (Hager–Higham estimator,

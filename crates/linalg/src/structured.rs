@@ -212,24 +212,48 @@ impl Factorization for StructuredFactorization {
     }
 
     fn solve_unrefined(&self, rhs: &mut [f64]) {
+        self.solve_many_unrefined(rhs, 1);
+    }
+
+    /// Every axis of every right-hand side in one pass over each factor: the columns form
+    /// an N x (d * count) block (column `k d + c` is axis c of right-hand side k), solved at
+    /// once by the shared Cholesky factor, or per axis (N x count) by per-axis factors;
+    /// then one scalar Schur step per right-hand side.
+    fn solve_many_unrefined(&self, rhs: &mut [f64], count: usize) {
         let (n, d) = (self.matrix.n_vertices(), self.matrix.axes());
-        let t = rhs[d * n];
-        let mut y = Mat::<f64>::from_fn(n, d, |i, c| rhs[c * n + i]);
-        self.solve_blocks(&mut y);
-        let mut sy = 0.0;
-        for c in 0..d {
-            let s = self.matrix.border(c);
-            for i in 0..n {
-                sy += s[i] * y[(i, c)];
+        let dim = d * n + 1;
+        assert_eq!(rhs.len(), count * dim, "solve_many: rhs length");
+        let mut y = Mat::<f64>::from_fn(n, d * count, |i, j| rhs[(j / d) * dim + (j % d) * n + i]);
+        if self.chol.len() == 1 {
+            self.chol[0].solve(&mut y);
+        } else {
+            for c in 0..d {
+                let mut cols = Mat::<f64>::from_fn(n, count, |i, k| y[(i, k * d + c)]);
+                self.chol_of(c).solve(&mut cols);
+                for k in 0..count {
+                    for i in 0..n {
+                        y[(i, k * d + c)] = cols[(i, k)];
+                    }
+                }
             }
         }
-        let p = (sy - t) / self.schur;
-        for c in 0..d {
-            for i in 0..n {
-                rhs[c * n + i] = y[(i, c)] - p * self.z[(i, c)];
+        for (k, out) in rhs.chunks_exact_mut(dim).enumerate() {
+            let t = out[d * n];
+            let mut sy = 0.0;
+            for c in 0..d {
+                let s = self.matrix.border(c);
+                for i in 0..n {
+                    sy += s[i] * y[(i, k * d + c)];
+                }
             }
+            let p = (sy - t) / self.schur;
+            for c in 0..d {
+                for i in 0..n {
+                    out[c * n + i] = y[(i, k * d + c)] - p * self.z[(i, c)];
+                }
+            }
+            out[d * n] = p;
         }
-        rhs[d * n] = p;
     }
 
     fn set_border(&mut self, border: &[Vec<f64>]) -> Result<FactorCost> {

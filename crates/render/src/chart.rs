@@ -1,4 +1,4 @@
-//! Log-log line charts and Pareto fronts.
+//! Log-log and linear line charts, and Pareto fronts.
 
 use plotters::prelude::*;
 
@@ -300,6 +300,142 @@ pub fn loglog_chart(
     rgb_to_png(&rgb, w, h)
 }
 
+/// Linear axis range around the data `[lo, hi]`: padded by 5 % of the span (a unit
+/// around a single value), and starting at 0 when `from_zero` and the data are
+/// non-negative.
+fn linear_axis_range(lo: f64, hi: f64, from_zero: bool) -> (f64, f64) {
+    let span = hi - lo;
+    let pad = if span > 0.0 { 0.05 * span } else { 0.5 * lo.abs().max(1.0) };
+    let lo = if from_zero && lo >= 0.0 { 0.0 } else { lo - pad };
+    (lo, hi + pad)
+}
+
+/// A tick label of a linear axis: plain with trailing zeros trimmed (`200`, `0.25`), or
+/// `1.5e-5` style for very small and very large magnitudes.
+fn format_linear_tick(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 || !v.is_finite() {
+        return "0".into();
+    }
+    if !(1e-3..1e7).contains(&a) {
+        return format!("{v:.2e}");
+    }
+    let s = format!("{v:.6}");
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
+/// Draws a chart with linear axes and returns PNG bytes of `width` × `height`: each
+/// series a line in its own color (Tableau 10, repeating) with small markers when it has
+/// few points, listed in a legend when there is more than one series. The y axis starts
+/// at 0 when every y is non-negative (magnitudes).
+///
+/// # Errors
+///
+/// [`RenderError::ZeroSize`] / [`RenderError::ImageTooLarge`] for a bad size,
+/// [`RenderError::EmptyInput`] if there is no point at all, and
+/// [`RenderError::NonFinitePoint`] naming the series and the point if a coordinate is NaN
+/// or infinite.
+pub fn line_chart(
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+    width: u32,
+    height: u32,
+) -> Result<Vec<u8>> {
+    if width == 0 || height == 0 {
+        return Err(RenderError::ZeroSize { width, height });
+    }
+    let (w, h) = check_image_size(u64::from(width), u64::from(height))?;
+    for s in series {
+        if let Some(point) = s.points.iter().position(|(x, y)| !(x.is_finite() && y.is_finite())) {
+            let (x, y) = s.points[point];
+            return Err(RenderError::NonFinitePoint { series: s.label.clone(), point, x, y });
+        }
+    }
+    let all: Vec<(f64, f64)> = series.iter().flat_map(|s| s.points.iter().copied()).collect();
+    if all.is_empty() {
+        return Err(RenderError::EmptyInput { what: "the chart has no points".into() });
+    }
+    let fold =
+        |f: fn(&(f64, f64)) -> f64, init: f64, pick: fn(f64, f64) -> f64| all.iter().map(f).fold(init, pick);
+    let (x_lo, x_hi) = (fold(|p| p.0, f64::INFINITY, f64::min), fold(|p| p.0, f64::NEG_INFINITY, f64::max));
+    let (y_lo, y_hi) = (fold(|p| p.1, f64::INFINITY, f64::min), fold(|p| p.1, f64::NEG_INFINITY, f64::max));
+    let (x_lo, x_hi) = if x_hi > x_lo { (x_lo, x_hi) } else { linear_axis_range(x_lo, x_hi, false) };
+    let (y_lo, y_hi) = linear_axis_range(y_lo, y_hi, true);
+    ensure_fonts()?;
+
+    let hf = f64::from(h.min(w));
+    let caption_size = (hf * 0.045).clamp(13.0, 30.0);
+    let label_size = (hf * 0.03).clamp(10.0, 20.0);
+    let desc_size = label_size * 1.1;
+    let line_w = ((hf / 300.0).round() as u32).clamp(1, 4);
+    let marker = (hf * 0.006).round().clamp(2.0, 5.0) as u32;
+    let legend_margin = (label_size * 0.6).round() as u32;
+    let legend_area = (label_size * 2.2).round() as u32;
+    let sample_len = legend_area as i32 - legend_margin as i32 / 2;
+
+    let mut rgb = vec![255u8; w as usize * h as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, (FAMILY, caption_size))
+            .margin((label_size * 1.2) as u32)
+            .x_label_area_size((label_size * 3.4) as u32)
+            .y_label_area_size((label_size * 5.0) as u32)
+            .build_cartesian_2d(x_lo..x_hi, y_lo..y_hi)
+            .map_err(draw_err)?;
+        chart
+            .configure_mesh()
+            .x_desc(x_label)
+            .y_desc(y_label)
+            .label_style((FAMILY, label_size))
+            .axis_desc_style((FAMILY, desc_size))
+            .x_label_formatter(&|v| format_linear_tick(*v))
+            .y_label_formatter(&|v| format_linear_tick(*v))
+            .bold_line_style(RGBColor(200, 200, 200))
+            .light_line_style(RGBColor(235, 235, 235))
+            .draw()
+            .map_err(draw_err)?;
+        let labelled = series.iter().filter(|s| !s.points.is_empty()).count() > 1;
+        for (k, s) in series.iter().enumerate() {
+            if s.points.is_empty() {
+                continue;
+            }
+            let c = colorous::TABLEAU10[k % colorous::TABLEAU10.len()];
+            let color = RGBColor(c.r, c.g, c.b);
+            let drawn = chart
+                .draw_series(LineSeries::new(s.points.iter().copied(), color.stroke_width(line_w)))
+                .map_err(draw_err)?;
+            if labelled {
+                drawn.label(s.label.as_str()).legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + sample_len, y)], color.stroke_width(line_w))
+                });
+            }
+            if s.points.len() <= 60 {
+                chart
+                    .draw_series(s.points.iter().map(|&p| Circle::new(p, marker, color.filled())))
+                    .map_err(draw_err)?;
+            }
+        }
+        if labelled {
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::UpperRight)
+                .margin(legend_margin)
+                .legend_area_size(legend_area)
+                .label_font((FAMILY, label_size))
+                .background_style(WHITE.mix(0.9))
+                .border_style(RGBColor(120, 120, 120))
+                .draw()
+                .map_err(draw_err)?;
+        }
+        root.present().map_err(draw_err)?;
+    }
+    rgb_to_png(&rgb, w, h)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -314,6 +450,35 @@ mod tests {
         // A single value still gives a non-empty range.
         let (lo, hi) = log_axis_range(3.0, 3.0);
         assert!(lo < 3.0 && hi > 3.0);
+    }
+
+    #[test]
+    fn linear_range_pads_and_starts_magnitudes_at_zero() {
+        assert_eq!(linear_axis_range(2.0, 12.0, true), (0.0, 12.5));
+        assert_eq!(linear_axis_range(-2.0, 8.0, true), (-2.5, 8.5));
+        let (lo, hi) = linear_axis_range(3.0, 3.0, false);
+        assert!(lo < 3.0 && hi > 3.0);
+    }
+
+    #[test]
+    fn linear_ticks_are_trimmed() {
+        assert_eq!(format_linear_tick(200.0), "200");
+        assert_eq!(format_linear_tick(0.25), "0.25");
+        assert_eq!(format_linear_tick(-2.5), "-2.5");
+        assert_eq!(format_linear_tick(0.0), "0");
+        assert_eq!(format_linear_tick(2e-5), "2.00e-5");
+    }
+
+    #[test]
+    fn line_chart_rejects_nan_and_draws_a_png() {
+        let bad = [Series { label: "r".into(), points: vec![(0.0, 1.0), (1.0, f64::NAN)] }];
+        assert!(matches!(
+            line_chart("t", "x", "y", &bad, 200, 150),
+            Err(RenderError::NonFinitePoint { point: 1, .. })
+        ));
+        let good = [Series { label: "r".into(), points: vec![(0.0, 0.0), (1.0, 2.0), (2.0, 0.0)] }];
+        let png = line_chart("t", "frame", "|F|", &good, 240, 160).unwrap();
+        assert_eq!(&png[1..4], b"PNG");
     }
 
     #[test]

@@ -38,6 +38,19 @@ pub enum RenderError {
         position: [f64; 3],
     },
 
+    /// A point of a linear chart has a NaN or infinite coordinate.
+    #[error("series `{series}`: point {point} is not finite ({x}, {y})")]
+    NonFinitePoint {
+        /// The series' label.
+        series: String,
+        /// Index of the point in the series.
+        point: usize,
+        /// Its x coordinate.
+        x: f64,
+        /// Its y coordinate.
+        y: f64,
+    },
+
     /// A per-vertex scalar is NaN or infinite.
     #[error("panel {panel}: the scalar at vertex {vertex} is not finite ({value})")]
     NonFiniteScalar {

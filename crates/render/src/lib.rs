@@ -7,7 +7,9 @@
 //!   a per-vertex scalar through a [`Colormap`], with a title above each panel
 //!   and one shared color bar on the right.
 //! - [`loglog_chart`]: a log-log line chart of several [`Series`] with a
-//!   legend, optionally highlighting a Pareto front (see [`pareto_front`]).
+//!   legend, optionally highlighting a Pareto front (see [`pareto_front`]);
+//!   [`line_chart`]: the same on linear axes (time series such as a probe's
+//!   reaction force per frame).
 //!
 //! Text is drawn with a bundled copy of DejaVu Sans (see
 //! `assets/LICENSE-DejaVu.txt`), so no system fonts are needed. The font is
@@ -23,7 +25,7 @@ mod error;
 mod surface;
 mod text;
 
-pub use chart::{Series, loglog_chart, pareto_front, pareto_front_with_margin};
+pub use chart::{Series, line_chart, loglog_chart, pareto_front, pareto_front_with_margin};
 pub use error::{RenderError, Result};
 pub use surface::{Colormap, Surface, ViewOptions, render_surfaces};
 

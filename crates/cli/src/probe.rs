@@ -1,0 +1,54 @@
+//! `fibfluid probe`: replay a tool path on a scene's precomputed response.
+
+use std::path::PathBuf;
+
+use fibfluid::Scene;
+use fibfluid::probe::interact::Storage;
+use fibfluid::probe::{ProbeOptions, ToolPath, run_probe};
+
+/// Arguments of `fibfluid probe`.
+#[derive(clap::Args)]
+pub struct ProbeArgs {
+    /// Scene TOML file (probed in paper mode about its rest shape, its loads as the base).
+    scene: PathBuf,
+    /// Tool path CSV: `frame,vertex,ux,uy,uz` (grab) or `frame,vertex,fx,fy,fz` (force).
+    #[arg(long)]
+    path: PathBuf,
+    /// Output directory (frames.csv, final.obj, report.json, probe.png).
+    #[arg(long)]
+    out: PathBuf,
+    /// Storage of the precomputed response (f64, f32).
+    #[arg(long, default_value = "f64")]
+    precision: Storage,
+    /// Memory budget in bytes (default: half the available memory).
+    #[arg(long, value_name = "BYTES")]
+    max_memory: Option<u64>,
+}
+
+/// Runs `fibfluid probe`.
+pub fn run(args: &ProbeArgs) -> Result<(), crate::CliError> {
+    let storage = args.precision;
+    let scene = Scene::load(&args.scene)?;
+    let path = ToolPath::load(&args.path)?;
+    let opts = ProbeOptions { storage, max_memory_bytes: args.max_memory };
+    let report = run_probe(&scene, &path, &args.out, &opts)?;
+    let l = report.probe.latency_us;
+    println!(
+        "{}: {} vertices, {} frames ({} path, {} probed), precompute {:.3} s, {:.1} MiB ({}), frame latency p50 {:.1} us, p99 {:.1} us, max {:.1} us",
+        report.scene,
+        report.probe.vertices,
+        report.probe.frames,
+        report.kind.name(),
+        report.probe.probed_vertices,
+        report.probe.precompute_seconds,
+        report.probe.memory_bytes as f64 / 1048576.0,
+        report.precision,
+        l.p50,
+        l.p99,
+        l.max
+    );
+    for f in fibfluid::probe::PROBE_FILES {
+        println!("  wrote {}", args.out.join(f).display());
+    }
+    Ok(())
+}

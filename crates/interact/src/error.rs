@@ -1,0 +1,70 @@
+//! The error type of interactive bodies.
+
+/// What can go wrong while building or driving an interactive body.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum InteractError {
+    /// A vertex index beyond the body.
+    #[error("vertex {vertex} does not exist (the body has {vertices} vertices, 0-based)")]
+    UnknownVertex {
+        /// The vertex asked for.
+        vertex: usize,
+        /// Number of vertices of the body.
+        vertices: usize,
+    },
+    /// A grab (or a push) on a vertex the scene fixes: a tool cannot move it.
+    #[error("vertex {vertex} is fixed along {axis} by the scene; it cannot be {action}")]
+    FixedVertex {
+        /// The vertex.
+        vertex: usize,
+        /// The first fixed axis (`x`, `y` or `z`).
+        axis: char,
+        /// `grabbed` or `pushed`.
+        action: &'static str,
+    },
+    /// A displacement or force with a NaN or infinite component.
+    #[error("vertex {vertex}: the {what} has a non-finite component ({value})")]
+    NonFinite {
+        /// The vertex.
+        vertex: usize,
+        /// `displacement` or `force`.
+        what: &'static str,
+        /// The offending value.
+        value: f64,
+    },
+    /// This method has no forces (a displacement-driven method such as ChainMail).
+    #[error("{method} does not support {what}")]
+    Unsupported {
+        /// The method's name.
+        method: &'static str,
+        /// What was asked for (`forces`).
+        what: &'static str,
+    },
+    /// The precomputed response would not fit in memory; nothing was allocated.
+    #[error(
+        "the precomputed response needs {bytes} bytes ({:.2} GiB) at its peak, but only {available} bytes ({:.2} GiB) may be used; use f32 storage or a coarser mesh",
+        *bytes as f64 / GIB,
+        *available as f64 / GIB
+    )]
+    OutOfMemory {
+        /// Bytes needed at the peak of the precompute.
+        bytes: u64,
+        /// Bytes that may be used.
+        available: u64,
+    },
+    /// A stiffness block is not positive definite (not enough vertices fixed), or the grabbed
+    /// set over-determines the body (for instance every free vertex grabbed while the volume
+    /// is conserved).
+    #[error("singular system: {what}")]
+    Singular {
+        /// What is singular and where.
+        what: String,
+    },
+    /// Inputs of inconsistent sizes (rest positions, base state) or non-finite system data.
+    #[error("{0}")]
+    Invalid(String),
+}
+
+const GIB: f64 = 1024.0 * 1024.0 * 1024.0;
+
+/// Result alias of this crate.
+pub type Result<T> = std::result::Result<T, InteractError>;

@@ -1,0 +1,115 @@
+//! The method-neutral interface of a body a tool can touch.
+
+use fibfluid_geometry::Vec3;
+
+use crate::Result;
+
+/// What a tool does to one vertex.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Hold {
+    /// The tool holds the vertex at `rest + displacement` (a prescribed displacement from
+    /// the rest shape; the body answers with a reaction force).
+    Grab {
+        /// Displacement from the rest position.
+        displacement: Vec3,
+    },
+    /// The tool pushes the vertex with a force (added to the scene's base loads).
+    Push {
+        /// The force applied to the body.
+        force: Vec3,
+    },
+}
+
+/// A body that a tool (a mouse, a haptic device, a scripted path) can grab, push and release,
+/// frame by frame.
+///
+/// Calls to [`grab`](Self::grab), [`push`](Self::push), [`release`](Self::release) and
+/// [`release_all`](Self::release_all) edit a *pending* set of holds and are checked at once
+/// (an unknown or fixed vertex, a non-finite value is an error and changes nothing);
+/// [`update`](Self::update) applies the pending set and computes the new frame. A vertex
+/// has at most one hold: a later grab or push of the same vertex replaces the earlier one.
+/// Vertices are indexed in the body's own order (`0..n_vertices()`).
+///
+/// The trait is object-safe (`Box<dyn Interactive>`) so that a viewer or a replay can drive
+/// any method: the fiber–fluid method's precomputed response ([`FfmBody`](crate::FfmBody))
+/// and displacement-driven methods such as ChainMail, which may not support forces
+/// ([`supports_forces`](Self::supports_forces) is then false and [`push`](Self::push)
+/// returns [`InteractError::Unsupported`](crate::InteractError::Unsupported)).
+pub trait Interactive {
+    /// A short name of the method (`ffm`, `tsve-chainmail`, ...).
+    fn method(&self) -> &'static str;
+
+    /// Number of vertices of the surface.
+    fn n_vertices(&self) -> usize;
+
+    /// Rest positions of the surface, one per vertex.
+    fn rest_positions(&self) -> &[Vec3];
+
+    /// Whether the scene fixes the vertex along any axis (a grab there is an error).
+    /// Out-of-range vertices are not fixed.
+    fn is_fixed(&self, vertex: usize) -> bool;
+
+    /// Whether [`push`](Self::push) is supported (forces as tool input and reaction forces
+    /// as output).
+    fn supports_forces(&self) -> bool;
+
+    /// Holds `vertex` at `rest + displacement` from the next [`update`](Self::update) on.
+    ///
+    /// Errors: [`UnknownVertex`](crate::InteractError::UnknownVertex),
+    /// [`FixedVertex`](crate::InteractError::FixedVertex) (fixed along any axis),
+    /// [`NonFinite`](crate::InteractError::NonFinite).
+    fn grab(&mut self, vertex: usize, displacement: Vec3) -> Result<()>;
+
+    /// Pushes `vertex` with `force` from the next [`update`](Self::update) on.
+    ///
+    /// Errors: as [`grab`](Self::grab) (a vertex fixed along every axis cannot be pushed;
+    /// on a vertex fixed along some axes the force's components along them do nothing, as
+    /// in a full solve), plus [`Unsupported`](crate::InteractError::Unsupported) for a
+    /// method without forces.
+    fn push(&mut self, vertex: usize, force: Vec3) -> Result<()>;
+
+    /// Drops the hold on `vertex` (nothing happens if it has none) from the next update on.
+    ///
+    /// Errors: [`UnknownVertex`](crate::InteractError::UnknownVertex).
+    fn release(&mut self, vertex: usize) -> Result<()>;
+
+    /// Drops every hold from the next update on.
+    fn release_all(&mut self);
+
+    /// The pending holds (what the next [`update`](Self::update) applies), by vertex.
+    fn holds(&self) -> Vec<(usize, Hold)>;
+
+    /// Applies the pending holds and computes the frame: positions, field and reactions.
+    /// Returns the reactions (see [`reactions`](Self::reactions)).
+    ///
+    /// On error (for instance a singular set of grabbed vertices) the previous frame stays
+    /// current and the pending holds are kept, so the caller can release some and retry.
+    fn update(&mut self) -> Result<&[(usize, Vec3)]>;
+
+    /// Applies the pending holds and computes only the reactions (the haptic query), which
+    /// some methods do much faster than a whole frame. [`positions`](Self::positions) and
+    /// [`field`](Self::field) may then describe the last full [`update`](Self::update)
+    /// until the next one. The default runs a full update.
+    fn update_reactions(&mut self) -> Result<&[(usize, Vec3)]> {
+        self.update()
+    }
+
+    /// Current positions (rest + field), one per vertex.
+    fn positions(&self) -> &[Vec3];
+
+    /// Current displacement from the rest shape, one per vertex.
+    fn field(&self) -> &[Vec3];
+
+    /// The force on the body at each held vertex, sorted by vertex: for a grab, the reaction
+    /// the tool must apply to hold the vertex there (applied as a point force in a full solve
+    /// it gives the same surface; a haptic device renders its opposite); for a push, the
+    /// pushed force. Empty for a method without forces.
+    fn reactions(&self) -> &[(usize, Vec3)];
+
+    /// Number of frames computed so far (full updates and reaction-only updates).
+    fn frame(&self) -> u64;
+
+    /// Bytes held by the body's precomputed data (the dominant term; small vectors may be
+    /// left out).
+    fn memory_bytes(&self) -> usize;
+}

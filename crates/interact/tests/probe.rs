@@ -1,0 +1,258 @@
+//! Probe frames against independent full solves.
+//!
+//! The reference is the facade's `Simulation` on the same scene in paper mode with
+//! `steps = 1` (its own assembly, structured Cholesky factorization and refined solve),
+//! with the probe's forces added as scene point forces: a probe frame must be that solve,
+//! not an approximation of it. The scene is the paper's sphere (fixtures/scenes/sphere.toml,
+//! icosphere level 2, N = 162: gravity, a point force and the top cap fixed), once with its
+//! penalty constraints as published and once with elimination.
+
+use fibfluid::Choice;
+use fibfluid::ConstraintKind as ConstraintMethod;
+use fibfluid::geometry::Vec3;
+use fibfluid::probe::interact::{
+    Compliance, ComplianceOptions, FfmBody, Hold, InteractError, Interactive, Storage,
+};
+use fibfluid::probe::{ProbeOptions, build_body, linearized_scene};
+use fibfluid::{ForceTiming, PointForce, RunOptions, Scene, Shape, Simulation};
+
+/// A force on the body matches the full solve to this, relative to the largest displacement
+/// (the bound for a pushed force).
+const PUSH_TOLERANCE: f64 = 1e-9;
+/// A grab's reaction, applied as a force in a full solve, gives the same surface to this.
+const GRAB_TOLERANCE: f64 = 1e-7;
+/// f32 storage: each compliance entry is rounded once (relative error <= 2^-24 = 6e-8); the
+/// field sums a few columns and the capacitance solve of a grab amplifies the rounding by
+/// its (small) condition number: 8 f32 epsilons (9.5e-7) of the largest displacement
+/// (measured on this case: 5.8e-9).
+const F32_TOLERANCE: f64 = 8.0 * f32::EPSILON as f64;
+
+fn sphere(method: ConstraintMethod) -> Scene {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/scenes/sphere.toml");
+    let mut scene = Scene::load(path).expect("the sphere scene loads");
+    scene.solver.constraints = method;
+    scene
+}
+
+fn methods() -> [ConstraintMethod; 2] {
+    [ConstraintMethod::Penalty, ConstraintMethod::Eliminate]
+}
+
+/// Mesh index of a vertex of the mesh file.
+fn mesh_index(scene: &Scene, file_vertex: usize) -> usize {
+    match &scene.shape {
+        Shape::Surface(f) => f.from_file_index(file_vertex).expect("a used vertex"),
+        Shape::Polygon(_) => file_vertex,
+    }
+}
+
+/// Positions of an independent full solve: the scene's loads plus `extra` point forces, in
+/// paper mode with one step.
+fn full_solve(scene: &Scene, extra: &[(usize, Vec3)]) -> Vec<Vec3> {
+    let mut s = linearized_scene(scene);
+    for &(vertex, value) in extra {
+        s.forces.push(PointForce { vertex, value, timing: ForceTiming::Last });
+    }
+    let mut sim = Simulation::new(s).expect("the sphere assembles");
+    sim.run(&RunOptions::default()).expect("the full solve succeeds");
+    sim.positions().to_vec()
+}
+
+/// Largest vertex distance between two surfaces over the largest displacement of `b`.
+fn relative_difference(a: &[Vec3], b: &[Vec3], rest: &[Vec3]) -> f64 {
+    let dist =
+        |p: Vec3, q: Vec3| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
+    let diff = a.iter().zip(b).map(|(p, q)| dist(*p, *q)).fold(0.0, f64::max);
+    let scale = b.iter().zip(rest).map(|(p, q)| dist(*p, *q)).fold(0.0, f64::max);
+    diff / scale
+}
+
+fn body(scene: &Scene, storage: Storage) -> FfmBody {
+    build_body(scene, &ProbeOptions { storage, max_memory_bytes: None }).expect("the probe body builds").body
+}
+
+#[test]
+fn a_pushed_force_is_the_full_solve_with_that_force() {
+    for method in methods() {
+        let scene = sphere(method);
+        let mut b = body(&scene, Storage::F64);
+        let v = mesh_index(&scene, 36);
+        let w = mesh_index(&scene, 100);
+        let pushes = [(v, [40.0, 150.0, -30.0]), (w, [-60.0, 20.0, 90.0])];
+        for &(vertex, f) in &pushes {
+            b.push(vertex, f).unwrap();
+        }
+        let reactions = b.update().unwrap().to_vec();
+        assert_eq!(reactions.len(), 2, "pushed forces are reported as the forces on the body");
+        let reference = full_solve(&scene, &pushes);
+        let d = relative_difference(b.positions(), &reference, b.rest_positions());
+        assert!(d <= PUSH_TOLERANCE, "{method:?}: probe vs full solve {d:e}");
+        // Without any hold the frame is the base state, which is the full solve of the
+        // scene's own loads.
+        b.release_all();
+        b.update().unwrap();
+        let d = relative_difference(b.positions(), &full_solve(&scene, &[]), b.rest_positions());
+        assert!(d <= PUSH_TOLERANCE, "{method:?}: base state vs full solve {d:e}");
+    }
+}
+
+#[test]
+fn a_grabbed_vertex_stays_put_and_its_reaction_reproduces_the_surface() {
+    for method in methods() {
+        let scene = sphere(method);
+        let mut b = body(&scene, Storage::F64);
+        let v = mesh_index(&scene, 36);
+        let d = [0.1, -0.9, 0.05];
+        b.grab(v, d).unwrap();
+        let r = b.update().unwrap().to_vec();
+        assert_eq!(r.len(), 1);
+        assert_eq!(r[0].0, v);
+        let p = b.positions()[v];
+        let rest = b.rest_positions()[v];
+        for c in 0..3 {
+            assert!((p[c] - (rest[c] + d[c])).abs() <= 1e-12, "{method:?}: grabbed vertex at {p:?}");
+        }
+        let reference = full_solve(&scene, &r);
+        let diff = relative_difference(b.positions(), &reference, b.rest_positions());
+        assert!(diff <= GRAB_TOLERANCE, "{method:?}: grab vs full solve with its reaction {diff:e}");
+    }
+}
+
+#[test]
+fn three_grabbed_vertices_and_a_push_reproduce_the_full_solve() {
+    for method in methods() {
+        let scene = sphere(method);
+        let mut b = body(&scene, Storage::F64);
+        let grabs = [(36, [0.05, -0.95, 0.0]), (122, [0.0, -0.8, 0.1]), (9, [-0.02, -0.3, 0.03])];
+        let push = (mesh_index(&scene, 100), [10.0, -50.0, 25.0]);
+        for &(fv, d) in &grabs {
+            b.grab(mesh_index(&scene, fv), d).unwrap();
+        }
+        b.push(push.0, push.1).unwrap();
+        let forces = b.update().unwrap().to_vec();
+        assert_eq!(forces.len(), 4);
+        for &(fv, d) in &grabs {
+            let v = mesh_index(&scene, fv);
+            let (p, r) = (b.positions()[v], b.rest_positions()[v]);
+            for c in 0..3 {
+                assert!((p[c] - r[c] - d[c]).abs() <= 1e-12, "{method:?}: vertex {fv} at {p:?}");
+            }
+        }
+        let reference = full_solve(&scene, &forces);
+        let diff = relative_difference(b.positions(), &reference, b.rest_positions());
+        assert!(diff <= GRAB_TOLERANCE, "{method:?}: {diff:e}");
+        // The reaction-only query gives the same reactions without touching the field.
+        let field = b.field().to_vec();
+        let quick = b.update_reactions().unwrap().to_vec();
+        assert_eq!(quick, forces);
+        assert!(!b.field_is_current());
+        assert_eq!(b.field(), &field[..]);
+    }
+}
+
+#[test]
+fn f32_storage_stays_within_its_tolerance() {
+    let scene = sphere(ConstraintMethod::Eliminate);
+    let v = mesh_index(&scene, 36);
+    let w = mesh_index(&scene, 122);
+    let mut b64 = body(&scene, Storage::F64);
+    let mut b32 = body(&scene, Storage::F32);
+    assert_eq!(b32.compliance().storage(), Storage::F32);
+    assert!(b32.memory_bytes() < b64.memory_bytes());
+    for b in [&mut b64, &mut b32] {
+        b.grab(v, [0.1, -0.9, 0.05]).unwrap();
+        b.push(w, [20.0, 30.0, -10.0]).unwrap();
+        b.update().unwrap();
+    }
+    let diff = relative_difference(b32.positions(), b64.positions(), b64.rest_positions());
+    assert!(diff <= F32_TOLERANCE, "f32 vs f64 storage: {diff:e}");
+    assert!(diff > 0.0, "f32 storage must differ from f64 somewhere (else it is not f32)");
+    // The grabbed vertex is exactly where the tool holds it even in f32 (the capacitance
+    // and the field use the same stored entries).
+    let (p, r) = (b32.positions()[v], b32.rest_positions()[v]);
+    assert!((p[0] - r[0] - 0.1).abs() <= 1e-12 && (p[1] - r[1] + 0.9).abs() <= 1e-12);
+    let (r32, r64) = (b32.reactions()[0].1, b64.reactions()[0].1);
+    let rel = (0..3).map(|c| (r32[c] - r64[c]).abs()).fold(0.0, f64::max)
+        / (0..3).map(|c| r64[c].abs()).fold(0.0, f64::max);
+    assert!(rel <= F32_TOLERANCE, "f32 reaction {r32:?} vs {r64:?}");
+}
+
+#[test]
+fn bad_requests_are_typed_errors_and_change_nothing() {
+    let scene = sphere(ConstraintMethod::Eliminate);
+    let mut b: Box<dyn Interactive> = Box::new(body(&scene, Storage::F64));
+    let n = b.n_vertices();
+    let fixed = (0..n).find(|&v| b.is_fixed(v)).expect("the top cap is fixed");
+    let free = mesh_index(&scene, 36);
+    assert_eq!(b.grab(n, [0.0; 3]), Err(InteractError::UnknownVertex { vertex: n, vertices: n }));
+    assert!(matches!(
+        b.grab(fixed, [0.0, 0.1, 0.0]),
+        Err(InteractError::FixedVertex { action: "grabbed", .. })
+    ));
+    assert!(matches!(b.push(fixed, [1.0; 3]), Err(InteractError::FixedVertex { action: "pushed", .. })));
+    assert!(matches!(b.grab(free, [0.0, f64::NAN, 0.0]), Err(InteractError::NonFinite { .. })));
+    assert!(matches!(b.push(free, [f64::INFINITY, 0.0, 0.0]), Err(InteractError::NonFinite { .. })));
+    assert_eq!(b.release(n + 5), Err(InteractError::UnknownVertex { vertex: n + 5, vertices: n }));
+    assert!(b.holds().is_empty(), "refused requests leave no hold");
+    // The last call for a vertex wins; releasing an unheld vertex is no error.
+    b.grab(free, [0.0, -0.5, 0.0]).unwrap();
+    b.push(free, [0.0, 5.0, 0.0]).unwrap();
+    assert_eq!(b.holds(), vec![(free, Hold::Push { force: [0.0, 5.0, 0.0] })]);
+    b.release(free).unwrap();
+    b.release(free).unwrap();
+    assert!(b.holds().is_empty());
+}
+
+#[test]
+fn grabbing_every_free_vertex_is_singular_and_keeps_the_last_frame() {
+    // With elimination S vanishes on the fixed cap, so holding every free vertex leaves the
+    // volume row nothing to move: the capacitance matrix is singular (its null vector is S).
+    let scene = sphere(ConstraintMethod::Eliminate);
+    let mut b = body(&scene, Storage::F64);
+    let v = mesh_index(&scene, 36);
+    b.grab(v, [0.0, -0.9, 0.0]).unwrap();
+    b.update().unwrap();
+    let before = b.positions().to_vec();
+    let frame = b.frame();
+    for u in 0..b.n_vertices() {
+        if !b.is_fixed(u) {
+            b.grab(u, [0.0; 3]).unwrap();
+        }
+    }
+    assert!(matches!(b.update(), Err(InteractError::Singular { .. })));
+    assert_eq!(b.positions(), &before[..], "a failed update keeps the last frame");
+    assert_eq!(b.frame(), frame);
+    // Releasing one vertex makes it solvable again.
+    b.release(v).unwrap();
+    b.update().unwrap();
+}
+
+#[test]
+fn memory_is_refused_before_allocating_with_the_bytes() {
+    let scene = sphere(ConstraintMethod::Eliminate);
+    let err = build_body(&scene, &ProbeOptions { storage: Storage::F64, max_memory_bytes: Some(100_000) })
+        .unwrap_err()
+        .to_string();
+    // N = 162, one shared block: the compliance (8 N^2 = 209,952 bytes, plus one working
+    // column block) and the system with its factor (2 x 209,952) exceed 100 kB.
+    assert!(err.contains("bytes") && err.contains("100000"), "{err}");
+    let sim = Simulation::new(linearized_scene(&scene)).unwrap();
+    let opts = ComplianceOptions { storage: Storage::F32, max_memory_bytes: Some(1000) };
+    match Compliance::from_system(sim.system(), &opts) {
+        Err(InteractError::OutOfMemory { bytes, available: 1000 }) => {
+            let n = 162u64;
+            assert_eq!(bytes, Compliance::estimate(sim.system(), Storage::F32).peak);
+            assert!(bytes >= n * n * (4 + 8), "f32 storage plus the f64 working block: {bytes}");
+        }
+        other => panic!("expected OutOfMemory, got {other:?}"),
+    }
+}
+
+#[test]
+fn storage_names_round_trip() {
+    for &s in Storage::ALL {
+        assert_eq!(s.name().parse::<Storage>(), Ok(s));
+        assert_eq!(s.to_string(), s.name());
+    }
+    assert!("f16".parse::<Storage>().is_err());
+}
