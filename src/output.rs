@@ -13,6 +13,9 @@ use crate::{Error, Result, Shape};
 /// Names of the files a run writes.
 pub const OUTPUT_FILES: [&str; 4] = ["deformed.obj", "deformed.vtk", "report.json", "render.png"];
 
+/// The force–thickness chart a run with plates writes beside [`OUTPUT_FILES`].
+pub const COMPRESSION_FILE: &str = "compression.png";
+
 /// Writes legacy VTK polydata (ASCII) with the displacement vector and its magnitude as
 /// point data; ParaView opens it directly.
 pub fn write_vtk(
@@ -76,8 +79,13 @@ fn triangles_of(sim: &Simulation) -> Vec<[u32; 3]> {
     }
 }
 
-/// Renders the rest and deformed shapes side by side, colored by displacement magnitude.
+/// Renders the rest and deformed shapes side by side, colored by displacement magnitude
+/// (with plates: the plates' outlines at rest and at the end, the deformed shape colored
+/// by contact pressure, so the contact patches show).
 pub fn render_png(sim: &Simulation) -> Result<Vec<u8>> {
+    if !sim.scene().plates.is_empty() {
+        return render_plates_png(sim);
+    }
     let tris = triangles_of(sim);
     let rest = sim.rest_positions();
     let now = sim.positions();
@@ -98,6 +106,95 @@ pub fn render_png(sim: &Simulation) -> Result<Vec<u8>> {
         },
     ];
     Ok(fibfluid_render::render_surfaces(&panels, None, &opts)?)
+}
+
+/// The rest shape and the compressed shape between their plates (outlines), colored by
+/// contact pressure (force over vertex area).
+fn render_plates_png(sim: &Simulation) -> Result<Vec<u8>> {
+    let tris = triangles_of(sim);
+    let n = sim.positions().len();
+    let areas = sim.body().boundary.vertex_area_vectors(sim.positions());
+    let mut pressure = vec![0.0; n];
+    for c in &sim.state().contacts {
+        let a = fibfluid_geometry::vec3::norm(areas[c.vertex]);
+        if a > 0.0 {
+            pressure[c.vertex] += c.force / a;
+        }
+    }
+    let diag = sim.body().diagonal;
+    let with_plates = |positions: &[Vec3], scalar: &[f64], lambda: f64| {
+        let (mut p, mut t, mut s) = (positions.to_vec(), tris.clone(), scalar.to_vec());
+        let centroid = fibfluid_geometry::vec3::scale(
+            positions.iter().fold([0.0; 3], |a, x| fibfluid_geometry::vec3::add(a, *x)),
+            1.0 / positions.len().max(1) as f64,
+        );
+        for plate in &sim.scene().plates {
+            let (corners, quads) = plate_outline(plate, centroid, lambda, 0.6 * diag, 0.01 * diag);
+            let base = p.len() as u32;
+            p.extend_from_slice(&corners);
+            s.extend(std::iter::repeat_n(0.0, corners.len()));
+            t.extend(quads.iter().map(|q| q.map(|i| base + i)));
+        }
+        (p, t, s)
+    };
+    let zero = vec![0.0; n];
+    let (p0, t0, s0) = with_plates(sim.rest_positions(), &zero, 0.0);
+    let (p1, t1, s1) = with_plates(sim.positions(), &pressure, sim.state().load_factor);
+    let opts = fibfluid_render::ViewOptions { scalar_label: "contact pressure".into(), ..Default::default() };
+    let panels = [
+        fibfluid_render::Surface { positions: &p0, triangles: &t0, scalar: &s0, title: "rest, plates".into() },
+        fibfluid_render::Surface {
+            positions: &p1,
+            triangles: &t1,
+            scalar: &s1,
+            title: format!("compressed ({} contacts)", sim.state().contacts.len()),
+        },
+    ];
+    Ok(fibfluid_render::render_surfaces(&panels, None, &opts)?)
+}
+
+/// The outline of a plate as four thin quads (two triangles each): a square of half-side
+/// `half` about the centroid's projection, strips `width` wide.
+fn plate_outline(
+    plate: &crate::contact::Plate,
+    centroid: Vec3,
+    lambda: f64,
+    half: f64,
+    width: f64,
+) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    use fibfluid_geometry::vec3::{add, cross, dot, norm, scale, sub};
+    let n = plate.normal;
+    let helper = if n[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
+    let a = cross(n, helper);
+    let a = scale(a, 1.0 / norm(a));
+    let b = cross(n, a);
+    let origin = plate.point_at(lambda);
+    let center = sub(centroid, scale(n, dot(n, sub(centroid, origin))));
+    let at = |u: f64, v: f64| add(center, add(scale(a, u), scale(b, v)));
+    let mut corners = Vec::new();
+    let mut quads = Vec::new();
+    let (o, i) = (half, half - width);
+    for (u0, v0, u1, v1) in [(-o, -o, o, -i), (-o, i, o, o), (-o, -i, -i, i), (i, -i, o, i)] {
+        let k = corners.len() as u32;
+        corners.extend([at(u0, v0), at(u1, v0), at(u1, v1), at(u0, v1)]);
+        quads.extend([[k, k + 1, k + 2], [k, k + 2, k + 3]]);
+    }
+    (corners, quads)
+}
+
+/// Force against thickness for each plate (`compression.png`).
+pub fn compression_png(sim: &Simulation) -> Result<Vec<u8>> {
+    let series: Vec<fibfluid_render::Series> = sim
+        .plate_records()
+        .iter()
+        .enumerate()
+        .map(|(k, r)| fibfluid_render::Series {
+            label: format!("plate {}", k + 1),
+            points: r.gap.iter().copied().zip(r.force.iter().copied()).collect(),
+        })
+        .collect();
+    let title = format!("{}: plate force against thickness", sim.scene().name);
+    Ok(fibfluid_render::line_chart(&title, "thickness (plate gap)", "force on the plate", &series, 900, 560)?)
 }
 
 /// Writes every output of a run into `dir` (see [`write_files_atomically`]).
@@ -130,12 +227,15 @@ pub fn write_outputs(dir: &Path, sim: &Simulation, report: &Report) -> Result<Ve
         .map_err(io(OUTPUT_FILES[1]))?;
     let json = serde_json::to_string_pretty(report)? + "\n";
     let png = render_png(sim)?;
-    let files = [
+    let mut files = vec![
         (OUTPUT_FILES[0], obj),
         (OUTPUT_FILES[1], vtk),
         (OUTPUT_FILES[2], json.into_bytes()),
         (OUTPUT_FILES[3], png),
     ];
+    if !sim.scene().plates.is_empty() {
+        files.push((COMPRESSION_FILE, compression_png(sim)?));
+    }
     write_files_atomically(dir, &files)
 }
 
