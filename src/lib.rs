@@ -41,7 +41,8 @@ pub mod stages;
 pub use error::{Error, Result, SceneError, SceneProblem};
 pub use info::MeshInfo;
 pub use output::{
-    COMPRESSION_FILE, OUTPUT_FILES, compression_png, render_png, write_fibers_vtk, write_files_atomically, write_outputs, write_vtk,
+    COMPRESSION_FILE, OUTPUT_FILES, compression_png, render_png, write_fibers_vtk, write_files_atomically,
+    write_outputs, write_vtk,
 };
 pub use plan::{Plan, PlannedStage};
 pub use report::{Report, RoundTrip, SkippedStage, roundtrip, roundtrip_error};

@@ -963,14 +963,19 @@ impl Simulation {
             f.contact.remove_key(key)?;
         }
         let start = Instant::now();
-        for &(p, v) in &self.contact_active {
-            let normal = self.scene.plates[p].normal;
-            let row: Vec<(usize, f64)> = (0..axes)
-                .filter(|&c| self.scene.constraints.get(v, c).is_none())
-                .map(|c| (c * n + v, normal[c]))
-                .collect();
-            f.contact.add_row(f.factorization.as_ref(), Contact::key(p, v), &row)?;
-        }
+        let rows: Vec<(u64, Vec<(usize, f64)>)> = self
+            .contact_active
+            .iter()
+            .map(|&(p, v)| {
+                let normal = self.scene.plates[p].normal;
+                let row = (0..axes)
+                    .filter(|&c| self.scene.constraints.get(v, c).is_none())
+                    .map(|c| (c * n + v, normal[c]))
+                    .collect();
+                (Contact::key(p, v), row)
+            })
+            .collect();
+        f.contact.add_rows(f.factorization.as_ref(), &rows)?;
         self.log.add(names::CONTACT, start.elapsed().as_secs_f64());
         Ok(())
     }

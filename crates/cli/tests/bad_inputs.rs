@@ -58,6 +58,18 @@ const EXPECTED: &[(&str, &str)] = &[
         "scene-negative-surface-tension.toml",
         "scene-negative-surface-tension.toml:7: [material].surface_tension: must be >= 0, got -1",
     ),
+    (
+        "scene-plate-cuts-body.toml",
+        "scene-plate-cuts-body.toml:12: [[plate]] #1: the plate already cuts the body at rest: vertex 36 is 5e-1 through it",
+    ),
+    (
+        "scene-plate-faces-away.toml",
+        "scene-plate-faces-away.toml:12: [[plate]] #1: the plate faces away from the body",
+    ),
+    (
+        "scene-plate-zero-normal.toml",
+        "scene-plate-zero-normal.toml:14: [[plate]] #1.normal: must be finite and non-zero",
+    ),
     ("scene-steps-zero.toml", "scene-steps-zero.toml:10: [load].steps: must be between 1 and 1000000, got 0"),
     (
         "scene-unknown-backend.toml",
@@ -366,7 +378,7 @@ fn every_bad_probe_path_gives_one_clean_error_and_writes_nothing() {
     let good = fixtures_dir().join("paths/sphere-poke.csv");
     for (flag, value, name, fragment) in [
         ("--max-memory", "1000", "sphere.toml", "bytes (0.00 GiB) at its peak, but only 1000 bytes"),
-        ("--precision", "f16", "--precision", "`f16` is not a storage precision (f64, f32)"),
+        ("--precision", "f16", "--precision", "`f16` is not a storage precision (expected one of: f64, f32)"),
     ] {
         let (parent, out) = out_with_user_file();
         let output = fibfluid(

@@ -80,19 +80,32 @@ impl PrescribedSet {
     /// Adds the constraint `row . x = value` under `key` (one solve with `f`); a key
     /// already present is left as it is.
     pub fn add_row(&mut self, f: &dyn Factorization, key: u64, row: &[(usize, f64)]) -> Result<()> {
-        if self.keys.contains(&key) {
+        self.add_rows(f, &[(key, row.to_vec())])
+    }
+
+    /// Adds several constraints at once: their solves share one pass over the factor
+    /// ([`solve_many`](FactorizationExt::solve_many)) and the capacitance is refactored
+    /// once. Keys already present are left as they are.
+    pub fn add_rows(&mut self, f: &dyn Factorization, rows: &[(u64, Vec<(usize, f64)>)]) -> Result<()> {
+        let new: Vec<&(u64, Vec<(usize, f64)>)> =
+            rows.iter().filter(|(k, _)| !self.keys.contains(k)).collect();
+        if new.is_empty() {
             return Ok(());
         }
         let dim = f.matrix().dim();
-        let mut e = vec![0.0; dim];
-        for &(i, c) in row {
-            assert!(i < dim, "unknown {i} of a {dim}-unknown system");
-            e[i] += c;
+        let mut e = vec![0.0; dim * new.len()];
+        for (j, (_, row)) in new.iter().enumerate() {
+            for &(i, c) in row {
+                assert!(i < dim, "unknown {i} of a {dim}-unknown system");
+                e[j * dim + i] += c;
+            }
         }
-        let w = f.solve(&e)?.x;
-        self.keys.push(key);
-        self.rows.push(row.to_vec());
-        self.columns.push(w);
+        let solutions = f.solve_many(&e, new.len())?;
+        for ((key, row), w) in new.into_iter().zip(solutions) {
+            self.keys.push(*key);
+            self.rows.push(row.clone());
+            self.columns.push(w.x);
+        }
         self.refactor()
     }
 
