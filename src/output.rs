@@ -140,7 +140,23 @@ fn render_plates_png(sim: &Simulation) -> Result<Vec<u8>> {
     let zero = vec![0.0; n];
     let (p0, t0, s0) = with_plates(sim.rest_positions(), &zero, 0.0);
     let (p1, t1, s1) = with_plates(sim.positions(), &pressure, sim.state().load_factor);
-    let opts = fibfluid_render::ViewOptions { scalar_label: "contact pressure".into(), ..Default::default() };
+    // Look at the side the most loaded plate presses on: from that plate towards the
+    // body, tilted as the default view is.
+    let mut opts =
+        fibfluid_render::ViewOptions { scalar_label: "contact pressure".into(), ..Default::default() };
+    let loaded = sim
+        .plate_records()
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.force.last().unwrap_or(&0.0).total_cmp(b.1.force.last().unwrap_or(&0.0)))
+        .map(|(k, _)| k);
+    if let Some(k) = loaded {
+        use fibfluid_geometry::vec3::{add, dot, norm, scale, sub};
+        let n = sim.scene().plates[k].normal;
+        let tilt = sub(opts.view_dir, scale(n, dot(opts.view_dir, n)));
+        let v = add(n, scale(tilt, 0.8));
+        opts.view_dir = scale(v, 1.0 / norm(v));
+    }
     let panels = [
         fibfluid_render::Surface {
             positions: &p0,

@@ -643,8 +643,8 @@ impl Simulation {
                 }
             };
             let r = &mut self.plate_records[k];
-            r.force.push(mine.iter().map(|c| c.force).sum());
-            r.contact_area.push(mine.iter().map(|c| norm(areas[c.vertex])).sum());
+            r.force.push(mine.iter().fold(0.0, |f, c| f + c.force));
+            r.contact_area.push(mine.iter().fold(0.0, |a, c| a + norm(areas[c.vertex])));
             r.contact_vertices.push(mine.len());
             r.gap.push(gap);
             r.active_set_iterations.push(iterations);
@@ -945,6 +945,7 @@ impl Simulation {
                 }
             }
             let sol = f.contact.solve(f.factorization.as_ref(), &rhs, &values)?;
+            self.counters.residual_max = self.counters.residual_max.max(sol.relative_residual);
             let r = order.iter().map(|&j| sol.multipliers[j]).collect();
             (sol.x, r)
         };

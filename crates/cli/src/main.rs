@@ -446,6 +446,19 @@ fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> 
         report.residual_max,
         report.seconds_total
     );
+    for (k, r) in report.plates.iter().enumerate() {
+        let (force, area) =
+            (r.force.last().copied().unwrap_or(0.0), r.contact_area.last().copied().unwrap_or(0.0));
+        println!(
+            "  plate {}: force {:.6}, {} vertices in contact, contact area {:.6}, mean pressure {:.6}, gap {:.6}",
+            k + 1,
+            force,
+            r.contact_vertices.last().copied().unwrap_or(0),
+            area,
+            if area > 0.0 { force / area } else { 0.0 },
+            r.gap.last().copied().unwrap_or(0.0)
+        );
+    }
     for w in written {
         println!("  wrote {}", w.display());
     }

@@ -46,6 +46,8 @@ pub struct PrescribedSet {
 pub struct ConstrainedSolution {
     /// The solution, with the held unknowns at their values.
     pub x: Vec<f64>,
+    /// Backward error of the solve with the kept factorization.
+    pub relative_residual: f64,
     /// One multiplier per constraint, in the set's order: the constraint adds `-r` times
     /// its row to the right-hand side, so `-r` is its reaction along the row.
     pub multipliers: Vec<f64>,
@@ -147,9 +149,11 @@ impl PrescribedSet {
     /// Solves `A x = b` with each constraint's `row . x` at `values` (in the set's order).
     pub fn solve(&self, f: &dyn Factorization, b: &[f64], values: &[f64]) -> Result<ConstrainedSolution> {
         assert_eq!(values.len(), self.keys.len(), "one value per constraint");
-        let mut y = f.solve(b)?.x;
+        let first = f.solve(b)?;
+        let relative_residual = first.relative_residual;
+        let mut y = first.x;
         let Some(llt) = &self.capacitance else {
-            return Ok(ConstrainedSolution { x: y, multipliers: vec![] });
+            return Ok(ConstrainedSolution { x: y, relative_residual, multipliers: vec![] });
         };
         let k = self.keys.len();
         let rhs = Mat::from_fn(k, 1, |i, _| self.apply_row(i, &y) - values[i]);
@@ -163,6 +167,6 @@ impl PrescribedSet {
         if let Some(i) = y.iter().position(|v| !v.is_finite()) {
             return Err(LinalgError::NonFiniteSolution { index: i });
         }
-        Ok(ConstrainedSolution { x: y, multipliers })
+        Ok(ConstrainedSolution { x: y, relative_residual, multipliers })
     }
 }
