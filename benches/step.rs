@@ -7,9 +7,9 @@
 //! `sim.step_load((k + 1) / 10)`: in paper mode the load increment, the right-hand
 //! side, the checked solve and the position update; refresh mode adds the new border and
 //! volume target (triangular solves for the structured backend, a refactorization for the
-//! dense ones) and the volume-correction solves that follow the step (up to
-//! `VOLUME_CORRECTIONS`, until the relative volume error is below `VOLUME_TOLERANCE`; the
-//! count of solves is printed). After each tenth load step the ten unload steps run
+//! dense ones) and the volume correction that follows the step (one solve for its
+//! direction, then scalar Newton steps until the relative volume error is below
+//! `VOLUME_TOLERANCE`; the count of solves is printed). After each tenth load step the ten unload steps run
 //! untimed, so the body stays within the scene's load range however many steps criterion
 //! asks for (steps that take over 0.15 s run about 11 times in all and are not rewound).
 //!

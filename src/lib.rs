@@ -49,7 +49,7 @@ pub use report::{Report, RoundTrip, SkippedStage, roundtrip, roundtrip_error};
 pub use scene::{ForceTiming, MAX_STEPS, Mode, PointForce, Scene, Shape, SolverOptions, Stepping};
 pub use simulate::{
     BodyShape, Counters, Direction, MIN_ADAPTIVE_STEP, Response, RunOptions, SetupOptions, Simulation, State,
-    StepStats, VOLUME_CORRECTIONS, VOLUME_TOLERANCE,
+    StepStats, VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE,
 };
 
 pub use fibfluid_assembly::ConstraintKind;

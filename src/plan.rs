@@ -11,7 +11,7 @@ use fibfluid_linalg::{Backend, Precision, cholesky_flops, lu_flops};
 use serde::Serialize;
 
 use crate::scene::{Mode, Scene, Shape, Stepping};
-use crate::simulate::VOLUME_CORRECTIONS;
+use crate::simulate::VOLUME_NEWTON_ITERATIONS;
 use crate::stages::names;
 use crate::{Error, Result};
 
@@ -236,8 +236,8 @@ fn plan(scene: &Scene, size: &Size) -> Plan {
         steps * evaluations * (10.0 + d * 2.0) * n,
     ));
 
-    // Solves per step: one per evaluation; refresh and nonlinear add up to
-    // VOLUME_CORRECTIONS volume corrections (usually one or two).
+    // Solves per step: one per evaluation; refresh and nonlinear add one volume
+    // correction (its direction; the volume is then restored by scalar Newton steps).
     let solve_flops = if dense { 2.0 * dim * dim } else { 4.0 * d * n * n };
     st.push(match solver.mode {
         Mode::Refresh => stage(
@@ -287,9 +287,11 @@ fn plan(scene: &Scene, size: &Size) -> Plan {
         _ => stage(
             names::VOLUME_CORRECTION,
             true,
-            format!("up to {VOLUME_CORRECTIONS} solves per step pull the volume back to V0"),
+            format!(
+                "one solve per step gives the correction's direction; up to {VOLUME_NEWTON_ITERATIONS} scalar Newton steps along it restore V0"
+            ),
             0.0,
-            steps * 2.0 * solve_flops,
+            steps * (solve_flops + VOLUME_NEWTON_ITERATIONS as f64 * 60.0 * faces),
         ),
     });
     st.push(if scene.plates.is_empty() {

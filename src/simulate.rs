@@ -856,35 +856,46 @@ impl Simulation {
         (self.body.volume0 - v) / r
     }
 
-    /// Pulls the volume back to V0 after a step (refresh and nonlinear modes): up to
-    /// [`VOLUME_CORRECTIONS`] solves with no load and the volume target of the new shape,
-    /// using the current factorization.
+    /// Pulls the volume back to V0 after a step (refresh and nonlinear modes) with one
+    /// solve: the response `w` of the current factorization to a unit volume target (no
+    /// load) is the direction every correction solve would move along, so the volume is
+    /// restored by a scalar Newton iteration on `V(s + alpha w) = V0` (volume and gradient
+    /// evaluations only, at most [`VOLUME_NEWTON_ITERATIONS`]), to [`VOLUME_TOLERANCE`].
     fn correct_volume(&mut self) -> Result<()> {
+        let v0 = self.body.volume0;
+        if (self.volume() / v0 - 1.0).abs() <= VOLUME_TOLERANCE {
+            return Ok(());
+        }
         let open = self.log.begin(names::VOLUME_CORRECTION);
-        let result = (|| {
-            for _ in 0..VOLUME_CORRECTIONS {
-                let v = self.volume();
-                if (v / self.body.volume0 - 1.0).abs() <= VOLUME_TOLERANCE {
-                    break;
-                }
-                let positions = self.state.positions.clone();
-                let areas = self.body.boundary.vertex_area_vectors(&positions);
-                let target = self.volume_target(&positions, &areas);
-                let zero = vec![0.0; self.axes() * positions.len()];
-                let (x, r) = self.solve(&zero, target, 0.0, false)?;
-                for (acc, rk) in self.contact_increment.iter_mut().zip(&r) {
-                    *acc += rk;
-                }
-                let (du, dp) = self.factored.system.split_solution(&x);
-                for (p, d) in self.state.positions.iter_mut().zip(&du) {
-                    *p = add(*p, *d);
-                }
-                self.state.pressure += dp;
-            }
-            Ok(())
-        })();
+        let zero = vec![0.0; self.axes() * self.state.positions.len()];
+        let solved = self.solve(&zero, 1.0, 0.0, false);
         self.log.end(open);
-        result
+        let (xw, rw) = solved?;
+        let (w, pw) = self.factored.system.split_solution(&xw);
+        let start = self.state.positions.clone();
+        let along = |alpha: f64| -> Vec<Vec3> {
+            start.iter().zip(&w).map(|(p, d)| add(*p, scale(*d, alpha))).collect()
+        };
+        let mut alpha = 0.0;
+        for _ in 0..VOLUME_NEWTON_ITERATIONS {
+            let p = along(alpha);
+            let f = self.body.boundary.volume(&p) - v0;
+            if (f / v0).abs() <= VOLUME_TOLERANCE {
+                break;
+            }
+            let slope: f64 =
+                self.body.boundary.volume_gradient(&p).iter().zip(&w).map(|(g, d)| dot(*g, *d)).sum();
+            if !(slope.abs() > 0.0) {
+                break;
+            }
+            alpha -= f / slope;
+        }
+        self.state.positions = along(alpha);
+        self.state.pressure += alpha * pw;
+        for (acc, rk) in self.contact_increment.iter_mut().zip(&rw) {
+            *acc += alpha * rk;
+        }
+        Ok(())
     }
 
     /// Load increment on shape `s`: `rho (da . down) h_i S_i` plus the point-force
@@ -982,9 +993,9 @@ impl Simulation {
     }
 }
 
-/// At most this many volume-correction solves follow each step in refresh and nonlinear
-/// modes.
-pub const VOLUME_CORRECTIONS: usize = 6;
+/// At most this many scalar Newton iterations restore the volume after a step in refresh
+/// and nonlinear modes (each evaluates the volume and its gradient; no solve).
+pub const VOLUME_NEWTON_ITERATIONS: usize = 30;
 
 /// Relative volume error below which no correction solve is made.
 pub const VOLUME_TOLERANCE: f64 = 1e-12;
