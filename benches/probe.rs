@@ -28,35 +28,17 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use fibfluid::assembly::{Material, Selector};
 use fibfluid::bench::pin_threads;
-use fibfluid::geometry::{MeshFile, Vec3, icosphere};
+use fibfluid::geometry::Vec3;
 use fibfluid::linalg::FactorizationExt;
 use fibfluid::probe::interact::{FfmBody, Interactive, Storage};
 use fibfluid::probe::{Latency, ProbeOptions, build_body, linearized_scene};
 use fibfluid::{Mode, Scene, Simulation};
 
 fn scene(level: u32) -> Scene {
-    let mesh = icosphere(level, 1.0);
-    let n = mesh.n_vertices();
-    let file = MeshFile {
-        path: format!("icosphere-{level}").into(),
-        file_positions: mesh.positions().to_vec(),
-        to_file: (0..n as u32).collect(),
-        validation: Default::default(),
-        notes: vec![],
-        mesh,
-    };
-    let mut scene = Scene::from_mesh(format!("sphere-{n}"), file, Material::default());
-    let positions = scene.rest_positions();
-    scene
-        .constraints
-        .fix_selected(&Selector::Above { axis: 1, value: 0.8 }, &positions, [true; 3])
-        .expect("the top cap exists");
-    scene.gravity = [0.0, -10.0, 0.0];
+    let mut scene = fibfluid::bench::hanging_sphere(level).expect("the icosphere is a closed surface");
     scene.steps = 1;
     scene.solver.mode = Mode::Paper;
-    scene.solver.constraints = fibfluid::ConstraintKind::Eliminate;
     scene
 }
 

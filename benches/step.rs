@@ -24,35 +24,16 @@
 use std::time::{Duration, Instant};
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use fibfluid::assembly::{Material, Selector};
 use fibfluid::bench::pin_threads;
-use fibfluid::geometry::{MeshFile, icosphere};
-use fibfluid::{Backend, ConstraintKind, Direction, Mode, RunOptions, Scene, Simulation};
+use fibfluid::{Backend, Direction, Mode, RunOptions, Scene, Simulation};
 
 const STEPS: usize = 10;
 
 fn scene(level: u32, backend: Backend, mode: Mode) -> Scene {
-    let mesh = icosphere(level, 1.0);
-    let n = mesh.n_vertices();
-    let file = MeshFile {
-        path: format!("icosphere-{level}").into(),
-        file_positions: mesh.positions().to_vec(),
-        to_file: (0..n as u32).collect(),
-        validation: Default::default(),
-        notes: vec![],
-        mesh,
-    };
-    let mut scene = Scene::from_mesh(format!("sphere-{n}"), file, Material::default());
-    let positions = scene.rest_positions();
-    scene
-        .constraints
-        .fix_selected(&Selector::Above { axis: 1, value: 0.8 }, &positions, [true; 3])
-        .expect("the top cap exists");
-    scene.gravity = [0.0, -10.0, 0.0];
+    let mut scene = fibfluid::bench::hanging_sphere(level).expect("the icosphere is a closed surface");
     scene.steps = STEPS;
     scene.solver.backend = backend;
     scene.solver.mode = mode;
-    scene.solver.constraints = ConstraintKind::Eliminate;
     scene
 }
 

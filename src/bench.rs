@@ -163,3 +163,24 @@ pub fn thread_note(threads: usize) -> String {
         env("OPENBLAS_CORETYPE")
     )
 }
+
+/// The benches' body: an icosphere of radius 1 at subdivision `level` with the paper's
+/// material, the cap y > 0.8 fixed by elimination and gravity (0, -10, 0), one load step,
+/// default solver options.
+pub fn hanging_sphere(level: u32) -> Result<crate::Scene> {
+    let mesh = fibfluid_geometry::icosphere(level, 1.0);
+    let n = mesh.n_vertices();
+    let path = format!("icosphere-{level}");
+    let file = fibfluid_geometry::MeshFile::from_mesh(&path, mesh)
+        .map_err(|source| fibfluid_geometry::GeometryError::Mesh { path: path.into(), source })?;
+    let mut scene = crate::Scene::from_mesh(format!("sphere-{n}"), file, Material::default());
+    let positions = scene.rest_positions();
+    scene.constraints.fix_selected(
+        &fibfluid_assembly::Selector::Above { axis: 1, value: 0.8 },
+        &positions,
+        [true; 3],
+    )?;
+    scene.gravity = [0.0, -10.0, 0.0];
+    scene.solver.constraints = fibfluid_assembly::ConstraintKind::Eliminate;
+    Ok(scene)
+}
