@@ -9,20 +9,28 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::CliError;
 
 /// The grid flags of `fibfluid accuracy`; each replaces its axis of the default grid.
+#[derive(clap::Args)]
 pub struct GridFlags {
-    /// Step counts.
+    /// Step counts of the grid.
+    #[arg(long, value_delimiter = ',', default_value = "1,3,10,30,100")]
     pub steps: Vec<usize>,
-    /// Adaptive stepping tolerances.
+    /// Adaptive stepping tolerances of the grid.
+    #[arg(long, value_delimiter = ',', default_value = "1e-2,1e-3,1e-4")]
     pub tolerances: Vec<f64>,
-    /// Backends.
+    /// Backends (default: every compiled-in one).
+    #[arg(long, value_delimiter = ',')]
     pub backends: Option<Vec<Backend>>,
-    /// Modes.
+    /// Modes (default: paper, refresh, nonlinear).
+    #[arg(long, value_delimiter = ',')]
     pub modes: Option<Vec<Mode>>,
-    /// Stepping schemes.
+    /// Stepping schemes (default: euler, heun).
+    #[arg(long, value_delimiter = ',')]
     pub steppings: Option<Vec<Stepping>>,
-    /// Precisions.
+    /// Precisions (default: f64, mixed).
+    #[arg(long, value_delimiter = ',')]
     pub precisions: Option<Vec<Precision>>,
-    /// The scene's constraint method, overridden.
+    /// Override the scene's constraint method (penalty, eliminate).
+    #[arg(long)]
     pub constraints: Option<ConstraintKind>,
 }
 

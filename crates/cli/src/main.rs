@@ -126,27 +126,8 @@ enum Command {
         /// Output directory (accuracy.csv, accuracy.md, accuracy.png).
         #[arg(long)]
         out: PathBuf,
-        /// Step counts of the grid.
-        #[arg(long, value_delimiter = ',', default_value = "1,3,10,30,100")]
-        steps: Vec<usize>,
-        /// Adaptive stepping tolerances of the grid (`--tolerances ""`: none).
-        #[arg(long, value_delimiter = ',', default_value = "1e-2,1e-3,1e-4")]
-        tolerances: Vec<f64>,
-        /// Backends (default: every compiled-in one).
-        #[arg(long, value_delimiter = ',')]
-        backends: Option<Vec<Backend>>,
-        /// Modes (default: paper, refresh, nonlinear).
-        #[arg(long, value_delimiter = ',')]
-        modes: Option<Vec<Mode>>,
-        /// Stepping schemes (default: euler, heun).
-        #[arg(long, value_delimiter = ',')]
-        steppings: Option<Vec<Stepping>>,
-        /// Precisions (default: f64, mixed).
-        #[arg(long, value_delimiter = ',')]
-        precisions: Option<Vec<Precision>>,
-        /// Override the scene's constraint method (penalty, eliminate).
-        #[arg(long)]
-        constraints: Option<ConstraintKind>,
+        #[command(flatten)]
+        grid: accuracy::GridFlags,
     },
     /// Replay a tool path (grabs or forces per frame) on the scene's precomputed response;
     /// write frames.csv, final.obj, report.json and probe.png.
@@ -297,28 +278,7 @@ fn run(command: Command) -> Result<(), CliError> {
         Command::Run { scene, out, over } => run_scene(&scene, &out, &over),
         Command::Roundtrip { scene, over, json } => roundtrip(&scene, &over, json),
         Command::Bench { sizes, repeats, json } => bench(&sizes, repeats, json),
-        Command::Accuracy {
-            scene,
-            out,
-            steps,
-            tolerances,
-            backends,
-            modes,
-            steppings,
-            precisions,
-            constraints,
-        } => {
-            let grid = accuracy::GridFlags {
-                steps,
-                tolerances,
-                backends,
-                modes,
-                steppings,
-                precisions,
-                constraints,
-            };
-            accuracy::run(&scene, &out, grid)
-        }
+        Command::Accuracy { scene, out, grid } => accuracy::run(&scene, &out, grid),
         Command::Probe(args) => probe::run(&args),
     }
 }
