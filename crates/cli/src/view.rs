@@ -86,6 +86,17 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
     let Shape::Surface(file) = &scene.shape else {
         return Err(fibfluid::Error::from(fibfluid::probe::ProbeError::NotASurface).into());
     };
+    let server_opts = ServerOptions {
+        host: args.host.clone(),
+        port: args.port,
+        max_clients: args.max_clients,
+        methods: std::iter::once(args.method)
+            .chain(ViewMethod::ALL.iter().copied().filter(|m| *m != args.method))
+            .map(|m| m.name().to_string())
+            .collect(),
+    };
+    // Bind first: a port in use is reported before the (possibly long) precompute.
+    let server = Server::bind(server_opts)?;
     let opts = ProbeOptions { storage: args.precision, max_memory_bytes: args.max_memory };
     eprintln!("building the {} body of {} ({} vertices)...", args.method, scene.name, scene.n_vertices());
     let pb = build_body(&scene, &opts)?;
@@ -106,17 +117,7 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
             available: AVAILABLE.iter().map(|m| m.name()).collect::<Vec<_>>().join(", "),
         }),
     });
-    let server_opts = ServerOptions {
-        host: args.host.clone(),
-        port: args.port,
-        max_clients: args.max_clients,
-        methods: std::iter::once(args.method)
-            .chain(ViewMethod::ALL.iter().copied().filter(|m| *m != args.method))
-            .map(|m| m.name().to_string())
-            .collect(),
-    };
-    let server = Server::bind(server_opts, mesh, factory)?;
     println!("fibfluid view: {} ({}, {}; Ctrl-C stops)", server.url(), scene.name, args.method);
-    server.run()?;
+    server.run(mesh, factory)?;
     Ok(())
 }

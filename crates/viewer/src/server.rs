@@ -94,10 +94,11 @@ struct Shared {
     stop: AtomicBool,
 }
 
-/// A bound viewer server (not yet accepting).
+/// A bound viewer server (not yet accepting). Binding comes first so that a port in use
+/// is reported before a body is built (which can take a minute on a large mesh).
 pub struct Server {
     listener: TcpListener,
-    shared: Arc<Shared>,
+    opts: ServerOptions,
 }
 
 /// A server running on a background thread.
@@ -110,27 +111,12 @@ pub struct ServerHandle {
 impl Server {
     /// Binds the listener. Nothing is served until [`run`](Self::run) or
     /// [`spawn`](Self::spawn).
-    pub fn bind(opts: ServerOptions, mesh: ViewMesh, factory: BodyFactory) -> Result<Self> {
+    pub fn bind(opts: ServerOptions) -> Result<Self> {
         let addr = format!("{}:{}", opts.host, opts.port);
         let bind_err = |source| ViewerError::Bind { addr: addr.clone(), source };
         let addrs: Vec<SocketAddr> = addr.to_socket_addrs().map_err(bind_err)?.collect();
         let listener = TcpListener::bind(&addrs[..]).map_err(bind_err)?;
-        let info_json = serde_json::json!({
-            "methods": opts.methods,
-            "max_clients": opts.max_clients,
-            "vertices": mesh.n_file_vertices(),
-        })
-        .to_string();
-        let shared = Arc::new(Shared {
-            mesh_json: mesh.to_json(),
-            mesh,
-            info_json,
-            factory,
-            opts,
-            clients: AtomicUsize::new(0),
-            stop: AtomicBool::new(false),
-        });
-        Ok(Self { listener, shared })
+        Ok(Self { listener, opts })
     }
 
     /// The bound address.
@@ -143,17 +129,39 @@ impl Server {
         format!("http://{}/", self.local_addr())
     }
 
-    /// Accepts connections until the process ends (one thread per connection).
-    pub fn run(self) -> Result<()> {
-        accept_loop(&self.listener, &self.shared);
+    fn shared(self, mesh: ViewMesh, factory: BodyFactory) -> (TcpListener, Arc<Shared>) {
+        let info_json = serde_json::json!({
+            "methods": self.opts.methods,
+            "max_clients": self.opts.max_clients,
+            "vertices": mesh.n_file_vertices(),
+        })
+        .to_string();
+        let shared = Arc::new(Shared {
+            mesh_json: mesh.to_json(),
+            mesh,
+            info_json,
+            factory,
+            opts: self.opts,
+            clients: AtomicUsize::new(0),
+            stop: AtomicBool::new(false),
+        });
+        (self.listener, shared)
+    }
+
+    /// Serves `mesh`, one body from `factory` per client, until the process ends (one
+    /// thread per connection).
+    pub fn run(self, mesh: ViewMesh, factory: BodyFactory) -> Result<()> {
+        let (listener, shared) = self.shared(mesh, factory);
+        accept_loop(&listener, &shared);
         Ok(())
     }
 
-    /// Accepts connections on a background thread.
-    pub fn spawn(self) -> ServerHandle {
+    /// Serves on a background thread.
+    pub fn spawn(self, mesh: ViewMesh, factory: BodyFactory) -> ServerHandle {
         let addr = self.local_addr();
-        let shared = Arc::clone(&self.shared);
-        let thread = std::thread::spawn(move || accept_loop(&self.listener, &self.shared));
+        let (listener, shared) = self.shared(mesh, factory);
+        let thread_shared = Arc::clone(&shared);
+        let thread = std::thread::spawn(move || accept_loop(&listener, &thread_shared));
         ServerHandle { addr, shared, thread: Some(thread) }
     }
 }

@@ -44,7 +44,7 @@ pub fn serve(scene: &Scene, body: &FfmBody, max_clients: usize) -> ServerHandle 
         methods: vec!["ffm".into(), "tsve-chainmail".into()],
         ..Default::default()
     };
-    Server::bind(opts, mesh, factory).expect("binds a free port").spawn()
+    Server::bind(opts).expect("binds a free port").spawn(mesh, factory)
 }
 
 /// `GET path`: (status line, headers, body).
