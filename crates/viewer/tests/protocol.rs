@@ -257,3 +257,69 @@ fn unsupported_method_is_refused_with_a_message() {
     let e = c.error();
     assert_eq!(e, "method `tsve-chainmail` is not available in this viewer (available: ffm)");
 }
+
+/// The sphere with an extra vertex that no face uses written first in the file, so file
+/// vertex `v + 1` is body vertex `v`: the protocol must speak the file's order.
+fn sphere_with_unused_first_vertex(dir: &std::path::Path) -> String {
+    let obj = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fixtures/meshes/icosphere-2.obj"
+    ))
+    .unwrap();
+    let mut out = String::from("v 5 5 5\n");
+    for line in obj.lines() {
+        match line.strip_prefix("f ") {
+            Some(rest) => {
+                let shifted: Vec<String> =
+                    rest.split_whitespace().map(|i| (i.parse::<usize>().unwrap() + 1).to_string()).collect();
+                out.push_str(&format!("f {}\n", shifted.join(" ")));
+            }
+            None => out.push_str(&format!("{line}\n")),
+        }
+    }
+    std::fs::create_dir_all(dir).unwrap();
+    std::fs::write(dir.join("shifted.obj"), out).unwrap();
+    let scene =
+        std::fs::read_to_string(sphere_path()).unwrap().replace("../meshes/icosphere-2.obj", "shifted.obj");
+    // The scene's point force names file vertex 3; keep it on the same point.
+    let scene = scene.replace("vertex = 3", "vertex = 4");
+    let path = dir.join("shifted.toml");
+    std::fs::write(&path, scene).unwrap();
+    path.to_string_lossy().into_owned()
+}
+
+#[test]
+fn vertices_are_in_the_file_order_with_an_unused_vertex() {
+    let dir = std::env::temp_dir().join(format!("fibfluid-viewer-order-{}", std::process::id()));
+    let (scene, body) = scene_body(&sphere_with_unused_first_vertex(&dir), Storage::F64);
+    let (_, reference) = scene_body(sphere_path(), Storage::F64);
+    let _ = std::fs::remove_dir_all(&dir);
+    let server = serve(&scene, &body, 2);
+    let (_, _, json) = http_get(server.local_addr(), "/mesh");
+    let v: serde_json::Value = serde_json::from_slice(&json).unwrap();
+    assert_eq!(v["positions"].as_array().unwrap().len(), 3 * 163);
+    assert_eq!(&v["positions"].as_array().unwrap()[..3], &[5.0, 5.0, 5.0]);
+    let fixed: Vec<u64> = v["fixed"].as_array().unwrap().iter().map(|x| x.as_u64().unwrap()).collect();
+    let expected: Vec<u64> =
+        fixed_by_rule(reference.rest_positions()).iter().map(|&i| i as u64 + 1).collect();
+    assert_eq!(fixed, expected);
+
+    let mut c = Client::connect(server.local_addr(), "");
+    c.send(r#"{"grab": 0, "to": [5, 5, 5]}"#);
+    assert_eq!(c.error(), "vertex 0 is not used by any face of the mesh");
+    // File vertex FREE + 1 is the reference sphere's vertex FREE.
+    let rest = reference.rest_positions()[FREE];
+    let to = [rest[0] + 0.1, rest[1], rest[2] - 0.05];
+    c.grab(FREE + 1, to);
+    let f = c.frame();
+    let mut direct = reference.clone();
+    direct.grab(FREE, [0.1, 0.0, -0.05]).unwrap();
+    direct.update().unwrap();
+    assert_eq!(f.positions.len(), 163);
+    assert_eq!(f.positions[0], [5.0, 5.0, 5.0], "the unused vertex stays at its rest position");
+    assert!(max_dist(&f.positions[1..], direct.positions()) <= F32_POSITION_TOLERANCE);
+    assert_eq!(f.reactions.len(), 1);
+    assert_eq!(f.reactions[0].0, FREE + 1);
+    // The reference is a different scene file (same body); its reaction agrees to rounding.
+    assert!(rel(f.reactions[0].1, direct.reactions()[0].1) <= 1e-9);
+}
