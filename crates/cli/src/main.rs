@@ -15,6 +15,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 mod accuracy;
 mod probe;
+mod view;
 
 /// Soft tissue as fluid held by elastic fibers: the fiber–fluid method.
 #[derive(Parser)]
@@ -43,6 +44,9 @@ enum CliError {
         /// What is wrong.
         problem: &'static str,
     },
+    /// An error of the viewer (binding, building a body).
+    #[error(transparent)]
+    Viewer(#[from] fibfluid_viewer::ViewerError),
 }
 
 impl From<fibfluid::geometry::GeometryError> for CliError {
@@ -132,6 +136,8 @@ enum Command {
     /// Replay a tool path (grabs or forces per frame) on the scene's precomputed response;
     /// write frames.csv, final.obj, report.json and probe.png.
     Probe(probe::ProbeArgs),
+    /// Serve a live viewer: drag the scene's surface in a browser (or over a WebSocket).
+    View(view::ViewArgs),
 }
 
 /// Command-line overrides of the scene's `[solver]` and `[load]` settings; each flag
@@ -280,6 +286,7 @@ fn run(command: Command) -> Result<(), CliError> {
         Command::Bench { sizes, repeats, json } => bench(&sizes, repeats, json),
         Command::Accuracy { scene, out, grid } => accuracy::run(&scene, &out, grid),
         Command::Probe(args) => probe::run(&args),
+        Command::View(args) => view::run(&args),
     }
 }
 

@@ -89,11 +89,12 @@ pub fn memory_budget(limit: Option<u64>) -> u64 {
 /// Columns inverted per pass of the blocked inverse.
 const INVERSE_BLOCK: usize = 256;
 
-/// The stored blocks.
+/// The stored blocks, shared by clones (they are never modified after the precompute, so
+/// several bodies, e.g. one per viewer client, can use one precompute).
 #[derive(Clone, Debug)]
 enum Blocks {
-    F64(Vec<Mat<f64>>),
-    F32(Vec<Mat<f32>>),
+    F64(std::sync::Arc<[Mat<f64>]>),
+    F32(std::sync::Arc<[Mat<f32>]>),
 }
 
 /// The precomputed linear response of a body about its rest shape (paper mode).
@@ -113,6 +114,9 @@ enum Blocks {
 /// pressure scaling of the assembled border cancels (it scales `w` and `s` alike), so the
 /// physical border is used. A point force at vertex v costs `O(N)` for the whole field (one
 /// column of `C` per axis) and `O(1)` at a single vertex.
+///
+/// Cloning is cheap (`O(N)`): clones share the `N x N` blocks, so one precompute serves
+/// several bodies (a viewer gives each client its own [`FfmBody`](crate::FfmBody)).
 #[derive(Clone, Debug)]
 pub struct Compliance {
     n: usize,
@@ -225,8 +229,8 @@ impl Compliance {
             });
         }
         let blocks = match opts.storage {
-            Storage::F64 => Blocks::F64(stored64),
-            Storage::F32 => Blocks::F32(stored32),
+            Storage::F64 => Blocks::F64(stored64.into()),
+            Storage::F32 => Blocks::F32(stored32.into()),
         };
         Ok(Self {
             n,

@@ -1,0 +1,35 @@
+//! A live viewer: drag an interactive body in a browser, or drive it from any program
+//! through a small documented protocol (`docs/viewer.md`).
+//!
+//! The server knows only [`Interactive`](fibfluid_interact::Interactive) bodies and
+//! meshes. It listens on one [`std::net::TcpListener`] and routes each connection by its
+//! request head:
+//!
+//! - `GET /`: the page (HTML, JavaScript and CSS compiled into the binary: works offline);
+//! - `GET /mesh`: the rest shape, `{"positions": [...], "triangles": [...], "fixed": [...]}`
+//!   in the input file's vertex order;
+//! - `GET /info`: the methods this server can build and its client limit;
+//! - WebSocket `/ws?method=NAME`: one body per client, built by a factory closure
+//!   ([`BodyFactory`]). Client messages `{"grab": V, "to": [x, y, z]}`, `{"release": V}`,
+//!   `{"reset": true}`; each batch of messages read together is answered by one text
+//!   message `{"frame": k, "reactions": [[V, fx, fy, fz], ...], "latency_us": t}` and one
+//!   binary message of `3 N` little-endian `f32` positions (messages that arrive faster
+//!   than frames are coalesced: the last state wins). A bad message is answered by
+//!   `{"error": "..."}` and the connection stays open.
+//!
+//! One thread per connection; plain blocking I/O (tungstenite, no async runtime).
+
+mod mesh;
+mod protocol;
+mod server;
+
+pub use mesh::ViewMesh;
+pub use protocol::{ClientMessage, MessageError, frame_json, parse_message, positions_le_f32};
+pub use server::{BodyFactory, Server, ServerHandle, ServerOptions, ViewerError};
+
+/// The page served at `GET /`: one HTML file with inline JavaScript and CSS (Canvas 2D, no
+/// external URL).
+pub const INDEX_HTML: &str = include_str!("../assets/index.html");
+
+/// Result alias of this crate.
+pub type Result<T> = std::result::Result<T, ViewerError>;

@@ -1,0 +1,183 @@
+//! The messages of the WebSocket protocol: parsing the client's, writing the server's.
+
+use fibfluid_geometry::Vec3;
+use serde_json::Value;
+
+/// A client message.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ClientMessage {
+    /// `{"grab": V, "to": [x, y, z]}`: hold file vertex `V` at the position `to`.
+    Grab {
+        /// Vertex in the file's order.
+        vertex: usize,
+        /// Target position (world coordinates, not a displacement).
+        to: Vec3,
+    },
+    /// `{"release": V}`: drop the hold on `V`.
+    Release {
+        /// Vertex in the file's order.
+        vertex: usize,
+    },
+    /// `{"reset": true}`: drop every hold.
+    Reset,
+}
+
+/// Why a client message was refused (sent back as `{"error": "..."}`).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum MessageError {
+    /// Not JSON, or not one of the protocol's messages.
+    #[error("malformed message: {problem}")]
+    Malformed {
+        /// What is wrong.
+        problem: String,
+    },
+    /// A target with a NaN, infinite or null component.
+    #[error("vertex {vertex}: the target position has a non-finite component ({value})")]
+    NonFinite {
+        /// The vertex.
+        vertex: usize,
+        /// The component as sent.
+        value: String,
+    },
+    /// A vertex beyond the mesh.
+    #[error("vertex {vertex} does not exist (the mesh has {count} vertices, 0-based)")]
+    UnknownVertex {
+        /// The vertex.
+        vertex: usize,
+        /// Vertices of the mesh.
+        count: usize,
+    },
+    /// A vertex of the file that no face uses.
+    #[error("vertex {vertex} is not used by any face of the mesh")]
+    UnusedVertex {
+        /// The vertex.
+        vertex: usize,
+    },
+    /// A grab of a vertex the scene fixes.
+    #[error("vertex {vertex} is fixed by the scene; it cannot be grabbed")]
+    FixedVertex {
+        /// The vertex.
+        vertex: usize,
+    },
+    /// A binary message from the client.
+    #[error("binary messages are not part of the protocol (send JSON text)")]
+    Binary,
+    /// The body refused the request or could not compute the frame.
+    #[error("{0}")]
+    Body(#[from] fibfluid_interact::InteractError),
+}
+
+fn malformed(problem: impl Into<String>) -> MessageError {
+    MessageError::Malformed { problem: problem.into() }
+}
+
+const EXPECTED: &str = r#"expected {"grab": V, "to": [x, y, z]}, {"release": V} or {"reset": true}"#;
+
+fn vertex_of(v: &Value, key: &str) -> Result<usize, MessageError> {
+    match v.as_u64() {
+        Some(i) => usize::try_from(i).map_err(|_| malformed(format!("`{key}`: vertex {i} is too large"))),
+        None => Err(malformed(format!("`{key}` must be a vertex index (0, 1, 2, ...), found {v}"))),
+    }
+}
+
+/// Parses one text message. Vertices are checked against the mesh by the caller.
+pub fn parse_message(text: &str) -> Result<ClientMessage, MessageError> {
+    let value: Value = serde_json::from_str(text).map_err(|e| malformed(format!("not JSON ({e})")))?;
+    let Value::Object(obj) = value else {
+        return Err(malformed(format!("not a JSON object; {EXPECTED}")));
+    };
+    let keys: Vec<&str> = obj.keys().map(String::as_str).collect();
+    match keys.as_slice() {
+        ["grab", "to"] | ["to", "grab"] => {
+            let vertex = vertex_of(&obj["grab"], "grab")?;
+            let Some(arr) = obj["to"].as_array().filter(|a| a.len() == 3) else {
+                return Err(malformed(format!("`to` must be [x, y, z], found {}", obj["to"])));
+            };
+            let mut to = [0.0; 3];
+            for (c, x) in arr.iter().enumerate() {
+                to[c] = match x {
+                    Value::Number(n) => {
+                        n.as_f64().ok_or_else(|| malformed(format!("`to`: {n} is not a number")))?
+                    }
+                    // JavaScript's JSON.stringify writes NaN and infinities as null.
+                    Value::Null => f64::NAN,
+                    Value::String(s) => match s.trim().to_ascii_lowercase().as_str() {
+                        "nan" | "inf" | "+inf" | "-inf" | "infinity" | "+infinity" | "-infinity" => f64::NAN,
+                        _ => return Err(malformed(format!("`to`: \"{s}\" is not a number"))),
+                    },
+                    other => return Err(malformed(format!("`to`: {other} is not a number"))),
+                };
+                if !to[c].is_finite() {
+                    return Err(MessageError::NonFinite { vertex, value: x.to_string() });
+                }
+            }
+            Ok(ClientMessage::Grab { vertex, to })
+        }
+        ["release"] => Ok(ClientMessage::Release { vertex: vertex_of(&obj["release"], "release")? }),
+        ["reset"] => match obj["reset"] {
+            Value::Bool(true) => Ok(ClientMessage::Reset),
+            ref other => Err(malformed(format!("`reset` must be true, found {other}"))),
+        },
+        _ => Err(malformed(format!("unknown keys {keys:?}; {EXPECTED}"))),
+    }
+}
+
+/// The text message of a frame: `{"frame": k, "reactions": [[V, fx, fy, fz], ...],
+/// "latency_us": t}` (reactions by file vertex, ascending).
+pub fn frame_json(frame: u64, reactions: &[(usize, Vec3)], latency_us: f64) -> String {
+    let r: Vec<Value> = reactions.iter().map(|&(v, f)| serde_json::json!([v, f[0], f[1], f[2]])).collect();
+    serde_json::json!({ "frame": frame, "reactions": r, "latency_us": latency_us }).to_string()
+}
+
+/// The binary message of a frame: `3 N` little-endian `f32` positions (`x0 y0 z0 x1 ...`).
+pub fn positions_le_f32(positions: &[Vec3], out: &mut Vec<u8>) {
+    out.clear();
+    out.reserve(12 * positions.len());
+    for p in positions {
+        for c in p {
+            out.extend_from_slice(&(*c as f32).to_le_bytes());
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_the_three_messages() {
+        assert_eq!(
+            parse_message(r#"{"grab": 3, "to": [1, 2.5, -1e-3]}"#),
+            Ok(ClientMessage::Grab { vertex: 3, to: [1.0, 2.5, -1e-3] })
+        );
+        assert_eq!(parse_message(r#"{"release": 7}"#), Ok(ClientMessage::Release { vertex: 7 }));
+        assert_eq!(parse_message(r#"{"reset": true}"#), Ok(ClientMessage::Reset));
+    }
+
+    #[test]
+    fn refuses_bad_messages() {
+        for bad in [
+            "grab 3",
+            "[1, 2]",
+            r#"{"grab": -1, "to": [0, 0, 0]}"#,
+            r#"{"grab": 1.5, "to": [0, 0, 0]}"#,
+            r#"{"grab": 1, "to": [0, 0]}"#,
+            r#"{"grab": 1}"#,
+            r#"{"reset": false}"#,
+            r#"{"release": 1, "reset": true}"#,
+            r#"{"grab": 1, "to": [0, "a", 0]}"#,
+        ] {
+            assert!(matches!(parse_message(bad), Err(MessageError::Malformed { .. })), "{bad}");
+        }
+        for nonfinite in [r#"{"grab": 2, "to": [null, 0, 0]}"#, r#"{"grab": 2, "to": [0, "NaN", 0]}"#] {
+            assert!(matches!(parse_message(nonfinite), Err(MessageError::NonFinite { vertex: 2, .. })));
+        }
+    }
+
+    #[test]
+    fn positions_are_little_endian_f32() {
+        let mut out = Vec::new();
+        positions_le_f32(&[[1.0, -2.0, 0.5]], &mut out);
+        assert_eq!(out, [0, 0, 128, 63, 0, 0, 0, 192, 0, 0, 0, 63]);
+    }
+}
