@@ -26,6 +26,8 @@
 
 pub mod accuracy;
 pub mod bench;
+pub mod chainmail_body;
+pub mod chainmail_scene;
 pub mod contact;
 mod error;
 pub mod guards;
@@ -41,7 +43,8 @@ pub mod stages;
 pub use error::{Error, Result, SceneError, SceneProblem};
 pub use info::MeshInfo;
 pub use output::{
-    COMPRESSION_FILE, OUTPUT_FILES, compression_png, render_png, write_fibers_vtk, write_files_atomically, write_outputs, write_vtk,
+    COMPRESSION_FILE, OUTPUT_FILES, compression_png, render_png, write_fibers_vtk, write_files_atomically,
+    write_outputs, write_vtk,
 };
 pub use plan::{Plan, PlannedStage};
 pub use report::{Report, RoundTrip, SkippedStage, roundtrip, roundtrip_error};

@@ -142,7 +142,12 @@ fn render_plates_png(sim: &Simulation) -> Result<Vec<u8>> {
     let (p1, t1, s1) = with_plates(sim.positions(), &pressure, sim.state().load_factor);
     let opts = fibfluid_render::ViewOptions { scalar_label: "contact pressure".into(), ..Default::default() };
     let panels = [
-        fibfluid_render::Surface { positions: &p0, triangles: &t0, scalar: &s0, title: "rest, plates".into() },
+        fibfluid_render::Surface {
+            positions: &p0,
+            triangles: &t0,
+            scalar: &s0,
+            title: "rest, plates".into(),
+        },
         fibfluid_render::Surface {
             positions: &p1,
             triangles: &t1,
