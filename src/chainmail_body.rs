@@ -47,6 +47,11 @@ impl BodyMaterial {
     }
 }
 
+/// The exhaustive propagation of one frame stops after this many processings per element
+/// (a push that the fixed elements make impossible would otherwise run to the crate's
+/// default of 64 per element every frame).
+pub const MAX_PROCESSED_PER_ELEMENT: usize = 8;
+
 /// What the last frame of a [`ChainmailBody`] did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FrameWork {
@@ -157,12 +162,17 @@ impl ChainmailBody {
         let scheme = if settings.tss { Scheme::Auto } else { Scheme::Exhaustive };
         let relax = RelaxOptions { max_iterations: settings.relaxation, ..RelaxOptions::default() };
         let n = rest.len();
+        let n_elements = lattice.len();
         Ok(Self {
             variant,
             lattice,
             embedding,
             material,
-            propagation: PropagationOptions { scheme, ..PropagationOptions::default() },
+            propagation: PropagationOptions {
+                scheme,
+                max_processed: MAX_PROCESSED_PER_ELEMENT * n_elements,
+                ..PropagationOptions::default()
+            },
             relax,
             positions: rest.clone(),
             rest,

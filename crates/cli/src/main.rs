@@ -14,6 +14,7 @@ use fibfluid::{
 use indicatif::{ProgressBar, ProgressStyle};
 
 mod accuracy;
+mod compare;
 mod probe;
 
 /// Soft tissue as fluid held by elastic fibers: the fiber–fluid method.
@@ -151,6 +152,9 @@ enum Command {
     /// Replay a tool path (grabs or forces per frame) on the scene's precomputed response;
     /// write frames.csv, final.obj, report.json and probe.png.
     Probe(probe::ProbeArgs),
+    /// Replay one grab path with FFM, TSVE-ChainMail and Generalized ChainMail; write
+    /// compare.json and compare.png.
+    Compare(compare::CompareArgs),
 }
 
 /// Command-line overrides of the scene's `[solver]` and `[load]` settings; each flag
@@ -320,6 +324,7 @@ fn run(command: Command) -> Result<(), CliError> {
             accuracy::run(&scene, &out, grid)
         }
         Command::Probe(args) => probe::run(&args),
+        Command::Compare(args) => compare::run(&args),
     }
 }
 
