@@ -20,7 +20,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use fibfluid_geometry::Vec3;
-use fibfluid_geometry::vec3::{dist, norm, sub};
+use fibfluid_geometry::vec3::{dist, norm};
 use fibfluid_linalg::Choice;
 use serde::Serialize;
 
@@ -62,7 +62,7 @@ pub struct CompareReport {
     pub vertices: usize,
     /// Rest bounding-box diagonal (the scale of the relative distances).
     pub diagonal: f64,
-    /// The frame shown in `compare.png` (largest displacement of any method).
+    /// The frame shown in `compare.png`: the first frame of the path's largest grab.
     pub shown_frame: usize,
     /// Numbers per method, by method name.
     pub methods: BTreeMap<String, MethodMetrics>,
@@ -131,14 +131,12 @@ pub fn run_compare(scene: &Scene, path: &ToolPath, out: &Path, opts: &ProbeOptio
         }
         run.metrics.surface_rms_vs_ffm = if count > 0 { (sum / count as f64).sqrt() / diagonal } else { 0.0 };
     }
-    // The frame of largest displacement over the methods.
-    let max_disp = |s: &[Vec3]| s.iter().zip(&rest).map(|(p, r)| norm(sub(*p, *r))).fold(0.0, f64::max);
+    // The frame of largest displacement: where the tool's largest grab is (the first such
+    // frame); the scene's own loads (FFM's base state) do not count.
+    let tool = |k: usize| frames[k].iter().map(|h| norm(h.value)).fold(0.0, f64::max);
     let mut shown = 0;
-    let mut largest = -1.0;
     for k in 0..frames.len() {
-        let d = runs.iter().map(|(_, r)| max_disp(&r.surfaces[k])).fold(0.0, f64::max);
-        if d > largest {
-            largest = d;
+        if tool(k) > tool(shown) {
             shown = k;
         }
     }
