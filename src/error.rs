@@ -248,6 +248,21 @@ pub enum SceneProblem {
         /// The axis.
         axis: char,
     },
+    /// The ChainMail lattice at this spacing would not fit in memory (refused before
+    /// anything is allocated).
+    #[error(
+        "spacing {spacing} needs up to {bytes} bytes ({:.2} GiB) for the ChainMail lattice, but only {available} bytes ({:.2} GiB) may be used; use a larger spacing",
+        *bytes as f64 / 1073741824.0,
+        *available as f64 / 1073741824.0
+    )]
+    ChainmailLatticeTooLarge {
+        /// The spacing.
+        spacing: f64,
+        /// Bytes needed (upper bound: every grid node an element).
+        bytes: u128,
+        /// Bytes that may be used.
+        available: u64,
+    },
 }
 
 /// Result alias of the facade.

@@ -26,6 +26,9 @@
 
 pub mod accuracy;
 pub mod bench;
+pub mod chainmail_body;
+pub mod chainmail_scene;
+pub mod compare;
 pub mod contact;
 mod error;
 pub mod guards;

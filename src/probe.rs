@@ -31,9 +31,11 @@ use fibfluid_geometry::{MeshFile, Vec3};
 use fibfluid_interact::{
     Compliance, ComplianceOptions, FfmBody, InteractError, Interactive, Storage, memory_budget,
 };
-use fibfluid_linalg::Precision;
+use fibfluid_linalg::{Choice, Precision, impl_choice};
 use serde::Serialize;
 
+use crate::chainmail_body::{ChainmailBody, ChainmailBodyError};
+use crate::chainmail_scene::Variant;
 use crate::{Error, Mode, Result, RunOptions, Scene, Shape, Simulation, write_files_atomically};
 
 pub use fibfluid_interact as interact;
@@ -43,6 +45,42 @@ pub const PROBE_FILES: [&str; 4] = ["frames.csv", "final.obj", "report.json", "p
 
 /// The largest frame number a path may use.
 pub const MAX_FRAME: usize = 10_000_000;
+
+/// The deformation method a probe (or a comparison) runs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Method {
+    /// The fiber–fluid method's precomputed response (forces and grabs).
+    #[default]
+    Ffm,
+    /// TSVE-ChainMail (grabs only).
+    TsveChainmail,
+    /// Generalized (traditional) ChainMail (grabs only).
+    GeneralizedChainmail,
+}
+
+impl Choice for Method {
+    const WHAT: &'static str = "method";
+    const ALL: &'static [Self] = &[Method::Ffm, Method::TsveChainmail, Method::GeneralizedChainmail];
+    fn name(self) -> &'static str {
+        match self {
+            Method::Ffm => "ffm",
+            Method::TsveChainmail => "tsve-chainmail",
+            Method::GeneralizedChainmail => "generalized-chainmail",
+        }
+    }
+}
+impl_choice!(Method);
+
+impl Method {
+    /// The ChainMail variant of a ChainMail method.
+    pub fn chainmail_variant(self) -> Option<Variant> {
+        match self {
+            Method::Ffm => None,
+            Method::TsveChainmail => Some(Variant::Tsve),
+            Method::GeneralizedChainmail => Some(Variant::Generalized),
+        }
+    }
+}
 
 /// What can go wrong while probing.
 #[derive(Debug, thiserror::Error)]
@@ -77,6 +115,22 @@ pub enum ProbeError {
     /// The scene is a 2D polygon.
     #[error("probe needs a surface mesh; this scene is a 2D polygon")]
     NotASurface,
+    /// The scene's ChainMail body cannot be built.
+    #[error("{scene}: {source}")]
+    Chainmail {
+        /// The scene file (or the scene's name when built in code).
+        scene: String,
+        /// Why.
+        source: ChainmailBodyError,
+    },
+    /// A force path given to a displacement-driven method.
+    #[error("{}: {method} is displacement-driven: it needs a grab path (frame,vertex,ux,uy,uz), not a force path", path.display())]
+    ForcePath {
+        /// The path file.
+        path: PathBuf,
+        /// The method.
+        method: Method,
+    },
     /// The path file is a directory.
     #[error("{}: is a directory, not a path file", path.display())]
     IsDirectory {
@@ -482,6 +536,17 @@ pub fn replay(
     kind: PathKind,
     frames: &[Vec<PathHold>],
 ) -> std::result::Result<Replay, ProbeError> {
+    replay_observed(body, kind, frames, |_, _| {})
+}
+
+/// [`replay`], calling `observe(frame, body)` after each frame's update (outside the timed
+/// part), for instance to record the surfaces.
+pub fn replay_observed(
+    body: &mut dyn Interactive,
+    kind: PathKind,
+    frames: &[Vec<PathHold>],
+    mut observe: impl FnMut(usize, &dyn Interactive),
+) -> std::result::Result<Replay, ProbeError> {
     let mut rows = Vec::new();
     let mut latency_us = Vec::with_capacity(frames.len());
     for (k, holds) in frames.iter().enumerate() {
@@ -505,6 +570,7 @@ pub fn replay(
                 displacement: body.field()[h.vertex],
             });
         }
+        observe(k, &*body);
     }
     Ok(Replay { rows, latency_us, frames: frames.len() })
 }
@@ -557,7 +623,7 @@ pub struct ProbeReport {
     pub scene: String,
     /// The path file.
     pub path: String,
-    /// `ffm`.
+    /// `ffm`, `tsve-chainmail` or `generalized-chainmail`.
     pub method: String,
     /// `grab` or `force`.
     pub kind: PathKind,
@@ -573,8 +639,11 @@ pub struct ProbeReport {
     pub base_max_displacement: f64,
     /// Largest displacement after the last frame.
     pub final_max_displacement: f64,
-    /// Pressure change after the last frame.
-    pub final_pressure: f64,
+    /// Pressure change after the last frame (`null` for ChainMail, which has no pressure).
+    pub final_pressure: Option<f64>,
+    /// The ChainMail lattice (absent for FFM).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub chainmail: Option<ChainmailStats>,
     /// Wall-clock seconds of the whole probe run.
     pub seconds_total: f64,
 }
@@ -586,13 +655,23 @@ fn max_norm(v: &[Vec3]) -> f64 {
 /// `frames.csv`: `frame,vertex,fx,fy,fz,ux,uy,uz`, every value in shortest round-trip
 /// scientific notation.
 pub fn frames_csv(rows: &[FrameRow]) -> String {
+    frames_csv_with(rows, true)
+}
+
+/// [`frames_csv`]; with `forces` false (a method without forces, such as ChainMail) the
+/// force fields are left empty (the header stays the same).
+pub fn frames_csv_with(rows: &[FrameRow], forces: bool) -> String {
     let mut s = String::from("frame,vertex,fx,fy,fz,ux,uy,uz\n");
     for r in rows {
         let (f, u) = (r.force, r.displacement);
-        s.push_str(&format!(
-            "{},{},{:e},{:e},{:e},{:e},{:e},{:e}\n",
-            r.frame, r.file_vertex, f[0], f[1], f[2], u[0], u[1], u[2]
-        ));
+        if forces {
+            s.push_str(&format!(
+                "{},{},{:e},{:e},{:e},{:e},{:e},{:e}\n",
+                r.frame, r.file_vertex, f[0], f[1], f[2], u[0], u[1], u[2]
+            ));
+        } else {
+            s.push_str(&format!("{},{},,,,{:e},{:e},{:e}\n", r.frame, r.file_vertex, u[0], u[1], u[2]));
+        }
     }
     s
 }
@@ -600,6 +679,18 @@ pub fn frames_csv(rows: &[FrameRow]) -> String {
 /// `probe.png`: the force magnitude at each probed vertex per frame (0 while it is not
 /// held); with more than eight probed vertices, the sum of the magnitudes.
 pub fn probe_chart(title: &str, frames: usize, rows: &[FrameRow]) -> Result<Vec<u8>> {
+    probe_chart_by(title, frames, rows, "|force| on the body", |r| r.force)
+}
+
+/// The chart of [`probe_chart`] for any vector of a row (`value`), labelled `y_label`; a
+/// method without forces charts the displacement of the probed vertices.
+pub fn probe_chart_by(
+    title: &str,
+    frames: usize,
+    rows: &[FrameRow],
+    y_label: &str,
+    value: impl Fn(&FrameRow) -> Vec3,
+) -> Result<Vec<u8>> {
     let mut vertices: Vec<usize> = rows.iter().map(|r| r.file_vertex).collect();
     vertices.sort_unstable();
     vertices.dedup();
@@ -610,7 +701,7 @@ pub fn probe_chart(title: &str, frames: usize, rows: &[FrameRow]) -> Result<Vec<
             .map(|&v| {
                 let mut y = vec![0.0; frames];
                 for r in rows.iter().filter(|r| r.file_vertex == v) {
-                    y[r.frame] = norm(r.force);
+                    y[r.frame] = norm(value(r));
                 }
                 fibfluid_render::Series {
                     label: format!("vertex {v}"),
@@ -621,17 +712,17 @@ pub fn probe_chart(title: &str, frames: usize, rows: &[FrameRow]) -> Result<Vec<
     } else {
         let mut y = vec![0.0; frames];
         for r in rows {
-            y[r.frame] += norm(r.force);
+            y[r.frame] += norm(value(r));
         }
         vec![fibfluid_render::Series {
             label: "sum over probed vertices".into(),
             points: y.into_iter().enumerate().map(|(k, y)| (k as f64, y)).collect(),
         }]
     };
-    Ok(fibfluid_render::line_chart(title, "frame", "|force| on the body", &series, 900, 520)?)
+    Ok(fibfluid_render::line_chart(title, "frame", y_label, &series, 900, 520)?)
 }
 
-fn final_obj(file: &MeshFile, positions: &[Vec3]) -> Result<Vec<u8>> {
+pub(crate) fn final_obj(file: &MeshFile, positions: &[Vec3]) -> Result<Vec<u8>> {
     let mut obj = Vec::new();
     fibfluid_geometry::write_obj_to(
         &mut obj,
@@ -642,11 +733,104 @@ fn final_obj(file: &MeshFile, positions: &[Vec3]) -> Result<Vec<u8>> {
     Ok(obj)
 }
 
-/// Probes a scene along a path and writes [`PROBE_FILES`] into `out` (all or nothing).
-/// The path is checked against the scene before anything is assembled.
+/// A scene's body for one [`Method`], with what building it cost.
+#[derive(Debug)]
+pub enum MethodBody {
+    /// The fiber–fluid method's body.
+    Ffm(Box<ProbeBody>),
+    /// A ChainMail body.
+    Chainmail(Box<ChainmailBody>),
+}
+
+impl MethodBody {
+    /// Builds the body of `scene` for `method`, within the memory budget of `opts`.
+    pub fn build(scene: &Scene, method: Method, opts: &ProbeOptions) -> Result<Self> {
+        match method.chainmail_variant() {
+            None => Ok(MethodBody::Ffm(Box::new(build_body(scene, opts)?))),
+            Some(variant) => {
+                let budget = memory_budget(opts.max_memory_bytes);
+                let body = ChainmailBody::from_scene(scene, variant, budget)
+                    .map_err(|source| ProbeError::Chainmail { scene: scene_name(scene), source })?;
+                Ok(MethodBody::Chainmail(Box::new(body)))
+            }
+        }
+    }
+
+    /// The body behind the method-neutral trait.
+    pub fn interactive(&mut self) -> &mut dyn Interactive {
+        match self {
+            MethodBody::Ffm(b) => &mut b.body,
+            MethodBody::Chainmail(b) => b.as_mut(),
+        }
+    }
+
+    /// The body behind the method-neutral trait, read only.
+    pub fn interactive_ref(&self) -> &dyn Interactive {
+        match self {
+            MethodBody::Ffm(b) => &b.body,
+            MethodBody::Chainmail(b) => b.as_ref(),
+        }
+    }
+
+    /// Seconds of the setup: base solve and precompute (FFM), voxelization and embedding
+    /// (ChainMail).
+    pub fn setup_seconds(&self) -> f64 {
+        match self {
+            MethodBody::Ffm(b) => b.base_seconds + b.precompute_seconds,
+            MethodBody::Chainmail(b) => b.setup_seconds(),
+        }
+    }
+}
+
+fn scene_name(scene: &Scene) -> String {
+    scene.source.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| scene.name.clone())
+}
+
+/// The ChainMail section of a probe's `report.json`.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ChainmailStats {
+    /// Lattice spacing.
+    pub spacing: f64,
+    /// Chain elements.
+    pub elements: usize,
+    /// Tetrahedra (volume and strain-energy constraints).
+    pub tetrahedra: usize,
+    /// Whether the time-saving scheme is allowed (`[chainmail].tss`).
+    pub tss: bool,
+    /// Relaxation sweeps per frame (TSVE).
+    pub relaxation: usize,
+    /// Seconds of the voxelization and embedding.
+    pub setup_seconds: f64,
+}
+
+/// Checks that `method` can replay a path of this kind (ChainMail needs grabs).
+pub fn check_method(path: &ToolPath, method: Method) -> std::result::Result<(), ProbeError> {
+    if path.kind == PathKind::Force && method != Method::Ffm {
+        return Err(ProbeError::ForcePath { path: path.source.clone(), method });
+    }
+    Ok(())
+}
+
+/// Probes a scene along a path with the fiber–fluid method and writes [`PROBE_FILES`] into
+/// `out` (all or nothing). See [`run_probe_with`].
 pub fn run_probe(scene: &Scene, path: &ToolPath, out: &Path, opts: &ProbeOptions) -> Result<ProbeReport> {
+    run_probe_with(scene, path, out, opts, Method::Ffm)
+}
+
+/// Probes a scene along a path with `method` and writes [`PROBE_FILES`] into `out` (all or
+/// nothing). The path is checked against the scene before anything is assembled. A method
+/// without forces (ChainMail) leaves the force fields of `frames.csv` empty, and its
+/// `probe.png` charts the displacement of the probed vertices instead of the force.
+pub fn run_probe_with(
+    scene: &Scene,
+    path: &ToolPath,
+    out: &Path,
+    opts: &ProbeOptions,
+    method: Method,
+) -> Result<ProbeReport> {
     let start = Instant::now();
     let Shape::Surface(file) = &scene.shape else { return Err(ProbeError::NotASurface.into()) };
+    check_method(path, method)?;
     let frames = check_path(path, scene)?;
     if let Some(blocked) = PROBE_FILES.iter().map(|f| out.join(f)).find(|p| p.is_dir()) {
         return Err(Error::OutputBlocked {
@@ -654,46 +838,85 @@ pub fn run_probe(scene: &Scene, path: &ToolPath, out: &Path, opts: &ProbeOptions
             problem: "is a directory, where an output file would go (nothing was written)",
         });
     }
-    let mut pb = build_body(scene, opts)?;
-    let base_max = max_norm(pb.body.base_field());
-    let replay = replay(&mut pb.body, path.kind, &frames)?;
+    let mut mb = MethodBody::build(scene, method, opts)?;
+    let base_max = match &mb {
+        MethodBody::Ffm(pb) => max_norm(pb.body.base_field()),
+        MethodBody::Chainmail(_) => 0.0,
+    };
+    let replay = replay(mb.interactive(), path.kind, &frames)?;
     let mut probed: Vec<usize> = replay.rows.iter().map(|r| r.file_vertex).collect();
     probed.sort_unstable();
     probed.dedup();
-    let constraints = scene.solver.constraints;
+    let body = mb.interactive_ref();
+    let forces = body.supports_forces();
+    let (precision, constraints, base_seconds, precompute_seconds, final_pressure, chainmail) = match &mb {
+        MethodBody::Ffm(pb) => (
+            opts.storage.to_string(),
+            scene.solver.constraints.to_string(),
+            pb.base_seconds,
+            pb.precompute_seconds,
+            Some(pb.body.pressure()),
+            None,
+        ),
+        MethodBody::Chainmail(cb) => (
+            "f64".to_string(),
+            "fixed-elements".to_string(),
+            0.0,
+            cb.setup_seconds(),
+            None,
+            Some(ChainmailStats {
+                spacing: cb.lattice().spacing(),
+                elements: cb.lattice().len(),
+                tetrahedra: cb.lattice().tets().len(),
+                tss: scene.chainmail.tss,
+                relaxation: scene.chainmail.relaxation,
+                setup_seconds: cb.setup_seconds(),
+            }),
+        ),
+    };
     let mut report = ProbeReport {
         scene: scene.name.clone(),
         path: path.source.display().to_string(),
-        method: pb.body.method().to_string(),
+        method: method.to_string(),
         kind: path.kind,
-        precision: opts.storage.to_string(),
-        constraints: constraints.to_string(),
+        precision,
+        constraints,
         probe: ProbeStats {
             frames: replay.frames,
-            vertices: pb.body.n_vertices(),
+            vertices: body.n_vertices(),
             probed_vertices: probed.len(),
-            precompute_seconds: pb.precompute_seconds,
-            memory_bytes: pb.body.memory_bytes(),
+            precompute_seconds,
+            memory_bytes: body.memory_bytes(),
             latency_us: Latency::of(&replay.latency_us),
         },
-        base_seconds: pb.base_seconds,
+        base_seconds,
         base_max_displacement: base_max,
-        final_max_displacement: max_norm(pb.body.field()),
-        final_pressure: pb.body.pressure(),
+        final_max_displacement: max_norm(body.field()),
+        final_pressure,
+        chainmail,
         seconds_total: 0.0,
     };
-    let title = format!(
-        "{}: force at the probed vertices ({} path, ffm, {})",
-        scene.name,
-        path.kind.name(),
-        opts.storage
-    );
-    let png = probe_chart(&title, replay.frames, &replay.rows)?;
-    let obj = final_obj(file, pb.body.positions())?;
+    let png = if forces {
+        let title = format!(
+            "{}: force at the probed vertices ({} path, {method}, {})",
+            scene.name,
+            path.kind.name(),
+            opts.storage
+        );
+        probe_chart(&title, replay.frames, &replay.rows)?
+    } else {
+        let title = format!(
+            "{}: displacement of the probed vertices ({} path, {method})",
+            scene.name,
+            path.kind.name()
+        );
+        probe_chart_by(&title, replay.frames, &replay.rows, "|u| at the probed vertex", |r| r.displacement)?
+    };
+    let obj = final_obj(file, body.positions())?;
     report.seconds_total = start.elapsed().as_secs_f64();
     let json = serde_json::to_string_pretty(&report)? + "\n";
     let files = [
-        (PROBE_FILES[0], frames_csv(&replay.rows).into_bytes()),
+        (PROBE_FILES[0], frames_csv_with(&replay.rows, forces).into_bytes()),
         (PROBE_FILES[1], obj),
         (PROBE_FILES[2], json.into_bytes()),
         (PROBE_FILES[3], png),

@@ -173,6 +173,8 @@ pub struct Scene {
     pub plates: Vec<Plate>,
     /// Solver choices.
     pub solver: SolverOptions,
+    /// How the ChainMail methods voxelize and deform the body (`[chainmail]`).
+    pub chainmail: crate::chainmail_scene::ChainmailSettings,
 }
 
 impl Scene {
@@ -192,6 +194,7 @@ impl Scene {
             guards: Guards::default(),
             plates: vec![],
             solver: SolverOptions::default(),
+            chainmail: Default::default(),
         }
     }
 
@@ -238,20 +241,24 @@ impl Scene {
 }
 
 /// A problem found while building a scene, before the file is known.
-struct Invalid {
+pub(crate) struct Invalid {
     key: Option<String>,
     problem: SceneProblem,
 }
 
-fn invalid(key: impl Into<String>, problem: SceneProblem) -> Invalid {
+pub(crate) fn invalid(key: impl Into<String>, problem: SceneProblem) -> Invalid {
     Invalid { key: Some(key.into()), problem }
 }
 
-fn range(key: impl Into<String>, rule: &'static str, value: impl std::fmt::Display) -> Invalid {
+pub(crate) fn range(key: impl Into<String>, rule: &'static str, value: impl std::fmt::Display) -> Invalid {
     invalid(key, SceneProblem::Range { rule, value: value.to_string() })
 }
 
-fn choice<T: Choice>(key: &str, value: Option<String>, default: T) -> std::result::Result<T, Invalid> {
+pub(crate) fn choice<T: Choice>(
+    key: &str,
+    value: Option<String>,
+    default: T,
+) -> std::result::Result<T, Invalid> {
     match value {
         None => Ok(default),
         Some(v) => T::parse_name(&v).map_err(|e| invalid(key, SceneProblem::Choice(e))),
@@ -374,6 +381,7 @@ struct SceneToml {
     guards: Option<GuardsToml>,
     #[serde(default)]
     plate: Vec<PlateToml>,
+    chainmail: Option<crate::chainmail_scene::ChainmailToml>,
 }
 
 #[derive(Deserialize)]
@@ -731,6 +739,8 @@ fn build(
             },
         ));
     }
+    let budget = fibfluid_interact::memory_budget(None);
+    let chainmail = crate::chainmail_scene::parse(spec.chainmail, &positions, budget)?;
     let material = Material { young, surface_tension: gamma, density, law };
     Ok(Scene {
         name,
@@ -745,6 +755,7 @@ fn build(
         guards,
         plates,
         solver,
+        chainmail,
     })
 }
 

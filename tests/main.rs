@@ -1,5 +1,6 @@
 //! The integration tests of this package, in one binary (one link instead of one per file).
 
+mod chainmail;
 mod fuzz_readers;
 mod golden_sphere42;
 mod hard_cases;

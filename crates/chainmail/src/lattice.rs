@@ -1,5 +1,7 @@
 //! The volumetric lattice of chain elements, its links and its tetrahedra.
 
+pub(crate) use fibfluid_geometry::vec3::{Vec3, cross, dot, norm, sub};
+
 use crate::error::{ChainmailError, Result};
 use crate::material::Material;
 
@@ -12,24 +14,8 @@ const NONE: u32 = u32::MAX;
 pub(crate) const DIRS: [[isize; 3]; 6] =
     [[-1, 0, 0], [1, 0, 0], [0, -1, 0], [0, 1, 0], [0, 0, -1], [0, 0, 1]];
 
-pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-pub(crate) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-
-pub(crate) fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
-}
-
 /// Signed volume `(1/6) (p1 − p0) · ((p2 − p0) × (p3 − p0))`.
-pub(crate) fn tet_volume(p: [[f64; 3]; 4]) -> f64 {
+pub(crate) fn tet_volume(p: [Vec3; 4]) -> f64 {
     let a = sub(p[1], p[0]);
     let b = sub(p[2], p[0]);
     let c = sub(p[3], p[0]);
@@ -49,11 +35,11 @@ pub(crate) fn tet_volume(p: [[f64; 3]; 4]) -> f64 {
 pub struct Lattice {
     dims: [usize; 3],
     spacing: f64,
-    origin: [f64; 3],
+    origin: Vec3,
     node_to_element: Vec<u32>,
     coords: Vec<[usize; 3]>,
-    rest: Vec<[f64; 3]>,
-    pub(crate) pos: Vec<[f64; 3]>,
+    rest: Vec<Vec3>,
+    pub(crate) pos: Vec<Vec3>,
     pub(crate) neighbors: Vec<[u32; 6]>,
     pub(crate) tets: Vec<[usize; 4]>,
     pub(crate) tet_rest_volume: Vec<f64>,
@@ -62,7 +48,7 @@ pub struct Lattice {
     pub(crate) stiffness: Vec<f64>,
 }
 
-fn check_spacing(spacing: f64) -> Result<()> {
+pub(crate) fn check_spacing(spacing: f64) -> Result<()> {
     if !(spacing.is_finite() && spacing > 0.0) {
         return Err(ChainmailError::InvalidParameter {
             name: "spacing",
@@ -72,7 +58,7 @@ fn check_spacing(spacing: f64) -> Result<()> {
     Ok(())
 }
 
-fn check_grid(dims: [usize; 3]) -> Result<usize> {
+pub(crate) fn check_grid(dims: [usize; 3]) -> Result<usize> {
     let nodes = dims.iter().map(|&d| d as u128).product::<u128>();
     if nodes > MAX_GRID_NODES as u128 {
         return Err(ChainmailError::LatticeTooLarge { nodes, limit: MAX_GRID_NODES });
@@ -85,7 +71,7 @@ fn check_grid(dims: [usize; 3]) -> Result<usize> {
 
 /// Generalized winding number of a closed triangle surface around `p`
 /// (solid angles by Van Oosterom & Strackee); ±1 inside, 0 outside.
-fn winding_number(p: [f64; 3], positions: &[[f64; 3]], triangles: &[[u32; 3]]) -> f64 {
+pub(crate) fn winding_number(p: Vec3, positions: &[Vec3], triangles: &[[u32; 3]]) -> f64 {
     let mut total = 0.0;
     for t in triangles {
         let a = sub(positions[t[0] as usize], p);
@@ -104,7 +90,7 @@ impl Lattice {
     ///
     /// Errors: a zero dimension ([`ChainmailError::EmptyLattice`]), a non-positive or
     /// non-finite spacing, a non-finite origin, or more than [`MAX_GRID_NODES`] nodes.
-    pub fn new_box(dims: [usize; 3], spacing: f64, origin: [f64; 3]) -> Result<Self> {
+    pub fn new_box(dims: [usize; 3], spacing: f64, origin: Vec3) -> Result<Self> {
         check_spacing(spacing)?;
         if origin.iter().any(|v| !v.is_finite()) {
             return Err(ChainmailError::InvalidParameter {
@@ -127,7 +113,7 @@ impl Lattice {
     /// Errors: no vertex or triangle, a non-finite vertex, a triangle index out of range,
     /// a bad spacing, a grid over [`MAX_GRID_NODES`], or no cell centre inside
     /// ([`ChainmailError::EmptyLattice`]).
-    pub fn from_surface(positions: &[[f64; 3]], triangles: &[[u32; 3]], spacing: f64) -> Result<Self> {
+    pub fn from_surface(positions: &[Vec3], triangles: &[[u32; 3]], spacing: f64) -> Result<Self> {
         check_spacing(spacing)?;
         if positions.is_empty() || triangles.is_empty() {
             return Err(ChainmailError::EmptyLattice);
@@ -144,14 +130,7 @@ impl Lattice {
                 }
             }
         }
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for p in positions {
-            for a in 0..3 {
-                lo[a] = lo[a].min(p[a]);
-                hi[a] = hi[a].max(p[a]);
-            }
-        }
+        let (lo, hi) = fibfluid_geometry::bounding_box(positions);
         let mut dims = [0usize; 3];
         let mut origin = [0.0; 3];
         for a in 0..3 {
@@ -182,7 +161,7 @@ impl Lattice {
         Self::from_mask(dims, spacing, origin, mask)
     }
 
-    fn from_mask(dims: [usize; 3], spacing: f64, origin: [f64; 3], mask: Vec<bool>) -> Result<Self> {
+    pub(crate) fn from_mask(dims: [usize; 3], spacing: f64, origin: Vec3, mask: Vec<bool>) -> Result<Self> {
         let count = mask.iter().filter(|&&m| m).count();
         if count == 0 {
             return Err(ChainmailError::EmptyLattice);
@@ -309,17 +288,17 @@ impl Lattice {
     }
 
     /// Rest position of grid node `(0, 0, 0)`.
-    pub fn origin(&self) -> [f64; 3] {
+    pub fn origin(&self) -> Vec3 {
         self.origin
     }
 
     /// Current positions of the elements.
-    pub fn positions(&self) -> &[[f64; 3]] {
+    pub fn positions(&self) -> &[Vec3] {
         &self.pos
     }
 
     /// Rest positions of the elements.
-    pub fn rest_positions(&self) -> &[[f64; 3]] {
+    pub fn rest_positions(&self) -> &[Vec3] {
         &self.rest
     }
 
@@ -354,6 +333,20 @@ impl Lattice {
     /// Tetrahedra (element indices, positively oriented at rest).
     pub fn tets(&self) -> &[[usize; 4]] {
         &self.tets
+    }
+
+    /// Sets the current positions of every element (for instance to restore a saved state).
+    ///
+    /// Errors: a length other than [`Lattice::len`], a non-finite coordinate.
+    pub fn set_positions(&mut self, positions: &[Vec3]) -> Result<()> {
+        if positions.len() != self.len() {
+            return Err(ChainmailError::LengthMismatch { expected: self.len(), found: positions.len() });
+        }
+        if let Some(i) = positions.iter().position(|p| p.iter().any(|v| !v.is_finite())) {
+            return Err(ChainmailError::NonFinite { index: i });
+        }
+        self.pos.copy_from_slice(positions);
+        Ok(())
     }
 
     /// Puts every element back at its rest position.
@@ -443,7 +436,7 @@ impl Lattice {
         }
     }
 
-    pub(crate) fn rest_offset(&self, i: usize, j: usize) -> [f64; 3] {
+    pub(crate) fn rest_offset(&self, i: usize, j: usize) -> Vec3 {
         sub(self.rest[j], self.rest[i])
     }
 }

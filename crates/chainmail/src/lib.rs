@@ -88,12 +88,14 @@
 //! # Ok::<(), fibfluid_chainmail::ChainmailError>(())
 //! ```
 
+mod embed;
 mod error;
 mod lattice;
 mod material;
 mod propagate;
 mod relax;
 
+pub use embed::{BYTES_PER_ELEMENT, BYTES_PER_NODE, BYTES_PER_VERTEX, Embedding, EmbeddingGrid};
 pub use error::{ChainmailError, Result};
 pub use lattice::{Lattice, MAX_GRID_NODES};
 pub use material::{Cbr, GeneralizedMaterial, Material, TsveMaterial};

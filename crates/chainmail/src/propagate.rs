@@ -3,11 +3,9 @@
 use std::collections::VecDeque;
 
 use crate::error::{ChainmailError, Result};
-use crate::lattice::{Lattice, sub};
+use fibfluid_geometry::vec3::add;
 
-fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
+use crate::lattice::{Lattice, sub};
 use crate::material::Material;
 
 const NONE: u32 = u32::MAX;

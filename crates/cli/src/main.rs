@@ -14,6 +14,7 @@ use fibfluid::{
 use indicatif::{ProgressBar, ProgressStyle};
 
 mod accuracy;
+mod compare;
 mod probe;
 mod view;
 
@@ -138,6 +139,9 @@ enum Command {
     Probe(probe::ProbeArgs),
     /// Serve a live viewer: drag the scene's surface in a browser (or over a WebSocket).
     View(view::ViewArgs),
+    /// Replay one grab path with FFM, TSVE-ChainMail and Generalized ChainMail; write
+    /// compare.json and compare.png.
+    Compare(compare::CompareArgs),
 }
 
 /// Command-line overrides of the scene's `[solver]` and `[load]` settings; each flag
@@ -287,6 +291,7 @@ fn run(command: Command) -> Result<(), CliError> {
         Command::Accuracy { scene, out, grid } => accuracy::run(&scene, &out, grid),
         Command::Probe(args) => probe::run(&args),
         Command::View(args) => view::run(&args),
+        Command::Compare(args) => compare::run(&args),
     }
 }
 

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use fibfluid::Scene;
 use fibfluid::probe::interact::Storage;
-use fibfluid::probe::{ProbeOptions, ToolPath, run_probe};
+use fibfluid::probe::{Method, ProbeOptions, ToolPath, run_probe_with};
 
 /// Arguments of `fibfluid probe`.
 #[derive(clap::Args)]
@@ -23,6 +23,11 @@ pub struct ProbeArgs {
     /// Memory budget in bytes (default: half the available memory).
     #[arg(long, value_name = "BYTES")]
     max_memory: Option<u64>,
+    /// Deformation method: ffm, tsve-chainmail or generalized-chainmail (ChainMail is
+    /// displacement-driven: grab paths only; its settings come from the scene's
+    /// [chainmail] section).
+    #[arg(long, default_value = "ffm")]
+    method: Method,
 }
 
 /// Runs `fibfluid probe`.
@@ -31,11 +36,12 @@ pub fn run(args: &ProbeArgs) -> Result<(), crate::CliError> {
     let scene = Scene::load(&args.scene)?;
     let path = ToolPath::load(&args.path)?;
     let opts = ProbeOptions { storage, max_memory_bytes: args.max_memory };
-    let report = run_probe(&scene, &path, &args.out, &opts)?;
+    let report = run_probe_with(&scene, &path, &args.out, &opts, args.method)?;
     let l = report.probe.latency_us;
     println!(
-        "{}: {} vertices, {} frames ({} path, {} probed), precompute {:.3} s, {:.1} MiB ({}), frame latency p50 {:.1} us, p99 {:.1} us, max {:.1} us",
+        "{} ({}): {} vertices, {} frames ({} path, {} probed), precompute {:.3} s, {:.1} MiB ({}), frame latency p50 {:.1} us, p99 {:.1} us, max {:.1} us",
         report.scene,
+        report.method,
         report.probe.vertices,
         report.probe.frames,
         report.kind.name(),

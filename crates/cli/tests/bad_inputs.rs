@@ -97,6 +97,26 @@ const EXPECTED: &[(&str, &str)] = &[
         "scene-young-negative.toml:6: [material].young: must be positive, got -5 along y",
     ),
     ("scene-young-zero.toml", "scene-young-zero.toml:6: [material].young: must be positive, got 0 along x"),
+    (
+        "scene-chainmail-spacing-zero.toml",
+        "scene-chainmail-spacing-zero.toml:13: [chainmail].spacing: must be positive, got 0",
+    ),
+    (
+        "scene-chainmail-alpha-order.toml",
+        "scene-chainmail-alpha-order.toml:13: [chainmail].alpha_min: must be in (0, 1], got 1.3 along y",
+    ),
+    (
+        "scene-chainmail-nan.toml",
+        "scene-chainmail-nan.toml:13: [chainmail].alpha_max: must be >= 1 and finite, got NaN along x",
+    ),
+    (
+        "scene-chainmail-too-fine.toml",
+        "scene-chainmail-too-fine.toml:13: [chainmail].spacing: spacing 0.0001 needs up to 4585375337524584 bytes",
+    ),
+    (
+        "scene-chainmail-unknown-variant.toml",
+        "scene-chainmail-unknown-variant.toml:13: [chainmail].variant: `gibson` is not a ChainMail variant (expected one of: tsve, generalized)",
+    ),
 ];
 
 /// Files of the folder that are not bad inputs.
