@@ -4,40 +4,12 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use fibfluid::linalg::{Choice, impl_choice};
-use fibfluid::probe::interact::{Interactive, Storage};
-use fibfluid::probe::{ProbeOptions, build_body};
+use fibfluid::chainmail_body::ChainmailBody;
+use fibfluid::linalg::Choice;
+use fibfluid::probe::interact::{Interactive, Storage, memory_budget};
+use fibfluid::probe::{Method, ProbeOptions, build_body};
 use fibfluid::{Scene, Shape};
 use fibfluid_viewer::{BodyFactory, Server, ServerOptions, ViewMesh, ViewerError};
-
-/// The method a viewer's body uses.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub enum ViewMethod {
-    /// The fiber–fluid method's precomputed response (`fibfluid::probe`).
-    #[default]
-    Ffm,
-    /// TSVE ChainMail (not yet available in the viewer).
-    TsveChainmail,
-    /// Generalized ChainMail (not yet available in the viewer).
-    GeneralizedChainmail,
-}
-
-impl Choice for ViewMethod {
-    const WHAT: &'static str = "method";
-    const ALL: &'static [Self] =
-        &[ViewMethod::Ffm, ViewMethod::TsveChainmail, ViewMethod::GeneralizedChainmail];
-    fn name(self) -> &'static str {
-        match self {
-            ViewMethod::Ffm => "ffm",
-            ViewMethod::TsveChainmail => "tsve-chainmail",
-            ViewMethod::GeneralizedChainmail => "generalized-chainmail",
-        }
-    }
-}
-impl_choice!(ViewMethod);
-
-/// The methods this build's viewer can build a body for.
-const AVAILABLE: &[ViewMethod] = &[ViewMethod::Ffm];
 
 /// Arguments of `fibfluid view`.
 #[derive(clap::Args)]
@@ -54,7 +26,7 @@ pub struct ViewArgs {
     /// Method of the body (ffm, tsve-chainmail, generalized-chainmail); the page can switch
     /// between the available ones.
     #[arg(long, default_value = "ffm")]
-    method: ViewMethod,
+    method: Method,
     /// Storage of the FFM precomputed response (f64, f32); shared by every client.
     #[arg(long, default_value = "f64")]
     precision: Storage,
@@ -68,13 +40,6 @@ pub struct ViewArgs {
 
 /// Runs `fibfluid view` until the process is stopped (Ctrl-C).
 pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
-    if !AVAILABLE.contains(&args.method) {
-        return Err(crate::CliError::Flag {
-            flag: "method",
-            value: args.method.to_string(),
-            problem: "not available in the viewer yet (available: ffm)",
-        });
-    }
     if args.max_clients == 0 {
         return Err(crate::CliError::Flag {
             flag: "max-clients",
@@ -91,33 +56,65 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
         port: args.port,
         max_clients: args.max_clients,
         methods: std::iter::once(args.method)
-            .chain(ViewMethod::ALL.iter().copied().filter(|m| *m != args.method))
+            .chain(Method::ALL.iter().copied().filter(|m| *m != args.method))
             .map(|m| m.name().to_string())
             .collect(),
     };
     // Bind first: a port in use is reported before the (possibly long) precompute.
     let server = Server::bind(server_opts)?;
     let opts = ProbeOptions { storage: args.precision, max_memory_bytes: args.max_memory };
-    eprintln!("building the {} body of {} ({} vertices)...", args.method, scene.name, scene.n_vertices());
-    let pb = build_body(&scene, &opts)?;
-    eprintln!(
-        "  base solve {:.2} s, precompute {:.2} s, {:.1} MiB",
-        pb.base_seconds,
-        pb.precompute_seconds,
-        pb.body.memory_bytes() as f64 / 1048576.0
-    );
-    let mesh = ViewMesh::new(file, &pb.body)?;
-    let proto = pb.body;
-    // Each client gets a clone of the built body: the precomputed response is shared, the
-    // holds and the frame are the client's own.
-    let factory: BodyFactory = Arc::new(move |name: &str| match name.parse::<ViewMethod>() {
-        Ok(ViewMethod::Ffm) => Ok(Box::new(proto.clone()) as Box<dyn Interactive + Send>),
-        _ => Err(ViewerError::UnsupportedMethod {
+    // The FFM precompute is built once and shared by every client (each gets a clone:
+    // its own holds and frame); ChainMail bodies are cheap and built per client.
+    let ffm = if args.method == Method::Ffm {
+        eprintln!("building the ffm body of {} ({} vertices)...", scene.name, scene.n_vertices());
+        let pb = build_body(&scene, &opts)?;
+        eprintln!(
+            "  base solve {:.2} s, precompute {:.2} s, {:.1} MiB",
+            pb.base_seconds,
+            pb.precompute_seconds,
+            pb.body.memory_bytes() as f64 / 1048576.0
+        );
+        Some(pb.body)
+    } else {
+        None
+    };
+    let budget = memory_budget(args.max_memory);
+    let chainmail = |method: Method| -> Result<Box<dyn Interactive + Send>, fibfluid_viewer::ViewerError> {
+        let variant = method.chainmail_variant().expect("a ChainMail method");
+        ChainmailBody::from_scene(&scene, variant, budget)
+            .map(|b| Box::new(b) as Box<dyn Interactive + Send>)
+            .map_err(|e| ViewerError::Build { method: method.to_string(), source: Box::new(e) })
+    };
+    let mesh = match &ffm {
+        Some(body) => ViewMesh::new(file, body)?,
+        None => ViewMesh::new(file, chainmail(args.method)?.as_ref())?,
+    };
+    let scene_for_clients = scene.clone();
+    let factory: BodyFactory = Arc::new(move |name: &str| {
+        let method = name.parse::<Method>().map_err(|_| ViewerError::UnsupportedMethod {
             method: name.to_string(),
-            available: AVAILABLE.iter().map(|m| m.name()).collect::<Vec<_>>().join(", "),
-        }),
+            available: available(ffm.is_some()),
+        })?;
+        match (method, &ffm) {
+            (Method::Ffm, Some(body)) => Ok(Box::new(body.clone()) as Box<dyn Interactive + Send>),
+            (Method::Ffm, None) => {
+                Err(ViewerError::UnsupportedMethod { method: name.to_string(), available: available(false) })
+            }
+            (other, _) => {
+                let variant = other.chainmail_variant().expect("a ChainMail method");
+                ChainmailBody::from_scene(&scene_for_clients, variant, budget)
+                    .map(|b| Box::new(b) as Box<dyn Interactive + Send>)
+                    .map_err(|e| ViewerError::Build { method: other.to_string(), source: Box::new(e) })
+            }
+        }
     });
     println!("fibfluid view: {} ({}, {}; Ctrl-C stops)", server.url(), scene.name, args.method);
     server.run(mesh, factory)?;
     Ok(())
+}
+
+/// The methods a viewer serves: ChainMail always; FFM when its precompute was built (the
+/// viewer was started with `--method ffm`, the default).
+fn available(ffm: bool) -> String {
+    Method::ALL.iter().filter(|m| ffm || **m != Method::Ffm).map(|m| m.name()).collect::<Vec<_>>().join(", ")
 }

@@ -48,6 +48,14 @@ pub enum ViewerError {
         /// Why.
         source: InteractError,
     },
+    /// The body of a method could not be built for a reason of the method's own.
+    #[error("cannot build the {method} body: {source}")]
+    Build {
+        /// The method.
+        method: String,
+        /// Why.
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
     /// The mesh and the body do not describe the same surface.
     #[error("the mesh and the body disagree: {problem}")]
     Mismatch {
