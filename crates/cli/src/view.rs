@@ -55,8 +55,9 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
         host: args.host.clone(),
         port: args.port,
         max_clients: args.max_clients,
+        // FFM is served only when its precompute is built (started with `--method ffm`).
         methods: std::iter::once(args.method)
-            .chain(Method::ALL.iter().copied().filter(|m| *m != args.method))
+            .chain(Method::ALL.iter().copied().filter(|m| *m != args.method && *m != Method::Ffm))
             .map(|m| m.name().to_string())
             .collect(),
     };
