@@ -33,6 +33,8 @@ pub mod contact;
 mod error;
 pub mod guards;
 mod info;
+#[cfg(feature = "ndarray")]
+pub mod ndarray_io;
 mod output;
 pub mod plan;
 pub mod probe;

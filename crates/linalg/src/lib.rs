@@ -18,8 +18,8 @@
 //! Backends (each behind a Cargo feature, selectable at run time through [`Backend`]):
 //! - `faer-lu` ([`FaerLu`]): faer partial-pivot LU of the dense matrix;
 //! - `nalgebra-lu` ([`NalgebraLu`]): nalgebra LU of the dense matrix;
-//! - `openblas-lu` (`OpenblasLu`, feature `openblas`): LAPACK getrf/getrs via ndarray-linalg,
-//!   linked to the system OpenBLAS;
+//! - `openblas-lu` (`OpenblasLu`, feature `openblas`): LAPACK getrf of the system OpenBLAS
+//!   on ndarray arrays, solved with ndarray-linalg's triangular solves;
 //! - `structured` ([`Structured`], always built): a Cholesky per block (one when shared) plus
 //!   a scalar Schur complement for the pressure, `P = (S.K^-1 b - t) / (S.K^-1 S)`, so a new
 //!   border costs triangular solves only and the dense matrix is never formed.
@@ -75,7 +75,7 @@ pub enum Backend {
     FaerLu,
     /// nalgebra LU of the dense matrix (feature `nalgebra-lu`).
     NalgebraLu,
-    /// LAPACK getrf/getrs of the system OpenBLAS (feature `openblas`).
+    /// LAPACK getrf of the system OpenBLAS, solves through ndarray-linalg (feature `openblas`).
     OpenblasLu,
 }
 
