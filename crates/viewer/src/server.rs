@@ -84,6 +84,8 @@ const MAX_HEAD: usize = 16 * 1024;
 /// Largest client WebSocket message (bytes): the protocol's messages are a few dozen
 /// bytes; a larger one ends the connection.
 const MAX_MESSAGE: usize = 64 * 1024;
+/// Most client messages applied to one frame.
+const MAX_BATCH: usize = 4096;
 /// How long a connection may take to send its request head.
 const HEAD_TIMEOUT: Duration = Duration::from_secs(10);
 
@@ -455,9 +457,10 @@ fn serve_client(mut ws: WebSocket<TcpStream>, shared: &Shared, method: &str) {
             Ok(d) => due |= d,
             Err(e) => errors.push(e.to_string()),
         }
-        // Coalesce: apply whatever else has arrived; the last state wins.
+        // Coalesce: apply whatever else has arrived (at most MAX_BATCH messages, so that a
+        // client sending without pause still gets frames); the last state wins.
         if !closed && ws.get_mut().set_nonblocking(true).is_ok() {
-            loop {
+            for _ in 1..MAX_BATCH {
                 match ws.read() {
                     Ok(m) => {
                         closed |= matches!(m, Message::Close(_));
