@@ -2,3 +2,4 @@
 
 mod bad_inputs;
 mod cli_run;
+mod view;

@@ -89,6 +89,11 @@ impl Default for ServerOptions {
 
 /// Largest request head read (bytes); a longer one is answered 431.
 const MAX_HEAD: usize = 16 * 1024;
+/// Largest client WebSocket message (bytes): the protocol's messages are a few dozen
+/// bytes; a larger one ends the connection.
+const MAX_MESSAGE: usize = 64 * 1024;
+/// Most client messages applied to one frame.
+const MAX_BATCH: usize = 4096;
 /// How long a connection may take to send its request head.
 const HEAD_TIMEOUT: Duration = Duration::from_secs(10);
 
@@ -120,7 +125,12 @@ impl Server {
     /// Binds the listener. Nothing is served until [`run`](Self::run) or
     /// [`spawn`](Self::spawn).
     pub fn bind(opts: ServerOptions) -> Result<Self> {
-        let addr = format!("{}:{}", opts.host, opts.port);
+        // An IPv6 literal needs brackets before the port.
+        let addr = if opts.host.contains(':') && !opts.host.starts_with('[') {
+            format!("[{}]:{}", opts.host, opts.port)
+        } else {
+            format!("{}:{}", opts.host, opts.port)
+        };
         let bind_err = |source| ViewerError::Bind { addr: addr.clone(), source };
         let addrs: Vec<SocketAddr> = addr.to_socket_addrs().map_err(bind_err)?.collect();
         let listener = TcpListener::bind(&addrs[..]).map_err(bind_err)?;
@@ -302,7 +312,10 @@ fn handle_connection(mut stream: TcpStream, shared: &Shared) {
             .map(str::to_string)
             .unwrap_or_else(|| shared.opts.methods.first().cloned().unwrap_or_default());
         let _ = stream.set_read_timeout(None);
-        if let Ok(ws) = tungstenite::accept(stream) {
+        let config = tungstenite::protocol::WebSocketConfig::default()
+            .max_message_size(Some(MAX_MESSAGE))
+            .max_frame_size(Some(MAX_MESSAGE));
+        if let Ok(ws) = tungstenite::accept_with_config(stream, Some(config)) {
             serve_client(ws, shared, &method);
         }
         return;
@@ -452,9 +465,10 @@ fn serve_client(mut ws: WebSocket<TcpStream>, shared: &Shared, method: &str) {
             Ok(d) => due |= d,
             Err(e) => errors.push(e.to_string()),
         }
-        // Coalesce: apply whatever else has arrived; the last state wins.
+        // Coalesce: apply whatever else has arrived (at most MAX_BATCH messages, so that a
+        // client sending without pause still gets frames); the last state wins.
         if !closed && ws.get_mut().set_nonblocking(true).is_ok() {
-            loop {
+            for _ in 1..MAX_BATCH {
                 match ws.read() {
                     Ok(m) => {
                         closed |= matches!(m, Message::Close(_));
