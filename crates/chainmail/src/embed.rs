@@ -4,7 +4,7 @@
 use fibfluid_geometry::vec3::Vec3;
 
 use crate::error::{ChainmailError, Result};
-use crate::lattice::{Lattice, check_grid, check_spacing, winding_number};
+use crate::lattice::{Lattice, check_grid, check_spacing, check_surface, winding_number};
 
 /// Bytes per grid node of a lattice built by [`Lattice::embed_surface`]: the node-to-element
 /// map (4) and the voxel mask (1).
@@ -166,22 +166,7 @@ impl Lattice {
         triangles: &[[u32; 3]],
         spacing: f64,
     ) -> Result<(Self, Embedding)> {
-        check_spacing(spacing)?;
-        if positions.is_empty() || triangles.is_empty() {
-            return Err(ChainmailError::EmptyLattice);
-        }
-        for (i, p) in positions.iter().enumerate() {
-            if p.iter().any(|v| !v.is_finite()) {
-                return Err(ChainmailError::NonFinite { index: i });
-            }
-        }
-        for t in triangles {
-            for &v in t {
-                if v as usize >= positions.len() {
-                    return Err(ChainmailError::IndexOutOfRange { index: v as usize, len: positions.len() });
-                }
-            }
-        }
+        check_surface(positions, triangles, spacing)?;
         let (lo, hi) = fibfluid_geometry::bounding_box(positions);
         let grid = EmbeddingGrid::for_box(lo, hi, spacing)?;
         let dims = grid.dims;

@@ -69,6 +69,28 @@ pub(crate) fn check_grid(dims: [usize; 3]) -> Result<usize> {
     Ok(nodes as usize)
 }
 
+/// Checks a surface given for voxelization: a good spacing, at least one vertex and one
+/// triangle, finite vertices, triangle indices in range.
+pub(crate) fn check_surface(positions: &[Vec3], triangles: &[[u32; 3]], spacing: f64) -> Result<()> {
+    check_spacing(spacing)?;
+    if positions.is_empty() || triangles.is_empty() {
+        return Err(ChainmailError::EmptyLattice);
+    }
+    for (i, p) in positions.iter().enumerate() {
+        if p.iter().any(|v| !v.is_finite()) {
+            return Err(ChainmailError::NonFinite { index: i });
+        }
+    }
+    for t in triangles {
+        for &v in t {
+            if v as usize >= positions.len() {
+                return Err(ChainmailError::IndexOutOfRange { index: v as usize, len: positions.len() });
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Generalized winding number of a closed triangle surface around `p`
 /// (solid angles by Van Oosterom & Strackee); ±1 inside, 0 outside.
 pub(crate) fn winding_number(p: Vec3, positions: &[Vec3], triangles: &[[u32; 3]]) -> f64 {
@@ -114,22 +136,7 @@ impl Lattice {
     /// a bad spacing, a grid over [`MAX_GRID_NODES`], or no cell centre inside
     /// ([`ChainmailError::EmptyLattice`]).
     pub fn from_surface(positions: &[Vec3], triangles: &[[u32; 3]], spacing: f64) -> Result<Self> {
-        check_spacing(spacing)?;
-        if positions.is_empty() || triangles.is_empty() {
-            return Err(ChainmailError::EmptyLattice);
-        }
-        for (i, p) in positions.iter().enumerate() {
-            if p.iter().any(|v| !v.is_finite()) {
-                return Err(ChainmailError::NonFinite { index: i });
-            }
-        }
-        for t in triangles {
-            for &v in t {
-                if v as usize >= positions.len() {
-                    return Err(ChainmailError::IndexOutOfRange { index: v as usize, len: positions.len() });
-                }
-            }
-        }
+        check_surface(positions, triangles, spacing)?;
         let (lo, hi) = fibfluid_geometry::bounding_box(positions);
         let mut dims = [0usize; 3];
         let mut origin = [0.0; 3];

@@ -186,3 +186,43 @@ fn accessor_errors() {
     l.set_inverse_mass(1, 0.0).unwrap();
     assert_eq!(l.inverse_mass(1).unwrap(), 0.0);
 }
+
+/// Embedding a sphere: every vertex is interpolated from eight distinct elements with
+/// weights summing to 1; the rest surface comes back exactly; an affine map of the lattice
+/// (here a shear plus a translation) moves the surface by the same map, since trilinear
+/// interpolation reproduces affine functions exactly (independent of the code: a property
+/// of the interpolant).
+#[test]
+fn embedded_sphere_follows_affine_maps_exactly() {
+    let (pos, tris) = sphere_mesh(1.0, 16, 10);
+    let (mut lattice, emb) = Lattice::embed_surface(&pos, &tris, 0.3).unwrap();
+    assert_eq!(emb.len(), pos.len());
+    let rest = emb.positions(&lattice);
+    for v in 0..pos.len() {
+        let mut e = emb.elements(v).unwrap().to_vec();
+        e.sort_unstable();
+        e.dedup();
+        assert_eq!(e.len(), 8, "vertex {v}");
+        let w = emb.weights(v).unwrap();
+        assert!(w.iter().all(|&x| (0.0..=1.0).contains(&x)));
+        assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+        for c in 0..3 {
+            assert!((rest[v][c] - pos[v][c]).abs() < 1e-12, "vertex {v}: {:?} vs {:?}", rest[v], pos[v]);
+        }
+    }
+    let map = |p: [f64; 3]| [p[0] + 0.2 * p[1] + 0.5, 0.9 * p[1] - 0.1 * p[2], p[2] + 0.3 * p[0] - 1.0];
+    let moved: Vec<[f64; 3]> = lattice.rest_positions().iter().map(|&p| map(p)).collect();
+    lattice.set_positions(&moved).unwrap();
+    let now = emb.positions(&lattice);
+    for v in 0..pos.len() {
+        let want = map(pos[v]);
+        for c in 0..3 {
+            assert!((now[v][c] - want[c]).abs() < 1e-12, "vertex {v}");
+        }
+    }
+    assert!(matches!(Lattice::embed_surface(&pos, &tris, 0.0), Err(ChainmailError::InvalidParameter { .. })));
+    assert_eq!(
+        lattice.set_positions(&moved[1..]),
+        Err(ChainmailError::LengthMismatch { expected: moved.len(), found: moved.len() - 1 })
+    );
+}

@@ -394,11 +394,17 @@ fn every_bad_probe_path_gives_one_clean_error_and_writes_nothing() {
         problems.extend(check_untouched(name, parent.path(), &out));
     }
     // A precompute over the memory budget is refused with the bytes it needs; a bad
-    // --precision names the flag.
+    // --precision or --method names the flag.
     let good = fixtures_dir().join("paths/sphere-poke.csv");
     for (flag, value, name, fragment) in [
         ("--max-memory", "1000", "sphere.toml", "bytes (0.00 GiB) at its peak, but only 1000 bytes"),
         ("--precision", "f16", "--precision", "`f16` is not a storage precision (expected one of: f64, f32)"),
+        (
+            "--method",
+            "gibson",
+            "--method",
+            "`gibson` is not a method (expected one of: ffm, tsve-chainmail, generalized-chainmail)",
+        ),
     ] {
         let (parent, out) = out_with_user_file();
         let output = fibfluid(
