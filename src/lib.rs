@@ -22,6 +22,7 @@
 
 pub mod accuracy;
 pub mod bench;
+mod effects;
 mod error;
 mod output;
 mod report;
@@ -29,6 +30,7 @@ mod scene;
 mod simulate;
 pub mod stages;
 
+pub use effects::{Ineffective, ineffective};
 pub use error::{Error, Result};
 pub use output::{
     OUTPUT_FILES, render_png, write_fibers_vtk, write_files_atomically, write_outputs, write_vtk,

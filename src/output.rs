@@ -140,7 +140,22 @@ pub fn write_outputs(dir: &Path, sim: &Simulation, report: &Report) -> Result<Ve
 /// beside `dir` first and are moved in only when every one was written, so a failure
 /// leaves `dir` (and any file the user had there) untouched. Files of the same names are
 /// replaced; other files in `dir` are left alone.
+///
+/// Every error names `dir` as the caller gave it (or the output file in it), never the
+/// temporary directory, which the user did not ask for.
 pub fn write_files_atomically(dir: &Path, files: &[(&str, Vec<u8>)]) -> Result<Vec<PathBuf>> {
+    // `path` is what the error names; `doing` says what failed (and where, when that was the
+    // temporary directory or a parent).
+    let io_at = |path: &Path, doing: String| {
+        let path = path.to_path_buf();
+        move |source: std::io::Error| Error::Io {
+            path,
+            source: std::io::Error::new(
+                source.kind(),
+                format!("cannot write the outputs here: {doing}: {source}"),
+            ),
+        }
+    };
     let io = |path: &Path| {
         let path = path.to_path_buf();
         move |source| Error::Io { path, source }
@@ -159,15 +174,17 @@ pub fn write_files_atomically(dir: &Path, files: &[(&str, Vec<u8>)]) -> Result<V
             blocked.display()
         )));
     }
-    std::fs::create_dir_all(&parent).map_err(io(&parent))?;
+    std::fs::create_dir_all(&parent)
+        .map_err(io_at(dir, format!("creating its parent directory {}", parent.display())))?;
     let tmp = parent.join(format!(".fibfluid-tmp-{}-{}", std::process::id(), nanos()));
-    std::fs::create_dir(&tmp).map_err(io(&tmp))?;
+    std::fs::create_dir(&tmp)
+        .map_err(io_at(dir, format!("creating a temporary directory in {}", parent.display())))?;
     let result = (|| -> Result<()> {
         for (name, bytes) in files {
-            let p = tmp.join(name);
-            let mut f = std::fs::File::create(&p).map_err(io(&p))?;
-            f.write_all(bytes).map_err(io(&p))?;
-            f.sync_all().map_err(io(&p))?;
+            let (p, shown) = (tmp.join(name), dir.join(name));
+            let mut f = std::fs::File::create(&p).map_err(io(&shown))?;
+            f.write_all(bytes).map_err(io(&shown))?;
+            f.sync_all().map_err(io(&shown))?;
         }
         std::fs::create_dir_all(dir).map_err(io(dir))
     })();

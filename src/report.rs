@@ -62,6 +62,8 @@ pub struct Report {
     pub skipped: Vec<SkippedStage>,
     /// Notes (mesh warnings, etc.).
     pub notes: Vec<String>,
+    /// Settings of the scene that had no effect ([`crate::ineffective`]), one line each.
+    pub warnings: Vec<String>,
     /// Wall-clock seconds of the whole run.
     pub seconds_total: f64,
 }
@@ -116,6 +118,7 @@ impl Report {
             stages,
             skipped: sim.log().skipped.clone(),
             notes,
+            warnings: crate::ineffective(scene).iter().map(ToString::to_string).collect(),
             seconds_total: sim.elapsed() + extra_stages.iter().map(|s| s.seconds).sum::<f64>(),
         }
     }

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use fibfluid_assembly::{ConstraintMethod, Constraints, Material, Selector, StiffnessLaw};
-use fibfluid_geometry::{MeshFile, Polygon, Vec3, load_mesh};
+use fibfluid_geometry::{MeshFile, Polygon, ReadOptions, Vec3, load_mesh_with};
 use fibfluid_linalg::Precision;
 use serde::Deserialize;
 
@@ -199,9 +199,15 @@ impl Scene {
         if path.is_dir() {
             return Err(err("is a directory, not a scene file".into()));
         }
-        let text = std::fs::read(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
-        let text = String::from_utf8(text).map_err(|_| err("not a text file (invalid UTF-8)".into()))?;
-        let spec: SceneToml = toml::from_str(&text).map_err(|e| err(toml_message(&text, &e)))?;
+        // Regular files only, at most the file size limit (`fibfluid_geometry::read_file_limited`).
+        let bytes = fibfluid_geometry::read_file_limited(path, None).map_err(|e| match e {
+            fibfluid_geometry::ReadError::Io(source) => Error::Io { path: path.to_path_buf(), source },
+            other => err(other.to_string()),
+        })?;
+        // A UTF-8 byte-order mark is not part of the first line.
+        let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&bytes);
+        let text = std::str::from_utf8(bytes).map_err(|_| err("not a text file (invalid UTF-8)".into()))?;
+        let spec: SceneToml = toml::from_str(text).map_err(|e| err(toml_message(text, &e)))?;
         let dir = path.parent().unwrap_or(Path::new("."));
         let name = path.file_stem().and_then(|s| s.to_str()).unwrap_or("scene").to_string();
         build(spec, dir, name, path).map_err(|e| match e {
@@ -398,15 +404,14 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> Result
                     mesh_path.display()
                 )));
             }
-            let mut file = load_mesh(&mesh_path)?;
-            if let Some(s) = m.scale {
-                if !(s.is_finite() && s > 0.0) {
-                    return Err(inv(format!("[mesh].scale must be positive, got {s}")));
-                }
-                let scaled: Vec<Vec3> = file.mesh.positions().iter().map(|p| p.map(|c| c * s)).collect();
-                file.mesh.set_positions(scaled);
-                file.file_positions.iter_mut().for_each(|p| *p = p.map(|c| c * s));
+            if let Some(s) = m.scale
+                && !(s.is_finite() && s > 0.0)
+            {
+                return Err(inv(format!("[mesh].scale must be positive, got {s}")));
             }
+            // Scaled before validation: coordinates too large or small for f64 are checked
+            // in the units the scene uses.
+            let file = load_mesh_with(&mesh_path, &ReadOptions { scale: m.scale, ..Default::default() })?;
             Shape::Surface(Box::new(file))
         }
         (None, Some(p)) => Shape::Polygon(
@@ -544,12 +549,7 @@ fn build(spec: SceneToml, dir: &Path, name: String, scene_path: &Path) -> Result
     let mut solver = SolverOptions::default();
     if let Some(s) = spec.solver {
         if let Some(b) = s.backend {
-            if !fibfluid_linalg::backend_names().contains(&b.as_str()) {
-                return Err(inv(format!(
-                    "[solver].backend: `{b}` is not compiled in (available: {})",
-                    fibfluid_linalg::backend_names().join(", ")
-                )));
-            }
+            fibfluid_linalg::backend_by_name(&b).map_err(|e| inv(format!("[solver].backend: {e}")))?;
             solver.backend = b;
         }
         if let Some(m) = s.mode {

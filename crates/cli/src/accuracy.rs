@@ -20,6 +20,12 @@ pub fn run(
     constraints: Option<String>,
 ) -> Result<(), Error> {
     let mut scene = Scene::load(scene_path)?;
+    // The grid sets the modes, so the scene's own mode says nothing about stiffening here.
+    for w in fibfluid::ineffective(&scene) {
+        if !matches!(w, fibfluid::Ineffective::StiffeningOutsideNonlinear { .. }) {
+            eprintln!("warning: {w}");
+        }
+    }
     if let Some(c) = constraints {
         scene.solver.constraints = match c.as_str() {
             "penalty" => fibfluid::assembly::ConstraintMethod::PAPER,
@@ -33,7 +39,8 @@ pub fn run(
     }
     if let Some(b) = backends {
         for name in &b {
-            fibfluid::linalg::backend_by_name(name)?;
+            fibfluid::linalg::backend_by_name(name)
+                .map_err(|e| Error::Invalid(format!("--backends: {e}")))?;
         }
         grid.backends = b;
     }

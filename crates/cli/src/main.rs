@@ -19,9 +19,14 @@ mod accuracy;
 #[derive(Parser)]
 #[command(name = "fibfluid", version, about)]
 struct Cli {
-    /// Threads for the linear backends and rayon (default: all cores).
+    /// Threads for the linear backends and rayon (default: all cores; at least 1, more than
+    /// 4 per core is lowered with a note).
     #[arg(long, global = true)]
     threads: Option<usize>,
+    /// Largest mesh or scene file read, in bytes (suffixes K, M, G, T; default 2G, or the
+    /// FIBFLUID_MAX_FILE_BYTES variable).
+    #[arg(long, global = true, value_name = "BYTES", value_parser = byte_count)]
+    max_file_bytes: Option<u64>,
     #[command(subcommand)]
     command: Command,
 }
@@ -136,7 +141,7 @@ impl Overrides {
         let bad =
             |what: &str, v: &str, ok: &str| Error::Invalid(format!("--{what}: `{v}` is not one of {ok}"));
         if let Some(b) = &self.backend {
-            fibfluid::linalg::backend_by_name(b)?;
+            fibfluid::linalg::backend_by_name(b).map_err(|e| Error::Invalid(format!("--backend: {e}")))?;
             scene.solver.backend = b.clone();
         }
         if let Some(m) = &self.mode {
@@ -178,7 +183,16 @@ fn main() -> ExitCode {
         }
     };
     if let Some(n) = cli.threads {
-        fibfluid::linalg::threads::set_threads(n);
+        match fibfluid::linalg::threads::try_set_threads(n) {
+            Ok(setting) => setting.note().into_iter().for_each(|note| eprintln!("note: {note}")),
+            Err(e) => {
+                eprintln!("error: --threads {n}: {}", one_line(&e.to_string()));
+                return ExitCode::from(2);
+            }
+        }
+    }
+    if let Some(limit) = cli.max_file_bytes {
+        fibfluid::geometry::set_max_file_bytes(limit);
     }
     match run(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
@@ -186,6 +200,19 @@ fn main() -> ExitCode {
             eprintln!("error: {}", one_line(&e.to_string()));
             ExitCode::from(2)
         }
+    }
+}
+
+/// Parses `--max-file-bytes` (a byte count with an optional K, M, G or T suffix).
+fn byte_count(s: &str) -> Result<u64, String> {
+    fibfluid::geometry::parse_byte_count(s)
+        .ok_or_else(|| format!("`{s}` is not a positive byte count (e.g. 1073741824, 512M, 4G)"))
+}
+
+/// Prints each setting of the scene that cannot act as a `warning:` line on stderr.
+fn warn_ineffective(scene: &Scene) {
+    for w in fibfluid::ineffective(scene) {
+        eprintln!("warning: {w}");
     }
 }
 
@@ -222,7 +249,13 @@ fn run(command: Command) -> Result<(), Error> {
             if !(radius.is_finite() && radius > 0.0) {
                 return Err(Error::Invalid(format!("--radius {radius}: must be positive")));
             }
-            let m = fibfluid::geometry::icosphere(level, radius);
+            // Built at radius 1 and scaled here, so a radius whose products overflow or
+            // underflow f64 is the mesh check's error, not a panic of the generator.
+            let unit = fibfluid::geometry::icosphere(level, 1.0);
+            let scaled = unit.positions().iter().map(|p| p.map(|c| c * radius)).collect();
+            let m = fibfluid::geometry::TriMesh::new(scaled, unit.triangles().to_vec())
+                .and_then(|mut m| m.validate().map(|_| m))
+                .map_err(|e| Error::Invalid(format!("--radius {radius}: {e}")))?;
             fibfluid::geometry::write_obj(&out, m.positions(), m.triangles())?;
             eprintln!("wrote {} ({} vertices, {} faces)", out.display(), m.n_vertices(), m.n_faces());
             Ok(())
@@ -327,6 +360,7 @@ fn load_scene(path: &Path, over: &Overrides) -> Result<(Scene, StageRecord), Err
 
 fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), Error> {
     let (scene, load) = load_scene(path, over)?;
+    warn_ineffective(&scene);
     let notes = match &scene.shape {
         fibfluid::Shape::Surface(m) => m.notes.clone(),
         _ => vec![],
@@ -363,6 +397,7 @@ fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), Error> {
 
 fn roundtrip(path: &Path, over: &Overrides, json: bool) -> Result<(), Error> {
     let (scene, _) = load_scene(path, over)?;
+    warn_ineffective(&scene);
     let steps = scene.steps;
     let rt = fibfluid::roundtrip(
         scene,

@@ -57,13 +57,49 @@ pub enum LinalgError {
         /// Precision name.
         precision: &'static str,
     },
-    /// No backend of that name is compiled in.
+    /// No backend has that name.
     #[error("unknown backend `{name}` (compiled in: {available})")]
     UnknownBackend {
         /// The name asked for.
         name: String,
         /// The backends available.
         available: String,
+    },
+    /// A known backend that this build was compiled without.
+    #[error(
+        "backend `{name}` is not compiled into this build; rebuild with `cargo build --features {feature}`{requirement} (compiled in: {available})"
+    )]
+    NotCompiledIn {
+        /// The backend asked for.
+        name: String,
+        /// The Cargo feature that builds it.
+        feature: &'static str,
+        /// What else the feature needs (e.g. a system library), with its leading separator.
+        requirement: &'static str,
+        /// The backends available.
+        available: String,
+    },
+    /// Memory for a buffer could not be allocated (the allocation was refused, not aborted).
+    #[error(
+        "cannot allocate {bytes} bytes ({:.2} GiB) for {what}; use the `structured` backend, which never forms the dense matrix",
+        *.bytes as f64 / 1073741824.0
+    )]
+    OutOfMemory {
+        /// Bytes asked for (`usize::MAX` when the size itself overflows).
+        bytes: usize,
+        /// What the buffer is for.
+        what: &'static str,
+    },
+    /// A thread count of zero was asked for.
+    #[error("the thread count must be at least 1")]
+    ZeroThreads,
+    /// The thread pool could not be started.
+    #[error("cannot start a pool of {threads} threads: {message}")]
+    ThreadPool {
+        /// Threads asked for.
+        threads: usize,
+        /// The system's reason.
+        message: String,
     },
     /// The dense matrix would not fit in memory.
     #[error(

@@ -80,7 +80,18 @@ pub fn all_backends() -> Vec<Box<dyn LinearSolver>> {
     backend_names().into_iter().filter_map(|n| backend_by_name(n).ok()).collect()
 }
 
-/// The backend with this run-time name, or an error listing the compiled-in ones.
+/// Every backend this crate knows, compiled in or not: (run-time name, Cargo feature that
+/// builds it, what the feature needs besides Rust). `structured` is always built.
+pub const KNOWN_BACKENDS: [(&str, &str, &str); 4] = [
+    ("structured", "", ""),
+    ("faer-lu", "faer-lu", ""),
+    ("nalgebra-lu", "nalgebra-lu", ""),
+    ("openblas-lu", "openblas", " (needs the system OpenBLAS: Debian/Ubuntu package libopenblas-dev)"),
+];
+
+/// The backend with this run-time name. A known backend left out of this build is
+/// [`LinalgError::NotCompiledIn`] (naming the Cargo feature that builds it); any other name
+/// is [`LinalgError::UnknownBackend`]. Both list the compiled-in backends.
 pub fn backend_by_name(name: &str) -> Result<Box<dyn LinearSolver>> {
     match name {
         "structured" => Ok(Box::new(Structured)),
@@ -91,7 +102,13 @@ pub fn backend_by_name(name: &str) -> Result<Box<dyn LinearSolver>> {
         #[cfg(feature = "openblas")]
         "openblas-lu" => Ok(Box::new(OpenblasLu)),
         _ => {
-            Err(LinalgError::UnknownBackend { name: name.to_string(), available: backend_names().join(", ") })
+            let available = backend_names().join(", ");
+            Err(match KNOWN_BACKENDS.iter().find(|(known, _, _)| *known == name) {
+                Some(&(_, feature, requirement)) => {
+                    LinalgError::NotCompiledIn { name: name.to_string(), feature, requirement, available }
+                }
+                None => LinalgError::UnknownBackend { name: name.to_string(), available },
+            })
         }
     }
 }

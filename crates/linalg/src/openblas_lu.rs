@@ -8,7 +8,7 @@
 use lax::layout::MatrixLayout;
 use lax::{Lapack, Pivot, Transpose};
 
-use crate::dense::{DenseFactorization, DenseKernel};
+use crate::dense::{DenseFactorization, DenseKernel, SINGLE_WHAT, try_collect};
 use crate::solver::check_pivots;
 use crate::{BorderedMatrix, FactorOptions, Factorization, LinalgError, LinearSolver, Precision, Result};
 
@@ -77,7 +77,7 @@ impl DenseKernel for OpenblasKernel {
     fn factor(a: &BorderedMatrix, precision: Precision) -> Result<Self> {
         let dim = a.dim();
         // Column-major, as LAPACK takes it, factored in place.
-        let dense = a.to_dense_col_major();
+        let dense = a.try_to_dense_col_major()?;
         Ok(match precision {
             Precision::F64 => {
                 let mut buf = dense;
@@ -87,7 +87,7 @@ impl DenseKernel for OpenblasKernel {
                 OpenblasKernel::F64(buf, piv)
             }
             Precision::Mixed => {
-                let mut buf: Vec<f32> = dense.iter().map(|v| *v as f32).collect();
+                let mut buf = try_collect(dense.len(), dense.iter().map(|v| *v as f32), SINGLE_WHAT)?;
                 drop(dense);
                 let piv =
                     on_large_stack(|| f32::lu(layout(dim), &mut buf))?.map_err(|e| lapack_err(e, dim))?;

@@ -245,6 +245,30 @@ fn every_compiled_backend_is_listed_and_reachable_by_name() {
         assert_eq!(backend_by_name(name).unwrap().name(), *name);
     }
     assert!(matches!(backend_by_name("no-such-backend"), Err(LinalgError::UnknownBackend { .. })));
+    // Every known backend is either compiled in or says which feature builds it.
+    for (name, feature, _) in fibfluid_linalg::KNOWN_BACKENDS {
+        match backend_by_name(name) {
+            Ok(b) => assert_eq!(b.name(), name),
+            Err(e @ LinalgError::NotCompiledIn { .. }) => {
+                assert!(!names.contains(&name));
+                let msg = e.to_string();
+                assert!(msg.contains(&format!("rebuild with `cargo build --features {feature}`")), "{msg}");
+            }
+            Err(e) => panic!("{name}: {e:?}"),
+        }
+    }
+    if !cfg!(feature = "openblas") {
+        let msg = backend_by_name("openblas-lu").err().unwrap().to_string();
+        assert!(msg.contains("libopenblas-dev"), "{msg}");
+    }
+}
+
+/// A thread count of 0 is an error (checked before anything global changes).
+#[test]
+fn zero_threads_is_an_error() {
+    assert_eq!(fibfluid_linalg::threads::try_set_threads(0), Err(LinalgError::ZeroThreads));
+    let cap = fibfluid_linalg::threads::thread_cap();
+    assert!((1..=fibfluid_linalg::threads::MAX_THREADS).contains(&cap));
 }
 
 #[test]
