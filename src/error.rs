@@ -173,6 +173,9 @@ pub enum SceneProblem {
     /// The file is not UTF-8 text.
     #[error("not a text file (invalid UTF-8)")]
     NotUtf8,
+    /// The file cannot be read: not a regular file, or over the size limit.
+    #[error(transparent)]
+    Read(fibfluid_geometry::ReadError),
     /// TOML syntax or a value of the wrong type.
     #[error("{message}{}", column.map(|c| format!(" (column {c})")).unwrap_or_default())]
     Toml {
@@ -184,6 +187,9 @@ pub enum SceneProblem {
     /// A name that is not one of the accepted choices.
     #[error(transparent)]
     Choice(ParseChoiceError),
+    /// A backend this build does not have.
+    #[error(transparent)]
+    Backend(fibfluid_linalg::LinalgError),
     /// A number out of its range.
     #[error("must be {rule}, got {value}")]
     Range {

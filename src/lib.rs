@@ -30,6 +30,7 @@ pub mod chainmail_body;
 pub mod chainmail_scene;
 pub mod compare;
 pub mod contact;
+mod effects;
 mod error;
 pub mod guards;
 mod info;
@@ -43,6 +44,7 @@ mod scene;
 mod simulate;
 pub mod stages;
 
+pub use effects::{Ineffective, ineffective};
 pub use error::{Error, Result, SceneError, SceneProblem};
 pub use info::MeshInfo;
 pub use output::{

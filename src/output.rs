@@ -264,9 +264,23 @@ pub fn write_outputs(dir: &Path, sim: &Simulation, report: &Report) -> Result<Ve
 /// beside `dir` first and are moved in only when every one was written, so a failure
 /// leaves `dir` (and any file the user had there) untouched. Files of the same names are
 /// replaced; other files in `dir` are left alone.
+///
+/// Every error names `dir` as the caller gave it (or the output file in it), never the
+/// temporary directory, which the user did not ask for.
 pub fn write_files_atomically(dir: &Path, files: &[(&str, Vec<u8>)]) -> Result<Vec<PathBuf>> {
     // Errors name what the user gave (`dir` and the files in it), never the temporary
-    // directory, which is an implementation detail.
+    // directory, which is an implementation detail: `path` is what the error names; `doing`
+    // says what failed (and where, when that was the temporary directory or a parent).
+    let io_at = |path: &Path, doing: String| {
+        let path = path.to_path_buf();
+        move |source: std::io::Error| Error::Io {
+            path,
+            source: std::io::Error::new(
+                source.kind(),
+                format!("cannot write the outputs here: {doing}: {source}"),
+            ),
+        }
+    };
     let io = |path: &Path| {
         let path = path.to_path_buf();
         move |source| Error::Io { path, source }
@@ -288,15 +302,17 @@ pub fn write_files_atomically(dir: &Path, files: &[(&str, Vec<u8>)]) -> Result<V
             problem: "is a directory, where an output file would go (nothing was written)",
         });
     }
-    std::fs::create_dir_all(&parent).map_err(io(dir))?;
+    std::fs::create_dir_all(&parent)
+        .map_err(io_at(dir, format!("creating its parent directory {}", parent.display())))?;
     let tmp = parent.join(format!(".fibfluid-tmp-{}-{}", std::process::id(), nanos()));
-    std::fs::create_dir(&tmp).map_err(io(dir))?;
+    std::fs::create_dir(&tmp)
+        .map_err(io_at(dir, format!("creating a temporary directory in {}", parent.display())))?;
     let result = (|| -> Result<()> {
         for (name, bytes) in files {
-            let p = tmp.join(name);
-            let mut f = std::fs::File::create(&p).map_err(io(&dir.join(name)))?;
-            f.write_all(bytes).map_err(io(&dir.join(name)))?;
-            f.sync_all().map_err(io(&dir.join(name)))?;
+            let (p, shown) = (tmp.join(name), dir.join(name));
+            let mut f = std::fs::File::create(&p).map_err(io(&shown))?;
+            f.write_all(bytes).map_err(io(&shown))?;
+            f.sync_all().map_err(io(&shown))?;
         }
         std::fs::create_dir_all(dir).map_err(io(dir))
     })();

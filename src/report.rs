@@ -101,6 +101,8 @@ pub struct Report {
     pub skipped: Vec<SkippedStage>,
     /// Notes (mesh warnings, etc.).
     pub notes: Vec<String>,
+    /// Settings of the scene that had no effect ([`crate::ineffective`]), one line each.
+    pub ineffective: Vec<String>,
     /// Wall-clock seconds of the whole run.
     pub seconds_total: f64,
 }
@@ -169,6 +171,7 @@ impl Report {
                 .map(|s| SkippedStage { name: s.name.to_string(), reason: s.reason.clone() })
                 .collect(),
             notes,
+            ineffective: crate::ineffective(scene).iter().map(ToString::to_string).collect(),
             seconds_total: sim.elapsed() + extra_stages.iter().map(|s| s.seconds).sum::<f64>(),
         }
     }

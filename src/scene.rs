@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use fibfluid_assembly::{
     ConstraintKind, ConstraintMethod, Constraints, DEFAULT_PENALTY, Material, Selector, StiffnessLaw,
 };
-use fibfluid_geometry::{MeshFile, Polygon, Vec3, load_mesh};
+use fibfluid_geometry::{MeshFile, Polygon, ReadOptions, Vec3, load_mesh_with};
 use fibfluid_linalg::{Backend, Choice, Precision, impl_choice};
 use serde::Deserialize;
 
@@ -224,9 +224,14 @@ impl Scene {
         if path.is_dir() {
             return Err(at(None, None, SceneProblem::IsDirectory));
         }
-        let text = std::fs::read(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
-        let text = String::from_utf8(text).map_err(|_| at(None, None, SceneProblem::NotUtf8))?;
-        let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+        // Regular files only, at most the file size limit (`fibfluid_geometry::read_file_limited`).
+        let bytes = fibfluid_geometry::read_file_limited(path, None).map_err(|e| match e {
+            fibfluid_geometry::ReadError::Io(source) => Error::Io { path: path.to_path_buf(), source },
+            other => at(None, None, SceneProblem::Read(other)),
+        })?;
+        // A UTF-8 byte-order mark is not part of the first line.
+        let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&bytes);
+        let text = std::str::from_utf8(bytes).map_err(|_| at(None, None, SceneProblem::NotUtf8))?;
         let spec: SceneToml = toml::from_str(text).map_err(|e| {
             let (line, key, problem) = toml_problem(text, &e);
             at(key, line, problem)
@@ -509,16 +514,15 @@ fn build(
                     SceneProblem::MeshNotFound { given: m.path.clone(), resolved: mesh_path },
                 ));
             }
-            let mut file =
-                load_mesh(&mesh_path).map_err(|e| invalid("[mesh].path", SceneProblem::Mesh(e)))?;
-            if let Some(s) = m.scale {
-                if !(s.is_finite() && s > 0.0) {
-                    return Err(range("[mesh].scale", "positive", s));
-                }
-                let scaled: Vec<Vec3> = file.mesh.positions().iter().map(|p| p.map(|c| c * s)).collect();
-                file.mesh.set_positions(scaled);
-                file.file_positions.iter_mut().for_each(|p| *p = p.map(|c| c * s));
+            if let Some(s) = m.scale
+                && !(s.is_finite() && s > 0.0)
+            {
+                return Err(range("[mesh].scale", "positive", s));
             }
+            // Scaled before validation: coordinates too large or small for f64 are checked
+            // in the units the scene uses.
+            let file = load_mesh_with(&mesh_path, &ReadOptions { scale: m.scale, ..Default::default() })
+                .map_err(|e| invalid("[mesh].path", SceneProblem::Mesh(e)))?;
             Shape::Surface(Box::new(file))
         }
         (None, Some(p)) => Shape::Polygon(Polygon::new(p.points).ok_or_else(|| {
@@ -693,6 +697,9 @@ fn build(
     let mut solver = SolverOptions::default();
     if let Some(s) = spec.solver {
         solver.backend = choice("[solver].backend", s.backend, solver.backend)?;
+        if let Err(e) = solver.backend.solver() {
+            return Err(invalid("[solver].backend", SceneProblem::Backend(e)));
+        }
         solver.mode = choice("[solver].mode", s.mode, solver.mode)?;
         solver.stepping = choice("[solver].stepping", s.stepping, solver.stepping)?;
         solver.precision = choice("[solver].precision", s.precision, solver.precision)?;

@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use fibfluid::Scene;
-use fibfluid::geometry::{icosphere, read_obj_bytes, read_stl_bytes};
+use fibfluid::geometry::{MeshError, icosphere, read_obj_bytes, read_stl_bytes};
 use proptest::prelude::*;
 
 /// Cases per property (`PROPTEST_CASES` overrides).
@@ -67,6 +67,14 @@ const OBJ_TOKENS: &[&str] = &[
     "v 1e308 1e308 1e308\n",
     "l 1 2\n",
     "é",
+    "\u{feff}",
+    "1e300",
+    "-1e300",
+    "1e-300",
+    "1e154",
+    "1e-160",
+    "v 1e300 1e300 1e300\n",
+    "v 1e-300 0 1e-300\n",
 ];
 
 const STL_TOKENS: &[&str] = &[
@@ -165,6 +173,10 @@ const TOML_TOKENS: &[&str] = &[
     "-inf",
     "1e400",
     "1e-400",
+    "1e300",
+    "1e-300",
+    "\u{feff}",
+    "\"openblas-lu\"",
     "99999999999999999999",
     "9223372036854775807",
     "true",
@@ -408,6 +420,30 @@ proptest! {
     #[test]
     fn edits_of_a_valid_obj_never_panic(e in edits(OBJ_TOKENS)) {
         let _ = read_obj_bytes("fuzz.obj", &apply(&valid_obj(), &e));
+    }
+
+    /// The valid OBJ in units of 10^k (coordinates stay normal f64), with or without a
+    /// byte-order mark: it reads with all 42 vertices, or the error blames the scale (never
+    /// "degenerate" or "flat": the shape is fine).
+    #[test]
+    fn a_valid_obj_at_any_scale_reads_or_blames_its_scale(k in -300i32..=300, bom in any::<bool>()) {
+        let factor: f64 = format!("1e{k}").parse().unwrap();
+        let m = icosphere(1, 1.0);
+        let mut text = if bom { "\u{feff}".to_string() } else { String::new() };
+        for p in m.positions() {
+            text.push_str(&format!("v {:e} {:e} {:e}\n", p[0] * factor, p[1] * factor, p[2] * factor));
+        }
+        for t in m.triangles() {
+            text.push_str(&format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1));
+        }
+        match read_obj_bytes("scaled.obj", text.as_bytes()) {
+            Ok(f) => prop_assert_eq!(f.file_vertex_count(), 42),
+            Err(fibfluid::geometry::GeometryError::Mesh {
+                source: MeshError::CoordinateOverflow { .. } | MeshError::CoordinateUnderflow { .. },
+                ..
+            }) => {}
+            Err(e) => prop_assert!(false, "10^{}: {}", k, e),
+        }
     }
 
     #[test]

@@ -391,3 +391,65 @@ fn ndarray_arrays_match_the_slice_forms() {
         Err(ArrayError::Mesh(_))
     ));
 }
+
+/// `ineffective` names each setting that cannot act, and each finding is true: the run with
+/// the setting equals (bit for bit) the run without it. The bundled scenes have none, and a
+/// setting that does act (stiffening in nonlinear mode) is not reported and changes the run.
+#[test]
+fn settings_that_cannot_act_are_found_and_really_do_nothing() {
+    use fibfluid::assembly::StiffnessLaw;
+    use fibfluid::{Ineffective, ineffective};
+    for entry in std::fs::read_dir("fixtures/scenes").unwrap() {
+        let path = entry.unwrap().path();
+        let scene = Scene::load(&path).unwrap();
+        assert_eq!(ineffective(&scene), vec![], "{}", path.display());
+    }
+    let same = |a: Scene, b: Scene, what: &str| {
+        let (pa, pb) = (run(a).positions().to_vec(), run(b).positions().to_vec());
+        assert_eq!(pa, pb, "{what}: the setting changed the run");
+    };
+    // sphere.toml: gravity [0, -10, 0], density 1000, a force on vertex 3, paper mode.
+    let mut s = sphere();
+    s.material.density = 0.0;
+    assert_eq!(ineffective(&s), vec![Ineffective::GravityWithoutDensity { acceleration: [0.0, -10.0, 0.0] }]);
+    let mut without = s.clone();
+    without.gravity = [0.0; 3];
+    same(s, without, "gravity without density");
+
+    let mut s = sphere();
+    s.gravity = [0.0; 3];
+    assert_eq!(ineffective(&s), vec![Ineffective::DensityWithoutGravity { density: 1000.0 }]);
+    let mut without = s.clone();
+    without.material.density = 0.0;
+    same(s, without, "density without gravity");
+
+    let mut s = sphere();
+    s.material.law = StiffnessLaw::Quadratic { c: 50.0 };
+    s.solver.mode = Mode::Refresh;
+    assert_eq!(ineffective(&s), vec![Ineffective::StiffeningOutsideNonlinear { mode: Mode::Refresh }]);
+    let mut linear = s.clone();
+    linear.material.law = StiffnessLaw::Linear;
+    same(s.clone(), linear.clone(), "stiffening in refresh mode");
+    // In nonlinear mode it acts: not reported, and the run differs.
+    s.solver.mode = Mode::Nonlinear;
+    linear.solver.mode = Mode::Nonlinear;
+    assert_eq!(ineffective(&s), vec![]);
+    assert_ne!(run(s).positions(), run(linear).positions(), "stiffening must act in nonlinear mode");
+
+    let mut s = sphere();
+    s.forces[0].value = [0.0; 3];
+    assert_eq!(ineffective(&s), vec![Ineffective::ZeroForce { index: 1, vertex: 3 }]);
+    let mut without = s.clone();
+    without.forces.clear();
+    same(s, without, "a zero force");
+
+    // A force on a vertex of the fixed cap (held exactly by elimination).
+    let mut s = sphere();
+    s.solver.constraints = ConstraintKind::Eliminate;
+    let held = (0..s.n_vertices()).find(|&v| (0..3).all(|c| s.constraints.get(v, c).is_some())).unwrap();
+    s.forces[0].vertex = held;
+    assert_eq!(ineffective(&s), vec![Ineffective::ForceOnFixedVertex { index: 1, vertex: held }]);
+    let mut without = s.clone();
+    without.forces.clear();
+    same(s, without, "a force on a fixed vertex");
+}

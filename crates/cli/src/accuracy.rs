@@ -38,6 +38,12 @@ pub struct GridFlags {
 /// accuracy-reference.png into `out` (all or nothing).
 pub fn run(scene_path: &Path, out: &Path, flags: GridFlags) -> Result<(), CliError> {
     let mut scene = Scene::load(scene_path)?;
+    // The grid sets the modes, so the scene's own mode says nothing about stiffening here.
+    for w in fibfluid::ineffective(&scene) {
+        if !matches!(w, fibfluid::Ineffective::StiffeningOutsideNonlinear { .. }) {
+            eprintln!("warning: {w}");
+        }
+    }
     scene.solver.constraints = flags.constraints.unwrap_or(scene.solver.constraints);
     if let Some(&n) = flags.steps.iter().find(|&&n| !(1..=fibfluid::MAX_STEPS).contains(&n)) {
         return Err(CliError::Flag {

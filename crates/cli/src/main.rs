@@ -22,9 +22,14 @@ mod view;
 #[derive(Parser)]
 #[command(name = "fibfluid", version, about)]
 struct Cli {
-    /// Threads for the linear backends and rayon (default: all cores).
+    /// Threads for the linear backends and rayon (default: all cores; at least 1, more than
+    /// 4 per core is lowered with a note).
     #[arg(long, global = true)]
     threads: Option<usize>,
+    /// Largest mesh or scene file read, in bytes (suffixes K, M, G, T; default 2G, or the
+    /// FIBFLUID_MAX_FILE_BYTES variable).
+    #[arg(long, global = true, value_name = "BYTES", value_parser = byte_count)]
+    max_file_bytes: Option<u64>,
     #[command(subcommand)]
     command: Command,
 }
@@ -35,6 +40,14 @@ enum CliError {
     /// An error of the library.
     #[error(transparent)]
     Fibfluid(#[from] Error),
+    /// An icosphere radius whose coordinates do not make a valid mesh in f64.
+    #[error("--radius {radius}: {source}")]
+    Radius {
+        /// The radius given.
+        radius: f64,
+        /// What is wrong with the scaled mesh.
+        source: fibfluid::geometry::MeshError,
+    },
     /// A flag value out of its range.
     #[error("--{flag} {value}: {problem}")]
     Flag {
@@ -201,9 +214,6 @@ impl Overrides {
     }
 }
 
-/// Most threads `--threads` sets; more are clamped with a note.
-const MAX_THREADS: usize = 256;
-
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(c) => c,
@@ -220,14 +230,16 @@ fn main() -> ExitCode {
         }
     };
     if let Some(n) = cli.threads {
-        if n == 0 {
-            eprintln!("error: --threads 0: must be at least 1");
-            return ExitCode::from(2);
+        match fibfluid::linalg::threads::try_set_threads(n) {
+            Ok(setting) => setting.note().into_iter().for_each(|note| eprintln!("note: {note}")),
+            Err(e) => {
+                eprintln!("error: --threads {n}: {}", one_line(&e.to_string()));
+                return ExitCode::from(2);
+            }
         }
-        if n > MAX_THREADS {
-            eprintln!("note: --threads {n} is more than {MAX_THREADS}; using {MAX_THREADS}");
-        }
-        fibfluid::linalg::threads::set_threads(n.min(MAX_THREADS));
+    }
+    if let Some(limit) = cli.max_file_bytes {
+        fibfluid::geometry::set_max_file_bytes(limit);
     }
     match run(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
@@ -235,6 +247,19 @@ fn main() -> ExitCode {
             eprintln!("error: {}", one_line(&e.to_string()));
             ExitCode::from(2)
         }
+    }
+}
+
+/// Parses `--max-file-bytes` (a byte count with an optional K, M, G or T suffix).
+fn byte_count(s: &str) -> Result<u64, String> {
+    fibfluid::geometry::parse_byte_count(s)
+        .ok_or_else(|| format!("`{s}` is not a positive byte count (e.g. 1073741824, 512M, 4G)"))
+}
+
+/// Prints each setting of the scene that cannot act as a `warning:` line on stderr.
+fn warn_ineffective(scene: &Scene) {
+    for w in fibfluid::ineffective(scene) {
+        eprintln!("warning: {w}");
     }
 }
 
@@ -279,7 +304,13 @@ fn run(command: Command) -> Result<(), CliError> {
                     problem: "must be positive",
                 });
             }
-            let m = fibfluid::geometry::icosphere(level, radius);
+            // Built at radius 1 and scaled here, so a radius whose products overflow or
+            // underflow f64 is the mesh check's error, not a panic of the generator.
+            let unit = fibfluid::geometry::icosphere(level, 1.0);
+            let scaled = unit.positions().iter().map(|p| p.map(|c| c * radius)).collect();
+            let m = fibfluid::geometry::TriMesh::new(scaled, unit.triangles().to_vec())
+                .and_then(|mut m| m.validate().map(|_| m))
+                .map_err(|source| CliError::Radius { radius, source })?;
             fibfluid::geometry::write_obj(&out, m.positions(), m.triangles())?;
             eprintln!("wrote {} ({} vertices, {} faces)", out.display(), m.n_vertices(), m.n_faces());
             Ok(())
@@ -389,6 +420,7 @@ fn plan(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> {
 
 fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> {
     let (scene, load) = load_scene(path, over)?;
+    warn_ineffective(&scene);
     let notes = match &scene.shape {
         fibfluid::Shape::Surface(m) => m.notes.clone(),
         _ => vec![],
@@ -460,6 +492,7 @@ const MAX_WARNING_LINES: usize = 10;
 
 fn roundtrip(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> {
     let (scene, _) = load_scene(path, over)?;
+    warn_ineffective(&scene);
     let steps = scene.steps;
     let progress = progress(2 * steps, "round trip").map(|p| {
         let done = std::sync::atomic::AtomicUsize::new(0);

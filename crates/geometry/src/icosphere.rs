@@ -8,6 +8,11 @@ use crate::vec3::{Vec3, norm, scale};
 
 /// The icosahedron (level 0) or its `level`-times subdivided sphere of radius `radius`,
 /// outward oriented, vertex 0 first of the icosahedron's vertices.
+///
+/// # Panics
+/// When `radius` is not a positive number whose squares and cubes f64 can hold (roughly
+/// 1e-77 to 1e77): the validation of the result then fails. For a radius from user input,
+/// build at radius 1, scale, and [`TriMesh::validate`] (which returns the error).
 pub fn icosphere(level: u32, radius: f64) -> TriMesh {
     let t = (1.0 + 5f64.sqrt()) / 2.0;
     let mut pos: Vec<Vec3> = vec![

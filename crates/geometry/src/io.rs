@@ -9,13 +9,146 @@
 use std::collections::HashMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 
-use crate::error::{GeometryError, MeshError, Result};
-use crate::mesh::{TriMesh, Validation};
+use crate::error::{FileKind, GeometryError, MeshError, ReadError, Result};
+use crate::mesh::{TriMesh, Validation, suggested_scale};
 use crate::vec3::Vec3;
 
-/// Largest file this crate reads (bytes); a larger one is refused before it is read.
-pub const MAX_FILE_BYTES: u64 = 1 << 30;
+/// Default largest file a reader accepts: 2 GiB. A larger one is refused before anything is
+/// allocated for it. Override it per call ([`ReadOptions::max_bytes`]), per process
+/// ([`set_max_file_bytes`], the CLI's `--max-file-bytes`) or with the environment variable
+/// [`MAX_FILE_BYTES_ENV`].
+pub const DEFAULT_MAX_FILE_BYTES: u64 = 2 << 30;
+
+/// Environment variable that overrides [`DEFAULT_MAX_FILE_BYTES`]: a byte count with an
+/// optional binary suffix (`K`, `M`, `G`, `T`, e.g. `4G`); see [`parse_byte_count`].
+pub const MAX_FILE_BYTES_ENV: &str = "FIBFLUID_MAX_FILE_BYTES";
+
+/// The process-wide limit set by [`set_max_file_bytes`] (0: not set).
+static MAX_FILE_BYTES_SET: AtomicU64 = AtomicU64::new(0);
+
+/// Sets the process-wide file size limit (what `fibfluid --max-file-bytes` does); it takes
+/// precedence over [`MAX_FILE_BYTES_ENV`]. A limit of 0 is taken as 1 byte.
+pub fn set_max_file_bytes(limit: u64) {
+    MAX_FILE_BYTES_SET.store(limit.max(1), Ordering::Relaxed);
+}
+
+/// The file size limit in force: [`set_max_file_bytes`], else [`MAX_FILE_BYTES_ENV`], else
+/// [`DEFAULT_MAX_FILE_BYTES`]. An environment value that is not a byte count is an error
+/// (not silently the default).
+pub fn max_file_bytes() -> std::result::Result<u64, ReadError> {
+    match MAX_FILE_BYTES_SET.load(Ordering::Relaxed) {
+        0 => match std::env::var_os(MAX_FILE_BYTES_ENV) {
+            None => Ok(DEFAULT_MAX_FILE_BYTES),
+            Some(v) => {
+                let v = v.to_string_lossy().into_owned();
+                parse_byte_count(&v).ok_or(ReadError::BadLimit { value: v })
+            }
+        },
+        n => Ok(n),
+    }
+}
+
+/// Parses a byte count: digits with an optional binary suffix `K`, `M`, `G` or `T` (also
+/// `KiB`, `MB`, ...: every suffix means a power of 1024). None when malformed, zero or
+/// larger than `u64`.
+pub fn parse_byte_count(s: &str) -> Option<u64> {
+    let s = s.trim();
+    let digits = s.find(|c: char| !c.is_ascii_digit()).unwrap_or(s.len());
+    let (num, suffix) = s.split_at(digits);
+    let n: u64 = num.parse().ok()?;
+    let shift = match suffix.trim().to_ascii_lowercase().as_str() {
+        "" | "b" => 0,
+        "k" | "kb" | "kib" => 10,
+        "m" | "mb" | "mib" => 20,
+        "g" | "gb" | "gib" => 30,
+        "t" | "tb" | "tib" => 40,
+        _ => return None,
+    };
+    let bytes = n.checked_mul(1u64 << shift)?;
+    (bytes > 0).then_some(bytes)
+}
+
+/// How a mesh file is read.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ReadOptions {
+    /// Largest file accepted, in bytes; `None` = [`max_file_bytes`].
+    pub max_bytes: Option<u64>,
+    /// Factor applied to every coordinate before validation (a scene's `[mesh].scale`), so a
+    /// mesh in tiny or huge units is checked in the units it will be used in. `None` = 1.
+    pub scale: Option<f64>,
+}
+
+/// What a path is, when it is not a regular file (following symbolic links).
+fn non_regular_kind(meta: &std::fs::Metadata) -> Option<FileKind> {
+    let t = meta.file_type();
+    if t.is_file() {
+        return None;
+    }
+    if t.is_dir() {
+        return Some(FileKind::Directory);
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_fifo() {
+            return Some(FileKind::Fifo);
+        }
+        if t.is_char_device() {
+            return Some(FileKind::CharDevice);
+        }
+        if t.is_block_device() {
+            return Some(FileKind::BlockDevice);
+        }
+        if t.is_socket() {
+            return Some(FileKind::Socket);
+        }
+    }
+    Some(FileKind::Other)
+}
+
+/// Reads a whole input file, refusing what could hang or exhaust memory:
+///
+/// - anything but a regular file (a FIFO, `/dev/zero`, a directory, a socket; symbolic links
+///   are followed) is refused from its metadata, before it is opened;
+/// - a file larger than `max_bytes` (`None`: [`max_file_bytes`]) is refused before any
+///   memory is reserved for it, and the read itself stops one byte past the limit, so a file
+///   that grows while it is read (or reports a size of 0, as `/proc` files do) cannot exceed
+///   it either;
+/// - the buffer is reserved fallibly ([`ReadError::OutOfMemory`], not an abort).
+pub fn read_file_limited(
+    path: impl AsRef<Path>,
+    max_bytes: Option<u64>,
+) -> std::result::Result<Vec<u8>, ReadError> {
+    use std::io::Read;
+    let path = path.as_ref();
+    let limit = match max_bytes {
+        Some(n) => n,
+        None => max_file_bytes()?,
+    };
+    let meta = std::fs::metadata(path)?;
+    if let Some(kind) = non_regular_kind(&meta) {
+        return Err(ReadError::NotARegularFile { kind });
+    }
+    if meta.len() > limit {
+        return Err(ReadError::TooLarge { size: meta.len(), limit });
+    }
+    let file = std::fs::File::open(path)?;
+    // The path may have been replaced between the check and the open.
+    let meta = file.metadata()?;
+    if let Some(kind) = non_regular_kind(&meta) {
+        return Err(ReadError::NotARegularFile { kind });
+    }
+    let mut bytes = Vec::new();
+    let expect = meta.len().min(limit);
+    bytes.try_reserve_exact(expect as usize).map_err(|_| ReadError::OutOfMemory { bytes: expect })?;
+    file.take(limit.saturating_add(1)).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > limit {
+        return Err(ReadError::GrewPastLimit { limit });
+    }
+    Ok(bytes)
+}
 
 /// A mesh read from a file, with the map back to the file's vertex order.
 #[derive(Clone, Debug)]
@@ -76,7 +209,15 @@ impl MeshFile {
 }
 
 /// Reads a mesh by extension (`.obj`, `.stl`), validates it, and flips it outward if needed.
+/// The file size limit is [`max_file_bytes`]; see [`load_mesh_with`] for the options.
 pub fn load_mesh(path: impl AsRef<Path>) -> Result<MeshFile> {
+    load_mesh_with(path, &ReadOptions::default())
+}
+
+/// [`load_mesh`] with explicit options: a size limit for this file and a scale applied
+/// before validation. The file is read with [`read_file_limited`] (regular files only,
+/// bounded).
+pub fn load_mesh_with(path: impl AsRef<Path>, opts: &ReadOptions) -> Result<MeshFile> {
     let path = path.as_ref();
     let io = |source| GeometryError::Io { path: path.to_path_buf(), source };
     let meta = std::fs::metadata(path).map_err(io)?;
@@ -87,29 +228,63 @@ pub fn load_mesh(path: impl AsRef<Path>) -> Result<MeshFile> {
             message: "is a directory, not a mesh file".into(),
         });
     }
-    if meta.len() > MAX_FILE_BYTES {
-        return Err(GeometryError::Parse {
-            path: path.into(),
-            line: 0,
-            message: format!("file is {} bytes, larger than the {} byte limit", meta.len(), MAX_FILE_BYTES),
-        });
+    // What it is comes before what it is called: `/dev/zero` is a device, not a bad name.
+    if let Some(kind) = non_regular_kind(&meta) {
+        return Err(GeometryError::Read { path: path.into(), source: ReadError::NotARegularFile { kind } });
     }
     let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
-    let bytes = std::fs::read(path).map_err(io)?;
-    let raw = match ext.as_deref() {
-        Some("obj") => parse_obj(&bytes).map_err(|(line, message)| GeometryError::Parse {
-            path: path.into(),
-            line,
-            message,
-        })?,
-        Some("stl") => parse_stl(&bytes).map_err(|(line, message)| GeometryError::Parse {
-            path: path.into(),
-            line,
-            message,
-        })?,
+    let parse: fn(&[u8]) -> ParseResult<RawMesh> = match ext.as_deref() {
+        Some("obj") => parse_obj,
+        Some("stl") => parse_stl,
         _ => return Err(GeometryError::UnsupportedFormat { path: path.into() }),
     };
-    finish(path, raw)
+    let bytes = read_file_limited(path, opts.max_bytes).map_err(|e| match e {
+        ReadError::Io(source) => GeometryError::Io { path: path.into(), source },
+        source => GeometryError::Read { path: path.into(), source },
+    })?;
+    let mut raw =
+        parse(&bytes).map_err(|(line, message)| GeometryError::Parse { path: path.into(), line, message })?;
+    drop(bytes);
+    if let Some(s) = opts.scale {
+        raw.positions.iter_mut().for_each(|p| *p = p.map(|c| c * s));
+        if let Some(v) = raw.positions.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
+            return Err(GeometryError::Parse {
+                path: path.into(),
+                line: 0,
+                message: format!("the scale {s:e} makes vertex {v} overflow f64; use a smaller scale"),
+            });
+        }
+    }
+    finish(path, raw).map_err(|e| match (e, opts.scale) {
+        // Name the file's coordinates and the `[mesh].scale` to use instead of this one.
+        (GeometryError::Mesh { path, source }, Some(s)) => {
+            GeometryError::Mesh { path, source: in_file_units(source, s) }
+        }
+        (e, _) => e,
+    })
+}
+
+/// Rewrites a coordinate-scale error of a mesh scaled by `s` in the file's units: the
+/// magnitude found in the file, and the total scale to ask for.
+fn in_file_units(e: MeshError, s: f64) -> MeshError {
+    match e {
+        MeshError::CoordinateOverflow { site, vertex, magnitude, .. } => MeshError::CoordinateOverflow {
+            site,
+            vertex,
+            magnitude: magnitude / s,
+            suggested_scale: suggested_scale(magnitude / s),
+        },
+        MeshError::CoordinateUnderflow { site, vertex, magnitude, value, .. } => {
+            MeshError::CoordinateUnderflow {
+                site,
+                vertex,
+                magnitude: magnitude / s,
+                value,
+                suggested_scale: suggested_scale(magnitude / s),
+            }
+        }
+        other => other,
+    }
 }
 
 /// Parses OBJ text already in memory (`path` only names it in errors).
@@ -193,13 +368,24 @@ fn to_file_indices(e: MeshError, to_file: &[u32]) -> MeshError {
         MeshError::InconsistentOrientation { a, b } => {
             MeshError::InconsistentOrientation { a: f(a), b: f(b) }
         }
+        MeshError::CoordinateOverflow { site, vertex, magnitude, suggested_scale } => {
+            MeshError::CoordinateOverflow { site, vertex: f(vertex), magnitude, suggested_scale }
+        }
+        MeshError::CoordinateUnderflow { site, vertex, magnitude, value, suggested_scale } => {
+            MeshError::CoordinateUnderflow { site, vertex: f(vertex), magnitude, value, suggested_scale }
+        }
         other => other,
     }
 }
 
 type ParseResult<T> = std::result::Result<T, (usize, String)>;
 
+/// The UTF-8 byte-order mark some editors write at the start of a text file.
+const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
+
 fn parse_obj(bytes: &[u8]) -> ParseResult<RawMesh> {
+    // A byte-order mark is not part of the first line (which is still line 1).
+    let bytes = bytes.strip_prefix(UTF8_BOM).unwrap_or(bytes);
     let mut positions: Vec<Vec3> = Vec::new();
     let mut faces: Vec<(usize, Vec<i64>)> = Vec::new();
     let mut polygons = 0usize;
@@ -287,8 +473,10 @@ fn parse_stl(bytes: &[u8]) -> ParseResult<RawMesh> {
         let n = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as u64;
         84 + 50 * n == bytes.len() as u64
     };
-    let looks_ascii = bytes.starts_with(b"solid")
-        && std::str::from_utf8(&bytes[..bytes.len().min(1024)])
+    // A byte-order mark may precede an ASCII STL's `solid` (a binary one keeps its header).
+    let text_bytes = bytes.strip_prefix(UTF8_BOM).unwrap_or(bytes);
+    let looks_ascii = text_bytes.starts_with(b"solid")
+        && std::str::from_utf8(&text_bytes[..text_bytes.len().min(1024)])
             .map(|s| s.contains("facet") || s.contains("endsolid"))
             .unwrap_or(false);
     let mut welder = Welder::default();
@@ -312,7 +500,8 @@ fn parse_stl(bytes: &[u8]) -> ParseResult<RawMesh> {
             triangles.push(tri);
         }
     } else if looks_ascii {
-        let text = std::str::from_utf8(bytes).map_err(|_| (0, "ASCII STL is not valid UTF-8".to_string()))?;
+        let text =
+            std::str::from_utf8(text_bytes).map_err(|_| (0, "ASCII STL is not valid UTF-8".to_string()))?;
         let mut corner = Vec::with_capacity(3);
         let mut last_vertex_line = 0;
         for (ln, line) in text.lines().enumerate() {

@@ -9,7 +9,8 @@
 //! - Fiber visibility ([`cull_fibers`]): a convex body keeps every vertex pair; otherwise a
 //!   fiber is removed when it leaves the body at one of its ends, or when it crosses the
 //!   surface ([`segment_triangle`], exact predicates, BVH-accelerated).
-//! - Files: OBJ and STL in ([`load_mesh`]), OBJ out ([`write_obj`]); [`Polygon`] for the
+//! - Files: OBJ and STL in ([`load_mesh`]; regular files only, at most
+//!   [`DEFAULT_MAX_FILE_BYTES`] unless raised, see [`read_file_limited`]), OBJ out ([`write_obj`]); [`Polygon`] for the
 //!   paper's 2D example; [`icosphere`] for the sphere cases.
 
 mod adjacency;
@@ -28,13 +29,17 @@ pub use adjacency::Adjacency;
 pub use boundary::Boundary;
 pub use bvh::TriangleBvh;
 pub use crossing::{Crossing, segment_triangle};
-pub use error::{GeometryError, MeshError, Result};
+pub use error::{FileKind, GeometryError, MeshError, ReadError, Result, ScaleSite};
 pub use fibers::{
     EXIT_TOLERANCE, FiberSet, VisibilityOptions, VisibilityReport, crosses_surface_brute_force, cull_fibers,
     self_intersections,
 };
 pub use icosphere::icosphere;
-pub use io::{MAX_FILE_BYTES, MeshFile, load_mesh, read_obj_bytes, read_stl_bytes, write_obj, write_obj_to};
+pub use io::{
+    DEFAULT_MAX_FILE_BYTES, MAX_FILE_BYTES_ENV, MeshFile, ReadOptions, load_mesh, load_mesh_with,
+    max_file_bytes, parse_byte_count, read_file_limited, read_obj_bytes, read_stl_bytes, set_max_file_bytes,
+    write_obj, write_obj_to,
+};
 pub use mesh::{
     CONVEXITY_TOLERANCE, DEGENERATE_AREA, TriMesh, Validation, bounding_box, face_area_vector,
     raw_vertex_vectors, vertex_area_vectors, volume,

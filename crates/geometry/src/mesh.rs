@@ -1,12 +1,16 @@
 //! The closed triangle surface and its checks.
 
 use crate::adjacency::Adjacency;
-use crate::error::MeshError;
+use crate::error::{MeshError, ScaleSite};
 use crate::vec3::{Vec3, cross, dot, norm, scale, sub};
 
 /// Relative area below which a face counts as degenerate: `area <= DEGENERATE_AREA * diag^2`
 /// with `diag` the bounding-box diagonal.
 pub const DEGENERATE_AREA: f64 = 1e-20;
+
+/// Relative volume at or below which a body whose volume underflowed counts as flat rather
+/// than too small: `|V| <= FLAT_VOLUME * m^3`, `m` the largest absolute coordinate.
+pub const FLAT_VOLUME: f64 = 1e-12;
 
 /// A triangle surface: f64 positions and u32 triangles, outward (counter-clockwise seen
 /// from outside) once [`TriMesh::validate`] has run.
@@ -146,11 +150,15 @@ impl TriMesh {
                 self.positions[t[1] as usize],
                 self.positions[t[2] as usize],
             ]));
-            // Not `area > limit` (a NaN area or limit must count as degenerate too).
+            if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
+                return Err(MeshError::DegenerateFace { face: k, area });
+            }
+            // Not `area > limit` (a NaN area or limit must fail too); a subnormal area has
+            // lost its precision.
             let larger =
                 area.partial_cmp(&(DEGENERATE_AREA * diag * diag)) == Some(std::cmp::Ordering::Greater);
-            if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] || !larger {
-                return Err(MeshError::DegenerateFace { face: k, area });
+            if !(larger && area.is_finite() && area >= f64::MIN_POSITIVE) {
+                return Err(self.area_failure(k, area));
             }
         }
         // Duplicate faces (same vertex set).
@@ -237,7 +245,29 @@ impl TriMesh {
         let mut report =
             Validation { flipped: false, euler_characteristic: chi, genus: (2 - chi) / 2, warnings: vec![] };
         let vol = self.volume();
-        if vol == 0.0 || !vol.is_finite() {
+        if !vol.is_finite() {
+            let (vertex, magnitude) = self.largest_coordinate(0..self.n_vertices());
+            return Err(MeshError::CoordinateOverflow {
+                site: ScaleSite::Volume,
+                vertex,
+                magnitude,
+                suggested_scale: suggested_scale(magnitude),
+            });
+        }
+        if vol.abs() < f64::MIN_POSITIVE {
+            // Zero or subnormal: a flat body, or a real one in units too small for f64.
+            let (vertex, magnitude) = self.largest_coordinate(0..self.n_vertices());
+            let unit: Vec<Vec3> = self.positions.iter().map(|p| p.map(|c| c / magnitude)).collect();
+            let relative = volume(&unit, &self.triangles);
+            if magnitude > 0.0 && relative.abs() > FLAT_VOLUME {
+                return Err(MeshError::CoordinateUnderflow {
+                    site: ScaleSite::Volume,
+                    vertex,
+                    magnitude,
+                    value: vol,
+                    suggested_scale: suggested_scale(magnitude),
+                });
+            }
             return Err(MeshError::ZeroVolume);
         }
         if vol < 0.0 {
@@ -248,6 +278,41 @@ impl TriMesh {
             report.warnings.push("faces pointed inward (negative volume); flipped to outward".into());
         }
         Ok(report)
+    }
+
+    /// The error for face `k`, whose area failed the degeneracy test: the same test on the
+    /// coordinates divided by the largest absolute coordinate tells a degenerate shape
+    /// ([`MeshError::DegenerateFace`]) from coordinates too large or too small for f64
+    /// products ([`MeshError::CoordinateOverflow`] / [`MeshError::CoordinateUnderflow`]).
+    fn area_failure(&self, k: usize, area: f64) -> MeshError {
+        let (_, m) = self.largest_coordinate(0..self.n_vertices());
+        if !(m > 0.0) {
+            return MeshError::DegenerateFace { face: k, area };
+        }
+        // Division, not a reciprocal: 1 / m overflows when m is subnormal.
+        let unit = |p: Vec3| p.map(|c| c / m);
+        let (lo, hi) = self.bounding_box();
+        let unit_diag = norm(sub(unit(hi), unit(lo)));
+        let unit_area = norm(face_area_vector(self.corners(k).map(unit)));
+        if !(unit_area > DEGENERATE_AREA * unit_diag * unit_diag) {
+            return MeshError::DegenerateFace { face: k, area };
+        }
+        let t = self.triangles[k];
+        let (vertex, magnitude) = self.largest_coordinate(t.iter().map(|&v| v as usize));
+        let (site, suggested_scale) = (ScaleSite::Face(k), suggested_scale(m));
+        let diag = self.diagonal();
+        if !area.is_finite() || !(DEGENERATE_AREA * diag * diag).is_finite() {
+            MeshError::CoordinateOverflow { site, vertex, magnitude, suggested_scale }
+        } else {
+            MeshError::CoordinateUnderflow { site, vertex, magnitude, value: area, suggested_scale }
+        }
+    }
+
+    /// The vertex of `among` with the largest absolute coordinate, and that coordinate.
+    fn largest_coordinate(&self, among: impl Iterator<Item = usize>) -> (u32, f64) {
+        among
+            .map(|v| (v as u32, self.positions[v].iter().fold(0.0f64, |m, c| m.max(c.abs()))))
+            .fold((0, -1.0), |best, x| if x.1 > best.1 { x } else { best })
     }
 
     /// Whether the body is convex: no vertex lies outside any face plane by more than
@@ -274,6 +339,17 @@ impl TriMesh {
             (0..self.n_faces()).into_par_iter().all(face_ok)
         }
     }
+}
+
+/// A power of ten that brings a largest absolute coordinate `m` to between 1 and 10 (the
+/// `[mesh].scale` suggested when coordinates overflow or underflow).
+pub(crate) fn suggested_scale(m: f64) -> f64 {
+    if !(m > 0.0 && m.is_finite()) {
+        return 1.0;
+    }
+    let exponent = -(m.log10().floor().clamp(-300.0, 300.0) as i32);
+    // Parsed rather than `powi`, which is off in the last digits.
+    format!("1e{exponent}").parse().unwrap_or(1.0)
 }
 
 /// Below this much work (vertex-face pairs) loops run on one thread.

@@ -7,7 +7,8 @@ use std::time::{SystemTime, UNIX_EPOCH};
 
 use crate::common::*;
 use fibfluid_geometry::{
-    GeometryError, MeshError, MeshFile, TriMesh, icosphere, load_mesh, read_obj_bytes, read_stl_bytes,
+    FileKind, GeometryError, MeshError, MeshFile, ReadError, ReadOptions, ScaleSite, TriMesh, icosphere,
+    load_mesh, load_mesh_with, parse_byte_count, read_file_limited, read_obj_bytes, read_stl_bytes,
     write_obj,
 };
 
@@ -481,5 +482,148 @@ fn stl_and_file_errors() {
     match load_mesh(&tmp.0) {
         Err(GeometryError::Mesh { path, source: MeshError::OpenBoundary { .. } }) => assert_eq!(path, tmp.0),
         other => panic!("{other:?}"),
+    }
+}
+
+const BOM: &[u8] = b"\xEF\xBB\xBF";
+
+/// A UTF-8 byte-order mark before the first line is skipped: the mesh is the same as
+/// without it (the old reader lost the first vertex line), and the first line is line 1.
+#[test]
+fn a_byte_order_mark_is_skipped() {
+    let (p, t) = tetrahedron();
+    let text = obj_text(&p, &t);
+    let plain = read_obj_bytes("t.obj", text.as_bytes()).unwrap();
+    let marked = read_obj_bytes("t.obj", &[BOM, text.as_bytes()].concat()).unwrap();
+    assert_eq!(marked.file_vertex_count(), 4);
+    assert_eq!(marked.mesh, plain.mesh);
+    let (line, msg) = parse_error(read_obj_bytes("t.obj", &[BOM, b"v 0 0\n".as_slice()].concat()));
+    assert_eq!((line, msg.as_str()), (1, "vertex has 2 coordinates, 3 expected"));
+    // ASCII STL too (a binary STL's header is left as it is).
+    let ascii = stl_ascii(&p, &t, false);
+    let marked = read_stl_bytes("t.stl", &[BOM, ascii.as_bytes()].concat()).unwrap();
+    assert_eq!(marked.mesh, read_stl_bytes("t.stl", ascii.as_bytes()).unwrap().mesh);
+}
+
+/// Coordinates whose products overflow or underflow f64 are said to be so, with the vertex
+/// and a scale that fixes them, instead of "degenerate (area NaN)"; a truly degenerate face
+/// stays degenerate at any scale. Expected values worked out by hand from the tetrahedron
+/// (edge 2, face 0 = [0, 2, 1]: its largest coordinate is vertex 2's y).
+#[test]
+fn coordinate_scale_errors_are_typed_and_the_suggested_scale_works() {
+    let (p, t) = tetrahedron();
+    let scaled = |s: f64| p.iter().map(|q| mul(*q, s)).collect::<Vec<_>>();
+    let huge = obj_text(&scaled(1e300), &t);
+    assert_eq!(
+        mesh_error(read_obj_bytes("huge.obj", huge.as_bytes())),
+        MeshError::CoordinateOverflow {
+            site: ScaleSite::Face(0),
+            vertex: 2,
+            magnitude: 2e300,
+            suggested_scale: 1e-300
+        }
+    );
+    let tiny = obj_text(&scaled(1e-300), &t);
+    assert_eq!(
+        mesh_error(read_obj_bytes("tiny.obj", tiny.as_bytes())),
+        MeshError::CoordinateUnderflow {
+            site: ScaleSite::Face(0),
+            vertex: 2,
+            magnitude: 2e-300,
+            value: 0.0,
+            suggested_scale: 1e300
+        }
+    );
+    let msg = mesh_error(read_obj_bytes("huge.obj", huge.as_bytes())).to_string();
+    assert!(msg.contains("overflow f64 when multiplied") && msg.contains("`[mesh].scale = 1e-300`"), "{msg}");
+
+    // The suggested scale, applied before validation, loads the file: the tetrahedron with
+    // edge 2 has volume 2^3 / 6.
+    let tmp = TempFile::new("huge", "obj", huge.as_bytes());
+    let file = load_mesh_with(&tmp.0, &ReadOptions { scale: Some(1e-300), ..Default::default() }).unwrap();
+    assert!((file.mesh.volume() - 8.0 / 6.0).abs() < 1e-12, "{}", file.mesh.volume());
+    // A scale that is not enough is reported in the file's units: the total scale to use.
+    match load_mesh_with(&tmp.0, &ReadOptions { scale: Some(1e-200), ..Default::default() }) {
+        Err(GeometryError::Mesh {
+            source: MeshError::CoordinateOverflow { magnitude, suggested_scale, .. },
+            ..
+        }) => {
+            assert!((magnitude / 2e300 - 1.0).abs() < 1e-12, "{magnitude}");
+            assert_eq!(suggested_scale, 1e-300);
+        }
+        other => panic!("{other:?}"),
+    }
+
+    // A collinear face (vertex 4 is the midpoint of edge (0, 1)) in a closed surface, listed
+    // first: degenerate at scale 1 and at 1e-300 alike.
+    let mut p5 = p.clone();
+    p5.push([1.0, 0.0, 0.0]);
+    let t5 = vec![[0, 1, 4], [0, 2, 1], [0, 4, 3], [4, 1, 3], [0, 3, 2], [1, 2, 3]];
+    for s in [1.0, 1e-300] {
+        let q: Vec<_> = p5.iter().map(|v| mul(*v, s)).collect();
+        let e = mesh_error(read_obj_bytes("sliver.obj", obj_text(&q, &t5).as_bytes()));
+        assert!(matches!(e, MeshError::DegenerateFace { face: 0, .. }), "scale {s}: {e:?}");
+    }
+}
+
+/// Only regular files are read, and no more than the limit: a FIFO, a device and a
+/// directory are refused from their metadata; a file over the limit before it is read;
+/// a file that is longer than its reported size (a `/proc` file reports 0) while it is read.
+#[test]
+fn the_bounded_reader_refuses_special_and_oversized_files() {
+    let dir = std::env::temp_dir().join(format!("fibfluid-geometry-special-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let fifo = dir.join("pipe.obj");
+    let _ = std::fs::remove_file(&fifo);
+    assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    let kind = |r: Result<Vec<u8>, ReadError>| match r {
+        Err(ReadError::NotARegularFile { kind }) => kind,
+        other => panic!("{other:?}"),
+    };
+    assert_eq!(kind(read_file_limited(&fifo, None)), FileKind::Fifo);
+    assert_eq!(kind(read_file_limited("/dev/zero", Some(10))), FileKind::CharDevice);
+    assert_eq!(kind(read_file_limited(&dir, None)), FileKind::Directory);
+    match load_mesh(&fifo) {
+        Err(GeometryError::Read { path, source: ReadError::NotARegularFile { kind: FileKind::Fifo } }) => {
+            assert_eq!(path, fifo)
+        }
+        other => panic!("{other:?}"),
+    }
+    let zero = dir.join("zero.obj");
+    let _ = std::fs::remove_file(&zero);
+    std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
+    assert!(matches!(
+        load_mesh(&zero),
+        Err(GeometryError::Read { source: ReadError::NotARegularFile { kind: FileKind::CharDevice }, .. })
+    ));
+    std::fs::remove_dir_all(&dir).unwrap();
+
+    let tmp = TempFile::new("hundred", "obj", &[b'#'; 100]);
+    assert!(matches!(read_file_limited(&tmp.0, Some(50)), Err(ReadError::TooLarge { size: 100, limit: 50 })));
+    assert_eq!(read_file_limited(&tmp.0, Some(100)).unwrap().len(), 100);
+    match load_mesh_with(&tmp.0, &ReadOptions { max_bytes: Some(99), ..Default::default() }) {
+        Err(e @ GeometryError::Read { source: ReadError::TooLarge { .. }, .. }) => {
+            assert!(e.to_string().contains("is 100 bytes, more than the limit of 99 bytes; raise it"), "{e}")
+        }
+        other => panic!("{other:?}"),
+    }
+    // /proc/self/status is a regular file of reported size 0 and a few hundred bytes.
+    assert_eq!(std::fs::metadata("/proc/self/status").unwrap().len(), 0);
+    assert!(matches!(
+        read_file_limited("/proc/self/status", Some(10)),
+        Err(ReadError::GrewPastLimit { limit: 10 })
+    ));
+}
+
+/// Byte counts: digits with an optional binary suffix.
+#[test]
+fn byte_counts_parse() {
+    assert_eq!(parse_byte_count("4G"), Some(4 << 30));
+    assert_eq!(parse_byte_count("512M"), Some(512 << 20));
+    assert_eq!(parse_byte_count("1kib"), Some(1024));
+    assert_eq!(parse_byte_count(" 12 "), Some(12));
+    assert_eq!(parse_byte_count("12B"), Some(12));
+    for bad in ["0", "", "x", "-5", "1.5G", "1Q", "99999999999T", "18446744073709551616"] {
+        assert_eq!(parse_byte_count(bad), None, "{bad}");
     }
 }

@@ -41,6 +41,48 @@ pub fn check_dense_memory(dim: usize, copies: usize) -> Result<()> {
 
 const GIB: f64 = 1024.0 * 1024.0 * 1024.0;
 
+/// Errors with [`LinalgError::OutOfMemory`] unless `len` values of `T` can be allocated now.
+///
+/// The reservation is made with `Vec::try_reserve_exact` and released at once: the caller
+/// then makes the real allocation (zeroed pages from the system, not touched one by one).
+/// An address-space limit (`ulimit -v`), a failing `mmap` or a size that overflows are caught
+/// here as an error instead of an abort. (With memory overcommit, a system that runs out of
+/// memory later, when pages are touched, can still kill the process: the size checks of the
+/// callers, e.g. [`check_dense_memory`], are the guard against that.)
+pub(crate) fn check_alloc<T>(len: usize, what: &'static str) -> Result<()> {
+    let bytes = len.saturating_mul(std::mem::size_of::<T>());
+    let oom = LinalgError::OutOfMemory { bytes, what };
+    if bytes == usize::MAX || bytes > isize::MAX as usize {
+        return Err(oom);
+    }
+    let mut probe: Vec<T> = Vec::new();
+    probe.try_reserve_exact(len).map_err(|_| oom)
+}
+
+/// A zeroed `Vec<f64>` of `len` values, or [`LinalgError::OutOfMemory`] (see [`check_alloc`]).
+pub(crate) fn try_zeroed(len: usize, what: &'static str) -> Result<Vec<f64>> {
+    check_alloc::<f64>(len, what)?;
+    Ok(vec![0.0; len])
+}
+
+/// Collects `len` values into a vector reserved fallibly (no reallocation while filling).
+pub(crate) fn try_collect<T>(
+    len: usize,
+    values: impl Iterator<Item = T>,
+    what: &'static str,
+) -> Result<Vec<T>> {
+    let bytes = len.saturating_mul(std::mem::size_of::<T>());
+    let mut v = Vec::new();
+    v.try_reserve_exact(len).map_err(|_| LinalgError::OutOfMemory { bytes, what })?;
+    v.extend(values.take(len));
+    Ok(v)
+}
+
+/// What the dense buffers are called in [`LinalgError::OutOfMemory`].
+pub(crate) const DENSE_WHAT: &str = "the dense matrix";
+/// The single-precision copy of the dense matrix (mixed precision).
+pub(crate) const SINGLE_WHAT: &str = "the single-precision dense matrix";
+
 pub(crate) fn dense_lu_cost(dim: usize, seconds: f64, word_bytes: usize) -> FactorCost {
     FactorCost { flops: lu_flops(dim), seconds, bytes: dim * dim * word_bytes }
 }
@@ -70,6 +112,10 @@ impl<K: DenseKernel> DenseFactorization<K> {
     /// Factors `a` with kernel `K`.
     pub(crate) fn boxed(a: &BorderedMatrix, opts: &FactorOptions) -> Result<Box<dyn Factorization>> {
         let (kernel, cost) = Self::factor(a, opts.precision)?;
+        // The factorization keeps a copy of the structured matrix (its blocks).
+        let blocks = if a.is_shared() { 1 } else { a.axes() };
+        let n = a.n_vertices();
+        check_alloc::<f64>(n.saturating_mul(n).saturating_mul(blocks), "a copy of the stiffness blocks")?;
         Ok(Box::new(Self { matrix: a.clone(), opts: *opts, kernel, cost }))
     }
 
@@ -117,5 +163,34 @@ impl<K: DenseKernel> Factorization for DenseFactorization<K> {
         self.kernel = kernel;
         self.cost = cost;
         Ok(cost)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Allocations no machine can make (2^60 f64 = 8 EiB, a size that overflows usize)
+    /// come back as `OutOfMemory` naming the bytes, not as an abort.
+    #[test]
+    fn impossible_allocations_are_errors() {
+        let n = 1usize << 60;
+        assert_eq!(
+            check_alloc::<f64>(n, DENSE_WHAT),
+            Err(LinalgError::OutOfMemory { bytes: n * 8, what: DENSE_WHAT })
+        );
+        assert_eq!(
+            try_zeroed(usize::MAX / 2, DENSE_WHAT),
+            Err(LinalgError::OutOfMemory { bytes: usize::MAX, what: DENSE_WHAT })
+        );
+        let e = try_collect(n, std::iter::repeat(0f32), SINGLE_WHAT).unwrap_err();
+        assert_eq!(e, LinalgError::OutOfMemory { bytes: n * 4, what: SINGLE_WHAT });
+        assert!(
+            e.to_string().starts_with(&format!("cannot allocate {} bytes (4294967296.00 GiB)", n * 4)),
+            "{e}"
+        );
+        // A possible one works.
+        assert_eq!(try_zeroed(10, DENSE_WHAT).unwrap(), vec![0.0; 10]);
+        assert_eq!(try_collect(3, [1, 2, 3, 4].into_iter(), "x").unwrap(), vec![1, 2, 3]);
     }
 }

@@ -51,15 +51,39 @@ pub enum LinalgError {
     },
     /// The backend exists but its Cargo feature is not compiled into this build.
     #[error(
-        "backend `{backend}` is not compiled into this build (compiled in: {compiled}); rebuild with `--features {feature}`"
+        "backend `{backend}` is not compiled into this build; rebuild with `cargo build --features {feature}`{requirement} (compiled in: {compiled})"
     )]
     NotCompiled {
         /// The backend asked for.
         backend: &'static str,
         /// The Cargo feature that compiles it in.
         feature: &'static str,
+        /// What else the feature needs (a system library), with its leading separator.
+        requirement: &'static str,
         /// The backends this build has.
         compiled: String,
+    },
+    /// Memory for a buffer could not be allocated (the allocation was refused, not aborted).
+    #[error(
+        "cannot allocate {bytes} bytes ({:.2} GiB) for {what}; use the `structured` backend, which never forms the dense matrix",
+        *.bytes as f64 / 1073741824.0
+    )]
+    OutOfMemory {
+        /// Bytes asked for (`usize::MAX` when the size itself overflows).
+        bytes: usize,
+        /// What the buffer is for.
+        what: &'static str,
+    },
+    /// A thread count of zero was asked for.
+    #[error("the thread count must be at least 1")]
+    ZeroThreads,
+    /// The thread pool could not be started.
+    #[error("cannot start a pool of {threads} threads: {message}")]
+    ThreadPool {
+        /// Threads asked for.
+        threads: usize,
+        /// The system's reason.
+        message: String,
     },
     /// The dense matrix would not fit in memory.
     #[error(

@@ -14,7 +14,7 @@ use faer::perm::Perm;
 use faer::traits::ComplexField;
 use faer::{MatMut, MatRef};
 
-use crate::dense::{DenseFactorization, DenseKernel};
+use crate::dense::{DenseFactorization, DenseKernel, SINGLE_WHAT, try_collect};
 use crate::solver::check_pivots;
 use crate::{BorderedMatrix, FactorOptions, Factorization, LinearSolver, Precision, Result};
 
@@ -32,15 +32,21 @@ struct Packed<T> {
 impl<T: ComplexField> Packed<T> {
     /// Factors the column-major n x n matrix `a` in place (partial pivoting, faer's global
     /// parallelism).
-    fn factor(mut a: Vec<T>, n: usize) -> Self {
+    /// The scratch memory and the permutation are allocated fallibly
+    /// ([`LinalgError::OutOfMemory`](crate::LinalgError::OutOfMemory)).
+    fn factor(mut a: Vec<T>, n: usize) -> Result<Self> {
         let par = faer::get_global_parallelism();
-        let mut fwd = vec![0usize; n];
-        let mut inv = vec![0usize; n];
-        let mut mem = MemBuffer::new(lu_in_place_scratch::<usize, T>(n, n, par, Default::default()));
+        let mut fwd = try_collect(n, std::iter::repeat(0usize), "the LU permutation")?;
+        let mut inv = try_collect(n, std::iter::repeat(0usize), "the LU permutation")?;
+        let req = lu_in_place_scratch::<usize, T>(n, n, par, Default::default());
+        let mut mem = MemBuffer::try_new(req).map_err(|_| crate::LinalgError::OutOfMemory {
+            bytes: req.size_bytes(),
+            what: "the LU scratch space",
+        })?;
         let view = MatMut::from_column_major_slice_mut(&mut a, n, n);
         lu_in_place(view, &mut fwd, &mut inv, par, MemStack::new(&mut mem), Default::default());
         let perm = Perm::new_checked(fwd.into_boxed_slice(), inv.into_boxed_slice(), n);
-        Self { lu: a, n, perm }
+        Ok(Self { lu: a, n, perm })
     }
 
     /// The pivot U_ii.
@@ -84,17 +90,17 @@ impl DenseKernel for FaerKernel {
 
     fn factor(a: &BorderedMatrix, precision: Precision) -> Result<Self> {
         let dim = a.dim();
-        let dense = a.to_dense_col_major();
+        let dense = a.try_to_dense_col_major()?;
         Ok(match precision {
             Precision::F64 => {
-                let lu = Packed::factor(dense, dim);
+                let lu = Packed::factor(dense, dim)?;
                 check_pivots(a, (0..dim).map(|i| (i, *lu.pivot(i))))?;
                 FaerKernel::F64(lu)
             }
             Precision::Mixed => {
-                let single: Vec<f32> = dense.iter().map(|v| *v as f32).collect();
+                let single = try_collect(dense.len(), dense.iter().map(|v| *v as f32), SINGLE_WHAT)?;
                 drop(dense);
-                let lu = Packed::factor(single, dim);
+                let lu = Packed::factor(single, dim)?;
                 check_pivots(a, (0..dim).map(|i| (i, *lu.pivot(i) as f64)))?;
                 FaerKernel::F32(lu)
             }

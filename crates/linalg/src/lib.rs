@@ -105,6 +105,15 @@ impl Backend {
         }
     }
 
+    /// What the backend's feature needs besides Rust, with a leading separator (empty
+    /// when nothing).
+    pub fn requirement(self) -> &'static str {
+        match self {
+            Backend::OpenblasLu => " (needs the system OpenBLAS: Debian/Ubuntu package libopenblas-dev)",
+            _ => "",
+        }
+    }
+
     /// Whether this build has the backend.
     pub fn is_compiled(self) -> bool {
         match self {
@@ -139,6 +148,7 @@ impl Backend {
             other => Err(LinalgError::NotCompiled {
                 backend: other.name(),
                 feature: other.feature().unwrap_or_default(),
+                requirement: other.requirement(),
                 compiled: Backend::compiled().iter().map(|b| b.name()).collect::<Vec<_>>().join(", "),
             }),
         }

@@ -134,10 +134,22 @@ impl BorderedMatrix {
         }
     }
 
-    /// The dense (dN+1)^2 matrix in the paper's layout.
+    /// The dense (dN+1)^2 matrix in the paper's layout (for tests and small systems).
+    ///
+    /// # Panics
+    /// If the matrix cannot be allocated (with [`LinalgError::OutOfMemory`]'s message);
+    /// [`try_to_dense`](Self::try_to_dense) returns that error instead.
+    #[track_caller]
     pub fn to_dense(&self) -> Mat<f64> {
+        self.try_to_dense().unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// The dense (dN+1)^2 matrix in the paper's layout, or [`LinalgError::OutOfMemory`] when
+    /// it cannot be allocated.
+    pub fn try_to_dense(&self) -> Result<Mat<f64>> {
         let (n, d) = (self.n, self.axes());
         let dim = self.dim();
+        crate::dense::check_alloc::<f64>(dim.saturating_mul(dim), crate::dense::DENSE_WHAT)?;
         let mut a = Mat::<f64>::zeros(dim, dim);
         for c in 0..d {
             let k = self.block(c);
@@ -150,7 +162,7 @@ impl BorderedMatrix {
                 a[(dim - 1, off + i)] = self.border[c][i];
             }
         }
-        a
+        Ok(a)
     }
 
     /// The dense (dN+1)^2 matrix in the paper's layout, column-major in one `Vec` (the
@@ -161,11 +173,23 @@ impl BorderedMatrix {
     /// included: for a large fresh allocation the cost is the first touch of every page, and
     /// this spreads those page faults over the threads instead of leaving them to the
     /// factorization.
+    ///
+    /// # Panics
+    /// If the matrix cannot be allocated;
+    /// [`try_to_dense_col_major`](Self::try_to_dense_col_major) returns the error instead.
+    #[track_caller]
     pub fn to_dense_col_major(&self) -> Vec<f64> {
+        self.try_to_dense_col_major().unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// [`to_dense_col_major`](Self::to_dense_col_major), or [`LinalgError::OutOfMemory`]
+    /// (naming the bytes needed) when the matrix cannot be allocated. The dense backends
+    /// use this one.
+    pub fn try_to_dense_col_major(&self) -> Result<Vec<f64>> {
         use rayon::prelude::*;
         let (n, d) = (self.n, self.axes());
         let dim = self.dim();
-        let mut a = vec![0.0; dim * dim];
+        let mut a = crate::dense::try_zeroed(dim.saturating_mul(dim), crate::dense::DENSE_WHAT)?;
         a.par_chunks_mut(dim).enumerate().for_each(|(j, col)| {
             if j == dim - 1 {
                 for c in 0..d {
@@ -181,7 +205,7 @@ impl BorderedMatrix {
                 col[dim - 1] = self.border[c][jj];
             }
         });
-        a
+        Ok(a)
     }
 
     /// Bytes the dense form would take.

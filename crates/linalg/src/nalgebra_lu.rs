@@ -2,7 +2,7 @@
 
 use nalgebra::{DMatrix, DVector, Dyn, LU};
 
-use crate::dense::{DenseFactorization, DenseKernel};
+use crate::dense::{DenseFactorization, DenseKernel, SINGLE_WHAT, try_collect};
 use crate::solver::check_pivots;
 use crate::{BorderedMatrix, FactorOptions, Factorization, LinearSolver, Precision, Result};
 
@@ -36,20 +36,23 @@ impl DenseKernel for NalgebraKernel {
     fn factor(a: &BorderedMatrix, precision: Precision) -> Result<Self> {
         let dim = a.dim();
         // Column-major, nalgebra's storage order: no intermediate matrix.
-        let dense = a.to_dense_col_major();
+        let dense = a.try_to_dense_col_major()?;
+        // The pivots are read from the packed factors (`lu_internal`, public though hidden
+        // from nalgebra's docs) rather than from `u()`, which would copy the whole n x n
+        // upper triangle just to read its diagonal.
         Ok(match precision {
             Precision::F64 => {
                 let lu = DMatrix::<f64>::from_vec(dim, dim, dense).lu();
-                let u = lu.u();
-                check_pivots(a, (0..dim).map(|i| (i, u[(i, i)])))?;
+                let packed = lu.lu_internal();
+                check_pivots(a, (0..dim).map(|i| (i, packed[(i, i)])))?;
                 NalgebraKernel::F64(lu)
             }
             Precision::Mixed => {
-                let m = DMatrix::<f32>::from_iterator(dim, dim, dense.iter().map(|v| *v as f32));
+                let single = try_collect(dense.len(), dense.iter().map(|v| *v as f32), SINGLE_WHAT)?;
                 drop(dense);
-                let lu = m.lu();
-                let u = lu.u();
-                check_pivots(a, (0..dim).map(|i| (i, u[(i, i)] as f64)))?;
+                let lu = DMatrix::<f32>::from_vec(dim, dim, single).lu();
+                let packed = lu.lu_internal();
+                check_pivots(a, (0..dim).map(|i| (i, packed[(i, i)] as f64)))?;
                 NalgebraKernel::F32(lu)
             }
         })

@@ -32,7 +32,7 @@ use ndarray::{Array2, ShapeBuilder};
 use ndarray_linalg::layout::{AllocatedArray, AllocatedArrayMut};
 use ndarray_linalg::{Diag, Lapack, Pivot, SolveTriangularInplace, UPLO};
 
-use crate::dense::{DenseFactorization, DenseKernel};
+use crate::dense::{DenseFactorization, DenseKernel, SINGLE_WHAT, try_collect};
 use crate::solver::check_pivots;
 use crate::{BorderedMatrix, FactorOptions, Factorization, LinalgError, LinearSolver, Precision, Result};
 
@@ -123,7 +123,7 @@ impl DenseKernel for OpenblasKernel {
     fn factor(a: &BorderedMatrix, precision: Precision) -> Result<Self> {
         let dim = a.dim();
         // Column-major, as LAPACK takes it, factored in place.
-        let dense = a.to_dense_col_major();
+        let dense = a.try_to_dense_col_major()?;
         let shape = (dim, dim).f();
         let shape_err = |e: ndarray::ShapeError| LinalgError::Lapack(e.to_string());
         Ok(match precision {
@@ -132,7 +132,7 @@ impl DenseKernel for OpenblasKernel {
                 OpenblasKernel::F64(LuFactors::factor(a, m)?)
             }
             Precision::Mixed => {
-                let single: Vec<f32> = dense.iter().map(|v| *v as f32).collect();
+                let single = try_collect(dense.len(), dense.iter().map(|v| *v as f32), SINGLE_WHAT)?;
                 drop(dense);
                 let m = Array2::from_shape_vec(shape, single).map_err(shape_err)?;
                 OpenblasKernel::F32(LuFactors::factor(a, m)?)

@@ -87,6 +87,12 @@ impl LinearSolver for Structured {
         let start = Instant::now();
         let n = a.n_vertices();
         let nblocks = if a.is_shared() { 1 } else { a.axes() };
+        // The factors (one n x n matrix per block): an error, not an abort, when they cannot
+        // be allocated.
+        crate::dense::check_alloc::<f64>(
+            n.saturating_mul(n).saturating_mul(nblocks),
+            "the Cholesky factors",
+        )?;
         let mut chol = Vec::with_capacity(nblocks);
         for c in 0..nblocks {
             chol.push(factor_block(a.block(c), c, opts.precision)?);

@@ -255,6 +255,18 @@ fn every_compiled_backend_is_listed_and_reachable_by_name() {
         assert!(matches!(e, LinalgError::NotCompiled { .. }), "{e:?}");
         assert!(e.to_string().contains(&format!("--features {}", backend.feature().unwrap())), "{e}");
     }
+    if !cfg!(feature = "openblas") {
+        let msg = Backend::OpenblasLu.solver().err().unwrap().to_string();
+        assert!(msg.contains("libopenblas-dev"), "{msg}");
+    }
+}
+
+/// A thread count of 0 is an error (checked before anything global changes).
+#[test]
+fn zero_threads_is_an_error() {
+    assert_eq!(fibfluid_linalg::threads::try_set_threads(0), Err(LinalgError::ZeroThreads));
+    let cap = fibfluid_linalg::threads::thread_cap();
+    assert!((1..=fibfluid_linalg::threads::MAX_THREADS).contains(&cap));
 }
 
 #[test]

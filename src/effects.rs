@@ -1,0 +1,126 @@
+//! Effects a scene asks for that cannot act, found before a run so the user is told.
+//!
+//! A scene can be valid and still ask for something that does nothing: gravity acts only
+//! through the hydrostatic pressure `rho a h` (REFERENCE §3), so `[gravity]` without a fluid
+//! density leaves the body where it is, and the run prints max |u| = 0 without a word. The
+//! plan skips such stages (the report lists them); [`ineffective`] says which of the
+//! scene's own settings caused it and what to change. The CLI prints each as
+//! `warning: ...` and `report.json` lists them under `warnings`.
+
+use std::fmt;
+
+use fibfluid_assembly::StiffnessLaw;
+use fibfluid_geometry::Vec3;
+
+use crate::{Mode, Scene, Shape};
+
+/// A setting of a scene that has no effect on the run.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Ineffective {
+    /// `[gravity]` is set but the fluid density is 0: gravity acts only through the
+    /// hydrostatic load `rho a h S`, which is then zero.
+    GravityWithoutDensity {
+        /// The acceleration asked for.
+        acceleration: Vec3,
+    },
+    /// A fluid density without gravity: the density enters only the hydrostatic load.
+    DensityWithoutGravity {
+        /// The density given.
+        density: f64,
+    },
+    /// A strain-dependent modulus (`[material] stiffening`) in a mode that assembles K once,
+    /// at the rest shape, where every strain is 0.
+    StiffeningOutsideNonlinear {
+        /// The scene's mode (paper or refresh).
+        mode: Mode,
+    },
+    /// A point force whose value is zero.
+    ZeroForce {
+        /// 1-based position among the scene's forces (`[[force]] #k`).
+        index: usize,
+        /// The vertex, as the scene names it (the file's 0-based index).
+        vertex: usize,
+    },
+    /// A point force on a vertex that is constrained along every axis the force pushes.
+    ForceOnFixedVertex {
+        /// 1-based position among the scene's forces (`[[force]] #k`).
+        index: usize,
+        /// The vertex, as the scene names it (the file's 0-based index).
+        vertex: usize,
+    },
+}
+
+impl fmt::Display for Ineffective {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Ineffective::GravityWithoutDensity { acceleration: a } => write!(
+                f,
+                "[gravity] acceleration = [{}, {}, {}] has no effect: the fluid density is 0 and gravity acts only through the hydrostatic pressure; set [fluid] density (e.g. 1000)",
+                a[0], a[1], a[2]
+            ),
+            Ineffective::DensityWithoutGravity { density } => write!(
+                f,
+                "[fluid] density = {density} has no effect without gravity (it enters only the hydrostatic load); add [gravity] acceleration or remove [fluid]"
+            ),
+            Ineffective::StiffeningOutsideNonlinear { mode } => write!(
+                f,
+                "[material] stiffening has no effect in {} mode (K is assembled once, at the rest shape, where the strain is 0); set [solver] mode = \"nonlinear\"",
+                mode
+            ),
+            Ineffective::ZeroForce { index, vertex } => write!(
+                f,
+                "[[force]] #{index} on vertex {vertex} is zero and has no effect; give it a non-zero value or remove it"
+            ),
+            Ineffective::ForceOnFixedVertex { index, vertex } => write!(
+                f,
+                "[[force]] #{index} pushes vertex {vertex}, which is fixed along every axis the force has a component on, so it has no effect; apply it to a free vertex or fix fewer axes there"
+            ),
+        }
+    }
+}
+
+/// Every setting of `scene` that cannot act, in scene order (gravity and fluid, material,
+/// forces). Cheap: no assembly, one pass over the forces.
+///
+/// A `[[fix]]` that selects only vertices an earlier `[[fix]]` already holds is not
+/// reported: a [`Scene`] keeps the merged constraints, not the tables they came from.
+pub fn ineffective(scene: &Scene) -> Vec<Ineffective> {
+    let mut found = Vec::new();
+    let has_gravity = scene.gravity.iter().any(|&g| g != 0.0);
+    let density = scene.material.density;
+    if has_gravity && density == 0.0 {
+        found.push(Ineffective::GravityWithoutDensity { acceleration: scene.gravity });
+    }
+    if !has_gravity && density > 0.0 {
+        found.push(Ineffective::DensityWithoutGravity { density });
+    }
+    let stiffens = match &scene.material.law {
+        StiffnessLaw::Linear => false,
+        StiffnessLaw::Quadratic { c } => *c != 0.0,
+        StiffnessLaw::Custom(_) => true,
+    };
+    if stiffens && scene.solver.mode != Mode::Nonlinear {
+        found.push(Ineffective::StiffeningOutsideNonlinear { mode: scene.solver.mode });
+    }
+    let axes = if matches!(scene.shape, Shape::Polygon(_)) { 2 } else { 3 };
+    let n = scene.constraints.n_vertices();
+    for (k, force) in scene.forces.iter().enumerate() {
+        let vertex = match &scene.shape {
+            Shape::Surface(m) => m.to_file.get(force.vertex).map(|&f| f as usize).unwrap_or(force.vertex),
+            Shape::Polygon(_) => force.vertex,
+        };
+        let index = k + 1;
+        let zero = force.value[..axes].iter().all(|&c| c == 0.0);
+        // Every axis the force pushes along is constrained at its vertex.
+        let held = force.vertex < n
+            && (0..axes)
+                .filter(|&c| force.value[c] != 0.0)
+                .all(|c| scene.constraints.get(force.vertex, c).is_some());
+        if zero {
+            found.push(Ineffective::ZeroForce { index, vertex });
+        } else if held {
+            found.push(Ineffective::ForceOnFixedVertex { index, vertex });
+        }
+    }
+    found
+}
