@@ -59,10 +59,6 @@ fn view_serves_the_scene_on_the_printed_url() {
 
 #[test]
 fn view_refuses_bad_flags_and_a_port_in_use() {
-    one_error_line(
-        &view(&["--method", "tsve-chainmail"]),
-        "--method tsve-chainmail: not available in the viewer yet",
-    );
     one_error_line(&view(&["--method", "bogus"]), "`bogus` is not a method");
     one_error_line(&view(&["--max-clients", "0"]), "--max-clients 0: must be at least 1");
     let taken = TcpListener::bind("127.0.0.1:0").unwrap();
