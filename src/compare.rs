@@ -5,7 +5,7 @@
 //! Per method (`M` in `compare.json`):
 //!
 //! - `setup_seconds`: FFM base solve and precompute; ChainMail voxelization and embedding.
-//! - `memory_bytes`: the body's [`Interactive::memory_bytes`].
+//! - `memory_bytes`: the body's [`Interactive::memory_bytes`](crate::probe::interact::Interactive::memory_bytes).
 //! - `latency_us`: frame latency percentiles (`p50`, `p99`, `max`, nearest rank).
 //! - `volume_change_max`: the largest `|V / V0 - 1|` of the deformed surface over the
 //!   frames (`V0` the rest surface's volume).
