@@ -4,8 +4,7 @@ use std::path::PathBuf;
 
 use fibfluid::Scene;
 use fibfluid::compare::{COMPARE_FILES, run_compare};
-use fibfluid::probe::interact::Storage;
-use fibfluid::probe::{ProbeOptions, ToolPath};
+use fibfluid::probe::ToolPath;
 
 /// Arguments of `fibfluid compare`.
 #[derive(clap::Args)]
@@ -18,19 +17,15 @@ pub struct CompareArgs {
     /// Output directory (compare.json, compare.png).
     #[arg(long)]
     out: PathBuf,
-    /// Storage of FFM's precomputed response (f64, f32).
-    #[arg(long, default_value = "f64")]
-    precision: Storage,
-    /// Memory budget in bytes per method (default: half the available memory).
-    #[arg(long, value_name = "BYTES")]
-    max_memory: Option<u64>,
+    #[command(flatten)]
+    response: crate::probe::ResponseFlags,
 }
 
 /// Runs `fibfluid compare`.
 pub fn run(args: &CompareArgs) -> Result<(), crate::CliError> {
     let scene = Scene::load(&args.scene)?;
     let path = ToolPath::load(&args.path)?;
-    let opts = ProbeOptions { storage: args.precision, max_memory_bytes: args.max_memory };
+    let opts = args.response.options();
     let report = run_compare(&scene, &path, &args.out, &opts)?;
     println!("{}: {} vertices, {} frames", report.scene, report.vertices, report.frames);
     println!(

@@ -6,23 +6,37 @@ use fibfluid::Scene;
 use fibfluid::probe::interact::Storage;
 use fibfluid::probe::{Method, ProbeOptions, ToolPath, run_probe_with};
 
+/// The flags of the precomputed response, shared by `probe`, `compare` and `view`.
+#[derive(clap::Args)]
+pub struct ResponseFlags {
+    /// Storage of FFM's precomputed response (f64, f32).
+    #[arg(long, default_value = "f64")]
+    pub precision: Storage,
+    /// Memory budget in bytes (default: half the available memory).
+    #[arg(long, value_name = "BYTES")]
+    pub max_memory: Option<u64>,
+}
+
+impl ResponseFlags {
+    /// The probe options these flags set.
+    pub fn options(&self) -> ProbeOptions {
+        ProbeOptions { storage: self.precision, max_memory_bytes: self.max_memory }
+    }
+}
+
 /// Arguments of `fibfluid probe`.
 #[derive(clap::Args)]
 pub struct ProbeArgs {
     /// Scene TOML file (probed in paper mode about its rest shape, its loads as the base).
     scene: PathBuf,
+    #[command(flatten)]
+    response: ResponseFlags,
     /// Tool path CSV: `frame,vertex,ux,uy,uz` (grab) or `frame,vertex,fx,fy,fz` (force).
     #[arg(long)]
     path: PathBuf,
     /// Output directory (frames.csv, final.obj, report.json, probe.png).
     #[arg(long)]
     out: PathBuf,
-    /// Storage of the precomputed response (f64, f32).
-    #[arg(long, default_value = "f64")]
-    precision: Storage,
-    /// Memory budget in bytes (default: half the available memory).
-    #[arg(long, value_name = "BYTES")]
-    max_memory: Option<u64>,
     /// Deformation method: ffm, tsve-chainmail or generalized-chainmail (ChainMail is
     /// displacement-driven: grab paths only; its settings come from the scene's
     /// [chainmail] section).
@@ -32,10 +46,9 @@ pub struct ProbeArgs {
 
 /// Runs `fibfluid probe`.
 pub fn run(args: &ProbeArgs) -> Result<(), crate::CliError> {
-    let storage = args.precision;
     let scene = Scene::load(&args.scene)?;
     let path = ToolPath::load(&args.path)?;
-    let opts = ProbeOptions { storage, max_memory_bytes: args.max_memory };
+    let opts = args.response.options();
     let report = run_probe_with(&scene, &path, &args.out, &opts, args.method)?;
     let l = report.probe.latency_us;
     println!(

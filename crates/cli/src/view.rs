@@ -6,8 +6,8 @@ use std::sync::Arc;
 
 use fibfluid::chainmail_body::ChainmailBody;
 use fibfluid::linalg::Choice;
-use fibfluid::probe::interact::{Interactive, Storage, memory_budget};
-use fibfluid::probe::{Method, ProbeOptions, build_body};
+use fibfluid::probe::interact::{Interactive, memory_budget};
+use fibfluid::probe::{Method, build_body};
 use fibfluid::{Scene, Shape};
 use fibfluid_viewer::{BodyFactory, Server, ServerOptions, ViewMesh, ViewerError};
 
@@ -27,12 +27,8 @@ pub struct ViewArgs {
     /// between the available ones.
     #[arg(long, default_value = "ffm")]
     method: Method,
-    /// Storage of the FFM precomputed response (f64, f32); shared by every client.
-    #[arg(long, default_value = "f64")]
-    precision: Storage,
-    /// Memory budget in bytes (default: half the available memory).
-    #[arg(long, value_name = "BYTES")]
-    max_memory: Option<u64>,
+    #[command(flatten)]
+    response: crate::probe::ResponseFlags,
     /// Most clients at once (each has its own body; the precompute is shared).
     #[arg(long, default_value_t = 8)]
     max_clients: usize,
@@ -63,7 +59,7 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
     };
     // Bind first: a port in use is reported before the (possibly long) precompute.
     let server = Server::bind(server_opts)?;
-    let opts = ProbeOptions { storage: args.precision, max_memory_bytes: args.max_memory };
+    let opts = args.response.options();
     // The FFM precompute is built once and shared by every client (each gets a clone:
     // its own holds and frame); ChainMail bodies are cheap and built per client.
     let ffm = if args.method == Method::Ffm {
@@ -79,7 +75,7 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
     } else {
         None
     };
-    let budget = memory_budget(args.max_memory);
+    let budget = memory_budget(args.response.max_memory);
     let chainmail = |method: Method| -> Result<Box<dyn Interactive + Send>, fibfluid_viewer::ViewerError> {
         let variant = method.chainmail_variant().expect("a ChainMail method");
         ChainmailBody::from_scene(&scene, variant, budget)
