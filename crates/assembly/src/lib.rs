@@ -74,5 +74,5 @@ pub enum AssemblyError {
 /// Result alias of this crate.
 pub type Result<T> = std::result::Result<T, AssemblyError>;
 
-/// Axis names.
-pub const AXES: [char; 3] = ['x', 'y', 'z'];
+/// The axis names (defined once, in geometry).
+pub use fibfluid_geometry::AXES;

@@ -98,6 +98,6 @@ mod relax;
 pub use embed::{BYTES_PER_ELEMENT, BYTES_PER_NODE, BYTES_PER_VERTEX, Embedding, EmbeddingGrid};
 pub use error::{ChainmailError, Result};
 pub use lattice::{Lattice, MAX_GRID_NODES};
-pub use material::{Cbr, GeneralizedMaterial, Material, TsveMaterial};
+pub use material::{AlphaProblem, Cbr, GeneralizedMaterial, Material, TsveMaterial, alpha_limits_problem};
 pub use propagate::{PropagationOptions, PropagationReport, Scheme};
 pub use relax::{RelaxOptions, RelaxReport};

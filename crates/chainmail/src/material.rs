@@ -75,6 +75,35 @@ fn check_nonneg(name: &'static str, v: f64) -> Result<()> {
     Ok(())
 }
 
+/// An out-of-range compression or stretch limit, as [`alpha_limits_problem`] finds it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AlphaProblem {
+    /// `alpha_min` or `alpha_max`.
+    pub name: &'static str,
+    /// The rule it breaks (`in (0, 1]`, `>= 1 and finite`).
+    pub rule: &'static str,
+    /// The value given.
+    pub value: f64,
+    /// The axis (0, 1, 2).
+    pub axis: usize,
+}
+
+/// The one check of ChainMail's compression and stretch limits (scene files, settings
+/// built in code and the materials all use it): per axis `0 < alpha_min <= 1` and
+/// `1 <= alpha_max < inf`, so the rest state satisfies its CBRs.
+pub fn alpha_limits_problem(alpha_min: [f64; 3], alpha_max: [f64; 3]) -> Option<AlphaProblem> {
+    (0..3).find_map(|axis| {
+        let (lo, hi) = (alpha_min[axis], alpha_max[axis]);
+        if !(lo.is_finite() && lo > 0.0 && lo <= 1.0) {
+            Some(AlphaProblem { name: "alpha_min", rule: "in (0, 1]", value: lo, axis })
+        } else if !(hi.is_finite() && hi >= 1.0) {
+            Some(AlphaProblem { name: "alpha_max", rule: ">= 1 and finite", value: hi, axis })
+        } else {
+            None
+        }
+    })
+}
+
 /// The Generalized ChainMail material of Li & Brodlie (the paper's "traditional" ChainMail,
 /// Eq. 1–2), with optional per-axis parameters.
 ///
@@ -131,30 +160,15 @@ impl Material for GeneralizedMaterial {
 
     fn validate(&self, _element_count: usize) -> Result<()> {
         for a in 0..3 {
-            check_nonneg("alpha_min", self.alpha_min[a])?;
-            check_nonneg("alpha_max", self.alpha_max[a])?;
             check_nonneg("beta", self.beta[a])?;
-            if self.alpha_min[a] > self.alpha_max[a] {
-                return Err(ChainmailError::InvalidParameter {
-                    name: "alpha_min",
-                    reason: format!(
-                        "alpha_min ({}) > alpha_max ({}) on axis {a}",
-                        self.alpha_min[a], self.alpha_max[a]
-                    ),
-                });
-            }
-            if self.alpha_min[a] > 1.0 || self.alpha_max[a] < 1.0 {
-                return Err(ChainmailError::InvalidParameter {
-                    name: "alpha_min",
-                    reason: format!(
-                        "need alpha_min <= 1 <= alpha_max so the rest state satisfies its CBRs \
-                         (got {} and {} on axis {a})",
-                        self.alpha_min[a], self.alpha_max[a]
-                    ),
-                });
-            }
         }
-        Ok(())
+        match alpha_limits_problem(self.alpha_min, self.alpha_max) {
+            None => Ok(()),
+            Some(p) => Err(ChainmailError::InvalidParameter {
+                name: p.name,
+                reason: format!("must be {}, got {} on axis {}", p.rule, p.value, p.axis),
+            }),
+        }
     }
 
     fn supports_time_saving(&self) -> bool {

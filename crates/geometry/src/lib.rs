@@ -45,4 +45,4 @@ pub use mesh::{
     raw_vertex_vectors, vertex_area_vectors, volume,
 };
 pub use polygon::Polygon;
-pub use vec3::Vec3;
+pub use vec3::{AXES, Vec3};

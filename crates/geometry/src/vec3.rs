@@ -1,5 +1,9 @@
 //! Small 3-vector helpers on `[f64; 3]`.
 
+/// The names of the three axes, indexed by axis (0, 1, 2): every message that names an
+/// axis takes it from here.
+pub const AXES: [char; 3] = ['x', 'y', 'z'];
+
 /// A 3D point or vector.
 pub type Vec3 = [f64; 3];
 

@@ -10,6 +10,8 @@ use faer::{Mat, Par};
 use fibfluid_assembly::AXES;
 use fibfluid_geometry::Vec3;
 
+use fibfluid_sim::Method;
+
 use crate::{Compliance, Hold, InteractError, Interactive, Result};
 
 /// Point forces by vertex.
@@ -284,8 +286,8 @@ impl FfmBody {
 }
 
 impl Interactive for FfmBody {
-    fn method(&self) -> &'static str {
-        "ffm"
+    fn method(&self) -> Method {
+        Method::Ffm
     }
 
     fn n_vertices(&self) -> usize {

@@ -9,7 +9,7 @@ use faer::linalg::cholesky::llt::factor::{LltError, cholesky_in_place, cholesky_
 use faer::linalg::triangular_solve::{solve_lower_triangular_in_place, solve_upper_triangular_in_place};
 use fibfluid_assembly::{AXES, ConstraintMethod, System};
 use fibfluid_geometry::Vec3;
-use fibfluid_linalg::{DENSE_MEMORY_FRACTION, available_memory_bytes};
+use fibfluid_linalg::memory_budget;
 
 use crate::{InteractError, Result};
 
@@ -60,9 +60,8 @@ impl Storage {
 pub struct ComplianceOptions {
     /// How the blocks are stored.
     pub storage: Storage,
-    /// Refuse when the precompute's peak needs more bytes than this. `None`: the same
-    /// budget as the dense backends, [`DENSE_MEMORY_FRACTION`] of the available memory
-    /// (8 GiB when that is unknown).
+    /// Refuse when the precompute's peak needs more bytes than this. `None`: the one
+    /// memory policy, [`fibfluid_linalg::memory_budget`].
     pub max_memory_bytes: Option<u64>,
 }
 
@@ -74,16 +73,6 @@ pub struct MemoryEstimate {
     /// Bytes held at the peak of the precompute (the blocks finished so far plus one f64
     /// working block), besides the caller's assembled system.
     pub peak: u64,
-}
-
-/// The bytes a precompute may use: `limit` when given, else [`DENSE_MEMORY_FRACTION`] of
-/// the available memory (8 GiB when that is unknown), the dense backends' budget.
-pub fn memory_budget(limit: Option<u64>) -> u64 {
-    limit.unwrap_or_else(|| {
-        available_memory_bytes()
-            .map(|b| (b as f64 * DENSE_MEMORY_FRACTION) as u64)
-            .unwrap_or(8 * 1024 * 1024 * 1024)
-    })
 }
 
 /// Columns inverted per pass of the blocked inverse.

@@ -34,8 +34,8 @@ pub enum InteractError {
     /// This method has no forces (a displacement-driven method such as ChainMail).
     #[error("{method} does not support {what}")]
     Unsupported {
-        /// The method's name.
-        method: &'static str,
+        /// The method.
+        method: fibfluid_sim::Method,
         /// What was asked for (`forces`).
         what: &'static str,
     },

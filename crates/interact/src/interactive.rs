@@ -36,8 +36,8 @@ pub enum Hold {
 /// ([`supports_forces`](Self::supports_forces) is then false and [`push`](Self::push)
 /// returns [`InteractError::Unsupported`](crate::InteractError::Unsupported)).
 pub trait Interactive {
-    /// A short name of the method (`ffm`, `tsve-chainmail`, ...).
-    fn method(&self) -> &'static str;
+    /// The method this body runs.
+    fn method(&self) -> fibfluid_sim::Method;
 
     /// Number of vertices of the surface.
     fn n_vertices(&self) -> usize;

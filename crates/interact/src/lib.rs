@@ -7,6 +7,10 @@
 //!   implement it without forces.
 //! - [`Compliance`]: the fiber–fluid method's precomputed linear response about the rest
 //!   shape (paper mode), from the assembled bordered system of REFERENCE §3.
+//! - [`ChainmailBody`](chainmail_body::ChainmailBody): a ChainMail lattice (TSVE or
+//!   Generalized) embedding the surface, with its [`chainmail_settings`].
+//! - [`MethodBody`]: a model's body for any [`Method`]; [`replay`] drives one along a
+//!   checked [`ToolPath`].
 //! - [`FfmBody`]: a base state (the scene's own loads, from one full solve) plus the
 //!   response to the tool, with grabbed vertices solved through a capacitance matrix.
 //!
@@ -76,11 +80,22 @@
 //! per block, paid once per body.
 
 mod body;
+pub mod chainmail_body;
+pub mod chainmail_settings;
 mod compliance;
 mod error;
 mod interactive;
+mod method_body;
+pub mod replay;
 
 pub use body::FfmBody;
-pub use compliance::{Compliance, ComplianceOptions, MemoryEstimate, Storage, memory_budget};
+pub use compliance::{Compliance, ComplianceOptions, MemoryEstimate, Storage};
+pub use fibfluid_linalg::memory_budget;
 pub use error::{InteractError, Result};
 pub use interactive::{Hold, Interactive};
+pub use method_body::{MethodBody, ProbeBody, ProbeOptions, build_body, linearized};
+pub use replay::{
+    FrameRow, Latency, MAX_FRAME, PathHold, PathKind, PathProblem, PathRow, ProbeError, Replay, ToolPath, check_method,
+    check_path, replay, replay_observed,
+};
+pub use fibfluid_sim::Method;

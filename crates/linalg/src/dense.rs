@@ -26,13 +26,24 @@ fn meminfo_bytes(field: &str) -> Option<u64> {
     Some(kb * 1024)
 }
 
+/// The one memory policy of fibfluid: work is refused, before anything large is
+/// allocated, when its estimated peak exceeds this many bytes. `limit` when given (a
+/// `--max-memory` flag), else [`DENSE_MEMORY_FRACTION`] of the memory available now (8 GiB
+/// when that is unknown). Plans, dense backends, the interactive precompute and the
+/// ChainMail lattice all check against it.
+pub fn memory_budget(limit: Option<u64>) -> u64 {
+    limit.unwrap_or_else(|| {
+        available_memory_bytes().map(|b| (b as f64 * DENSE_MEMORY_FRACTION) as u64).unwrap_or(8 * 1024 * 1024 * 1024)
+    })
+}
+
 /// Errors before allocating if `copies` dense dim x dim f64 matrices would not fit in
 /// [`DENSE_MEMORY_FRACTION`] of the available memory (8 GiB when that is unknown). The dense
 /// backends call it with `copies = 2` (the matrix and its factors) before forming the matrix;
 /// the error says how much memory is needed and points to the `structured` backend.
 pub fn check_dense_memory(dim: usize, copies: usize) -> Result<()> {
     let need = (dim as f64) * (dim as f64) * 8.0 * copies as f64;
-    let limit = available_memory_bytes().map(|b| b as f64 * DENSE_MEMORY_FRACTION).unwrap_or(8.0 * GIB);
+    let limit = memory_budget(None) as f64;
     if need > limit {
         return Err(LinalgError::TooLarge { dim, gib: need / GIB, limit_gib: limit / GIB });
     }

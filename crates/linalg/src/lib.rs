@@ -44,7 +44,9 @@ mod nalgebra_lu;
 mod openblas_lu;
 
 pub use choice::{Choice, ParseChoiceError};
-pub use dense::{DENSE_MEMORY_FRACTION, available_memory_bytes, check_dense_memory, total_memory_bytes};
+pub use dense::{
+    DENSE_MEMORY_FRACTION, available_memory_bytes, check_dense_memory, memory_budget, total_memory_bytes,
+};
 pub use error::{LinalgError, Result};
 pub use matrix::{Blocks, BorderedMatrix};
 pub use prescribed::{ConstrainedSolution, PrescribedSet};

@@ -12,7 +12,8 @@ use std::fmt;
 use fibfluid_assembly::StiffnessLaw;
 use fibfluid_geometry::Vec3;
 
-use crate::{Mode, Scene, Shape};
+use crate::choices::Mode;
+use crate::model::{Model, Shape};
 
 /// A setting of a scene that has no effect on the run.
 #[derive(Clone, Debug, PartialEq)]
@@ -83,8 +84,8 @@ impl fmt::Display for Ineffective {
 /// forces). Cheap: no assembly, one pass over the forces.
 ///
 /// A `[[fix]]` that selects only vertices an earlier `[[fix]]` already holds is not
-/// reported: a [`Scene`] keeps the merged constraints, not the tables they came from.
-pub fn ineffective(scene: &Scene) -> Vec<Ineffective> {
+/// reported: a [`Model`] keeps the merged constraints, not the tables they came from.
+pub fn ineffective(scene: &Model) -> Vec<Ineffective> {
     let mut found = Vec::new();
     let has_gravity = scene.gravity.iter().any(|&g| g != 0.0);
     let density = scene.material.density;

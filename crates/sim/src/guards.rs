@@ -18,7 +18,7 @@ use fibfluid_geometry::{Boundary, Vec3, face_area_vector};
 use fibfluid_linalg::{Choice, impl_choice};
 use serde::Serialize;
 
-use crate::scene::Mode;
+use crate::choices::Mode;
 
 /// Which guard fired.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -1,123 +1,33 @@
-//! The facade's error types.
+//! The errors of reading scenes and path files, and the library's error type above the
+//! engine.
 
 use std::fmt;
 use std::path::PathBuf;
 
+use fibfluid_interact::ProbeError;
 use fibfluid_linalg::ParseChoiceError;
 
-/// Everything that can go wrong in a fibfluid run.
+/// Everything that can go wrong from a scene file to a finished run or probe.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
-    /// A scene file is malformed or holds an invalid value.
+    /// A scene file is malformed or holds an invalid value (file, line, key).
     #[error(transparent)]
     Scene(Box<SceneError>),
-    /// A mesh file could not be read or is not a valid closed surface.
+    /// The engine failed: a mesh, the assembly, a solve, a step, a guard, the memory plan.
     #[error(transparent)]
-    Geometry(#[from] fibfluid_geometry::GeometryError),
-    /// Assembling the system failed (bad material, constraints).
-    #[error("assembly: {0}")]
-    Assembly(#[from] fibfluid_assembly::AssemblyError),
-    /// A linear solve failed (singular system, residual too large).
-    #[error("linear solver: {0}")]
-    Linalg(#[from] fibfluid_linalg::LinalgError),
-    /// Reading or writing a file failed.
+    Sim(#[from] fibfluid_sim::Error),
+    /// Probing failed: a bad tool path (file and line) or a refused body.
+    #[error(transparent)]
+    Probe(#[from] ProbeError),
+    /// Reading a file failed.
     #[error("{}: {source}", path.display())]
     Io {
-        /// The file or directory.
+        /// The file.
         path: PathBuf,
         /// The I/O error.
         source: std::io::Error,
     },
-    /// An output cannot be written where it should go.
-    #[error("{}: {problem}", path.display())]
-    OutputBlocked {
-        /// The path in the way.
-        path: PathBuf,
-        /// What is in the way.
-        problem: &'static str,
-    },
-    /// Rendering a picture failed.
-    #[error("render: {0}")]
-    Render(#[from] fibfluid_render::RenderError),
-    /// A load or query names a vertex the body does not have.
-    #[error("vertex {vertex} does not exist: the body has {vertices} vertices")]
-    VertexOutOfRange {
-        /// The vertex asked for.
-        vertex: usize,
-        /// Vertex count.
-        vertices: usize,
-    },
-    /// A vertex fixed by the scene cannot be held somewhere else.
-    #[error("vertex {vertex} is fixed by the scene and cannot be held at a displacement")]
-    HeldFixedVertex {
-        /// The vertex.
-        vertex: usize,
-    },
-    /// The plan needs more memory than the limit; refused before anything was allocated.
-    #[error(
-        "{scene}: the plan needs {needed} bytes ({:.2} GiB) at its largest stage ({stage}), but {available} bytes ({:.2} GiB) are available; {hint}",
-        *needed as f64 / GIB, *available as f64 / GIB
-    )]
-    TooLarge {
-        /// Scene name.
-        scene: String,
-        /// The stage that needs the most memory.
-        stage: &'static str,
-        /// Bytes needed.
-        needed: u64,
-        /// Bytes available (the machine's memory or the given limit).
-        available: u64,
-        /// What to change.
-        hint: &'static str,
-    },
-    /// A numeric failure during a load step, with its likely cause in the user's terms.
-    #[error("step {step} (load {from:.4} -> {to:.4}): {cause}; {hint} ({source})")]
-    Step {
-        /// The step (1-based).
-        step: usize,
-        /// Load factor at the start of the step.
-        from: f64,
-        /// Load factor the step was going to.
-        to: f64,
-        /// What went wrong, named (a vertex, a pivot).
-        cause: String,
-        /// What to try.
-        hint: &'static str,
-        /// The failure as the solver reported it.
-        source: Box<Error>,
-    },
-    /// A step guard fired under `[guards] on_failure = "error"`.
-    #[error("{0} (stopped: [guards] on_failure = \"error\")")]
-    Guard(crate::guards::GuardWarning),
-    /// Adaptive stepping could not meet its tolerance.
-    #[error(
-        "adaptive steps shrank below 1e-6 of the load at load factor {load_factor:.6} without meeting tolerance {tolerance:e}; the response may be unstable there: raise the tolerance or check the material and constraints"
-    )]
-    StepTooSmall {
-        /// Load factor reached.
-        load_factor: f64,
-        /// The tolerance asked for.
-        tolerance: f64,
-    },
-    /// The contact active set kept changing.
-    #[error(
-        "step {step}: the plate contacts did not settle after {iterations} active-set iterations; take more load steps"
-    )]
-    ContactNotConverged {
-        /// The step.
-        step: usize,
-        /// Iterations made.
-        iterations: usize,
-    },
-    /// Probing failed: a bad tool path (file and line) or a refused body.
-    #[error(transparent)]
-    Probe(#[from] crate::probe::ProbeError),
-    /// Serializing a report failed.
-    #[error("writing JSON: {0}")]
-    Json(#[from] serde_json::Error),
 }
-
-const GIB: f64 = 1024.0 * 1024.0 * 1024.0;
 
 impl From<SceneError> for Error {
     fn from(e: SceneError) -> Self {
@@ -254,22 +164,7 @@ pub enum SceneProblem {
         /// The axis.
         axis: char,
     },
-    /// The ChainMail lattice at this spacing would not fit in memory (refused before
-    /// anything is allocated).
-    #[error(
-        "spacing {spacing} needs up to {bytes} bytes ({:.2} GiB) for the ChainMail lattice, but only {available} bytes ({:.2} GiB) may be used; use a larger spacing",
-        *bytes as f64 / 1073741824.0,
-        *available as f64 / 1073741824.0
-    )]
-    ChainmailLatticeTooLarge {
-        /// The spacing.
-        spacing: f64,
-        /// Bytes needed (upper bound: every grid node an element).
-        bytes: u128,
-        /// Bytes that may be used.
-        available: u64,
-    },
 }
 
-/// Result alias of the facade.
+/// Result alias of the scene crate (and of the `fibfluid` facade).
 pub type Result<T> = std::result::Result<T, Error>;

@@ -10,16 +10,16 @@
 use fibfluid_linalg::{Backend, Precision, cholesky_flops, lu_flops};
 use serde::Serialize;
 
-use crate::scene::{Mode, Scene, Shape, Stepping};
-use crate::simulate::VOLUME_NEWTON_ITERATIONS;
-use crate::stages::names;
+use crate::choices::{Mode, Stepping};
+use crate::model::{Model, Shape, VOLUME_NEWTON_ITERATIONS};
+use crate::stages::{Stage, names};
 use crate::{Error, Result};
 
 /// One stage of the plan.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct PlannedStage {
     /// Stage name (as in the report's stage list).
-    pub name: &'static str,
+    pub name: Stage,
     /// Whether the stage runs.
     pub run: bool,
     /// Why it runs (what it is for) or why it is skipped.
@@ -53,7 +53,7 @@ struct Size {
 
 impl Plan {
     /// Plans the run of `scene` with its solver options and load steps.
-    pub fn from_scene(scene: &Scene) -> Plan {
+    pub fn from_scene(scene: &Model) -> Plan {
         let size = match &scene.shape {
             Shape::Surface(m) => Size {
                 n: m.mesh.n_vertices() as f64,
@@ -74,7 +74,7 @@ impl Plan {
     }
 
     /// Whether stage `name` runs.
-    pub fn runs(&self, name: &str) -> bool {
+    pub fn runs(&self, name: Stage) -> bool {
         self.stages.iter().any(|s| s.name == name && s.run)
     }
 
@@ -105,15 +105,9 @@ impl Plan {
             },
         })
     }
-
-    /// The memory limit a run is checked against: `max_memory` when given, else the
-    /// machine's total memory (unknown: no limit).
-    pub fn memory_limit(max_memory: Option<u64>) -> u64 {
-        max_memory.or_else(fibfluid_linalg::total_memory_bytes).unwrap_or(u64::MAX)
-    }
 }
 
-fn stage(name: &'static str, run: bool, reason: impl Into<String>, bytes: f64, flops: f64) -> PlannedStage {
+fn stage(name: Stage, run: bool, reason: impl Into<String>, bytes: f64, flops: f64) -> PlannedStage {
     PlannedStage {
         name,
         run,
@@ -123,7 +117,7 @@ fn stage(name: &'static str, run: bool, reason: impl Into<String>, bytes: f64, f
     }
 }
 
-fn plan(scene: &Scene, size: &Size) -> Plan {
+fn plan(scene: &Model, size: &Size) -> Plan {
     let Size { n, faces, axes, convex, polygon } = *size;
     let d = axes as f64;
     let solver = &scene.solver;

@@ -22,7 +22,8 @@ use crate::contact::{
 };
 use crate::guards::{Guard, GuardWarning, OnFailure, inverted_faces};
 use crate::plan::Plan;
-use crate::scene::{ForceTiming, Mode, Scene, Shape, Stepping};
+use crate::choices::{ForceTiming, Mode, Stepping};
+use crate::model::{Model, Shape, VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE};
 use crate::stages::{StageLog, names};
 use crate::{Error, Result};
 
@@ -179,7 +180,7 @@ pub struct Response {
 
 /// A scene being simulated.
 pub struct Simulation {
-    scene: Scene,
+    model: Model,
     plan: Plan,
     body: BodyShape,
     state: State,
@@ -201,19 +202,20 @@ impl Simulation {
     /// Plans the scene and prepares it: fibers, assembly and the first factorization.
     /// Only the stages the plan runs are done; a plan that needs more memory than the
     /// machine has is refused before anything large is allocated.
-    pub fn new(scene: Scene) -> Result<Self> {
-        Self::with_options(scene, &SetupOptions::default())
+    pub fn new(model: impl Into<Model>) -> Result<Self> {
+        Self::with_options(model, &SetupOptions::default())
     }
 
     /// [`new`](Self::new) with explicit setup options.
-    pub fn with_options(scene: Scene, opts: &SetupOptions) -> Result<Self> {
+    pub fn with_options(model: impl Into<Model>, opts: &SetupOptions) -> Result<Self> {
+        let scene: Model = model.into();
         let started = Instant::now();
         let mut log = StageLog::default();
         let plan = match scene.shape {
             Shape::Surface(_) => log.time(names::CONVEXITY, || Plan::from_scene(&scene)),
             Shape::Polygon(_) => Plan::from_scene(&scene),
         };
-        plan.check_memory(&scene.name, Plan::memory_limit(opts.max_memory), scene.solver.backend)?;
+        plan.check_memory(&scene.name, fibfluid_linalg::memory_budget(opts.max_memory), scene.solver.backend)?;
         let mut factor_options = opts.factor;
         factor_options.precision = scene.solver.precision;
         let solver = scene.solver.backend.solver()?;
@@ -261,7 +263,7 @@ impl Simulation {
         let counters = Counters { factorizations: 1, ..Default::default() };
         let plates = scene.plates.len();
         Ok(Self {
-            scene,
+            model: scene,
             plan,
             body,
             state,
@@ -278,9 +280,9 @@ impl Simulation {
         })
     }
 
-    /// The scene.
-    pub fn scene(&self) -> &Scene {
-        &self.scene
+    /// The model being simulated.
+    pub fn model(&self) -> &Model {
+        &self.model
     }
 
     /// The plan this simulation follows.
@@ -366,9 +368,9 @@ impl Simulation {
     /// Runs the scene's loads to full: `steps` equal steps, or adaptive steps when the
     /// scene sets a `tolerance`.
     pub fn run(&mut self, opts: &RunOptions) -> Result<()> {
-        match self.scene.tolerance {
+        match self.model.tolerance {
             Some(tolerance) => self.adaptive(Direction::Load, tolerance, opts),
-            None => self.run_steps(self.scene.steps, Direction::Load, opts),
+            None => self.run_steps(self.model.steps, Direction::Load, opts),
         }
     }
 
@@ -403,9 +405,9 @@ impl Simulation {
     /// Removes the loads again: the reverse of [`run`](Self::run), with the same kind of
     /// steps (equal ones, or adaptive ones when the scene sets a `tolerance`).
     pub fn unload(&mut self, opts: &RunOptions) -> Result<()> {
-        match self.scene.tolerance {
+        match self.model.tolerance {
             Some(tolerance) => self.adaptive(Direction::Unload, tolerance, opts),
-            None => self.run_steps(self.scene.steps, Direction::Unload, opts),
+            None => self.run_steps(self.model.steps, Direction::Unload, opts),
         }
     }
 
@@ -429,7 +431,7 @@ impl Simulation {
             Ramp,
             Last,
         }
-        let has_last = self.scene.forces.iter().any(|f| f.timing == ForceTiming::Last);
+        let has_last = self.model.forces.iter().any(|f| f.timing == ForceTiming::Last);
         let (sign, phases) = match (direction, has_last) {
             (Direction::Load, true) => (1.0, vec![Phase::Ramp, Phase::Last]),
             (Direction::Unload, true) => (-1.0, vec![Phase::Last, Phase::Ramp]),
@@ -437,7 +439,7 @@ impl Simulation {
             (Direction::Unload, false) => (-1.0, vec![Phase::Ramp]),
         };
         let count = phases.len();
-        let mut h = 1.0 / self.scene.steps.max(1) as f64;
+        let mut h = 1.0 / self.model.steps.max(1) as f64;
         for (k, phase) in phases.into_iter().enumerate() {
             let (lambda0, last0) = (self.state.load_factor, self.state.last_forces);
             let mut done = 0.0;
@@ -485,7 +487,7 @@ impl Simulation {
     /// prescribed displacements, `last` of the forces applied at the last step.
     fn increment(&self, ramp: f64, last: f64, to: f64, last_to: f64) -> Increment {
         let forces = self
-            .scene
+            .model
             .forces
             .iter()
             .filter_map(|f| {
@@ -496,11 +498,11 @@ impl Simulation {
                 (k != 0.0).then(|| (f.vertex, scale(f.value, k)))
             })
             .collect();
-        Increment { da: scale(self.scene.gravity, ramp), forces, prescribed: ramp, to, last_to }
+        Increment { da: scale(self.model.gravity, ramp), forces, prescribed: ramp, to, last_to }
     }
 
     fn last_forces(&self, fraction: f64) -> Vec<(usize, Vec3)> {
-        self.scene
+        self.model
             .forces
             .iter()
             .filter(|f| f.timing == ForceTiming::Last)
@@ -514,9 +516,9 @@ impl Simulation {
     fn take_step(&mut self, inc: &Increment, estimate: bool) -> Result<StepOutcome> {
         let step = self.stats.taken + 1;
         let from = self.state.load_factor;
-        let moves_prescribed = inc.prescribed != 0.0 && self.scene.constraints.has_nonzero();
-        let acts = inc.da != [0.0; 3] && self.scene.material.density > 0.0;
-        let plates_move = from != inc.to && self.scene.plates.iter().any(|p| p.travel != 0.0);
+        let moves_prescribed = inc.prescribed != 0.0 && self.model.constraints.has_nonzero();
+        let acts = inc.da != [0.0; 3] && self.model.material.density > 0.0;
+        let plates_move = from != inc.to && self.model.plates.iter().any(|p| p.travel != 0.0);
         if !acts && inc.forces.is_empty() && !moves_prescribed && !plates_move {
             self.state.load_factor = inc.to;
             self.state.last_forces = inc.last_to;
@@ -550,10 +552,10 @@ impl Simulation {
             self.state.load_factor = inc.to;
             self.state.last_forces = inc.last_to;
             self.contact_increment = multipliers;
-            if self.scene.solver.mode != Mode::Paper {
+            if self.model.solver.mode != Mode::Paper {
                 self.correct_volume().map_err(explained)?;
             }
-            if self.scene.plates.is_empty() {
+            if self.model.plates.is_empty() {
                 break (est, step_residual);
             }
             // Contact forces after the step: the multipliers are the increments of minus
@@ -572,13 +574,13 @@ impl Simulation {
             // Released contacts stop pushing: their force before the step is taken off.
             for (plate, vertex) in newly_released {
                 if let Some(c) = before.contacts.iter().find(|c| c.plate == plate && c.vertex == vertex) {
-                    released.push((vertex, scale(self.scene.plates[plate].normal, -c.force)));
+                    released.push((vertex, scale(self.model.plates[plate].normal, -c.force)));
                 }
             }
             active = next;
         };
         self.stats.taken += 1;
-        if !self.scene.plates.is_empty() {
+        if !self.model.plates.is_empty() {
             self.record_plates(iterations);
         }
         let increment = self
@@ -598,7 +600,7 @@ impl Simulation {
     fn set_contacts(&mut self, active: &[Contact], to: f64) {
         self.contact_values = active
             .iter()
-            .map(|c| -self.scene.plates[c.plate].gap(self.state.positions[c.vertex], to))
+            .map(|c| -self.model.plates[c.plate].gap(self.state.positions[c.vertex], to))
             .collect();
         self.contact_active = active.iter().map(|c| (c.plate, c.vertex)).collect();
     }
@@ -613,9 +615,9 @@ impl Simulation {
         let mut next = keep;
         let depth = PENETRATION_TOLERANCE * self.body.diagonal;
         let axes = self.axes();
-        for (k, plate) in self.scene.plates.iter().enumerate() {
+        for (k, plate) in self.model.plates.iter().enumerate() {
             for (v, x) in self.state.positions.iter().enumerate() {
-                let fully_fixed = (0..axes).all(|c| self.scene.constraints.get(v, c).is_some());
+                let fully_fixed = (0..axes).all(|c| self.model.constraints.get(v, c).is_some());
                 if fully_fixed || active.iter().any(|c| c.plate == k && c.vertex == v) {
                     continue;
                 }
@@ -632,7 +634,7 @@ impl Simulation {
     fn record_plates(&mut self, iterations: usize) {
         let areas = self.body.boundary.vertex_area_vectors(&self.state.positions);
         let lambda = self.state.load_factor;
-        let plates = &self.scene.plates;
+        let plates = &self.model.plates;
         for (k, plate) in plates.iter().enumerate() {
             let mine: Vec<&Contact> = self.state.contacts.iter().filter(|c| c.plate == k).collect();
             let gap = match plates.get((k + 1) % plates.len()).filter(|_| plates.len() > 1) {
@@ -654,8 +656,8 @@ impl Simulation {
     /// The guards after step `step`; with `on_failure = "error"` the first one that fires
     /// is returned as an error.
     fn check_guards(&mut self, step: usize, increment: f64, residual: f64) -> Result<()> {
-        let mode = self.scene.solver.mode;
-        let guards = self.scene.guards;
+        let mode = self.model.solver.mode;
+        let guards = self.model.guards;
         let volume = (self.volume() / self.body.volume0 - 1.0).abs();
         let inverted = inverted_faces(&self.body.boundary, &self.body.rest, &self.state.positions) as f64;
         let measured = [
@@ -684,7 +686,7 @@ impl Simulation {
         let s = self.state.positions.clone();
         let target = self.prepare_operator(&s)?;
         let b1 = self.load_increment(&s, inc.da, &inc.forces)?;
-        if self.scene.solver.stepping == Stepping::Euler && !estimate {
+        if self.model.solver.stepping == Stepping::Euler && !estimate {
             let (x, r) = self.solve(&b1, target, inc.prescribed, true)?;
             let (u, p) = self.factored.system.split_solution(&x);
             return Ok(Evaluation { du: u, dp: p, estimate: None, multipliers: r });
@@ -758,7 +760,7 @@ impl Simulation {
             return Err(Error::VertexOutOfRange { vertex: v, vertices: n });
         }
         if let Some(&(v, _)) =
-            held.iter().find(|(v, _)| (0..axes).any(|c| self.scene.constraints.get(*v, c).is_some()))
+            held.iter().find(|(v, _)| (0..axes).any(|c| self.model.constraints.get(*v, c).is_some()))
         {
             return Err(Error::HeldFixedVertex { vertex: v });
         }
@@ -802,7 +804,7 @@ impl Simulation {
     /// Makes the factored operator describe shape `s` as the mode requires; returns the
     /// volume target for the last row.
     fn prepare_operator(&mut self, s: &[Vec3]) -> Result<f64> {
-        let mode = self.scene.solver.mode;
+        let mode = self.model.solver.mode;
         if mode == Mode::Paper {
             return Ok(0.0);
         }
@@ -828,7 +830,7 @@ impl Simulation {
             }
             Mode::Nonlinear => {
                 let system =
-                    self.log.time(names::REASSEMBLY, || assemble_on(&self.scene, &self.body, s, &areas))?;
+                    self.log.time(names::REASSEMBLY, || assemble_on(&self.model, &self.body, s, &areas))?;
                 let f = &mut self.factored;
                 let start = Instant::now();
                 f.factorization = f.solver.factorize(&system.matrix, &f.options)?;
@@ -904,12 +906,12 @@ impl Simulation {
     fn load_increment(&mut self, s: &[Vec3], da: Vec3, forces: &[(usize, Vec3)]) -> Result<Vec<f64>> {
         let loads = Loads {
             acceleration: da,
-            down: Some(self.scene.gravity),
-            density: self.scene.material.density,
+            down: Some(self.model.gravity),
+            density: self.model.material.density,
             forces,
         };
         let computed;
-        let areas: &[Vec3] = if self.scene.solver.mode == Mode::Paper && loads.has_hydrostatic() {
+        let areas: &[Vec3] = if self.model.solver.mode == Mode::Paper && loads.has_hydrostatic() {
             computed = self.log.time(names::AREAS, || self.body.boundary.vertex_area_vectors(s));
             &computed
         } else {
@@ -979,9 +981,9 @@ impl Simulation {
             .contact_active
             .iter()
             .map(|&(p, v)| {
-                let normal = self.scene.plates[p].normal;
+                let normal = self.model.plates[p].normal;
                 let row = (0..axes)
-                    .filter(|&c| self.scene.constraints.get(v, c).is_none())
+                    .filter(|&c| self.model.constraints.get(v, c).is_none())
                     .map(|c| (c * n + v, normal[c]))
                     .collect();
                 (Contact::key(p, v), row)
@@ -993,14 +995,7 @@ impl Simulation {
     }
 }
 
-/// At most this many scalar Newton iterations restore the volume after a step in refresh
-/// and nonlinear modes (each evaluates the volume and its gradient; no solve).
-pub const VOLUME_NEWTON_ITERATIONS: usize = 30;
-
-/// Relative volume error below which no correction solve is made.
-pub const VOLUME_TOLERANCE: f64 = 1e-12;
-
-fn assemble_on(scene: &Scene, body: &BodyShape, positions: &[Vec3], areas: &[Vec3]) -> Result<System> {
+fn assemble_on(scene: &Model, body: &BodyShape, positions: &[Vec3], areas: &[Vec3]) -> Result<System> {
     let shape = Body {
         axes: body.boundary.axes(),
         positions,

@@ -4,7 +4,7 @@ use fibfluid_assembly::ConstraintKind;
 use fibfluid_linalg::{Backend, Precision};
 use serde::Serialize;
 
-use crate::scene::{Mode, Stepping};
+use crate::choices::{Mode, Stepping};
 use crate::simulate::Simulation;
 use crate::stages::StageRecord;
 
@@ -20,7 +20,7 @@ pub struct SkippedStage {
 /// What a run did and how accurate it was.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Report {
-    /// Scene name.
+    /// Model name.
     pub scene: String,
     /// Linear backend.
     pub backend: Backend,
@@ -110,7 +110,7 @@ pub struct Report {
 impl Report {
     /// Builds the report of a simulation in its current state.
     pub fn of(sim: &Simulation, extra_stages: &[StageRecord], notes: Vec<String>) -> Self {
-        let scene = sim.scene();
+        let scene = sim.model();
         let rest = sim.rest_positions();
         let disp: Vec<f64> = sim
             .positions()
@@ -227,7 +227,7 @@ pub struct RoundTrip {
 
 /// Runs compression then decompression (REFERENCE §4): `steps` equal steps each way, or
 /// adaptive steps when the scene sets a `tolerance`.
-pub fn roundtrip(scene: crate::Scene, opts: &crate::RunOptions) -> crate::Result<RoundTrip> {
+pub fn roundtrip(scene: crate::Model, opts: &crate::RunOptions) -> crate::Result<RoundTrip> {
     let steps = scene.steps;
     let mut sim = Simulation::new(scene)?;
     sim.run(opts)?;
@@ -239,7 +239,7 @@ pub fn roundtrip(scene: crate::Scene, opts: &crate::RunOptions) -> crate::Result
         .map(|(p, r)| ((p[0] - r[0]).powi(2) + (p[1] - r[1]).powi(2) + (p[2] - r[2]).powi(2)).sqrt())
         .fold(0.0, f64::max);
     sim.unload(opts)?;
-    let s = sim.scene();
+    let s = sim.model();
     Ok(RoundTrip {
         steps,
         tolerance: s.tolerance,

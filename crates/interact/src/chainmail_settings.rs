@@ -1,13 +1,11 @@
-//! The `[chainmail]` section of a scene: how the ChainMail methods (TSVE and Generalized)
-//! voxelize and deform the scene's body. See docs/scene-format.md for defaults and why.
+//! ChainMail's settings (the `[chainmail]` section of a scene, or built in code): how the
+//! ChainMail methods voxelize and deform a body. The scene crate reads them; the checks
+//! live here, once.
 
-use fibfluid_chainmail::{EmbeddingGrid, GeneralizedMaterial, TsveMaterial};
+use fibfluid_chainmail::{EmbeddingGrid, GeneralizedMaterial, TsveMaterial, alpha_limits_problem};
 use fibfluid_geometry::Vec3;
 use fibfluid_linalg::{Choice, impl_choice};
-use serde::Deserialize;
-
-use crate::error::SceneProblem;
-use crate::scene::{Invalid, choice, invalid, range};
+use fibfluid_sim::Method;
 
 /// Which ChainMail model the `[chainmail]` section describes for `fibfluid probe
 /// --method`; the method flag picks the variant actually run, this is the scene's
@@ -135,147 +133,75 @@ impl ChainmailSettings {
     }
 }
 
-#[derive(Deserialize)]
-#[serde(untagged, expecting = "expected a number or an array of three numbers [x, y, z]")]
-pub(crate) enum PerAxis {
-    One(f64),
-    Three([f64; 3]),
-}
 
-impl PerAxis {
-    fn get(self) -> Vec3 {
-        match self {
-            PerAxis::One(v) => [v; 3],
-            PerAxis::Three(v) => v,
+impl Variant {
+    /// The variant a ChainMail [`Method`] runs (`None` for the other methods).
+    pub fn of_method(method: Method) -> Option<Self> {
+        match method {
+            Method::TsveChainmail => Some(Variant::Tsve),
+            Method::GeneralizedChainmail => Some(Variant::Generalized),
+            Method::Ffm => None,
         }
     }
 }
 
-/// `[chainmail]` as written.
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-pub(crate) struct ChainmailToml {
-    variant: Option<String>,
-    spacing: Option<f64>,
-    alpha_min: Option<PerAxis>,
-    alpha_max: Option<PerAxis>,
-    beta: Option<PerAxis>,
-    tss: Option<bool>,
-    relaxation: Option<i64>,
-    #[serde(default)]
-    material: Vec<RegionToml>,
+/// A ChainMail setting out of its range: the key (`alpha_min`, `spacing`, ...), the region
+/// (0-based, `None` for the section itself), the rule and the value as written.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SettingProblem {
+    /// The key.
+    pub key: &'static str,
+    /// The material region, when the key belongs to one.
+    pub region: Option<usize>,
+    /// The rule the value breaks.
+    pub rule: &'static str,
+    /// The value, as it will be printed.
+    pub value: String,
 }
 
-/// `[[chainmail.material]]` as written.
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-pub(crate) struct RegionToml {
-    #[serde(rename = "box")]
-    bbox: [[f64; 3]; 2],
-    alpha_min: Option<PerAxis>,
-    alpha_max: Option<PerAxis>,
-}
-
-fn check_alphas(key: &str, lo: Vec3, hi: Vec3) -> Result<(), Invalid> {
-    for c in 0..3 {
-        let axis = ['x', 'y', 'z'][c];
-        if !(lo[c].is_finite() && lo[c] > 0.0 && lo[c] <= 1.0) {
-            return Err(range(format!("{key}.alpha_min"), "in (0, 1]", format!("{} along {axis}", lo[c])));
+impl ChainmailSettings {
+    /// Checks every value (limits, spacing, shear, relaxation, regions), the one check of
+    /// these settings whether they come from a file or from code.
+    pub fn check(&self) -> Result<(), SettingProblem> {
+        let problem = |key, region, rule, value: String| Err(SettingProblem { key, region, rule, value });
+        if let Some(h) = self.spacing
+            && !(h.is_finite() && h > 0.0)
+        {
+            return problem("spacing", None, "positive", h.to_string());
         }
-        if !(hi[c].is_finite() && hi[c] >= 1.0) {
-            return Err(range(
-                format!("{key}.alpha_max"),
-                ">= 1 and finite",
-                format!("{} along {axis}", hi[c]),
-            ));
-        }
-    }
-    Ok(())
-}
-
-/// Checks `[chainmail]` against the body (`positions`, the rest surface) and the memory:
-/// a lattice that would not fit in `budget` bytes is refused before anything is
-/// allocated.
-pub(crate) fn parse(
-    spec: Option<ChainmailToml>,
-    positions: &[Vec3],
-    budget: u64,
-) -> Result<ChainmailSettings, Invalid> {
-    let mut s = ChainmailSettings::default();
-    let Some(t) = spec else { return Ok(s) };
-    const KEY: &str = "[chainmail]";
-    s.variant = choice(&format!("{KEY}.variant"), t.variant, s.variant)?;
-    if let Some(h) = t.spacing {
-        if !(h.is_finite() && h > 0.0) {
-            return Err(range(format!("{KEY}.spacing"), "positive", h));
-        }
-        s.spacing = Some(h);
-    }
-    s.alpha_min = t.alpha_min.map(PerAxis::get).unwrap_or(s.alpha_min);
-    s.alpha_max = t.alpha_max.map(PerAxis::get).unwrap_or(s.alpha_max);
-    check_alphas(KEY, s.alpha_min, s.alpha_max)?;
-    if let Some(b) = t.beta {
-        s.beta = b.get();
-        if let Some(b) = s.beta.iter().find(|b| !(b.is_finite() && **b >= 0.0)) {
-            return Err(range(format!("{KEY}.beta"), ">= 0", b));
-        }
-    }
-    s.tss = t.tss.unwrap_or(s.tss);
-    if let Some(r) = t.relaxation {
-        if !(0..=MAX_RELAXATION as i64).contains(&r) {
-            return Err(range(format!("{KEY}.relaxation"), "between 0 and 100000", r));
-        }
-        s.relaxation = r as usize;
-    }
-    for (k, r) in t.material.into_iter().enumerate() {
-        let key = format!("[[chainmail.material]] #{}", k + 1);
-        let [lo, hi] = r.bbox;
-        if lo.iter().chain(&hi).any(|v| !v.is_finite()) || (0..3).any(|c| lo[c] > hi[c]) {
-            return Err(range(
-                format!("{key}.box"),
-                "finite, [[min x, y, z], [max x, y, z]] with min <= max",
-                format!("{:?}", r.bbox),
-            ));
-        }
-        let region = MaterialRegion {
-            min: lo,
-            max: hi,
-            alpha_min: r.alpha_min.map(PerAxis::get).unwrap_or(s.alpha_min),
-            alpha_max: r.alpha_max.map(PerAxis::get).unwrap_or(s.alpha_max),
+        let limits = |lo, hi, region| match alpha_limits_problem(lo, hi) {
+            Some(p) => problem(p.name, region, p.rule, format!("{} along {}", p.value, ['x', 'y', 'z'][p.axis])),
+            None => Ok(()),
         };
-        check_alphas(&key, region.alpha_min, region.alpha_max)?;
-        s.regions.push(region);
+        limits(self.alpha_min, self.alpha_max, None)?;
+        if let Some(b) = self.beta.iter().find(|b| !(b.is_finite() && **b >= 0.0)) {
+            return problem("beta", None, ">= 0", b.to_string());
+        }
+        if self.relaxation > MAX_RELAXATION {
+            return problem("relaxation", None, "between 0 and 100000", self.relaxation.to_string());
+        }
+        for (k, r) in self.regions.iter().enumerate() {
+            if r.min.iter().chain(&r.max).any(|v| !v.is_finite()) || (0..3).any(|c| r.min[c] > r.max[c]) {
+                let value = format!("{:?}", [r.min, r.max]);
+                return problem("box", Some(k), "finite, [[min x, y, z], [max x, y, z]] with min <= max", value);
+            }
+            limits(r.alpha_min, r.alpha_max, Some(k))?;
+        }
+        Ok(())
     }
-    if s.variant == Variant::Generalized && !s.regions.is_empty() {
-        return Err(invalid(
-            "[[chainmail.material]]",
-            SceneProblem::Conflict(
-                "material regions need variant = \"tsve\" (Generalized ChainMail has one material)",
-            ),
-        ));
-    }
-    let h = s.spacing_for(positions);
-    let (lo, hi) = fibfluid_geometry::bounding_box(positions);
-    let too_large = |bytes: u128| {
-        invalid(
-            format!("{KEY}.spacing"),
-            SceneProblem::ChainmailLatticeTooLarge { spacing: h, bytes, available: budget },
-        )
-    };
-    match EmbeddingGrid::for_box(lo, hi, h) {
-        Ok(grid) => {
-            let bytes = grid.bytes_upper_bound(positions.len());
-            if bytes > budget as u128 {
-                return Err(too_large(bytes));
+
+    /// An upper bound of the bytes a ChainMail body of these rest positions needs (every
+    /// grid node an element), computed from counts before anything is allocated.
+    pub fn lattice_bytes(&self, positions: &[Vec3]) -> u128 {
+        let h = self.spacing_for(positions);
+        let (lo, hi) = fibfluid_geometry::bounding_box(positions);
+        match EmbeddingGrid::for_box(lo, hi, h) {
+            Ok(grid) => grid.bytes_upper_bound(positions.len()),
+            // More grid nodes than the lattice can index: the bytes by the box alone.
+            Err(_) => {
+                let nodes: u128 = (0..3).map(|a| ((hi[a] - lo[a]) / h).ceil().max(1.0) as u128 + 2).product();
+                nodes * (fibfluid_chainmail::BYTES_PER_NODE + fibfluid_chainmail::BYTES_PER_ELEMENT) as u128
             }
         }
-        Err(_) => {
-            // More grid nodes than the lattice can index: the bytes by the box alone.
-            let nodes: u128 = (0..3).map(|a| ((hi[a] - lo[a]) / h).ceil().max(1.0) as u128 + 2).product();
-            return Err(too_large(
-                nodes * (fibfluid_chainmail::BYTES_PER_NODE + fibfluid_chainmail::BYTES_PER_ELEMENT) as u128,
-            ));
-        }
     }
-    Ok(s)
 }

@@ -21,15 +21,15 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use fibfluid_chainmail::{
-    Embedding, EmbeddingGrid, GeneralizedMaterial, Lattice, Material, PropagationOptions, PropagationReport,
+    Embedding, GeneralizedMaterial, Lattice, Material, PropagationOptions, PropagationReport,
     RelaxOptions, RelaxReport, Scheme, TsveMaterial,
 };
 use fibfluid_geometry::Vec3;
 use fibfluid_geometry::vec3::{add, sub};
-use fibfluid_interact::{Hold, InteractError, Interactive};
+use fibfluid_sim::{Method, Model, Shape};
 
-use crate::chainmail_scene::{ChainmailSettings, Variant};
-use crate::{Scene, Shape};
+use crate::chainmail_settings::{ChainmailSettings, Variant};
+use crate::{Hold, InteractError, Interactive};
 
 /// The material of a ChainMail body.
 #[derive(Clone, Debug)]
@@ -121,13 +121,18 @@ fn chainmail_err(e: fibfluid_chainmail::ChainmailError) -> InteractError {
 impl ChainmailBody {
     /// Builds the body of a scene with the given variant (the scene's `[chainmail]` section
     /// gives the rest), refusing a lattice over `budget` bytes before allocating it.
-    pub fn from_scene(scene: &Scene, variant: Variant, budget: u64) -> Result<Self, ChainmailBodyError> {
+    pub fn from_model(
+        scene: &Model,
+        settings: &ChainmailSettings,
+        variant: Variant,
+        budget: u64,
+    ) -> Result<Self, ChainmailBodyError> {
         let Shape::Surface(file) = &scene.shape else { return Err(ChainmailBodyError::NotASurface) };
         let rest = file.mesh.positions().to_vec();
         let fixed_axis = (0..rest.len())
             .map(|v| (0..3).find(|&c| scene.constraints.get(v, c).is_some()).map(|c| ['x', 'y', 'z'][c]))
             .collect();
-        Self::new(rest, file.mesh.triangles(), fixed_axis, &scene.chainmail, variant, budget)
+        Self::new(rest, file.mesh.triangles(), fixed_axis, settings, variant, budget)
     }
 
     /// Builds a body from a surface (`rest`, `triangles`), the first fixed axis of each
@@ -142,8 +147,7 @@ impl ChainmailBody {
     ) -> Result<Self, ChainmailBodyError> {
         let start = Instant::now();
         let spacing = settings.spacing_for(&rest);
-        let (lo, hi) = fibfluid_geometry::bounding_box(&rest);
-        let bytes = EmbeddingGrid::for_box(lo, hi, spacing)?.bytes_upper_bound(rest.len());
+        let bytes = settings.lattice_bytes(&rest);
         if bytes > budget as u128 {
             return Err(ChainmailBodyError::OutOfMemory { spacing, bytes, available: budget });
         }
@@ -236,7 +240,7 @@ impl ChainmailBody {
         free
     }
 
-    fn check_vertex(&self, vertex: usize) -> fibfluid_interact::Result<()> {
+    fn check_vertex(&self, vertex: usize) -> crate::Result<()> {
         if vertex >= self.rest.len() {
             return Err(InteractError::UnknownVertex { vertex, vertices: self.rest.len() });
         }
@@ -245,10 +249,10 @@ impl ChainmailBody {
 }
 
 impl Interactive for ChainmailBody {
-    fn method(&self) -> &'static str {
+    fn method(&self) -> Method {
         match self.variant {
-            Variant::Tsve => "tsve-chainmail",
-            Variant::Generalized => "generalized-chainmail",
+            Variant::Tsve => Method::TsveChainmail,
+            Variant::Generalized => Method::GeneralizedChainmail,
         }
     }
 
@@ -268,7 +272,7 @@ impl Interactive for ChainmailBody {
         false
     }
 
-    fn grab(&mut self, vertex: usize, displacement: Vec3) -> fibfluid_interact::Result<()> {
+    fn grab(&mut self, vertex: usize, displacement: Vec3) -> crate::Result<()> {
         self.check_vertex(vertex)?;
         if let Some(axis) = self.fixed_axis[vertex] {
             return Err(InteractError::FixedVertex { vertex, axis, action: "grabbed" });
@@ -285,11 +289,11 @@ impl Interactive for ChainmailBody {
         Ok(())
     }
 
-    fn push(&mut self, _vertex: usize, _force: Vec3) -> fibfluid_interact::Result<()> {
+    fn push(&mut self, _vertex: usize, _force: Vec3) -> crate::Result<()> {
         Err(InteractError::Unsupported { method: self.method(), what: "forces (it is displacement-driven)" })
     }
 
-    fn release(&mut self, vertex: usize) -> fibfluid_interact::Result<()> {
+    fn release(&mut self, vertex: usize) -> crate::Result<()> {
         self.check_vertex(vertex)?;
         self.pending.remove(&vertex);
         Ok(())
@@ -303,7 +307,7 @@ impl Interactive for ChainmailBody {
         self.pending.iter().map(|(&v, &d)| (v, Hold::Grab { displacement: d })).collect()
     }
 
-    fn update(&mut self) -> fibfluid_interact::Result<&[(usize, Vec3)]> {
+    fn update(&mut self) -> crate::Result<&[(usize, Vec3)]> {
         // Grabs of vertices sharing an element move it by their mean displacement.
         let mut sponsors: BTreeMap<usize, (Vec3, f64)> = BTreeMap::new();
         for (&v, &d) in &self.pending {

@@ -1,0 +1,141 @@
+//! A model's interactive body for each [`Method`]: the fiber–fluid method's precomputed
+//! response on top of a base solve, or a ChainMail lattice.
+
+use std::time::Instant;
+
+use fibfluid_geometry::Vec3;
+use fibfluid_linalg::{Backend, Precision};
+use fibfluid_sim::{Method, Mode, Model, RunOptions, Shape, Simulation};
+
+use crate::chainmail_body::ChainmailBody;
+use crate::chainmail_settings::{ChainmailSettings, Variant};
+use crate::replay::ProbeError;
+use crate::{Compliance, ComplianceOptions, FfmBody, InteractError, Interactive, Storage, memory_budget};
+
+/// Options of [`build_body`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ProbeOptions {
+    /// Storage of the precomputed response.
+    pub storage: Storage,
+    /// Memory budget (see [`fibfluid_interact::memory_budget`]).
+    pub max_memory_bytes: Option<u64>,
+}
+
+/// A scene's interactive body and what building it cost.
+#[derive(Debug)]
+pub struct ProbeBody {
+    /// The body (base state applied).
+    pub body: FfmBody,
+    /// Seconds of the base solve (assembly, factorization and one solve).
+    pub base_seconds: f64,
+    /// Seconds of the precompute of the response.
+    pub precompute_seconds: f64,
+}
+
+/// The scene as the probe solves it: paper mode, one step (loads in full), structured
+/// backend, f64.
+pub fn linearized(scene: &Model) -> Model {
+    let mut s = scene.clone();
+    s.solver.mode = Mode::Paper;
+    s.steps = 1;
+    s.solver.backend = Backend::Structured;
+    s.solver.precision = Precision::F64;
+    s
+}
+
+/// Builds the interactive body of a scene: one full solve of the scene's loads (the base
+/// state) and the precomputed response of the same assembled system.
+///
+/// Refuses before assembling anything when the assembled system, its factorization and the
+/// precompute's peak would exceed the memory budget, naming the bytes.
+pub fn build_body(scene: &Model, opts: &ProbeOptions) -> Result<ProbeBody, ProbeError> {
+    if !matches!(scene.shape, Shape::Surface(_)) {
+        return Err(ProbeError::NotASurface);
+    }
+    let n = scene.n_vertices();
+    let nblocks = if scene.material.is_isotropic() && scene.constraints.is_uniform(3) { 1 } else { 3 };
+    let est = Compliance::estimate_for(n, nblocks, opts.storage);
+    // The assembled blocks and their factorization stay alive during the precompute.
+    let system_bytes = 2 * (nblocks * n * n * 8) as u64;
+    let need = est.peak + system_bytes;
+    let budget = memory_budget(opts.max_memory_bytes);
+    let scene_name = scene.display_name();
+    let build = |source: InteractError| ProbeError::Build { scene: scene_name.clone(), source };
+    if need > budget {
+        return Err(build(InteractError::OutOfMemory { bytes: need, available: budget }));
+    }
+    let start = Instant::now();
+    let mut sim = Simulation::new(linearized(scene))?;
+    sim.run(&RunOptions::default())?;
+    let base: Vec<Vec3> = sim
+        .positions()
+        .iter()
+        .zip(sim.rest_positions())
+        .map(|(p, r)| [p[0] - r[0], p[1] - r[1], p[2] - r[2]])
+        .collect();
+    let base_pressure = sim.pressure();
+    let base_seconds = start.elapsed().as_secs_f64();
+    let copts = ComplianceOptions { storage: opts.storage, max_memory_bytes: Some(budget - system_bytes) };
+    let compliance = Compliance::from_system(sim.system(), &copts).map_err(build)?;
+    let precompute_seconds = compliance.seconds();
+    let rest = sim.rest_positions().to_vec();
+    drop(sim);
+    let mut body = FfmBody::new(compliance, rest).map_err(build)?;
+    body.set_base(base, base_pressure).map_err(build)?;
+    Ok(ProbeBody { body, base_seconds, precompute_seconds })
+}
+
+/// A scene's body for one [`Method`], with what building it cost.
+#[derive(Debug)]
+pub enum MethodBody {
+    /// The fiber–fluid method's body.
+    Ffm(Box<ProbeBody>),
+    /// A ChainMail body.
+    Chainmail(Box<ChainmailBody>),
+}
+
+impl MethodBody {
+    /// Builds the body of `scene` for `method` (ChainMail takes `chainmail`'s settings),
+    /// within the memory budget of `opts`.
+    pub fn build(
+        scene: &Model,
+        chainmail: &ChainmailSettings,
+        method: Method,
+        opts: &ProbeOptions,
+    ) -> Result<Self, ProbeError> {
+        match Variant::of_method(method) {
+            None => Ok(MethodBody::Ffm(Box::new(build_body(scene, opts)?))),
+            Some(variant) => {
+                let budget = memory_budget(opts.max_memory_bytes);
+                let body = ChainmailBody::from_model(scene, chainmail, variant, budget)
+                    .map_err(|source| ProbeError::Chainmail { scene: scene.display_name(), source })?;
+                Ok(MethodBody::Chainmail(Box::new(body)))
+            }
+        }
+    }
+
+    /// The body behind the method-neutral trait.
+    pub fn interactive(&mut self) -> &mut dyn Interactive {
+        match self {
+            MethodBody::Ffm(b) => &mut b.body,
+            MethodBody::Chainmail(b) => b.as_mut(),
+        }
+    }
+
+    /// The body behind the method-neutral trait, read only.
+    pub fn interactive_ref(&self) -> &dyn Interactive {
+        match self {
+            MethodBody::Ffm(b) => &b.body,
+            MethodBody::Chainmail(b) => b.as_ref(),
+        }
+    }
+
+    /// Seconds of the setup: base solve and precompute (FFM), voxelization and embedding
+    /// (ChainMail).
+    pub fn setup_seconds(&self) -> f64 {
+        match self {
+            MethodBody::Ffm(b) => b.base_seconds + b.precompute_seconds,
+            MethodBody::Chainmail(b) => b.setup_seconds(),
+        }
+    }
+}

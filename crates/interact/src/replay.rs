@@ -1,0 +1,409 @@
+//! Tool paths and their replay: a path (grab displacements or push forces per frame, as a
+//! scene's `PATH.csv` describes them), checked against a model, replayed on any
+//! [`Interactive`] body with the latency of every frame.
+//!
+//! The file format is read by the scene crate; this module holds the parsed data and what
+//! is done with it.
+
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use fibfluid_geometry::Vec3;
+use fibfluid_sim::{Method, Model, Shape};
+use serde::Serialize;
+
+use crate::chainmail_body::ChainmailBodyError;
+use crate::{InteractError, Interactive};
+
+/// The largest frame number a path may use.
+pub const MAX_FRAME: usize = 10_000_000;
+
+/// What can go wrong while probing: a bad tool path (file and line), a refused body.
+#[derive(Debug, thiserror::Error)]
+pub enum ProbeError {
+    /// A line of the path file is wrong.
+    #[error("{}:{line}: {problem}", path.display())]
+    Path {
+        /// The path file.
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong.
+        problem: PathProblem,
+    },
+    /// The path file has a header but no row.
+    #[error("{}: the path is empty (a header and at least one row are needed)", path.display())]
+    EmptyPath {
+        /// The path file.
+        path: PathBuf,
+    },
+    /// The body refused a request.
+    #[error("probe: {0}")]
+    Body(#[from] InteractError),
+    /// The scene's body cannot be built (too large for the memory, singular).
+    #[error("{scene}: {source}")]
+    Build {
+        /// The scene file (or the scene's name when built in code).
+        scene: String,
+        /// Why.
+        source: InteractError,
+    },
+    /// The scene is a 2D polygon.
+    #[error("probe needs a surface mesh; this scene is a 2D polygon")]
+    NotASurface,
+    /// The scene's ChainMail body cannot be built.
+    #[error("{scene}: {source}")]
+    Chainmail {
+        /// The scene file (or the scene's name when built in code).
+        scene: String,
+        /// Why.
+        source: ChainmailBodyError,
+    },
+    /// A force path given to a displacement-driven method.
+    #[error("{}: {method} is displacement-driven: it needs a grab path (frame,vertex,ux,uy,uz), not a force path", path.display())]
+    ForcePath {
+        /// The path file.
+        path: PathBuf,
+        /// The method.
+        method: Method,
+    },
+    /// The engine refused the model (memory, a singular system).
+    #[error(transparent)]
+    Sim(#[from] fibfluid_sim::Error),
+    /// The path file is a directory.
+    #[error("{}: is a directory, not a path file", path.display())]
+    IsDirectory {
+        /// The path given.
+        path: PathBuf,
+    },
+    /// The path file cannot be read: not a regular file, or over the size limit.
+    #[error("{}: {problem}", path.display())]
+    Unreadable {
+        /// The path given.
+        path: PathBuf,
+        /// Why.
+        problem: fibfluid_geometry::ReadError,
+    },
+    /// The path file is not text.
+    #[error("{}: not a text file (invalid UTF-8)", path.display())]
+    NotUtf8 {
+        /// The path given.
+        path: PathBuf,
+    },
+}
+
+/// What is wrong with one line of a path file.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum PathProblem {
+    /// The first line is not one of the two headers.
+    #[error(
+        "bad header `{found}`: expected `frame,vertex,ux,uy,uz` (grab) or `frame,vertex,fx,fy,fz` (force)"
+    )]
+    Header {
+        /// The line found.
+        found: String,
+    },
+    /// A row without five fields.
+    #[error("expected 5 comma-separated fields, found {found}")]
+    FieldCount {
+        /// Fields found.
+        found: usize,
+    },
+    /// A frame field that is not a non-negative integer.
+    #[error("frame: `{value}` is not a frame number (0, 1, 2, ...)")]
+    BadFrame {
+        /// The text.
+        value: String,
+    },
+    /// A frame number beyond [`MAX_FRAME`].
+    #[error("frame {frame} is beyond the largest allowed frame number {MAX_FRAME}")]
+    FrameTooLarge {
+        /// The frame.
+        frame: usize,
+    },
+    /// A frame number smaller than the previous row's.
+    #[error("frame {frame} comes after frame {previous}: frame numbers must not decrease")]
+    DecreasingFrame {
+        /// This row's frame.
+        frame: usize,
+        /// The previous row's frame.
+        previous: usize,
+    },
+    /// A vertex field that is not a non-negative integer.
+    #[error("vertex: `{value}` is not a vertex index (0-based)")]
+    BadVertex {
+        /// The text.
+        value: String,
+    },
+    /// A value field that is not a number.
+    #[error("{column}: `{value}` is not a number")]
+    NotANumber {
+        /// The column name.
+        column: &'static str,
+        /// The text.
+        value: String,
+    },
+    /// A value that is NaN or infinite.
+    #[error("{column}: {value} is not finite")]
+    NonFinite {
+        /// The column name.
+        column: &'static str,
+        /// The value.
+        value: f64,
+    },
+    /// An empty vertex field with values.
+    #[error("a row without a vertex (an empty frame) must have no values")]
+    ValuesWithoutVertex,
+    /// A vertex beyond the mesh file.
+    #[error("vertex {vertex} does not exist (the mesh file has {count} vertices, 0-based)")]
+    UnknownVertex {
+        /// The vertex (file order).
+        vertex: usize,
+        /// Vertices in the file.
+        count: usize,
+    },
+    /// A vertex of the file that no face uses.
+    #[error("vertex {vertex} is not used by any face of the mesh")]
+    UnusedVertex {
+        /// The vertex (file order).
+        vertex: usize,
+    },
+    /// A grab on a vertex the scene fixes (or a push on a vertex fixed along every axis).
+    #[error("vertex {vertex} is fixed along {axis} by the scene and cannot be {action}")]
+    FixedVertex {
+        /// The vertex (file order).
+        vertex: usize,
+        /// The first fixed axis.
+        axis: char,
+        /// `grabbed` or `pushed`.
+        action: &'static str,
+    },
+    /// The same vertex twice in one frame.
+    #[error("vertex {vertex} appears twice in frame {frame} (first on line {first})")]
+    Duplicate {
+        /// The vertex (file order).
+        vertex: usize,
+        /// The frame.
+        frame: usize,
+        /// Line of the first occurrence.
+        first: usize,
+    },
+}
+
+/// What the rows of a path prescribe.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PathKind {
+    /// `ux,uy,uz`: displacements from rest (grabs).
+    Grab,
+    /// `fx,fy,fz`: applied forces (pushes).
+    Force,
+}
+
+impl PathKind {
+    /// `grab` or `force`.
+    pub fn name(self) -> &'static str {
+        match self {
+            PathKind::Grab => "grab",
+            PathKind::Force => "force",
+        }
+    }
+}
+
+/// One row of a path.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PathRow {
+    /// 1-based line in the file.
+    pub line: usize,
+    /// Frame number.
+    pub frame: usize,
+    /// Vertex in the mesh file's order; `None` declares an empty frame.
+    pub vertex: Option<usize>,
+    /// Displacement or force.
+    pub value: Vec3,
+}
+
+/// A parsed tool path.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ToolPath {
+    /// The file it came from (for messages).
+    pub source: PathBuf,
+    /// Grab or force.
+    pub kind: PathKind,
+    /// Rows in file order (frames non-decreasing).
+    pub rows: Vec<PathRow>,
+}
+
+impl ToolPath {
+    /// Number of frames: the largest frame number plus one.
+    pub fn frames(&self) -> usize {
+        self.rows.last().map(|r| r.frame + 1).unwrap_or(0)
+    }
+}
+
+/// One hold of a checked path: the vertex in the mesh's order and in the file's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PathHold {
+    /// Line in the path file.
+    pub line: usize,
+    /// Vertex in the mesh's (compacted) order.
+    pub vertex: usize,
+    /// Vertex in the mesh file's order.
+    pub file_vertex: usize,
+    /// Displacement or force.
+    pub value: Vec3,
+}
+
+/// Checks a path against a scene (vertices exist, are used, are not fixed, appear once per
+/// frame) and groups its rows by frame (`0..path.frames()`).
+pub fn check_path(path: &ToolPath, scene: &Model) -> std::result::Result<Vec<Vec<PathHold>>, ProbeError> {
+    let Shape::Surface(file) = &scene.shape else { return Err(ProbeError::NotASurface) };
+    let to_mesh: HashMap<usize, usize> =
+        file.to_file.iter().enumerate().map(|(m, &f)| (f as usize, m)).collect();
+    let count = file.file_vertex_count();
+    let err =
+        |line: usize, problem: PathProblem| ProbeError::Path { path: path.source.clone(), line, problem };
+    let mut frames: Vec<Vec<PathHold>> = vec![Vec::new(); path.frames()];
+    for row in &path.rows {
+        let Some(fv) = row.vertex else { continue };
+        if fv >= count {
+            return Err(err(row.line, PathProblem::UnknownVertex { vertex: fv, count }));
+        }
+        let v = *to_mesh.get(&fv).ok_or_else(|| err(row.line, PathProblem::UnusedVertex { vertex: fv }))?;
+        let fixed: Vec<usize> = (0..3).filter(|&c| scene.constraints.get(v, c).is_some()).collect();
+        let refused = match path.kind {
+            PathKind::Grab => !fixed.is_empty(),
+            PathKind::Force => fixed.len() == 3,
+        };
+        if refused {
+            let action = if path.kind == PathKind::Grab { "grabbed" } else { "pushed" };
+            let axis = fibfluid_assembly::AXES[fixed[0]];
+            return Err(err(row.line, PathProblem::FixedVertex { vertex: fv, axis, action }));
+        }
+        let frame = &mut frames[row.frame];
+        if let Some(first) = frame.iter().find(|h| h.vertex == v) {
+            return Err(err(
+                row.line,
+                PathProblem::Duplicate { vertex: fv, frame: row.frame, first: first.line },
+            ));
+        }
+        frame.push(PathHold { line: row.line, vertex: v, file_vertex: fv, value: row.value });
+    }
+    Ok(frames)
+}
+
+/// One probed vertex in one frame (a row of `frames.csv`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameRow {
+    /// Frame number.
+    pub frame: usize,
+    /// Vertex in the mesh file's order.
+    pub file_vertex: usize,
+    /// Force on the body there (reaction of a grab, or the pushed force).
+    pub force: Vec3,
+    /// Displacement from rest there.
+    pub displacement: Vec3,
+}
+
+/// What a replay produced.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Replay {
+    /// One row per probed vertex and frame.
+    pub rows: Vec<FrameRow>,
+    /// Microseconds of each frame (hold edits and the full-field update).
+    pub latency_us: Vec<f64>,
+    /// Frames replayed.
+    pub frames: usize,
+}
+
+/// Replays checked frames (from [`check_path`]) on a body: in each frame every vertex is
+/// released, the frame's holds are applied and the frame is updated.
+pub fn replay(
+    body: &mut dyn Interactive,
+    kind: PathKind,
+    frames: &[Vec<PathHold>],
+) -> std::result::Result<Replay, ProbeError> {
+    replay_observed(body, kind, frames, |_, _| {})
+}
+
+/// [`replay`], calling `observe(frame, body)` after each frame's update (outside the timed
+/// part), for instance to record the surfaces.
+pub fn replay_observed(
+    body: &mut dyn Interactive,
+    kind: PathKind,
+    frames: &[Vec<PathHold>],
+    mut observe: impl FnMut(usize, &dyn Interactive),
+) -> std::result::Result<Replay, ProbeError> {
+    let mut rows = Vec::new();
+    let mut latency_us = Vec::with_capacity(frames.len());
+    for (k, holds) in frames.iter().enumerate() {
+        let start = Instant::now();
+        body.release_all();
+        for h in holds {
+            match kind {
+                PathKind::Grab => body.grab(h.vertex, h.value)?,
+                PathKind::Force => body.push(h.vertex, h.value)?,
+            }
+        }
+        body.update()?;
+        latency_us.push(start.elapsed().as_secs_f64() * 1e6);
+        let reactions = body.reactions();
+        for h in holds {
+            let force = reactions.iter().find(|(v, _)| *v == h.vertex).map(|(_, f)| *f).unwrap_or([0.0; 3]);
+            rows.push(FrameRow {
+                frame: k,
+                file_vertex: h.file_vertex,
+                force,
+                displacement: body.field()[h.vertex],
+            });
+        }
+        observe(k, &*body);
+    }
+    Ok(Replay { rows, latency_us, frames: frames.len() })
+}
+
+/// Frame latency percentiles, microseconds.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Latency {
+    /// Median.
+    pub p50: f64,
+    /// 99th percentile (nearest rank).
+    pub p99: f64,
+    /// Largest.
+    pub max: f64,
+}
+
+impl Latency {
+    /// Nearest-rank percentiles of the samples (zeros when there are none).
+    pub fn of(samples: &[f64]) -> Self {
+        let mut s: Vec<f64> = samples.iter().copied().filter(|v| v.is_finite()).collect();
+        if s.is_empty() {
+            return Self::default();
+        }
+        s.sort_by(f64::total_cmp);
+        let rank = |p: f64| s[((p * s.len() as f64).ceil() as usize).clamp(1, s.len()) - 1];
+        Self { p50: rank(0.5), p99: rank(0.99), max: s[s.len() - 1] }
+    }
+}
+
+/// Checks that `method` can replay a path of this kind (ChainMail needs grabs).
+pub fn check_method(path: &ToolPath, method: Method) -> std::result::Result<(), ProbeError> {
+    if path.kind == PathKind::Force && method != Method::Ffm {
+        return Err(ProbeError::ForcePath { path: path.source.clone(), method });
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn latency_percentiles_by_nearest_rank() {
+        let s: Vec<f64> = (1..=100).map(f64::from).collect();
+        assert_eq!(Latency::of(&s), Latency { p50: 50.0, p99: 99.0, max: 100.0 });
+        assert_eq!(Latency::of(&[3.0]), Latency { p50: 3.0, p99: 3.0, max: 3.0 });
+        assert_eq!(Latency::of(&[]), Latency::default());
+    }
+}

@@ -1,0 +1,321 @@
+//! From the file's tables to the engine's validated values.
+
+use std::path::Path;
+
+use fibfluid_assembly::{Constraints, DEFAULT_PENALTY, Material, Selector, StiffnessLaw};
+use fibfluid_geometry::{Polygon, ReadOptions, load_mesh_with};
+use fibfluid_sim::contact::{Plate, PlateProblem, check_plates};
+use fibfluid_sim::guards::Guards;
+use fibfluid_sim::{ForceTiming, MAX_STEPS, Model, PLATE_REST_TOLERANCE, PointForce, Shape, SolverOptions};
+
+use crate::error::SceneProblem;
+use crate::invalid::{Invalid, choice, invalid, range, unkeyed};
+use crate::spec::*;
+
+fn axis_index(s: &str, key: &str) -> Result<usize, Invalid> {
+    match s {
+        "x" => Ok(0),
+        "y" => Ok(1),
+        "z" => Ok(2),
+        other => Err(invalid(key, SceneProblem::NotAnAxis { given: other.to_string() })),
+    }
+}
+
+/// The scene's values, built from its tables; `dir` resolves the mesh path.
+pub(crate) fn build(spec: SceneToml, dir: &Path, name: String) -> Result<Model, Invalid> {
+    let shape = shape(spec.mesh, spec.polygon, dir)?;
+    let axes = if matches!(shape, Shape::Polygon(_)) { 2 } else { 3 };
+    let material = material(spec.material, spec.fluid, axes)?;
+    let (steps, tolerance) = load(spec.load)?;
+    let guards = guards(spec.guards)?;
+    let gravity = spec.gravity.map(|g| g.acceleration).unwrap_or([0.0; 3]);
+    if let Some(c) = gravity.iter().find(|c| !c.is_finite()) {
+        return Err(range("[gravity].acceleration", "finite", c));
+    }
+    let vertices = VertexMap::of(&shape);
+    let constraints = constraints(&spec.fix, &vertices, axes)?;
+    let forces = forces(&spec.force, &vertices)?;
+    let solver = solver(spec.solver)?;
+    for c in 0..axes {
+        if constraints.count(c) == 0 {
+            return Err(Invalid {
+                key: Some("[[fix]]".into()),
+                problem: SceneProblem::Unconstrained { axis: fibfluid_geometry::AXES[c] },
+            });
+        }
+    }
+    let plates = plates(&spec.plate, &vertices)?;
+    let mut model = Model::new(name, shape, material);
+    model.constraints = constraints;
+    model.gravity = gravity;
+    model.forces = forces;
+    model.steps = steps;
+    model.tolerance = tolerance;
+    model.guards = guards;
+    model.plates = plates;
+    model.solver = solver;
+    Ok(model)
+}
+
+/// The body: a mesh file or a polygon.
+fn shape(mesh: Option<MeshToml>, polygon: Option<PolygonToml>, dir: &Path) -> Result<Shape, Invalid> {
+    match (mesh, polygon) {
+        (Some(m), None) => {
+            let mesh_path = dir.join(&m.path);
+            if !mesh_path.exists() {
+                return Err(invalid(
+                    "[mesh].path",
+                    SceneProblem::MeshNotFound { given: m.path.clone(), resolved: mesh_path },
+                ));
+            }
+            if let Some(s) = m.scale
+                && !(s.is_finite() && s > 0.0)
+            {
+                return Err(range("[mesh].scale", "positive", s));
+            }
+            // Scaled before validation: coordinates too large or small for f64 are checked
+            // in the units the scene uses.
+            let file = load_mesh_with(&mesh_path, &ReadOptions { scale: m.scale, ..Default::default() })
+                .map_err(|e| invalid("[mesh].path", SceneProblem::Mesh(e)))?;
+            Ok(Shape::Surface(Box::new(file)))
+        }
+        (None, Some(p)) => Ok(Shape::Polygon(Polygon::new(p.points).ok_or_else(|| {
+            invalid("[polygon].points", SceneProblem::Conflict("at least 3 finite points are needed"))
+        })?)),
+        (Some(_), Some(_)) => Err(unkeyed(SceneProblem::Conflict("give either [mesh] or [polygon], not both"))),
+        (None, None) => Err(unkeyed(SceneProblem::Conflict("missing [mesh] (or [polygon]) table"))),
+    }
+}
+
+/// `[material]` and `[fluid]`.
+fn material(m: MaterialToml, fluid: Option<FluidToml>, axes: usize) -> Result<Material, Invalid> {
+    let young = match m.young {
+        Young::One(y) => [y; 3],
+        Young::Three(y) => y,
+    };
+    for (c, y) in young.iter().enumerate().take(axes) {
+        if !(y.is_finite() && *y > 0.0) {
+            return Err(range("[material].young", "positive", format!("{y} along {}", fibfluid_geometry::AXES[c])));
+        }
+    }
+    let gamma = m.surface_tension;
+    if !(gamma.is_finite() && gamma >= 0.0) {
+        return Err(range("[material].surface_tension", ">= 0", gamma));
+    }
+    let law = match m.stiffening {
+        None => StiffnessLaw::Linear,
+        Some(c) if c.is_finite() && c >= 0.0 => StiffnessLaw::Quadratic { c },
+        Some(c) => return Err(range("[material].stiffening", ">= 0", c)),
+    };
+    let density = fluid.map(|f| f.density).unwrap_or(0.0);
+    if !(density.is_finite() && density >= 0.0) {
+        return Err(range("[fluid].density", ">= 0", density));
+    }
+    Ok(Material { young, surface_tension: gamma, density, law })
+}
+
+/// `[load]`: the step count and the adaptive tolerance.
+fn load(l: Option<LoadToml>) -> Result<(usize, Option<f64>), Invalid> {
+    let (steps, tolerance) = l.map(|l| (l.steps, l.tolerance)).unwrap_or((None, None));
+    let steps = steps.unwrap_or(if tolerance.is_some() { 4 } else { 1 });
+    if !(1..=MAX_STEPS as i64).contains(&steps) {
+        return Err(range("[load].steps", "between 1 and 1000000", steps));
+    }
+    if let Some(t) = tolerance
+        && !(t.is_finite() && t > 0.0 && t < 1.0)
+    {
+        return Err(range("[load].tolerance", "between 0 and 1", t));
+    }
+    Ok((steps as usize, tolerance))
+}
+
+/// `[guards]`.
+fn guards(g: Option<GuardsToml>) -> Result<Guards, Invalid> {
+    let mut guards = Guards::default();
+    let Some(g) = g else { return Ok(guards) };
+    guards.on_failure = choice("[guards].on_failure", g.on_failure, guards.on_failure)?;
+    for (key, value) in [("volume", g.volume), ("increment", g.increment), ("residual", g.residual)] {
+        if let Some(v) = value
+            && !(v.is_finite() && v > 0.0)
+        {
+            return Err(range(format!("[guards].{key}"), "positive", v));
+        }
+    }
+    if let Some(k) = g.inverted
+        && k < 0
+    {
+        return Err(range("[guards].inverted", ">= 0", k));
+    }
+    guards.volume = g.volume;
+    guards.increment = g.increment;
+    guards.residual = g.residual;
+    guards.inverted = g.inverted.map(|k| k as usize);
+    Ok(guards)
+}
+
+/// The body's vertices as the scene's keys name them: file order for a mesh.
+struct VertexMap<'a> {
+    n: usize,
+    positions: Vec<fibfluid_geometry::Vec3>,
+    file: Option<&'a fibfluid_geometry::MeshFile>,
+}
+
+impl<'a> VertexMap<'a> {
+    fn of(shape: &'a Shape) -> Self {
+        match shape {
+            Shape::Surface(m) => Self { n: m.mesh.n_vertices(), positions: m.mesh.positions().to_vec(), file: Some(m) },
+            Shape::Polygon(p) => Self { n: p.n_vertices(), positions: p.positions_3d(), file: None },
+        }
+    }
+
+    /// The mesh index of file vertex `v` (checked: in range, used by a face).
+    fn mesh_index(&self, v: i64, key: &str) -> Result<usize, Invalid> {
+        let count = self.file.map(|f| f.file_vertex_count()).unwrap_or(self.n);
+        if v < 0 || v as usize >= count {
+            return Err(invalid(key, SceneProblem::VertexOutOfRange { vertex: v, count }));
+        }
+        match self.file {
+            Some(f) => f.from_file_index(v as usize).ok_or_else(|| invalid(key, SceneProblem::VertexUnused { vertex: v })),
+            None => Ok(v as usize),
+        }
+    }
+
+    /// The file index of mesh vertex `v`.
+    fn file_index(&self, v: usize) -> usize {
+        self.file.map(|f| f.to_file[v] as usize).unwrap_or(v)
+    }
+}
+
+/// `[[fix]]` tables.
+fn constraints(fixes: &[FixToml], vertices: &VertexMap<'_>, axes: usize) -> Result<Constraints, Invalid> {
+    let mut constraints = Constraints::new(vertices.n);
+    for (k, fix) in fixes.iter().enumerate() {
+        let key = format!("[[fix]] #{}", k + 1);
+        let dofs = fixed_axes(fix, &key, axes)?;
+        let selector = selector(fix, &key, vertices)?;
+        constraints
+            .fix_selected(&selector, &vertices.positions, dofs)
+            .map_err(|e| invalid(key.clone(), SceneProblem::Constraint(e)))?;
+    }
+    Ok(constraints)
+}
+
+/// The axes one `[[fix]]` table fixes (`dofs`, default all).
+fn fixed_axes(fix: &FixToml, key: &str, axes: usize) -> Result<[bool; 3], Invalid> {
+    let mut dofs = [false; 3];
+    let Some(list) = &fix.dofs else {
+        dofs[..axes].iter_mut().for_each(|d| *d = true);
+        return Ok(dofs);
+    };
+    if list.is_empty() {
+        return Err(invalid(format!("{key}.dofs"), SceneProblem::Conflict("empty list")));
+    }
+    for d in list {
+        let c = axis_index(d, &format!("{key}.dofs"))?;
+        if c >= axes {
+            return Err(invalid(format!("{key}.dofs"), SceneProblem::Conflict("a 2D scene has no z axis")));
+        }
+        dofs[c] = true;
+    }
+    Ok(dofs)
+}
+
+/// Which vertices one `[[fix]]` table selects.
+fn selector(fix: &FixToml, key: &str, vertices: &VertexMap<'_>) -> Result<Selector, Invalid> {
+    let axis = fix.axis.as_deref().map(|a| axis_index(a, &format!("{key}.axis"))).transpose()?;
+    let kinds = [
+        fix.above.is_some(),
+        fix.below.is_some(),
+        fix.top.is_some(),
+        fix.bottom.is_some(),
+        fix.vertices.is_some(),
+        fix.bbox.is_some(),
+    ];
+    if kinds.iter().filter(|k| **k).count() != 1 {
+        return Err(invalid(key, SceneProblem::Conflict("give exactly one of above, below, top, bottom, vertices, box")));
+    }
+    let need_axis = || {
+        axis.ok_or_else(|| invalid(key, SceneProblem::Conflict("`axis` is required with above/below/top/bottom")))
+    };
+    let within = |v: f64, name: &str| {
+        if v.is_nan() || v < 0.0 { Err(range(format!("{key}.{name}"), ">= 0", v)) } else { Ok(v) }
+    };
+    Ok(if let Some(v) = fix.above {
+        Selector::Above { axis: need_axis()?, value: v }
+    } else if let Some(v) = fix.below {
+        Selector::Below { axis: need_axis()?, value: v }
+    } else if let Some(v) = fix.top {
+        Selector::Top { axis: need_axis()?, within: within(v, "top")? }
+    } else if let Some(v) = fix.bottom {
+        Selector::Bottom { axis: need_axis()?, within: within(v, "bottom")? }
+    } else if let Some(b) = fix.bbox {
+        Selector::Box { min: b[0], max: b[1] }
+    } else {
+        let list = fix.vertices.as_deref().unwrap_or(&[]);
+        let key = format!("{key}.vertices");
+        Selector::Vertices(list.iter().map(|&v| vertices.mesh_index(v, &key)).collect::<Result<Vec<_>, _>>()?)
+    })
+}
+
+/// `[[force]]` tables.
+fn forces(forces: &[ForceToml], vertices: &VertexMap<'_>) -> Result<Vec<PointForce>, Invalid> {
+    let mut out = Vec::with_capacity(forces.len());
+    for (k, f) in forces.iter().enumerate() {
+        let key = format!("[[force]] #{}", k + 1);
+        let vertex = vertices.mesh_index(f.vertex, &format!("{key}.vertex"))?;
+        if let Some(c) = f.value.iter().find(|c| !c.is_finite()) {
+            return Err(range(format!("{key}.value"), "finite", c));
+        }
+        let timing = choice(&format!("{key}.at"), f.at.clone(), ForceTiming::Last)?;
+        out.push(PointForce { vertex, value: f.value, timing });
+    }
+    Ok(out)
+}
+
+/// `[solver]`.
+fn solver(s: Option<SolverToml>) -> Result<SolverOptions, Invalid> {
+    let mut solver = SolverOptions::default();
+    let Some(s) = s else { return Ok(solver) };
+    solver.backend = choice("[solver].backend", s.backend, solver.backend)?;
+    if let Err(e) = solver.backend.solver() {
+        return Err(invalid("[solver].backend", SceneProblem::Backend(e)));
+    }
+    solver.mode = choice("[solver].mode", s.mode, solver.mode)?;
+    solver.stepping = choice("[solver].stepping", s.stepping, solver.stepping)?;
+    solver.precision = choice("[solver].precision", s.precision, solver.precision)?;
+    solver.constraints = choice("[solver].constraints", s.constraints, solver.constraints)?;
+    solver.penalty = s.penalty.unwrap_or(DEFAULT_PENALTY);
+    if !(solver.penalty.is_finite() && solver.penalty > 0.0) {
+        return Err(range("[solver].penalty", "positive", solver.penalty));
+    }
+    Ok(solver)
+}
+
+/// `[[plate]]` tables, checked against the rest shape.
+fn plates(specs: &[PlateToml], vertices: &VertexMap<'_>) -> Result<Vec<Plate>, Invalid> {
+    let mut plates = Vec::with_capacity(specs.len());
+    for (k, p) in specs.iter().enumerate() {
+        let key = format!("[[plate]] #{}", k + 1);
+        if p.point.iter().any(|c| !c.is_finite()) {
+            return Err(range(format!("{key}.point"), "finite", format!("{:?}", p.point)));
+        }
+        if !p.travel.is_finite() {
+            return Err(range(format!("{key}.travel"), "finite", p.travel));
+        }
+        let plate = Plate::new(p.point, p.normal, p.travel)
+            .ok_or_else(|| range(format!("{key}.normal"), "finite and non-zero", format!("{:?}", p.normal)))?;
+        plates.push(plate);
+    }
+    let (lo, hi) = fibfluid_geometry::bounding_box(&vertices.positions);
+    let diagonal = fibfluid_geometry::vec3::norm(fibfluid_geometry::vec3::sub(hi, lo));
+    if let Err((k, problem)) = check_plates(&plates, &vertices.positions, PLATE_REST_TOLERANCE * diagonal) {
+        let problem = match problem {
+            PlateProblem::FacesAway => SceneProblem::PlateFacesAway,
+            PlateProblem::CutsBody { vertex, depth } => {
+                SceneProblem::PlateCutsBody { vertex: vertices.file_index(vertex), depth }
+            }
+        };
+        return Err(invalid(format!("[[plate]] #{}", k + 1), problem));
+    }
+    Ok(plates)
+}

@@ -1,0 +1,167 @@
+//! The scene file as written: serde structs of every table and key, before validation.
+
+use fibfluid_geometry::Vec3;
+use serde::Deserialize;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct SceneToml {
+    pub(crate) mesh: Option<MeshToml>,
+    pub(crate) polygon: Option<PolygonToml>,
+    pub(crate) material: MaterialToml,
+    pub(crate) fluid: Option<FluidToml>,
+    pub(crate) load: Option<LoadToml>,
+    pub(crate) gravity: Option<GravityToml>,
+    #[serde(default)]
+    pub(crate) fix: Vec<FixToml>,
+    #[serde(default)]
+    pub(crate) force: Vec<ForceToml>,
+    pub(crate) solver: Option<SolverToml>,
+    pub(crate) guards: Option<GuardsToml>,
+    #[serde(default)]
+    pub(crate) plate: Vec<PlateToml>,
+    pub(crate) chainmail: Option<ChainmailToml>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct PlateToml {
+    pub(crate) point: [f64; 3],
+    pub(crate) normal: [f64; 3],
+    #[serde(default)]
+    pub(crate) travel: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct MeshToml {
+    pub(crate) path: String,
+    pub(crate) scale: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct PolygonToml {
+    pub(crate) points: Vec<[f64; 2]>,
+}
+
+#[derive(Deserialize)]
+#[serde(untagged, expecting = "expected a number or an array of three numbers [x, y, z]")]
+pub(crate) enum Young {
+    One(f64),
+    Three([f64; 3]),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct MaterialToml {
+    pub(crate) young: Young,
+    #[serde(default)]
+    pub(crate) surface_tension: f64,
+    /// Quadratic stiffening coefficient c: Y (1 + c strain^2).
+    pub(crate) stiffening: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct FluidToml {
+    pub(crate) density: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct LoadToml {
+    pub(crate) steps: Option<i64>,
+    pub(crate) tolerance: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct GuardsToml {
+    pub(crate) on_failure: Option<String>,
+    pub(crate) volume: Option<f64>,
+    pub(crate) increment: Option<f64>,
+    pub(crate) inverted: Option<i64>,
+    pub(crate) residual: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct GravityToml {
+    pub(crate) acceleration: [f64; 3],
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct FixToml {
+    pub(crate) axis: Option<String>,
+    pub(crate) above: Option<f64>,
+    pub(crate) below: Option<f64>,
+    pub(crate) top: Option<f64>,
+    pub(crate) bottom: Option<f64>,
+    pub(crate) vertices: Option<Vec<i64>>,
+    #[serde(rename = "box")]
+    pub(crate) bbox: Option<[[f64; 3]; 2]>,
+    pub(crate) dofs: Option<Vec<String>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct ForceToml {
+    pub(crate) vertex: i64,
+    pub(crate) value: [f64; 3],
+    pub(crate) at: Option<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct SolverToml {
+    pub(crate) backend: Option<String>,
+    pub(crate) mode: Option<String>,
+    pub(crate) stepping: Option<String>,
+    pub(crate) precision: Option<String>,
+    pub(crate) constraints: Option<String>,
+    pub(crate) penalty: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(untagged, expecting = "expected a number or an array of three numbers [x, y, z]")]
+pub(crate) enum PerAxis {
+    One(f64),
+    Three([f64; 3]),
+}
+
+impl PerAxis {
+    pub(crate) fn get(self) -> Vec3 {
+        match self {
+            PerAxis::One(v) => [v; 3],
+            PerAxis::Three(v) => v,
+        }
+    }
+}
+
+/// `[chainmail]` as written.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct ChainmailToml {
+    pub(crate) variant: Option<String>,
+    pub(crate) spacing: Option<f64>,
+    pub(crate) alpha_min: Option<PerAxis>,
+    pub(crate) alpha_max: Option<PerAxis>,
+    pub(crate) beta: Option<PerAxis>,
+    pub(crate) tss: Option<bool>,
+    pub(crate) relaxation: Option<i64>,
+    #[serde(default)]
+    pub(crate) material: Vec<RegionToml>,
+}
+
+/// `[[chainmail.material]]` as written.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct RegionToml {
+    #[serde(rename = "box")]
+    pub(crate) bbox: [[f64; 3]; 2],
+    pub(crate) alpha_min: Option<PerAxis>,
+    pub(crate) alpha_max: Option<PerAxis>,
+}
+

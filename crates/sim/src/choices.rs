@@ -1,0 +1,112 @@
+//! The choices of a run, each an enum with one parser (scene files, the command line and
+//! reports share it).
+
+use fibfluid_linalg::{Choice, impl_choice};
+
+/// A deformation method: every place that names one (scene, command line, reports, the
+/// interactive bodies, the viewer) uses this type.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Method {
+    /// The fiber–fluid method (batch runs and interactive probing, forces and grabs).
+    #[default]
+    Ffm,
+    /// TSVE-ChainMail (interactive only; grabs only).
+    TsveChainmail,
+    /// Generalized (traditional) ChainMail (interactive only; grabs only).
+    GeneralizedChainmail,
+}
+
+impl Choice for Method {
+    const WHAT: &'static str = "method";
+    const ALL: &'static [Self] = &[Method::Ffm, Method::TsveChainmail, Method::GeneralizedChainmail];
+    fn name(self) -> &'static str {
+        match self {
+            Method::Ffm => "ffm",
+            Method::TsveChainmail => "tsve-chainmail",
+            Method::GeneralizedChainmail => "generalized-chainmail",
+        }
+    }
+}
+impl_choice!(Method);
+
+impl Method {
+    /// Whether the method is one of the ChainMail methods (displacement-driven, no
+    /// forces, no batch run).
+    pub fn is_chainmail(self) -> bool {
+        matches!(self, Method::TsveChainmail | Method::GeneralizedChainmail)
+    }
+}
+
+/// How load steps are taken (REFERENCE §4–5).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Mode {
+    /// The paper: K and the border from the rest shape, factored once; each step adds the
+    /// increment computed on the current shape. Volume drifts to first order.
+    Paper,
+    /// K factored once, but the border S and the volume target `V0 - V` are refreshed from
+    /// the current shape every step: no volume drift, triangular solves only.
+    #[default]
+    Refresh,
+    /// K, S and the loads re-assembled and refactored on the current shape every step (the
+    /// paper's "slower procedure"); supports strain-dependent moduli.
+    Nonlinear,
+}
+
+impl Choice for Mode {
+    const WHAT: &'static str = "mode";
+    const ALL: &'static [Self] = &[Mode::Paper, Mode::Refresh, Mode::Nonlinear];
+    fn name(self) -> &'static str {
+        match self {
+            Mode::Paper => "paper",
+            Mode::Refresh => "refresh",
+            Mode::Nonlinear => "nonlinear",
+        }
+    }
+}
+impl_choice!(Mode);
+
+/// The load-stepping scheme.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Stepping {
+    /// Explicit first-order steps (the paper).
+    #[default]
+    Euler,
+    /// Predictor–corrector: the load (and, outside paper mode, the operator) is evaluated
+    /// again on the predicted shape and the two increments are averaged. Second order.
+    Heun,
+}
+
+impl Choice for Stepping {
+    const WHAT: &'static str = "stepping scheme";
+    const ALL: &'static [Self] = &[Stepping::Euler, Stepping::Heun];
+    fn name(self) -> &'static str {
+        match self {
+            Stepping::Euler => "euler",
+            Stepping::Heun => "heun",
+        }
+    }
+}
+impl_choice!(Stepping);
+
+/// When a point force is applied.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ForceTiming {
+    /// All of it at the last step (the paper's sphere example).
+    #[default]
+    Last,
+    /// Spread evenly over the load steps.
+    Ramp,
+}
+
+impl Choice for ForceTiming {
+    const WHAT: &'static str = "force timing";
+    const ALL: &'static [Self] = &[ForceTiming::Last, ForceTiming::Ramp];
+    fn name(self) -> &'static str {
+        match self {
+            ForceTiming::Last => "last",
+            ForceTiming::Ramp => "ramp",
+        }
+    }
+}
+impl_choice!(ForceTiming);
+

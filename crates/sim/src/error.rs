@@ -1,0 +1,90 @@
+//! The engine's error type.
+
+/// Everything that can go wrong while setting up or running a simulation.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A mesh file could not be read or is not a valid closed surface.
+    #[error(transparent)]
+    Geometry(#[from] fibfluid_geometry::GeometryError),
+    /// Assembling the system failed (bad material, constraints).
+    #[error("assembly: {0}")]
+    Assembly(#[from] fibfluid_assembly::AssemblyError),
+    /// A linear solve failed (singular system, residual too large).
+    #[error("linear solver: {0}")]
+    Linalg(#[from] fibfluid_linalg::LinalgError),
+    /// A load or query names a vertex the body does not have.
+    #[error("vertex {vertex} does not exist: the body has {vertices} vertices")]
+    VertexOutOfRange {
+        /// The vertex asked for.
+        vertex: usize,
+        /// Vertex count.
+        vertices: usize,
+    },
+    /// A vertex fixed by the scene cannot be held somewhere else.
+    #[error("vertex {vertex} is fixed by the scene and cannot be held at a displacement")]
+    HeldFixedVertex {
+        /// The vertex.
+        vertex: usize,
+    },
+    /// The plan needs more memory than the limit; refused before anything was allocated.
+    #[error(
+        "{scene}: the plan needs {needed} bytes ({:.2} GiB) at its largest stage ({stage}), but {available} bytes ({:.2} GiB) are available; {hint}",
+        *needed as f64 / GIB, *available as f64 / GIB
+    )]
+    TooLarge {
+        /// Scene name.
+        scene: String,
+        /// The stage that needs the most memory.
+        stage: crate::stages::Stage,
+        /// Bytes needed.
+        needed: u64,
+        /// Bytes available (the machine's memory or the given limit).
+        available: u64,
+        /// What to change.
+        hint: &'static str,
+    },
+    /// A numeric failure during a load step, with its likely cause in the user's terms.
+    #[error("step {step} (load {from:.4} -> {to:.4}): {cause}; {hint} ({source})")]
+    Step {
+        /// The step (1-based).
+        step: usize,
+        /// Load factor at the start of the step.
+        from: f64,
+        /// Load factor the step was going to.
+        to: f64,
+        /// What went wrong, named (a vertex, a pivot).
+        cause: String,
+        /// What to try.
+        hint: &'static str,
+        /// The failure as the solver reported it.
+        source: Box<Error>,
+    },
+    /// A step guard fired under `[guards] on_failure = "error"`.
+    #[error("{0} (stopped: [guards] on_failure = \"error\")")]
+    Guard(crate::guards::GuardWarning),
+    /// Adaptive stepping could not meet its tolerance.
+    #[error(
+        "adaptive steps shrank below 1e-6 of the load at load factor {load_factor:.6} without meeting tolerance {tolerance:e}; the response may be unstable there: raise the tolerance or check the material and constraints"
+    )]
+    StepTooSmall {
+        /// Load factor reached.
+        load_factor: f64,
+        /// The tolerance asked for.
+        tolerance: f64,
+    },
+    /// The contact active set kept changing.
+    #[error(
+        "step {step}: the plate contacts did not settle after {iterations} active-set iterations; take more load steps"
+    )]
+    ContactNotConverged {
+        /// The step.
+        step: usize,
+        /// Iterations made.
+        iterations: usize,
+    },
+}
+
+const GIB: f64 = 1024.0 * 1024.0 * 1024.0;
+
+/// Result alias of the engine.
+pub type Result<T> = std::result::Result<T, Error>;

@@ -1,0 +1,170 @@
+//! The model a simulation runs: a body, its material, constraints, loads and solver
+//! choices, as validated values (the scene crate builds them from files; code builds them
+//! directly).
+
+use std::path::PathBuf;
+
+use fibfluid_assembly::{ConstraintKind, ConstraintMethod, Constraints, DEFAULT_PENALTY, Material};
+use fibfluid_geometry::{MeshFile, Polygon, Vec3};
+use fibfluid_linalg::{Backend, Precision};
+
+use crate::choices::{ForceTiming, Mode, Stepping};
+
+use crate::contact::Plate;
+use crate::guards::Guards;
+
+/// A point force on a vertex (mesh index).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PointForce {
+    /// Vertex, in the mesh's (compacted) order.
+    pub vertex: usize,
+    /// Force vector.
+    pub value: Vec3,
+    /// When it is applied.
+    pub timing: ForceTiming,
+}
+
+/// Solver choices.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SolverOptions {
+    /// Linear backend.
+    pub backend: Backend,
+    /// Stepping mode.
+    pub mode: Mode,
+    /// Stepping scheme.
+    pub stepping: Stepping,
+    /// Factorization precision.
+    pub precision: Precision,
+    /// How fixed degrees of freedom are imposed.
+    pub constraints: ConstraintKind,
+    /// The penalty's diagonal value (used when `constraints` is `penalty`).
+    pub penalty: f64,
+}
+
+impl SolverOptions {
+    /// The constraint method these options describe.
+    pub fn constraint_method(&self) -> ConstraintMethod {
+        ConstraintMethod::of_kind(self.constraints, self.penalty)
+    }
+}
+
+impl Default for SolverOptions {
+    /// Structured backend, refresh mode, Euler steps, f64, elimination.
+    fn default() -> Self {
+        Self {
+            backend: Backend::Structured,
+            mode: Mode::Refresh,
+            stepping: Stepping::Euler,
+            precision: Precision::F64,
+            constraints: ConstraintKind::Eliminate,
+            penalty: DEFAULT_PENALTY,
+        }
+    }
+}
+
+/// The body: a closed triangle surface or the paper's 2D polygon.
+#[derive(Clone, Debug)]
+pub enum Shape {
+    /// A closed surface read from a file (or built in code).
+    Surface(Box<MeshFile>),
+    /// A closed polygon (2D variant).
+    Polygon(Polygon),
+}
+
+/// A model: everything a run needs, validated.
+#[derive(Clone, Debug)]
+pub struct Model {
+    /// Name (the file stem).
+    pub name: String,
+    /// The scene file, when read from one.
+    pub source: Option<PathBuf>,
+    /// The body.
+    pub shape: Shape,
+    /// Material.
+    pub material: Material,
+    /// Constraints (per vertex and axis).
+    pub constraints: Constraints,
+    /// Final acceleration, reached in `steps` equal increments.
+    pub gravity: Vec3,
+    /// Point forces.
+    pub forces: Vec<PointForce>,
+    /// Number of load steps (with `tolerance`: the first step is 1/steps of the load).
+    pub steps: usize,
+    /// Adaptive load steps: the largest error estimate of a step, relative to the step's
+    /// displacement (`[load] tolerance`); `None`: `steps` equal steps.
+    pub tolerance: Option<f64>,
+    /// Step guards (`[guards]`).
+    pub guards: Guards,
+    /// Rigid plates (`[[plate]]`), moving along their normals over the load.
+    pub plates: Vec<Plate>,
+    /// Solver choices.
+    pub solver: SolverOptions,
+}
+
+impl Model {
+    /// A model of a mesh with the given material, no constraints, no loads, default solver.
+    pub fn from_mesh(name: impl Into<String>, mesh: MeshFile, material: Material) -> Self {
+        Self::new(name, Shape::Surface(Box::new(mesh)), material)
+    }
+
+    /// A model of a body (surface or polygon) with the given material, no constraints, no
+    /// loads, default solver.
+    pub fn new(name: impl Into<String>, shape: Shape, material: Material) -> Self {
+        let n = match &shape {
+            Shape::Surface(m) => m.mesh.n_vertices(),
+            Shape::Polygon(p) => p.n_vertices(),
+        };
+        Self {
+            name: name.into(),
+            source: None,
+            shape,
+            material,
+            constraints: Constraints::new(n),
+            gravity: [0.0; 3],
+            forces: vec![],
+            steps: 1,
+            tolerance: None,
+            guards: Guards::default(),
+            plates: vec![],
+            solver: SolverOptions::default(),
+        }
+    }
+
+    /// Number of vertices.
+    pub fn n_vertices(&self) -> usize {
+        match &self.shape {
+            Shape::Surface(m) => m.mesh.n_vertices(),
+            Shape::Polygon(p) => p.n_vertices(),
+        }
+    }
+
+    /// Rest positions (3D; z = 0 for a polygon).
+    pub fn rest_positions(&self) -> Vec<Vec3> {
+        match &self.shape {
+            Shape::Surface(m) => m.mesh.positions().to_vec(),
+            Shape::Polygon(p) => p.positions_3d(),
+        }
+    }
+
+    /// The name used in messages: the scene file when read from one, else the name.
+    pub fn display_name(&self) -> String {
+        self.source.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| self.name.clone())
+    }
+
+    /// Whether the body is a closed surface (not the 2D polygon).
+    pub fn is_surface(&self) -> bool {
+        matches!(self.shape, Shape::Surface(_))
+    }
+}
+
+/// Newton iterations allowed for the volume correction of a step.
+pub const VOLUME_NEWTON_ITERATIONS: usize = 30;
+
+/// Relative volume error the correction aims for.
+pub const VOLUME_TOLERANCE: f64 = 1e-12;
+
+/// A plate may touch the body at rest by this fraction of the body's diagonal.
+pub const PLATE_REST_TOLERANCE: f64 = 1e-6;
+
+/// The largest number of load steps a scene may ask for.
+pub const MAX_STEPS: usize = 1_000_000;
