@@ -1,12 +1,11 @@
 //! fibfluid: soft tissue as a body of fluid held by elastic fibers.
 //!
-//! This facade runs the fiber–fluid method (FFM; Sardinha, Oyama, Maroja, Costa, Source
-//! Code for Biology and Medicine 11:7, 2016, after Costa, Med Image Anal 16, 2012) on a
-//! closed surface: a [`Scene`] (mesh, material, constraints, loads, solver choices, from a
-//! TOML file or built in code) is turned into a [`Simulation`] that culls the fibers that
-//! leave the body, assembles the bordered system, factors it once with the chosen linear
-//! backend and steps the loads. Only the stages the scene needs run; the [`Report`] lists
-//! each stage's time and the skipped ones with the reason.
+//! This facade re-exports the workspace's crates under one name, as nalgebra's root does;
+//! it holds no logic of its own. A [`Scene`] (a TOML file read by
+//! [`fibfluid_scene`], or built in code) carries the engine's [`Model`]; a [`Simulation`]
+//! plans the stages the model needs, culls the fibers that leave the body, assembles the
+//! bordered system, factors it once with the chosen linear backend and steps the loads; the
+//! [`Report`] lists each stage's time and the skipped ones with the reason.
 //!
 //! ```no_run
 //! use fibfluid::{RunOptions, Scene, Simulation};
@@ -17,52 +16,42 @@
 //! # Ok::<(), fibfluid::Error>(())
 //! ```
 //!
+//! | module | crate | what |
+//! |---|---|---|
+//! | [`geometry`] | `fibfluid-geometry` | meshes, OBJ/STL, validation, area vectors, fiber visibility |
+//! | [`linalg`] | `fibfluid-linalg` | linear backends, capacitance updates, the memory policy |
+//! | [`assembly`] | `fibfluid-assembly` | FFM's bordered system |
+//! | [`chainmail`] | `fibfluid-chainmail` | Generalized and TSVE ChainMail |
+//! | [`sim`] | `fibfluid-sim` | the engine: model, plan, stepping, guards, contact, report |
+//! | [`scene`] | `fibfluid-scene` | the scene and path file formats |
+//! | [`interact`] | `fibfluid-interact` | interactive bodies, tool paths and their replay |
+//! | [`render`] | `fibfluid-render` | PNG renders and charts |
+//!
 //! Linear backends are chosen at build time by Cargo features (`faer-lu`, `nalgebra-lu`
 //! by default, `openblas`) and at run time by [`Backend`] (`structured` is always built).
-//! Every choice ([`Backend`], [`Mode`], [`Stepping`], [`Precision`], [`ConstraintKind`])
-//! is an enum with one parser shared by scene files, the command line and reports.
-//! [`Plan::from_scene`] says, before any work, which stages a scene needs, what they cost,
-//! and refuses a scene that would not fit in memory.
+//! Every choice ([`Backend`], [`Mode`], [`Stepping`], [`Precision`], [`ConstraintKind`],
+//! [`Method`]) is an enum with one parser shared by scene files, the command line and
+//! reports. [`Plan::from_scene`] says, before any work, which stages a model needs, what
+//! they cost, and refuses one that would not fit in memory.
 
-pub mod accuracy;
-pub mod bench;
-pub mod chainmail_body;
-pub mod chainmail_scene;
-pub mod compare;
-pub mod contact;
-mod effects;
-mod error;
-pub mod guards;
-mod info;
 #[cfg(feature = "ndarray")]
 pub mod ndarray_io;
-mod output;
-pub mod plan;
-pub mod probe;
-mod report;
-mod scene;
-mod simulate;
-pub mod stages;
 
-pub use effects::{Ineffective, ineffective};
-pub use error::{Error, Result, SceneError, SceneProblem};
-pub use info::MeshInfo;
-pub use output::{
-    COMPRESSION_FILE, OUTPUT_FILES, compression_png, render_png, write_fibers_vtk, write_files_atomically,
-    write_outputs, write_vtk,
+pub use fibfluid_scene::{Error, Result, Scene, SceneError, SceneProblem, load_tool_path, parse_tool_path};
+pub use fibfluid_sim::{
+    Backend, BodyShape, Choice, ConstraintKind, Counters, Direction, ForceTiming, Ineffective, MAX_STEPS,
+    MIN_ADAPTIVE_STEP, Method, Mode, Model, ParseChoiceError, Plan, PlannedStage, PointForce, Precision, Report,
+    Response, RoundTrip, RunOptions, SetupOptions, Shape, Simulation, SkippedStage, SolverOptions, Stage, State,
+    StepStats, Stepping, VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE, ineffective, memory_budget, roundtrip,
+    roundtrip_error,
 };
-pub use plan::{Plan, PlannedStage};
-pub use report::{Report, RoundTrip, SkippedStage, roundtrip, roundtrip_error};
-pub use scene::{ForceTiming, MAX_STEPS, Mode, PointForce, Scene, Shape, SolverOptions, Stepping};
-pub use simulate::{
-    BodyShape, Counters, Direction, MIN_ADAPTIVE_STEP, Response, RunOptions, SetupOptions, Simulation, State,
-    StepStats, VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE,
-};
-
-pub use fibfluid_assembly::ConstraintKind;
-pub use fibfluid_linalg::{Backend, Choice, ParseChoiceError, Precision};
+pub use fibfluid_sim::{contact, guards, plan, stages};
 
 pub use fibfluid_assembly as assembly;
+pub use fibfluid_chainmail as chainmail;
 pub use fibfluid_geometry as geometry;
+pub use fibfluid_interact as interact;
 pub use fibfluid_linalg as linalg;
 pub use fibfluid_render as render;
+pub use fibfluid_scene as scene;
+pub use fibfluid_sim as sim;

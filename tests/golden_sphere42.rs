@@ -32,7 +32,7 @@ fn sphere42_matches_the_independent_computation_with_every_backend() {
         scene.solver.backend = backend;
         let mut sim = Simulation::new(scene).unwrap();
         sim.run(&RunOptions::default()).unwrap();
-        let file = match &sim.scene().shape {
+        let file = match &sim.model().shape {
             fibfluid::Shape::Surface(m) => m.clone(),
             _ => unreachable!(),
         };

@@ -272,7 +272,7 @@ fn held_vertices_match_their_reactions_applied_as_forces() {
         scene.solver.backend = backend;
         scene.solver.constraints = ConstraintKind::Eliminate;
         let mut sim = Simulation::new(scene).unwrap();
-        let constraints = sim.scene().constraints.clone();
+        let constraints = sim.model().constraints.clone();
         let fixed = |v: usize| constraints.get(v, 0).is_some();
         let free: Vec<usize> = (0..sim.positions().len()).filter(|&v| !fixed(v)).collect();
         let sets: [Vec<(usize, [f64; 3])>; 3] = [

@@ -97,7 +97,7 @@ proptest! {
         let mut sim = Simulation::new(s).unwrap();
         // The volume row of paper mode is sum S0_i . u_i = 0 with S0 the rest border.
         let s0 = sim.rest_positions().to_vec();
-        let areas = fibfluid::geometry::vertex_area_vectors(&s0, match &sim.scene().shape { fibfluid::Shape::Surface(m) => m.mesh.triangles(), _ => unreachable!() });
+        let areas = fibfluid::geometry::vertex_area_vectors(&s0, match &sim.model().shape { fibfluid::Shape::Surface(m) => m.mesh.triangles(), _ => unreachable!() });
         let scale: f64 = areas.iter().map(|a| (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()).sum();
         for k in 0..3 {
             let before = sim.positions().to_vec();

@@ -24,6 +24,7 @@ mod constraints;
 mod loads;
 mod material;
 mod system;
+mod synthetic;
 
 pub use constraints::{ConstraintKind, ConstraintMethod, Constraints, DEFAULT_PENALTY, Selector};
 pub use loads::{Loads, depths, load_vector};
@@ -76,3 +77,4 @@ pub type Result<T> = std::result::Result<T, AssemblyError>;
 
 /// The axis names (defined once, in geometry).
 pub use fibfluid_geometry::AXES;
+pub use synthetic::synthetic_system;

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use fibfluid::accuracy::{Grid, chart, run_study, to_csv, to_markdown};
+use fibfluid_cli::study::{Grid, chart, run_study, to_csv, to_markdown};
 use fibfluid::{Backend, ConstraintKind, Mode, Precision, Scene, Stepping};
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -62,7 +62,7 @@ pub fn run(scene_path: &Path, out: &Path, flags: GridFlags) -> Result<(), CliErr
     let mut grid = Grid { steps: flags.steps, tolerances: flags.tolerances, ..Grid::default() };
     if let Some(b) = flags.backends {
         for backend in &b {
-            backend.solver().map_err(fibfluid::Error::from)?;
+            backend.solver().map_err(fibfluid::sim::Error::from)?;
         }
         grid.backends = b;
     }
@@ -107,7 +107,7 @@ pub fn run(scene_path: &Path, out: &Path, flags: GridFlags) -> Result<(), CliErr
         ("accuracy.png", png),
         ("accuracy-reference.png", png_ref),
     ];
-    fibfluid::write_files_atomically(out, &files)?;
+    fibfluid_cli::write_files_atomically(out, &files)?;
     for (name, _) in &files {
         println!("wrote {}", out.join(name).display());
     }

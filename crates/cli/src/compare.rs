@@ -2,9 +2,8 @@
 
 use std::path::PathBuf;
 
-use fibfluid::Scene;
-use fibfluid::compare::{COMPARE_FILES, run_compare};
-use fibfluid::probe::ToolPath;
+use fibfluid::{Scene, load_tool_path};
+use fibfluid_cli::comparison::{COMPARE_FILES, run_compare};
 
 /// Arguments of `fibfluid compare`.
 #[derive(clap::Args)]
@@ -24,7 +23,7 @@ pub struct CompareArgs {
 /// Runs `fibfluid compare`.
 pub fn run(args: &CompareArgs) -> Result<(), crate::CliError> {
     let scene = Scene::load(&args.scene)?;
-    let path = ToolPath::load(&args.path)?;
+    let path = load_tool_path(&args.path)?;
     let opts = args.response.options();
     let report = run_compare(&scene, &path, &args.out, &opts)?;
     println!("{}: {} vertices, {} frames", report.scene, report.vertices, report.frames);

@@ -5,7 +5,7 @@
 //! Per method (`M` in `compare.json`):
 //!
 //! - `setup_seconds`: FFM base solve and precompute; ChainMail voxelization and embedding.
-//! - `memory_bytes`: the body's [`Interactive::memory_bytes`](crate::probe::interact::Interactive::memory_bytes).
+//! - `memory_bytes`: the body's [`Interactive::memory_bytes`](fibfluid::interact::Interactive::memory_bytes).
 //! - `latency_us`: frame latency percentiles (`p50`, `p99`, `max`, nearest rank).
 //! - `volume_change_max`: the largest `|V / V0 - 1|` of the deformed surface over the
 //!   frames (`V0` the rest surface's volume).
@@ -19,15 +19,18 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use fibfluid_geometry::Vec3;
-use fibfluid_geometry::vec3::{dist, norm};
-use fibfluid_linalg::Choice;
+use fibfluid::geometry::Vec3;
+use fibfluid::geometry::vec3::{dist, norm};
+use fibfluid::Choice;
 use serde::Serialize;
 
-use crate::probe::{
-    Latency, Method, MethodBody, ProbeError, ProbeOptions, ToolPath, check_method, check_path,
+use fibfluid::interact::{
+    Latency, Method, MethodBody, ProbeError, ProbeOptions, ToolPath, check_method, check_path, replay_observed,
 };
-use crate::{Error, Result, Scene, Shape, write_files_atomically};
+use fibfluid::{Scene, Shape};
+
+use crate::output::write_files_atomically;
+use crate::{Error, Result};
 
 /// Names of the files [`run_compare`] writes.
 pub const COMPARE_FILES: [&str; 2] = ["compare.json", "compare.png"];
@@ -91,21 +94,21 @@ pub fn run_compare(scene: &Scene, path: &ToolPath, out: &Path, opts: &ProbeOptio
     }
     let rest = file.mesh.positions().to_vec();
     let triangles = file.mesh.triangles();
-    let (lo, hi) = fibfluid_geometry::bounding_box(&rest);
+    let (lo, hi) = fibfluid::geometry::bounding_box(&rest);
     let diagonal = dist(lo, hi);
-    let v0 = fibfluid_geometry::volume(&rest, triangles);
+    let v0 = fibfluid::geometry::volume(&rest, triangles);
     let mut runs: Vec<(Method, Run)> = Vec::new();
     for &method in Method::ALL {
-        let mut body = MethodBody::build(scene, method, opts)?;
+        let mut body = MethodBody::build(scene, &scene.chainmail, method, opts)?;
         let setup_seconds = body.setup_seconds();
         let mut surfaces = Vec::with_capacity(frames.len());
-        let replay = crate::probe::replay_observed(body.interactive(), path.kind, &frames, |_, b| {
+        let replay = replay_observed(body.interactive(), path.kind, &frames, |_, b| {
             surfaces.push(b.positions().to_vec())
         })?;
         let b = body.interactive_ref();
         let volume_change_max = surfaces
             .iter()
-            .map(|p| (fibfluid_geometry::volume(p, triangles) / v0 - 1.0).abs())
+            .map(|p| (fibfluid::geometry::volume(p, triangles) / v0 - 1.0).abs())
             .fold(0.0, f64::max);
         let after = b.positions().iter().zip(&rest).map(|(p, r)| dist(*p, *r)).fold(0.0, f64::max);
         let metrics = MethodMetrics {
@@ -163,16 +166,16 @@ fn compare_png(runs: &[(Method, Run)], rest: &[Vec3], triangles: &[[u32; 3]], k:
         .collect();
     let top = mags.iter().flatten().copied().fold(0.0, f64::max);
     let range = (0.0, if top > 0.0 { top } else { 1.0 });
-    let panels: Vec<fibfluid_render::Surface<'_>> = runs
+    let panels: Vec<fibfluid::render::Surface<'_>> = runs
         .iter()
         .zip(&mags)
-        .map(|((m, r), mag)| fibfluid_render::Surface {
+        .map(|((m, r), mag)| fibfluid::render::Surface {
             positions: &r.surfaces[k],
             triangles,
             scalar: mag,
             title: format!("{m}, frame {k}"),
         })
         .collect();
-    let opts = fibfluid_render::ViewOptions { scalar_label: "|u|".into(), ..Default::default() };
-    Ok(fibfluid_render::render_surfaces(&panels, Some(range), &opts)?)
+    let opts = fibfluid::render::ViewOptions { scalar_label: "|u|".into(), ..Default::default() };
+    Ok(fibfluid::render::render_surfaces(&panels, Some(range), &opts)?)
 }

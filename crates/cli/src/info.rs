@@ -3,8 +3,8 @@
 use std::path::Path;
 use std::time::Instant;
 
-use fibfluid_geometry::vec3::norm;
-use fibfluid_geometry::{Vec3, VisibilityOptions, cull_fibers, load_mesh, self_intersections};
+use fibfluid::geometry::vec3::norm;
+use fibfluid::geometry::{Vec3, VisibilityOptions, cull_fibers, load_mesh, self_intersections};
 use serde::Serialize;
 
 use crate::Result;
@@ -57,7 +57,7 @@ pub struct MeshInfo {
 impl MeshInfo {
     /// Loads `path`, validates it, culls its fibers and summarizes it; the kept fibers
     /// are returned too (for writing them out).
-    pub fn of_file(path: &Path) -> Result<(Self, fibfluid_geometry::FiberSet)> {
+    pub fn of_file(path: &Path) -> Result<(Self, fibfluid::geometry::FiberSet)> {
         let start = Instant::now();
         let file = load_mesh(path)?;
         let mesh = &file.mesh;

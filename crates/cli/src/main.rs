@@ -8,9 +8,9 @@ use std::time::Instant;
 use clap::{Parser, Subcommand};
 use fibfluid::stages::{StageRecord, names};
 use fibfluid::{
-    Backend, ConstraintKind, Error, MeshInfo, Mode, Plan, Precision, Report, RunOptions, Scene, SetupOptions,
-    Simulation, Stepping,
+    Backend, ConstraintKind, Mode, Plan, Precision, Report, RunOptions, Scene, SetupOptions, Simulation, Stepping,
 };
+use fibfluid_cli::MeshInfo;
 use indicatif::{ProgressBar, ProgressStyle};
 
 mod accuracy;
@@ -37,9 +37,9 @@ struct Cli {
 /// What the command line can get wrong before the library is called.
 #[derive(Debug, thiserror::Error)]
 enum CliError {
-    /// An error of the library.
+    /// An error of the library or of writing outputs.
     #[error(transparent)]
-    Fibfluid(#[from] Error),
+    Lib(#[from] fibfluid_cli::Error),
     /// An icosphere radius whose coordinates do not make a valid mesh in f64.
     #[error("--radius {radius}: {source}")]
     Radius {
@@ -63,11 +63,24 @@ enum CliError {
     Viewer(#[from] fibfluid_viewer::ViewerError),
 }
 
-impl From<fibfluid::geometry::GeometryError> for CliError {
-    fn from(e: fibfluid::geometry::GeometryError) -> Self {
-        CliError::Fibfluid(e.into())
-    }
+/// Errors that reach the command line through the library's error type.
+macro_rules! through_lib {
+    ($($t:ty),*) => {$(
+        impl From<$t> for CliError {
+            fn from(e: $t) -> Self {
+                CliError::Lib(e.into())
+            }
+        }
+    )*};
 }
+through_lib!(
+    fibfluid::Error,
+    fibfluid::sim::Error,
+    fibfluid::interact::ProbeError,
+    fibfluid::geometry::GeometryError,
+    fibfluid::linalg::LinalgError,
+    serde_json::Error
+);
 
 #[derive(Subcommand)]
 enum Command {
@@ -189,7 +202,7 @@ impl Overrides {
     fn apply(&self, scene: &mut Scene) -> Result<(), CliError> {
         let s = &mut scene.solver;
         if let Some(b) = self.backend {
-            b.solver().map_err(Error::from)?;
+            b.solver().map_err(fibfluid::sim::Error::from)?;
             s.backend = b;
         }
         s.mode = self.mode.unwrap_or(s.mode);
@@ -329,14 +342,14 @@ fn run(command: Command) -> Result<(), CliError> {
 fn mesh_info(path: &Path, json: bool, fibers_out: Option<&Path>) -> Result<(), CliError> {
     let (info, fibers) = MeshInfo::of_file(path)?;
     if let Some(out) = fibers_out {
-        let io = |source| Error::Io { path: out.into(), source };
+        let io = |source| fibfluid_cli::Error::Io { path: out.into(), source };
         let file = fibfluid::geometry::load_mesh(path)?;
         let mut f = std::io::BufWriter::new(std::fs::File::create(out).map_err(io)?);
-        fibfluid::write_fibers_vtk(&mut f, file.mesh.positions(), &fibers).map_err(io)?;
+        fibfluid_cli::write_fibers_vtk(&mut f, file.mesh.positions(), &fibers).map_err(io)?;
         std::io::Write::flush(&mut f).map_err(io)?;
     }
     if json {
-        println!("{}", serde_json::to_string(&info).map_err(Error::from)?);
+        println!("{}", serde_json::to_string(&info)?);
         return Ok(());
     }
     let (lo, hi) = (info.bbox_min, info.bbox_max);
@@ -371,7 +384,7 @@ fn load_scene(path: &Path, over: &Overrides) -> Result<(Scene, StageRecord), Cli
     let mut scene = Scene::load(path)?;
     over.apply(&mut scene)?;
     let rec = StageRecord {
-        name: names::LOAD_SCENE.into(),
+        name: names::LOAD_SCENE,
         parent: None,
         seconds: start.elapsed().as_secs_f64(),
         count: 1,
@@ -382,9 +395,9 @@ fn load_scene(path: &Path, over: &Overrides) -> Result<(Scene, StageRecord), Cli
 fn plan(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> {
     let (scene, _) = load_scene(path, over)?;
     let plan = Plan::from_scene(&scene);
-    let limit = Plan::memory_limit(over.max_memory);
+    let limit = fibfluid::memory_budget(over.max_memory);
     if json {
-        println!("{}", serde_json::to_string_pretty(&plan).map_err(Error::from)?);
+        println!("{}", serde_json::to_string_pretty(&plan)?);
     } else {
         println!(
             "{}: {} vertices, {} steps ({} / {} / {} / {})",
@@ -432,7 +445,7 @@ fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> 
     print_step_notes(&sim);
     let start = Instant::now();
     let mut report = Report::of(&sim, std::slice::from_ref(&load), notes);
-    let written = fibfluid::write_outputs(out, &sim, &report)?;
+    let written = fibfluid_cli::write_outputs(out, &sim, &report)?;
     report.seconds_total += start.elapsed().as_secs_f64();
     println!(
         "{}: {} vertices, {} steps ({} / {} / {}), max |u| = {:.6}, volume {:.6} -> {:.6} (drift {:.2e}), P = {:.6}, residual {:.1e}, {:.3} s",
@@ -504,7 +517,7 @@ fn roundtrip(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> 
     });
     let rt = fibfluid::roundtrip(scene, &RunOptions { progress })?;
     if json {
-        println!("{}", serde_json::to_string(&rt).map_err(Error::from)?);
+        println!("{}", serde_json::to_string(&rt)?);
     } else {
         println!(
             "round trip, {} steps each way ({} / {} / {}): error {:.3e} ({:.4} %), volume drift {:.3e}, {:.3} s",
@@ -522,7 +535,7 @@ fn roundtrip(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> 
 }
 
 fn bench(sizes: &[usize], repeats: usize, json: bool) -> Result<(), CliError> {
-    if let Some(&n) = sizes.iter().find(|n| !fibfluid::bench::BENCH_SIZES.contains(n)) {
+    if let Some(&n) = sizes.iter().find(|n| !fibfluid_cli::bench::BENCH_SIZES.contains(n)) {
         return Err(CliError::Flag {
             flag: "sizes",
             value: n.to_string(),
@@ -538,7 +551,7 @@ fn bench(sizes: &[usize], repeats: usize, json: bool) -> Result<(), CliError> {
     }
     let mut rows = Vec::new();
     for &n in sizes {
-        for row in fibfluid::bench::bench_backends(n, repeats)? {
+        for row in fibfluid_cli::bench::bench_backends(n, repeats)? {
             match row {
                 Ok(r) => rows.push(r),
                 Err((backend, e)) => eprintln!("{backend} at N = {n}: {}", one_line(&e.to_string())),
@@ -546,7 +559,7 @@ fn bench(sizes: &[usize], repeats: usize, json: bool) -> Result<(), CliError> {
         }
     }
     if json {
-        println!("{}", serde_json::to_string(&rows).map_err(Error::from)?);
+        println!("{}", serde_json::to_string(&rows)?);
         return Ok(());
     }
     println!(

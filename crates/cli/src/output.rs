@@ -4,11 +4,10 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use fibfluid_geometry::Vec3;
+use fibfluid::geometry::Vec3;
+use fibfluid::{Report, Shape, Simulation};
 
-use crate::report::Report;
-use crate::simulate::Simulation;
-use crate::{Error, Result, Shape};
+use crate::{Error, Result};
 
 /// Names of the files a run writes.
 pub const OUTPUT_FILES: [&str; 4] = ["deformed.obj", "deformed.vtk", "report.json", "render.png"];
@@ -54,7 +53,7 @@ pub fn write_vtk(
 pub fn write_fibers_vtk(
     out: &mut impl Write,
     positions: &[Vec3],
-    fibers: &fibfluid_geometry::FiberSet,
+    fibers: &fibfluid::geometry::FiberSet,
 ) -> std::io::Result<()> {
     writeln!(out, "# vtk DataFile Version 3.0")?;
     writeln!(out, "fibfluid kept fibers")?;
@@ -73,7 +72,7 @@ pub fn write_fibers_vtk(
 
 /// Surface triangles for output (a polygon is drawn as a fan, for pictures only).
 fn triangles_of(sim: &Simulation) -> Vec<[u32; 3]> {
-    match &sim.scene().shape {
+    match &sim.model().shape {
         Shape::Surface(m) => m.mesh.triangles().to_vec(),
         Shape::Polygon(p) => (1..p.n_vertices() as u32 - 1).map(|k| [0, k, k + 1]).collect(),
     }
@@ -83,7 +82,7 @@ fn triangles_of(sim: &Simulation) -> Vec<[u32; 3]> {
 /// (with plates: the plates' outlines at rest and at the end, the deformed shape colored
 /// by contact pressure, so the contact patches show).
 pub fn render_png(sim: &Simulation) -> Result<Vec<u8>> {
-    if !sim.scene().plates.is_empty() {
+    if !sim.model().plates.is_empty() {
         return render_plates_png(sim);
     }
     let tris = triangles_of(sim);
@@ -95,17 +94,17 @@ pub fn render_png(sim: &Simulation) -> Result<Vec<u8>> {
         .map(|(p, r)| ((p[0] - r[0]).powi(2) + (p[1] - r[1]).powi(2) + (p[2] - r[2]).powi(2)).sqrt())
         .collect();
     let zero = vec![0.0; mag.len()];
-    let opts = fibfluid_render::ViewOptions { scalar_label: "|u|".into(), ..Default::default() };
+    let opts = fibfluid::render::ViewOptions { scalar_label: "|u|".into(), ..Default::default() };
     let panels = [
-        fibfluid_render::Surface { positions: rest, triangles: &tris, scalar: &zero, title: "rest".into() },
-        fibfluid_render::Surface {
+        fibfluid::render::Surface { positions: rest, triangles: &tris, scalar: &zero, title: "rest".into() },
+        fibfluid::render::Surface {
             positions: now,
             triangles: &tris,
             scalar: &mag,
-            title: format!("deformed ({} steps, {})", sim.scene().steps, sim.scene().solver.mode),
+            title: format!("deformed ({} steps, {})", sim.model().steps, sim.model().solver.mode),
         },
     ];
-    Ok(fibfluid_render::render_surfaces(&panels, None, &opts)?)
+    Ok(fibfluid::render::render_surfaces(&panels, None, &opts)?)
 }
 
 /// The rest shape and the compressed shape between their plates (outlines), colored by
@@ -116,7 +115,7 @@ fn render_plates_png(sim: &Simulation) -> Result<Vec<u8>> {
     let areas = sim.body().boundary.vertex_area_vectors(sim.positions());
     let mut pressure = vec![0.0; n];
     for c in &sim.state().contacts {
-        let a = fibfluid_geometry::vec3::norm(areas[c.vertex]);
+        let a = fibfluid::geometry::vec3::norm(areas[c.vertex]);
         if a > 0.0 {
             pressure[c.vertex] += c.force / a;
         }
@@ -124,11 +123,11 @@ fn render_plates_png(sim: &Simulation) -> Result<Vec<u8>> {
     let diag = sim.body().diagonal;
     let with_plates = |positions: &[Vec3], scalar: &[f64], lambda: f64| {
         let (mut p, mut t, mut s) = (positions.to_vec(), tris.clone(), scalar.to_vec());
-        let centroid = fibfluid_geometry::vec3::scale(
-            positions.iter().fold([0.0; 3], |a, x| fibfluid_geometry::vec3::add(a, *x)),
+        let centroid = fibfluid::geometry::vec3::scale(
+            positions.iter().fold([0.0; 3], |a, x| fibfluid::geometry::vec3::add(a, *x)),
             1.0 / positions.len().max(1) as f64,
         );
-        for plate in &sim.scene().plates {
+        for plate in &sim.model().plates {
             let (corners, quads) = plate_outline(plate, centroid, lambda, 0.6 * diag, 0.01 * diag);
             let base = p.len() as u32;
             p.extend_from_slice(&corners);
@@ -143,7 +142,7 @@ fn render_plates_png(sim: &Simulation) -> Result<Vec<u8>> {
     // Look at the side the most loaded plate presses on: from that plate towards the
     // body, tilted as the default view is.
     let mut opts =
-        fibfluid_render::ViewOptions { scalar_label: "contact pressure".into(), ..Default::default() };
+        fibfluid::render::ViewOptions { scalar_label: "contact pressure".into(), ..Default::default() };
     let loaded = sim
         .plate_records()
         .iter()
@@ -151,39 +150,39 @@ fn render_plates_png(sim: &Simulation) -> Result<Vec<u8>> {
         .max_by(|a, b| a.1.force.last().unwrap_or(&0.0).total_cmp(b.1.force.last().unwrap_or(&0.0)))
         .map(|(k, _)| k);
     if let Some(k) = loaded {
-        use fibfluid_geometry::vec3::{add, dot, norm, scale, sub};
-        let n = sim.scene().plates[k].normal;
+        use fibfluid::geometry::vec3::{add, dot, norm, scale, sub};
+        let n = sim.model().plates[k].normal;
         let tilt = sub(opts.view_dir, scale(n, dot(opts.view_dir, n)));
         let v = add(n, scale(tilt, 0.8));
         opts.view_dir = scale(v, 1.0 / norm(v));
     }
     let panels = [
-        fibfluid_render::Surface {
+        fibfluid::render::Surface {
             positions: &p0,
             triangles: &t0,
             scalar: &s0,
             title: "rest, plates".into(),
         },
-        fibfluid_render::Surface {
+        fibfluid::render::Surface {
             positions: &p1,
             triangles: &t1,
             scalar: &s1,
             title: format!("compressed ({} contacts)", sim.state().contacts.len()),
         },
     ];
-    Ok(fibfluid_render::render_surfaces(&panels, None, &opts)?)
+    Ok(fibfluid::render::render_surfaces(&panels, None, &opts)?)
 }
 
 /// The outline of a plate as four thin quads (two triangles each): a square of half-side
 /// `half` about the centroid's projection, strips `width` wide.
 fn plate_outline(
-    plate: &crate::contact::Plate,
+    plate: &fibfluid::contact::Plate,
     centroid: Vec3,
     lambda: f64,
     half: f64,
     width: f64,
 ) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    use fibfluid_geometry::vec3::{add, cross, dot, norm, scale, sub};
+    use fibfluid::geometry::vec3::{add, cross, dot, norm, scale, sub};
     let n = plate.normal;
     let helper = if n[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
     let a = cross(n, helper);
@@ -205,23 +204,23 @@ fn plate_outline(
 
 /// Force against thickness for each plate (`compression.png`).
 pub fn compression_png(sim: &Simulation) -> Result<Vec<u8>> {
-    let series: Vec<fibfluid_render::Series> = sim
+    let series: Vec<fibfluid::render::Series> = sim
         .plate_records()
         .iter()
         .enumerate()
-        .map(|(k, r)| fibfluid_render::Series {
+        .map(|(k, r)| fibfluid::render::Series {
             label: format!("plate {}", k + 1),
             points: r.gap.iter().copied().zip(r.force.iter().copied()).collect(),
         })
         .collect();
-    let title = format!("{}: plate force against thickness", sim.scene().name);
-    Ok(fibfluid_render::line_chart(&title, "thickness (plate gap)", "force on the plate", &series, 900, 560)?)
+    let title = format!("{}: plate force against thickness", sim.model().name);
+    Ok(fibfluid::render::line_chart(&title, "thickness (plate gap)", "force on the plate", &series, 900, 560)?)
 }
 
 /// Writes every output of a run into `dir` (see [`write_files_atomically`]).
 pub fn write_outputs(dir: &Path, sim: &Simulation, report: &Report) -> Result<Vec<PathBuf>> {
     let tris_out;
-    let (positions, triangles): (Vec<Vec3>, &[[u32; 3]]) = match &sim.scene().shape {
+    let (positions, triangles): (Vec<Vec3>, &[[u32; 3]]) = match &sim.model().shape {
         Shape::Surface(m) => {
             tris_out = m.triangles_in_file_order();
             (m.positions_in_file_order(sim.positions()), &tris_out)
@@ -231,7 +230,7 @@ pub fn write_outputs(dir: &Path, sim: &Simulation, report: &Report) -> Result<Ve
             (sim.positions().to_vec(), &tris_out)
         }
     };
-    let rest_file: Vec<Vec3> = match &sim.scene().shape {
+    let rest_file: Vec<Vec3> = match &sim.model().shape {
         Shape::Surface(m) => m.positions_in_file_order(sim.rest_positions()),
         Shape::Polygon(_) => sim.rest_positions().to_vec(),
     };
@@ -242,9 +241,9 @@ pub fn write_outputs(dir: &Path, sim: &Simulation, report: &Report) -> Result<Ve
         move |source| Error::Io { path, source }
     };
     let mut obj = Vec::new();
-    fibfluid_geometry::write_obj_to(&mut obj, &positions, triangles).map_err(io(OUTPUT_FILES[0]))?;
+    fibfluid::geometry::write_obj_to(&mut obj, &positions, triangles).map_err(io(OUTPUT_FILES[0]))?;
     let mut vtk = Vec::new();
-    write_vtk(&mut vtk, &format!("fibfluid {}", sim.scene().name), &positions, triangles, &disp)
+    write_vtk(&mut vtk, &format!("fibfluid {}", sim.model().name), &positions, triangles, &disp)
         .map_err(io(OUTPUT_FILES[1]))?;
     let json = serde_json::to_string_pretty(report)? + "\n";
     let png = render_png(sim)?;
@@ -254,7 +253,7 @@ pub fn write_outputs(dir: &Path, sim: &Simulation, report: &Report) -> Result<Ve
         (OUTPUT_FILES[2], json.into_bytes()),
         (OUTPUT_FILES[3], png),
     ];
-    if !sim.scene().plates.is_empty() {
+    if !sim.model().plates.is_empty() {
         files.push((COMPRESSION_FILE, compression_png(sim)?));
     }
     write_files_atomically(dir, &files)

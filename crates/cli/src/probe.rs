@@ -2,9 +2,9 @@
 
 use std::path::PathBuf;
 
-use fibfluid::Scene;
-use fibfluid::probe::interact::Storage;
-use fibfluid::probe::{Method, ProbeOptions, ToolPath, run_probe_with};
+use fibfluid::interact::{Method, ProbeOptions, Storage};
+use fibfluid::{Scene, load_tool_path};
+use fibfluid_cli::probe_run::{PROBE_FILES, run_probe_with};
 
 /// The flags of the precomputed response, shared by `probe`, `compare` and `view`.
 #[derive(clap::Args)]
@@ -47,7 +47,7 @@ pub struct ProbeArgs {
 /// Runs `fibfluid probe`.
 pub fn run(args: &ProbeArgs) -> Result<(), crate::CliError> {
     let scene = Scene::load(&args.scene)?;
-    let path = ToolPath::load(&args.path)?;
+    let path = load_tool_path(&args.path)?;
     let opts = args.response.options();
     let report = run_probe_with(&scene, &path, &args.out, &opts, args.method)?;
     let l = report.probe.latency_us;
@@ -66,7 +66,7 @@ pub fn run(args: &ProbeArgs) -> Result<(), crate::CliError> {
         l.p99,
         l.max
     );
-    for f in fibfluid::probe::PROBE_FILES {
+    for f in PROBE_FILES {
         println!("  wrote {}", args.out.join(f).display());
     }
     Ok(())

@@ -3,10 +3,7 @@
 
 use serde::Serialize;
 
-use fibfluid_linalg::{Backend, Precision};
-
-use crate::report::{RoundTrip, roundtrip};
-use crate::{Mode, RunOptions, Scene, Stepping};
+use fibfluid::{Backend, Mode, Precision, RoundTrip, RunOptions, Scene, Stepping, roundtrip};
 
 /// One configuration of the study.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -89,7 +86,7 @@ pub struct Grid {
 impl Default for Grid {
     fn default() -> Self {
         Self {
-            modes: <Mode as fibfluid_linalg::Choice>::ALL.to_vec(),
+            modes: <Mode as fibfluid::Choice>::ALL.to_vec(),
             steppings: vec![Stepping::Euler, Stepping::Heun],
             steps: vec![1, 3, 10, 30, 100],
             tolerances: vec![1e-2, 1e-3, 1e-4],
@@ -131,7 +128,7 @@ pub fn run_study(scene: &Scene, grid: &Grid, progress: &dyn Fn(usize, usize)) ->
     let reference_run = roundtrip(reference_scene.clone(), &RunOptions::default())?;
     let reference = config_of(&reference_scene);
     let rest = scene.rest_positions();
-    let (lo, hi) = fibfluid_geometry::bounding_box(&rest);
+    let (lo, hi) = fibfluid::geometry::bounding_box(&rest);
     let diag = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (hi[2] - lo[2]).powi(2)).sqrt();
     let n = rest.len();
     let mut configs = Vec::new();
@@ -289,7 +286,7 @@ pub fn pareto(study: &Study, error: impl Fn(&Point) -> Option<f64>) -> Vec<usize
         .iter()
         .map(|&i| (study.points[i].seconds.unwrap_or(0.0), error(&study.points[i]).unwrap_or(f64::INFINITY)))
         .collect();
-    fibfluid_render::pareto_front_with_margin(&xy, PARETO_MARGIN).into_iter().map(|k| idx[k]).collect()
+    fibfluid::render::pareto_front_with_margin(&xy, PARETO_MARGIN).into_iter().map(|k| idx[k]).collect()
 }
 
 /// Relative improvement a slower point needs to count on the Pareto front.
@@ -342,7 +339,7 @@ pub fn chart(
     precision: Precision,
     backend: Backend,
 ) -> crate::Result<Vec<u8>> {
-    let mut series: Vec<fibfluid_render::Series> = Vec::new();
+    let mut series: Vec<fibfluid::render::Series> = Vec::new();
     for p in study.points.iter().filter(|p| p.config.precision == precision && p.config.backend == backend) {
         let (Some(t), Some(e)) = (p.seconds, error(p)) else { continue };
         if !(e > 0.0 && t > 0.0) {
@@ -351,7 +348,7 @@ pub fn chart(
         let label = format!("{} {} ({precision}, {backend})", p.config.mode, p.config.stepping_label());
         match series.iter_mut().find(|s| s.label == label) {
             Some(s) => s.points.push((t, e)),
-            None => series.push(fibfluid_render::Series { label, points: vec![(t, e)] }),
+            None => series.push(fibfluid::render::Series { label, points: vec![(t, e)] }),
         }
     }
     let front: Vec<(f64, f64)> = pareto(study, error)
@@ -361,7 +358,7 @@ pub fn chart(
     for s in &mut series {
         s.points.sort_by(|a, b| a.0.total_cmp(&b.0));
     }
-    Ok(fibfluid_render::loglog_chart(
+    Ok(fibfluid::render::loglog_chart(
         title,
         "seconds (round trip, fastest of repeats)",
         y_label,

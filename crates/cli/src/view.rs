@@ -4,11 +4,10 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use fibfluid::chainmail_body::ChainmailBody;
-use fibfluid::linalg::Choice;
-use fibfluid::probe::interact::{Interactive, memory_budget};
-use fibfluid::probe::{Method, build_body};
-use fibfluid::{Scene, Shape};
+use fibfluid::interact::chainmail_body::ChainmailBody;
+use fibfluid::interact::chainmail_settings::Variant;
+use fibfluid::interact::{Interactive, Method, ProbeError, build_body};
+use fibfluid::{Choice, Scene, Shape, memory_budget};
 use fibfluid_viewer::{BodyFactory, Server, ServerOptions, ViewMesh, ViewerError};
 
 /// Arguments of `fibfluid view`.
@@ -45,7 +44,7 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
     }
     let scene = Scene::load(&args.scene)?;
     let Shape::Surface(file) = &scene.shape else {
-        return Err(fibfluid::Error::from(fibfluid::probe::ProbeError::NotASurface).into());
+        return Err(ProbeError::NotASurface.into());
     };
     let server_opts = ServerOptions {
         host: args.host.clone(),
@@ -77,8 +76,8 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
     };
     let budget = memory_budget(args.response.max_memory);
     let chainmail = |method: Method| -> Result<Box<dyn Interactive + Send>, fibfluid_viewer::ViewerError> {
-        let variant = method.chainmail_variant().expect("a ChainMail method");
-        ChainmailBody::from_scene(&scene, variant, budget)
+        let variant = Variant::of_method(method).expect("a ChainMail method");
+        ChainmailBody::from_model(&scene, &scene.chainmail, variant, budget)
             .map(|b| Box::new(b) as Box<dyn Interactive + Send>)
             .map_err(|e| ViewerError::Build { method: method.to_string(), source: Box::new(e) })
     };
@@ -98,8 +97,8 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
                 Err(ViewerError::UnsupportedMethod { method: name.to_string(), available: available(false) })
             }
             (other, _) => {
-                let variant = other.chainmail_variant().expect("a ChainMail method");
-                ChainmailBody::from_scene(&scene_for_clients, variant, budget)
+                let variant = Variant::of_method(other).expect("a ChainMail method");
+                ChainmailBody::from_model(&scene_for_clients, &scene_for_clients.chainmail, variant, budget)
                     .map(|b| Box::new(b) as Box<dyn Interactive + Send>)
                     .map_err(|e| ViewerError::Build { method: other.to_string(), source: Box::new(e) })
             }

@@ -78,3 +78,17 @@ pub fn icosphere(level: u32, radius: f64) -> TriMesh {
     mesh.validate().expect("the icosphere is a closed surface");
     mesh
 }
+
+/// `n` points spread evenly over the unit sphere (Fibonacci lattice), y up.
+pub fn fibonacci_sphere(n: usize) -> Vec<Vec3> {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..n)
+        .map(|i| {
+            let y = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+            let r = (1.0 - y * y).max(0.0).sqrt();
+            let t = golden * i as f64;
+            [r * t.cos(), y, r * t.sin()]
+        })
+        .collect()
+}
+

@@ -34,7 +34,7 @@ pub use fibers::{
     EXIT_TOLERANCE, FiberSet, VisibilityOptions, VisibilityReport, crosses_surface_brute_force, cull_fibers,
     self_intersections,
 };
-pub use icosphere::icosphere;
+pub use icosphere::{fibonacci_sphere, icosphere};
 pub use io::{
     DEFAULT_MAX_FILE_BYTES, MAX_FILE_BYTES_ENV, MeshFile, ReadOptions, load_mesh, load_mesh_with,
     max_file_bytes, parse_byte_count, read_file_limited, read_obj_bytes, read_stl_bytes, set_max_file_bytes,

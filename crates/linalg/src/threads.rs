@@ -88,3 +88,34 @@ pub fn threads() -> usize {
         faer::Par::Rayon(n) => n.get(),
     }
 }
+
+/// Environment variable read by [`pin_threads`].
+pub const THREADS_ENV: &str = "FIBFLUID_THREADS";
+
+/// Pins the thread count of a bench process through
+/// [`set_threads`] (faer, rayon's global pool and,
+/// when built, OpenBLAS at run time): the value of `FIBFLUID_THREADS` if it is set to a
+/// positive integer, else every core the process may use. Returns the count. Call it
+/// before anything builds rayon's global pool.
+pub fn pin_threads() -> usize {
+    let n = std::env::var(THREADS_ENV)
+        .ok()
+        .and_then(|v| v.trim().parse::<usize>().ok())
+        .filter(|&n| n > 0)
+        .unwrap_or_else(|| std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1));
+    set_threads(n);
+    n
+}
+
+/// One line describing the thread settings of this process, for bench logs: the count
+/// [`pin_threads`] set, and the OpenBLAS variables read when the library loads.
+pub fn thread_note(threads: usize) -> String {
+    let env = |k: &str| std::env::var(k).unwrap_or_else(|_| "unset".into());
+    format!(
+        "threads: {threads} for faer, rayon and OpenBLAS (set at run time); at load \
+         OPENBLAS_NUM_THREADS = {}, OPENBLAS_CORETYPE = {}",
+        env("OPENBLAS_NUM_THREADS"),
+        env("OPENBLAS_CORETYPE")
+    )
+}
+

@@ -27,6 +27,7 @@ pub mod guards;
 mod model;
 pub mod plan;
 mod report;
+pub mod samples;
 mod simulate;
 pub mod stages;
 

@@ -227,7 +227,8 @@ pub struct RoundTrip {
 
 /// Runs compression then decompression (REFERENCE §4): `steps` equal steps each way, or
 /// adaptive steps when the scene sets a `tolerance`.
-pub fn roundtrip(scene: crate::Model, opts: &crate::RunOptions) -> crate::Result<RoundTrip> {
+pub fn roundtrip(model: impl Into<crate::Model>, opts: &crate::RunOptions) -> crate::Result<RoundTrip> {
+    let scene: crate::Model = model.into();
     let steps = scene.steps;
     let mut sim = Simulation::new(scene)?;
     sim.run(opts)?;

@@ -1,0 +1,19 @@
+//! The `fibfluid` command line's library half: output files (deformed OBJ, VTK,
+//! `report.json`, renders), the probe and comparison runs with their files, the accuracy
+//! study and the bench harness. The binary (`src/main.rs`) parses arguments and prints;
+//! everything it writes goes through here, all or nothing ([`write_files_atomically`]).
+
+mod error;
+pub mod bench;
+pub mod comparison;
+pub mod info;
+pub mod output;
+pub mod probe_run;
+pub mod study;
+
+pub use error::{Error, Result};
+pub use info::MeshInfo;
+pub use output::{
+    COMPRESSION_FILE, OUTPUT_FILES, compression_png, render_png, write_fibers_vtk, write_files_atomically,
+    write_outputs, write_vtk,
+};
