@@ -17,7 +17,7 @@ use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_m
 use fibfluid::assembly::{
     AssemblyOptions, Body, ConstraintMethod, Constraints, Material, PressureScaling, Selector, assemble,
 };
-use fibfluid::bench::pin_threads;
+use fibfluid::linalg::threads::pin_threads;
 use fibfluid::geometry::{FiberSet, TriMesh, icosphere};
 
 struct Sphere {

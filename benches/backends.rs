@@ -5,7 +5,7 @@
 //! the checked solve (`FactorizationExt::solve`: a solve, the residual and `|A| |x|`, and
 //! a refinement step when the backward error is above its target; the count is printed)
 //! are timed separately; the system is assembled outside the timing by
-//! `fibfluid::bench::synthetic_system` (elimination of the fixed degrees of freedom). The
+//! `fibfluid::assembly::synthetic_system` (elimination of the fixed degrees of freedom). The
 //! factorization groups carry `Throughput::Elements(model flops)`, so criterion's
 //! "elem/s" reads as FLOP/s (the dense LU counts (2/3) n^3). A faer GEMM of the same n
 //! (2 n^3 flops) runs in the same process as the machine's practical peak, and the
@@ -18,7 +18,7 @@
 //!
 //! Groups run backend by backend (GEMM first, OpenBLAS last: its threads keep spinning
 //! after a call). Threads: `FIBFLUID_THREADS` (default every core) for faer, rayon and
-//! OpenBLAS (`fibfluid::bench::pin_threads`). OpenBLAS picks its kernels when it loads
+//! OpenBLAS (`fibfluid::linalg::threads::pin_threads`). OpenBLAS picks its kernels when it loads
 //! (`OPENBLAS_CORETYPE` overrides the choice); both settings are printed.
 //!
 //! Run: `cargo bench --features openblas --bench backends`.
@@ -35,7 +35,9 @@ use faer::linalg::lu::partial_pivoting::factor::{lu_in_place, lu_in_place_scratc
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat};
 use fibfluid::assembly::{ConstraintMethod, System};
-use fibfluid::bench::{fibonacci_sphere, pin_threads, synthetic_system};
+use fibfluid::assembly::synthetic_system;
+use fibfluid::geometry::fibonacci_sphere;
+use fibfluid::linalg::threads::pin_threads;
 use fibfluid::linalg::{FactorOptions, FactorizationExt, LinearSolver, all_backends, lu_flops};
 
 /// Vertex counts N (dense size 3N + 1).
@@ -134,7 +136,7 @@ fn vm_kib(field: &str) -> Option<u64> {
 
 fn backends(c: &mut Criterion) {
     let threads = pin_threads();
-    println!("{}", fibfluid::bench::thread_note(threads));
+    println!("{}", fibfluid::linalg::threads::thread_note(threads));
     memory_report();
     let cases: Vec<Case> = SIZES.iter().map(|&n| case(n)).collect();
     let opts = FactorOptions::default();

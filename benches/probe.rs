@@ -3,7 +3,7 @@
 //! The body is an icosphere of radius 1 (level 4: N = 2,562; level 5: N = 10,242) with the
 //! paper's sphere material (Y = gamma = 3000, rho = 1000), the vertices with y > 0.8 fixed
 //! (elimination), gravity (0, -10, 0) in full as the base state, paper mode. The body is
-//! built outside the timing (`fibfluid::probe::build_body`: one structured solve for the
+//! built outside the timing (`fibfluid::interact::build_body`: one structured solve for the
 //! base state, then the precompute, whose time and memory are printed).
 //!
 //! Cases:
@@ -28,15 +28,15 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use fibfluid::bench::pin_threads;
+use fibfluid::linalg::threads::pin_threads;
 use fibfluid::geometry::Vec3;
 use fibfluid::linalg::FactorizationExt;
-use fibfluid::probe::interact::{FfmBody, Interactive, Storage};
-use fibfluid::probe::{Latency, ProbeOptions, build_body, linearized_scene};
-use fibfluid::{Mode, Scene, Simulation};
+use fibfluid::interact::{FfmBody, Interactive, Storage};
+use fibfluid::interact::{Latency, ProbeOptions, build_body, linearized};
+use fibfluid::{Mode, Model, Simulation};
 
-fn scene(level: u32) -> Scene {
-    let mut scene = fibfluid::bench::hanging_sphere(level).expect("the icosphere is a closed surface");
+fn scene(level: u32) -> Model {
+    let mut scene = fibfluid::sim::samples::hanging_sphere(level).expect("the icosphere is a closed surface");
     scene.steps = 1;
     scene.solver.mode = Mode::Paper;
     scene
@@ -121,7 +121,7 @@ fn drag(c: &mut Criterion, group: &str, body: &mut FfmBody, n: usize, k: usize, 
 
 fn probe(c: &mut Criterion) {
     let threads = pin_threads();
-    println!("{}", fibfluid::bench::thread_note(threads));
+    println!("{}", fibfluid::linalg::threads::thread_note(threads));
 
     // N = 2562: a frame against a structured solve of the same body.
     let mut body = build(4, Storage::F64);
@@ -143,7 +143,7 @@ fn probe(c: &mut Criterion) {
     }
     let v = tool_vertices(&body, 1)[0];
     drop(body);
-    let mut sim = Simulation::new(linearized_scene(&scene(4))).expect("simulation");
+    let mut sim = Simulation::new(linearized(&scene(4))).expect("simulation");
     {
         let mut g = c.benchmark_group(format!("probe/respond/{n}"));
         g.sample_size(10);

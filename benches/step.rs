@@ -17,20 +17,20 @@
 //! the first factorization alone, and refresh mode refactors every step.
 //!
 //! Threads: `FIBFLUID_THREADS` (default every core) for faer, rayon and OpenBLAS
-//! (`fibfluid::bench::pin_threads`); backends run one after the other, OpenBLAS last.
+//! (`fibfluid::linalg::threads::pin_threads`); backends run one after the other, OpenBLAS last.
 //!
 //! Run: `cargo bench --features openblas --bench step`.
 
 use std::time::{Duration, Instant};
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use fibfluid::bench::pin_threads;
-use fibfluid::{Backend, Direction, Mode, RunOptions, Scene, Simulation};
+use fibfluid::linalg::threads::pin_threads;
+use fibfluid::{Backend, Direction, Mode, Model, RunOptions, Simulation};
 
 const STEPS: usize = 10;
 
-fn scene(level: u32, backend: Backend, mode: Mode) -> Scene {
-    let mut scene = fibfluid::bench::hanging_sphere(level).expect("the icosphere is a closed surface");
+fn scene(level: u32, backend: Backend, mode: Mode) -> Model {
+    let mut scene = fibfluid::sim::samples::hanging_sphere(level).expect("the icosphere is a closed surface");
     scene.steps = STEPS;
     scene.solver.backend = backend;
     scene.solver.mode = mode;
@@ -44,7 +44,7 @@ fn skipped(backend: Backend, n: usize) -> Option<&'static str> {
 
 fn step(c: &mut Criterion) {
     let threads = pin_threads();
-    println!("{}", fibfluid::bench::thread_note(threads));
+    println!("{}", fibfluid::linalg::threads::thread_note(threads));
     // Backend by backend (OpenBLAS last: its threads keep spinning after a call).
     for backend in Backend::compiled() {
         for mode in [Mode::Paper, Mode::Refresh] {

@@ -18,8 +18,8 @@
 //! Run: `cargo run --release --example probe_linearization`.
 
 use fibfluid::geometry::{Vec3, volume};
-use fibfluid::probe::interact::Interactive;
-use fibfluid::probe::{ProbeOptions, build_body};
+use fibfluid::interact::Interactive;
+use fibfluid::interact::{ProbeOptions, build_body};
 use fibfluid::{ForceTiming, Mode, PointForce, RunOptions, Scene, Shape, Simulation, Stepping};
 
 fn dist(a: Vec3, b: Vec3) -> f64 {
@@ -62,8 +62,8 @@ fn main() -> Result<(), fibfluid::Error> {
     for s in [0.01, 0.02, 0.05, 0.1, 0.2, 0.3] {
         let d = [0.0, -s, 0.0];
         body.release_all();
-        body.grab(v, d).map_err(fibfluid::probe::ProbeError::from)?;
-        let r = body.update().map_err(fibfluid::probe::ProbeError::from)?[0].1;
+        body.grab(v, d).map_err(fibfluid::interact::ProbeError::from)?;
+        let r = body.update().map_err(fibfluid::interact::ProbeError::from)?[0].1;
         let lin = body.positions().to_vec();
         let held = [rest[v][0] + d[0], rest[v][1] + d[1], rest[v][2] + d[2]];
         let mut cells = Vec::new();

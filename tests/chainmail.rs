@@ -8,9 +8,9 @@
 //! the time-saving claim through work counts (CBR checks), not wall-clock.
 
 use fibfluid::Scene;
-use fibfluid::chainmail_body::ChainmailBody;
-use fibfluid::chainmail_scene::{ChainmailSettings, MaterialRegion, Variant};
-use fibfluid::probe::interact::Interactive;
+use fibfluid::interact::chainmail_body::ChainmailBody;
+use fibfluid::interact::chainmail_settings::{ChainmailSettings, MaterialRegion, Variant};
+use fibfluid::interact::Interactive;
 
 const BUDGET: u64 = 1 << 30;
 
@@ -21,7 +21,7 @@ fn sphere() -> Scene {
 fn body(scene: &Scene, settings: ChainmailSettings, variant: Variant) -> ChainmailBody {
     let mut s = scene.clone();
     s.chainmail = settings;
-    ChainmailBody::from_scene(&s, variant, BUDGET).unwrap()
+    ChainmailBody::from_model(&s, &s.chainmail, variant, BUDGET).unwrap()
 }
 
 /// The lowest vertex (y = -1, opposite the fixed cap).

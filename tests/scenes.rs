@@ -317,11 +317,11 @@ fn held_vertices_match_their_reactions_applied_as_forces() {
         let fixed_vertex = (0..sim.positions().len()).find(|&v| fixed(v)).unwrap();
         assert!(matches!(
             sim.respond_held(&[], &[(fixed_vertex, [0.0; 3])]),
-            Err(fibfluid::Error::HeldFixedVertex { .. })
+            Err(fibfluid::sim::Error::HeldFixedVertex { .. })
         ));
         assert!(matches!(
             sim.respond_held(&[], &[(10_000, [0.0; 3])]),
-            Err(fibfluid::Error::VertexOutOfRange { .. })
+            Err(fibfluid::sim::Error::VertexOutOfRange { .. })
         ));
     }
 }

@@ -3,7 +3,8 @@
 
 use fibfluid::geometry::vec3::{norm, sub};
 use fibfluid::guards::{Guard, OnFailure};
-use fibfluid::{Error, ForceTiming, Mode, RunOptions, Scene, Simulation, Stepping};
+use fibfluid::sim::Error;
+use fibfluid::{ForceTiming, Mode, RunOptions, Scene, Simulation, Stepping};
 
 fn sphere() -> Scene {
     Scene::load("fixtures/scenes/sphere.toml").unwrap()
@@ -20,7 +21,7 @@ fn soft_liver(young: f64, mode: Mode, stepping: Stepping) -> Scene {
     constraints
         .fix_selected(&fibfluid::assembly::Selector::Top { axis: 1, within: 0.08 }, &pos, [true; 3])
         .unwrap();
-    s.shape = liver.shape;
+    s.shape = liver.model.shape;
     s.constraints = constraints;
     s.material.young = [young; 3];
     s.solver.mode = mode;
@@ -28,7 +29,7 @@ fn soft_liver(young: f64, mode: Mode, stepping: Stepping) -> Scene {
     s
 }
 
-fn run(scene: Scene) -> fibfluid::Result<Simulation> {
+fn run(scene: Scene) -> Result<Simulation, Error> {
     let mut sim = Simulation::new(scene)?;
     sim.run(&RunOptions::default())?;
     Ok(sim)

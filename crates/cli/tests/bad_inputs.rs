@@ -297,11 +297,11 @@ fn a_good_run_adds_its_outputs_and_keeps_the_users_file() {
             fibfluid(&["run".as_ref(), scene.as_os_str(), "--out".as_ref(), out.as_os_str()], parent.path());
         let stderr = String::from_utf8_lossy(&output.stderr);
         assert!(output.status.success(), "round {round}: {stderr}");
-        let mut want: Vec<String> = fibfluid::OUTPUT_FILES.iter().map(|s| s.to_string()).collect();
+        let mut want: Vec<String> = fibfluid_cli::OUTPUT_FILES.iter().map(|s| s.to_string()).collect();
         want.push(KEEP_NAME.into());
         want.sort();
         assert_eq!(listing(&out), want, "round {round}");
-        for f in fibfluid::OUTPUT_FILES {
+        for f in fibfluid_cli::OUTPUT_FILES {
             assert!(std::fs::metadata(out.join(f)).unwrap().len() > 0, "round {round}: {f} is empty");
         }
         assert_eq!(std::fs::read_to_string(out.join(KEEP_NAME)).unwrap(), KEEP_TEXT, "round {round}");

@@ -1,20 +1,22 @@
 //! Probe frames against independent full solves.
 //!
-//! The reference is the facade's `Simulation` on the same scene in paper mode with
+//! The reference is the engine's `Simulation` on the same scene in paper mode with
 //! `steps = 1` (its own assembly, structured Cholesky factorization and refined solve),
 //! with the probe's forces added as scene point forces: a probe frame must be that solve,
 //! not an approximation of it. The scene is the paper's sphere (fixtures/scenes/sphere.toml,
-//! icosphere level 2, N = 162: gravity, a point force and the top cap fixed), once with its
-//! penalty constraints as published and once with elimination.
+//! built here in code from its mesh: icosphere level 2, N = 162, gravity, a point force and
+//! the top cap fixed), once with its penalty constraints as published and once with
+//! elimination.
 
-use fibfluid::Choice;
-use fibfluid::ConstraintKind as ConstraintMethod;
-use fibfluid::geometry::Vec3;
-use fibfluid::probe::interact::{
-    Compliance, ComplianceOptions, FfmBody, Hold, InteractError, Interactive, Storage,
+use fibfluid_assembly::{Material, Selector};
+use fibfluid_geometry::{Vec3, load_mesh};
+use fibfluid_interact::{
+    Compliance, ComplianceOptions, FfmBody, Hold, InteractError, Interactive, ProbeOptions, Storage, build_body,
+    linearized,
 };
-use fibfluid::probe::{ProbeOptions, build_body, linearized_scene};
-use fibfluid::{ForceTiming, PointForce, RunOptions, Scene, Shape, Simulation};
+use fibfluid_linalg::{Backend, Choice};
+use fibfluid_sim::ConstraintKind as ConstraintMethod;
+use fibfluid_sim::{ForceTiming, Mode, Model, PointForce, RunOptions, Shape, Simulation};
 
 /// A force on the body matches the full solve to this, relative to the largest displacement
 /// (the bound for a pushed force).
@@ -27,9 +29,20 @@ const GRAB_TOLERANCE: f64 = 1e-7;
 /// (measured on this case: 5.8e-9).
 const F32_TOLERANCE: f64 = 8.0 * f32::EPSILON as f64;
 
-fn sphere(method: ConstraintMethod) -> Scene {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/scenes/sphere.toml");
-    let mut scene = Scene::load(path).expect("the sphere scene loads");
+/// fixtures/scenes/sphere.toml, in code.
+fn sphere(method: ConstraintMethod) -> Model {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/meshes/icosphere-2.obj");
+    let file = load_mesh(path).expect("the sphere mesh loads");
+    let material = Material { young: [3000.0; 3], surface_tension: 3000.0, density: 1000.0, ..Material::default() };
+    let mut scene = Model::from_mesh("sphere", file, material);
+    let rest = scene.rest_positions();
+    scene.constraints.fix_selected(&Selector::Above { axis: 1, value: 0.8 }, &rest, [true; 3]).unwrap();
+    scene.gravity = [0.0, -10.0, 0.0];
+    let vertex = mesh_index(&scene, 3);
+    scene.forces.push(PointForce { vertex, value: [-300.0; 3], timing: ForceTiming::Last });
+    scene.steps = 10;
+    scene.solver.backend = Backend::Structured;
+    scene.solver.mode = Mode::Paper;
     scene.solver.constraints = method;
     scene
 }
@@ -39,7 +52,7 @@ fn methods() -> [ConstraintMethod; 2] {
 }
 
 /// Mesh index of a vertex of the mesh file.
-fn mesh_index(scene: &Scene, file_vertex: usize) -> usize {
+fn mesh_index(scene: &Model, file_vertex: usize) -> usize {
     match &scene.shape {
         Shape::Surface(f) => f.from_file_index(file_vertex).expect("a used vertex"),
         Shape::Polygon(_) => file_vertex,
@@ -48,8 +61,8 @@ fn mesh_index(scene: &Scene, file_vertex: usize) -> usize {
 
 /// Positions of an independent full solve: the scene's loads plus `extra` point forces, in
 /// paper mode with one step.
-fn full_solve(scene: &Scene, extra: &[(usize, Vec3)]) -> Vec<Vec3> {
-    let mut s = linearized_scene(scene);
+fn full_solve(scene: &Model, extra: &[(usize, Vec3)]) -> Vec<Vec3> {
+    let mut s = linearized(scene);
     for &(vertex, value) in extra {
         s.forces.push(PointForce { vertex, value, timing: ForceTiming::Last });
     }
@@ -67,7 +80,7 @@ fn relative_difference(a: &[Vec3], b: &[Vec3], rest: &[Vec3]) -> f64 {
     diff / scale
 }
 
-fn body(scene: &Scene, storage: Storage) -> FfmBody {
+fn body(scene: &Model, storage: Storage) -> FfmBody {
     build_body(scene, &ProbeOptions { storage, max_memory_bytes: None }).expect("the probe body builds").body
 }
 
@@ -236,7 +249,7 @@ fn memory_is_refused_before_allocating_with_the_bytes() {
     // N = 162, one shared block: the compliance (8 N^2 = 209,952 bytes, plus one working
     // column block) and the system with its factor (2 x 209,952) exceed 100 kB.
     assert!(err.contains("bytes") && err.contains("100000"), "{err}");
-    let sim = Simulation::new(linearized_scene(&scene)).unwrap();
+    let sim = Simulation::new(linearized(&scene)).unwrap();
     let opts = ComplianceOptions { storage: Storage::F32, max_memory_bytes: Some(1000) };
     match Compliance::from_system(sim.system(), &opts) {
         Err(InteractError::OutOfMemory { bytes, available: 1000 }) => {

@@ -29,6 +29,18 @@ pub enum Error {
     },
 }
 
+/// Errors of the lower crates reach [`Error`] through the engine's error.
+macro_rules! through_sim {
+    ($($t:ty),*) => {$(
+        impl From<$t> for Error {
+            fn from(e: $t) -> Self {
+                Error::Sim(e.into())
+            }
+        }
+    )*};
+}
+through_sim!(fibfluid_geometry::GeometryError, fibfluid_assembly::AssemblyError, fibfluid_linalg::LinalgError);
+
 impl From<SceneError> for Error {
     fn from(e: SceneError) -> Self {
         Error::Scene(Box::new(e))

@@ -13,7 +13,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use fibfluid::probe::interact::Storage;
+use fibfluid::interact::Storage;
 use tiny_skia::Pixmap;
 
 use crate::common::{scene_body, serve, sphere_path};

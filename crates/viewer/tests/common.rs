@@ -6,8 +6,8 @@ use std::net::{SocketAddr, TcpStream};
 use std::sync::Arc;
 
 use fibfluid::geometry::Vec3;
-use fibfluid::probe::interact::{FfmBody, Interactive, Storage};
-use fibfluid::probe::{ProbeOptions, build_body};
+use fibfluid::interact::{FfmBody, Interactive, Storage};
+use fibfluid::interact::{ProbeOptions, build_body};
 use fibfluid::{Scene, Shape};
 use fibfluid_viewer::{BodyFactory, Server, ServerHandle, ServerOptions, ViewMesh, ViewerError};
 use tungstenite::{Message, WebSocket, stream::MaybeTlsStream};

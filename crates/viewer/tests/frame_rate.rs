@@ -11,7 +11,7 @@
 
 use std::time::Instant;
 
-use fibfluid::probe::interact::{Interactive, Storage};
+use fibfluid::interact::{Interactive, Storage};
 
 use crate::common::{Client, scene_body, serve};
 
