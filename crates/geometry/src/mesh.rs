@@ -142,7 +142,24 @@ impl TriMesh {
     /// Checks that this is one closed, manifold, consistently oriented surface with no
     /// degenerate or duplicate faces; flips the faces if they point inward.
     pub fn validate(&mut self) -> Result<Validation, MeshError> {
-        let n = self.n_vertices();
+        self.check_faces()?;
+        let n_edges = self.check_edges()?;
+        let adj = self.adjacency();
+        self.check_vertex_fans(&adj)?;
+        let used = (0..self.n_vertices()).filter(|&v| !adj.faces_of(v).is_empty()).count() as i64;
+        let chi = used - n_edges + self.n_faces() as i64;
+        let mut report =
+            Validation { flipped: false, euler_characteristic: chi, genus: (2 - chi) / 2, warnings: vec![] };
+        if self.orient_outward()? {
+            report.flipped = true;
+            report.warnings.push("faces pointed inward (negative volume); flipped to outward".into());
+        }
+        Ok(report)
+    }
+
+    /// No degenerate face (repeated vertex, area too small for the mesh's size) and no two
+    /// faces on the same three vertices.
+    fn check_faces(&self) -> Result<(), MeshError> {
         let diag = self.diagonal();
         for (k, t) in self.triangles.iter().enumerate() {
             let area = norm(face_area_vector([
@@ -178,6 +195,12 @@ impl TriMesh {
                 return Err(MeshError::DuplicateFace { first: w[0].1, second: w[1].1 });
             }
         }
+        Ok(())
+    }
+
+    /// Every edge shared by exactly two faces of opposite orientation, one component.
+    /// Returns the number of edges.
+    fn check_edges(&self) -> Result<i64, MeshError> {
         // Edges: (min, max, face, forward?).
         let mut edges: Vec<(u32, u32, u32, bool)> = Vec::with_capacity(3 * self.n_faces());
         for (k, t) in self.triangles.iter().enumerate() {
@@ -217,8 +240,13 @@ impl TriMesh {
         if components > 1 {
             return Err(MeshError::MultipleComponents { count: components });
         }
+        Ok(n_edges)
+    }
+
+    /// The faces around each vertex form one fan.
+    fn check_vertex_fans(&self, adj: &crate::Adjacency) -> Result<(), MeshError> {
+        let n = self.n_vertices();
         // Non-manifold vertices: the faces around each vertex must form one fan.
-        let adj = self.adjacency();
         for v in 0..n {
             let faces = adj.faces_of(v);
             if faces.is_empty() {
@@ -240,10 +268,12 @@ impl TriMesh {
                 return Err(MeshError::NonManifoldVertex { vertex: v as u32, fans });
             }
         }
-        let used = (0..n).filter(|&v| !adj.faces_of(v).is_empty()).count() as i64;
-        let chi = used - n_edges + self.n_faces() as i64;
-        let mut report =
-            Validation { flipped: false, euler_characteristic: chi, genus: (2 - chi) / 2, warnings: vec![] };
+        Ok(())
+    }
+
+    /// A volume that f64 can hold, not zero; faces flipped when they point inward (returns
+    /// whether they were).
+    fn orient_outward(&mut self) -> Result<bool, MeshError> {
         let vol = self.volume();
         if !vol.is_finite() {
             let (vertex, magnitude) = self.largest_coordinate(0..self.n_vertices());
@@ -274,10 +304,9 @@ impl TriMesh {
             for t in &mut self.triangles {
                 t.swap(1, 2);
             }
-            report.flipped = true;
-            report.warnings.push("faces pointed inward (negative volume); flipped to outward".into());
+            return Ok(true);
         }
-        Ok(report)
+        Ok(false)
     }
 
     /// The error for face `k`, whose area failed the degeneracy test: the same test on the

@@ -117,21 +117,61 @@ fn stage(name: Stage, run: bool, reason: impl Into<String>, bytes: f64, flops: f
     }
 }
 
-fn plan(scene: &Model, size: &Size) -> Plan {
-    let Size { n, faces, axes, convex, polygon } = *size;
-    let d = axes as f64;
-    let solver = &scene.solver;
-    let steps = scene.steps as f64;
-    let heun = solver.stepping == Stepping::Heun;
-    let evaluations = if heun { 2.0 } else { 1.0 };
-    let shared = scene.material.is_isotropic() && scene.constraints.is_uniform(axes);
-    let blocks = if shared { 1.0 } else { d };
-    let block_bytes = blocks * n * n * 8.0;
-    let dim = d * n + 1.0;
-    let dense = solver.backend.is_dense();
-    let mixed = solver.precision == Precision::Mixed;
-    let mut st = Vec::new();
+/// The sizes every stage's cost is computed from.
+struct Costs {
+    n: f64,
+    faces: f64,
+    d: f64,
+    steps: f64,
+    evaluations: f64,
+    blocks: f64,
+    block_bytes: f64,
+    dim: f64,
+    dense: bool,
+    solve_flops: f64,
+}
 
+impl Costs {
+    fn of(scene: &Model, size: &Size) -> Self {
+        let Size { n, faces, axes, .. } = *size;
+        let d = axes as f64;
+        let solver = &scene.solver;
+        let shared = scene.material.is_isotropic() && scene.constraints.is_uniform(axes);
+        let blocks = if shared { 1.0 } else { d };
+        let dim = d * n + 1.0;
+        let dense = solver.backend.is_dense();
+        Self {
+            n,
+            faces,
+            d,
+            steps: scene.steps as f64,
+            evaluations: if solver.stepping == Stepping::Heun { 2.0 } else { 1.0 },
+            blocks,
+            block_bytes: blocks * n * n * 8.0,
+            dim,
+            dense,
+            solve_flops: if dense { 2.0 * dim * dim } else { 4.0 * d * n * n },
+        }
+    }
+}
+
+fn plan(scene: &Model, size: &Size) -> Plan {
+    let costs = Costs::of(scene, size);
+    let mut st = setup_stages(scene, size, &costs);
+    st.push(factor_stage(scene, &costs));
+    st.extend(load_stages(scene, &costs));
+    st.extend(step_stages(scene, &costs));
+    let memory_bytes = st.iter().map(|s| s.bytes).sum();
+    let flops = st.iter().map(|s| s.flops).sum();
+    Plan { stages: st, memory_bytes, flops }
+}
+
+/// Fibers, areas and assembly.
+fn setup_stages(scene: &Model, size: &Size, c: &Costs) -> Vec<PlannedStage> {
+    let Size { axes, convex, polygon, .. } = *size;
+    let Costs { n, faces, block_bytes, .. } = *c;
+    let shared = c.blocks == 1.0;
+    let mut st = Vec::new();
     st.push(if polygon {
         stage(names::CONVEXITY, false, "2D polygon: every fiber is kept", 0.0, 0.0)
     } else {
@@ -179,6 +219,14 @@ fn plan(scene: &Model, size: &Size) -> Plan {
         stage(names::SURFACE_FIBERS, false, "surface tension is 0", 0.0, 0.0)
     });
 
+    st
+}
+
+/// The factorization: once, plus one per operator evaluation when the operator changes.
+fn factor_stage(scene: &Model, c: &Costs) -> PlannedStage {
+    let Costs { n, steps, evaluations, blocks, dim, dense, .. } = *c;
+    let solver = &scene.solver;
+    let mixed = solver.precision == Precision::Mixed;
     // Factorizations: once, plus one per operator evaluation when the operator changes
     // (nonlinear mode always; refresh mode with a dense backend, which refactors for a
     // new border).
@@ -209,8 +257,15 @@ fn plan(scene: &Model, size: &Size) -> Plan {
         Mode::Refresh => format!("{factor_reason}; once (a new border costs triangular solves only)"),
         Mode::Nonlinear => format!("{factor_reason}; once per operator evaluation"),
     };
-    st.push(stage(names::FACTORIZATION, true, factor_reason, factor_bytes, factor_flops * (1.0 + refactors)));
+    stage(names::FACTORIZATION, true, factor_reason, factor_bytes, factor_flops * (1.0 + refactors))
 
+}
+
+/// The loads and the operator refreshes of every step.
+fn load_stages(scene: &Model, c: &Costs) -> Vec<PlannedStage> {
+    let Costs { n, faces, d, steps, evaluations, block_bytes, dense, .. } = *c;
+    let solver = &scene.solver;
+    let mut st = Vec::new();
     let hydrostatic = scene.material.density > 0.0 && scene.gravity != [0.0; 3];
     let forces = !scene.forces.is_empty();
     let loads_reason = match (hydrostatic, forces) {
@@ -232,7 +287,6 @@ fn plan(scene: &Model, size: &Size) -> Plan {
 
     // Solves per step: one per evaluation; refresh and nonlinear add one volume
     // correction (its direction; the volume is then restored by scalar Newton steps).
-    let solve_flops = if dense { 2.0 * dim * dim } else { 4.0 * d * n * n };
     st.push(match solver.mode {
         Mode::Refresh => stage(
             names::BORDER,
@@ -269,6 +323,15 @@ fn plan(scene: &Model, size: &Size) -> Plan {
         Mode::Paper => stage(names::REASSEMBLY, false, "paper mode factors once", 0.0, 0.0),
         Mode::Refresh => stage(names::REASSEMBLY, false, "refresh mode keeps K's factorization", 0.0, 0.0),
     });
+    st
+}
+
+/// Solves, volume correction, contact, predictor and update of every step.
+fn step_stages(scene: &Model, c: &Costs) -> Vec<PlannedStage> {
+    let Costs { n, faces, d, steps, evaluations, dim, solve_flops, .. } = *c;
+    let solver = &scene.solver;
+    let heun = evaluations == 2.0;
+    let mut st = Vec::new();
     st.push(stage(
         names::SOLVE,
         true,
@@ -318,7 +381,5 @@ fn plan(scene: &Model, size: &Size) -> Plan {
         stage(names::PREDICTOR, false, "Euler stepping", 0.0, 0.0)
     });
     st.push(stage(names::UPDATE, true, "positions += du", 0.0, steps * d * n));
-    let memory_bytes = st.iter().map(|s| s.bytes).sum();
-    let flops = st.iter().map(|s| s.flops).sum();
-    Plan { stages: st, memory_bytes, flops }
+    st
 }
