@@ -1,5 +1,5 @@
 //! Every entry of `tests/bad_inputs/` is fed to the real binary (`mesh-info` for meshes,
-//! `run --out DIR` for scenes): it must exit with code 2 and print exactly one `error:`
+//! `run --out DIR` for scenes, `probe --method tsve-chainmail` for the `[chainmail]` ones): it must exit with code 2 and print exactly one `error:`
 //! line that names the file and its problem, never panic, and leave `--out` as it was.
 
 use std::collections::BTreeMap;
@@ -123,7 +123,7 @@ const EXPECTED: &[(&str, &str)] = &[
     ),
     (
         "scene-chainmail-too-fine.toml",
-        "scene-chainmail-too-fine.toml:13: [chainmail].spacing: spacing 0.0001 needs up to 4585375337524584 bytes",
+        "scene-chainmail-too-fine.toml: the ChainMail lattice at spacing 0.0001 needs up to 4585375337524584 bytes",
     ),
     (
         "scene-chainmail-unknown-variant.toml",
@@ -164,6 +164,10 @@ fn corpus() -> Vec<String> {
 
 fn is_scene(name: &str) -> bool {
     name.ends_with(".toml")
+}
+
+fn is_chainmail_scene(name: &str) -> bool {
+    name.starts_with("scene-chainmail-")
 }
 
 /// Runs the binary in `cwd` (a scratch directory, so a stray file would not land in the tree).
@@ -276,7 +280,23 @@ fn every_bad_input_gives_one_clean_error_and_writes_nothing() {
         }
         let path = dir.join(&name);
         let (parent, out) = out_with_user_file();
-        let output = if is_scene(&name) {
+        let output = if is_chainmail_scene(&name) {
+            // ChainMail's settings act (and its lattice is sized) only when a ChainMail body
+            // is built: probed with a one-frame grab of a free vertex.
+            let grab = parent.path().join("grab.csv");
+            std::fs::write(&grab, "frame,vertex,ux,uy,uz\n0,2,0,-0.01,0\n").unwrap();
+            let args: [&std::ffi::OsStr; 8] = [
+                "probe".as_ref(),
+                path.as_os_str(),
+                "--method".as_ref(),
+                "tsve-chainmail".as_ref(),
+                "--path".as_ref(),
+                grab.as_os_str(),
+                "--out".as_ref(),
+                out.as_os_str(),
+            ];
+            fibfluid(&args, parent.path())
+        } else if is_scene(&name) {
             fibfluid(&["run".as_ref(), path.as_os_str(), "--out".as_ref(), out.as_os_str()], parent.path())
         } else {
             fibfluid(&["mesh-info".as_ref(), path.as_os_str()], parent.path())

@@ -196,7 +196,7 @@ pub enum ReadError {
     #[error(
         "is {size} bytes, more than the limit of {}; raise it with --max-file-bytes or {}",
         byte_text(*.limit),
-        crate::io::MAX_FILE_BYTES_ENV
+        crate::limits::MAX_FILE_BYTES_ENV
     )]
     TooLarge {
         /// The file's size.
@@ -208,7 +208,7 @@ pub enum ReadError {
     #[error(
         "grew past the limit of {} while it was read; raise it with --max-file-bytes or {}",
         byte_text(*.limit),
-        crate::io::MAX_FILE_BYTES_ENV
+        crate::limits::MAX_FILE_BYTES_ENV
     )]
     GrewPastLimit {
         /// The limit in force.
@@ -221,7 +221,7 @@ pub enum ReadError {
         bytes: u64,
     },
     /// The limit given in the environment is not a byte count.
-    #[error("{} = `{value}` is not a byte count (e.g. 1073741824, 512M, 4G)", crate::io::MAX_FILE_BYTES_ENV)]
+    #[error("{} = `{value}` is not a byte count (e.g. 1073741824, 512M, 4G)", crate::limits::MAX_FILE_BYTES_ENV)]
     BadLimit {
         /// The value found.
         value: String,

@@ -15,15 +15,7 @@ use crate::error::{FileKind, GeometryError, MeshError, ReadError, Result};
 use crate::mesh::{TriMesh, Validation, suggested_scale};
 use crate::vec3::Vec3;
 
-/// Default largest file a reader accepts: 2 GiB. A larger one is refused before anything is
-/// allocated for it. Override it per call ([`ReadOptions::max_bytes`]), per process
-/// ([`set_max_file_bytes`], the CLI's `--max-file-bytes`) or with the environment variable
-/// [`MAX_FILE_BYTES_ENV`].
-pub const DEFAULT_MAX_FILE_BYTES: u64 = 2 << 30;
-
-/// Environment variable that overrides [`DEFAULT_MAX_FILE_BYTES`]: a byte count with an
-/// optional binary suffix (`K`, `M`, `G`, `T`, e.g. `4G`); see [`parse_byte_count`].
-pub const MAX_FILE_BYTES_ENV: &str = "FIBFLUID_MAX_FILE_BYTES";
+pub use crate::limits::{DEFAULT_MAX_FILE_BYTES, MAX_FILE_BYTES_ENV};
 
 /// The process-wide limit set by [`set_max_file_bytes`] (0: not set).
 static MAX_FILE_BYTES_SET: AtomicU64 = AtomicU64::new(0);

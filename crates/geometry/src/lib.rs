@@ -21,6 +21,7 @@ mod error;
 mod fibers;
 mod icosphere;
 mod io;
+mod limits;
 mod mesh;
 mod polygon;
 pub mod vec3;

@@ -29,6 +29,7 @@
 
 mod choice;
 mod dense;
+mod memory;
 mod error;
 mod matrix;
 mod prescribed;
@@ -44,7 +45,7 @@ mod nalgebra_lu;
 mod openblas_lu;
 
 pub use choice::{Choice, ParseChoiceError};
-pub use dense::{
+pub use memory::{
     DENSE_MEMORY_FRACTION, available_memory_bytes, check_dense_memory, memory_budget, total_memory_bytes,
 };
 pub use error::{LinalgError, Result};

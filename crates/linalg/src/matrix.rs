@@ -149,7 +149,7 @@ impl BorderedMatrix {
     pub fn try_to_dense(&self) -> Result<Mat<f64>> {
         let (n, d) = (self.n, self.axes());
         let dim = self.dim();
-        crate::dense::check_alloc::<f64>(dim.saturating_mul(dim), crate::dense::DENSE_WHAT)?;
+        crate::memory::check_alloc::<f64>(dim.saturating_mul(dim), crate::memory::DENSE_WHAT)?;
         let mut a = Mat::<f64>::zeros(dim, dim);
         for c in 0..d {
             let k = self.block(c);
@@ -189,7 +189,7 @@ impl BorderedMatrix {
         use rayon::prelude::*;
         let (n, d) = (self.n, self.axes());
         let dim = self.dim();
-        let mut a = crate::dense::try_zeroed(dim.saturating_mul(dim), crate::dense::DENSE_WHAT)?;
+        let mut a = crate::memory::try_zeroed(dim.saturating_mul(dim), crate::memory::DENSE_WHAT)?;
         a.par_chunks_mut(dim).enumerate().for_each(|(j, col)| {
             if j == dim - 1 {
                 for c in 0..d {
