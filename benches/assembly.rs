@@ -17,8 +17,8 @@ use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_m
 use fibfluid::assembly::{
     AssemblyOptions, Body, ConstraintMethod, Constraints, Material, PressureScaling, Selector, assemble,
 };
-use fibfluid::linalg::threads::pin_threads;
 use fibfluid::geometry::{FiberSet, TriMesh, icosphere};
+use fibfluid::linalg::threads::pin_threads;
 
 struct Sphere {
     mesh: TriMesh,

@@ -14,12 +14,12 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use criterion::{BenchmarkId, Criterion, SamplingMode, criterion_group, criterion_main};
-use fibfluid::linalg::threads::pin_threads;
 use fibfluid::geometry::{
     EXIT_TOLERANCE, FiberSet, TriMesh, VisibilityOptions, crosses_surface_brute_force, cull_fibers,
     load_mesh,
     vec3::{dot, norm, sub},
 };
+use fibfluid::linalg::threads::pin_threads;
 use rayon::prelude::*;
 
 fn mesh(name: &str) -> TriMesh {

@@ -28,11 +28,11 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use fibfluid::linalg::threads::pin_threads;
 use fibfluid::geometry::Vec3;
-use fibfluid::linalg::FactorizationExt;
 use fibfluid::interact::{FfmBody, Interactive, Storage};
 use fibfluid::interact::{Latency, ProbeOptions, build_body, linearized};
+use fibfluid::linalg::FactorizationExt;
+use fibfluid::linalg::threads::pin_threads;
 use fibfluid::{Mode, Model, Simulation};
 
 fn scene(level: u32) -> Model {

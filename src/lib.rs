@@ -40,10 +40,10 @@ pub mod ndarray_io;
 pub use fibfluid_scene::{Error, Result, Scene, SceneError, SceneProblem, load_tool_path, parse_tool_path};
 pub use fibfluid_sim::{
     Backend, BodyShape, Choice, ConstraintKind, Counters, Direction, ForceTiming, Ineffective, MAX_STEPS,
-    MIN_ADAPTIVE_STEP, Method, Mode, Model, ParseChoiceError, Plan, PlannedStage, PointForce, Precision, Report,
-    Response, RoundTrip, RunOptions, SetupOptions, Shape, Simulation, SkippedStage, SolverOptions, Stage, State,
-    StepStats, Stepping, VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE, ineffective, memory_budget, roundtrip,
-    roundtrip_error,
+    MIN_ADAPTIVE_STEP, Method, Mode, Model, ParseChoiceError, Plan, PlannedStage, PointForce, Precision,
+    Report, Response, RoundTrip, RunOptions, SetupOptions, Shape, Simulation, SkippedStage, SolverOptions,
+    Stage, State, StepStats, Stepping, VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE, ineffective,
+    memory_budget, roundtrip, roundtrip_error,
 };
 pub use fibfluid_sim::{contact, guards, plan, stages};
 

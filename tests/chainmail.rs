@@ -8,9 +8,9 @@
 //! the time-saving claim through work counts (CBR checks), not wall-clock.
 
 use fibfluid::Scene;
+use fibfluid::interact::Interactive;
 use fibfluid::interact::chainmail_body::ChainmailBody;
 use fibfluid::interact::chainmail_settings::{ChainmailSettings, MaterialRegion, Variant};
-use fibfluid::interact::Interactive;
 
 const BUDGET: u64 = 1 << 30;
 

@@ -23,8 +23,8 @@
 mod constraints;
 mod loads;
 mod material;
-mod system;
 mod synthetic;
+mod system;
 
 pub use constraints::{ConstraintKind, ConstraintMethod, Constraints, DEFAULT_PENALTY, Selector};
 pub use loads::{Loads, depths, load_vector};

@@ -34,4 +34,3 @@ pub fn synthetic_system(n: usize, method: ConstraintMethod) -> Result<System> {
         if method == ConstraintMethod::Eliminate { PressureScaling::Auto } else { PressureScaling::None };
     assemble(&body, &material, &c, &AssemblyOptions { method, pressure_scaling: scaling })
 }
-

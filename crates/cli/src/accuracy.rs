@@ -2,8 +2,8 @@
 
 use std::path::Path;
 
-use fibfluid_cli::study::{Grid, chart, run_study, to_csv, to_markdown};
 use fibfluid::{Backend, ConstraintKind, Mode, Precision, Scene, Stepping};
+use fibfluid_cli::study::{Grid, chart, run_study, to_csv, to_markdown};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::CliError;

@@ -88,4 +88,3 @@ fn median(v: &mut [f64]) -> f64 {
     let m = v.len() / 2;
     if v.len() % 2 == 1 { v[m] } else { 0.5 * (v[m - 1] + v[m]) }
 }
-

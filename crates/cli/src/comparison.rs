@@ -19,13 +19,14 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
+use fibfluid::Choice;
 use fibfluid::geometry::Vec3;
 use fibfluid::geometry::vec3::{dist, norm};
-use fibfluid::Choice;
 use serde::Serialize;
 
 use fibfluid::interact::{
-    Latency, Method, MethodBody, ProbeError, ProbeOptions, ToolPath, check_method, check_path, replay_observed,
+    Latency, Method, MethodBody, ProbeError, ProbeOptions, ToolPath, check_method, check_path,
+    replay_observed,
 };
 use fibfluid::{Scene, Shape};
 

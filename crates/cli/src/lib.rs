@@ -3,9 +3,9 @@
 //! study and the bench harness. The binary (`src/main.rs`) parses arguments and prints;
 //! everything it writes goes through here, all or nothing ([`write_files_atomically`]).
 
-mod error;
 pub mod bench;
 pub mod comparison;
+mod error;
 pub mod info;
 pub mod output;
 pub mod probe_run;

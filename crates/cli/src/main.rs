@@ -8,7 +8,8 @@ use std::time::Instant;
 use clap::{Parser, Subcommand};
 use fibfluid::stages::{StageRecord, names};
 use fibfluid::{
-    Backend, ConstraintKind, Mode, Plan, Precision, Report, RunOptions, Scene, SetupOptions, Simulation, Stepping,
+    Backend, ConstraintKind, Mode, Plan, Precision, Report, RunOptions, Scene, SetupOptions, Simulation,
+    Stepping,
 };
 use fibfluid_cli::MeshInfo;
 use indicatif::{ProgressBar, ProgressStyle};

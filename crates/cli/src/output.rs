@@ -214,7 +214,14 @@ pub fn compression_png(sim: &Simulation) -> Result<Vec<u8>> {
         })
         .collect();
     let title = format!("{}: plate force against thickness", sim.model().name);
-    Ok(fibfluid::render::line_chart(&title, "thickness (plate gap)", "force on the plate", &series, 900, 560)?)
+    Ok(fibfluid::render::line_chart(
+        &title,
+        "thickness (plate gap)",
+        "force on the plate",
+        &series,
+        900,
+        560,
+    )?)
 }
 
 /// Writes every output of a run into `dir` (see [`write_files_atomically`]).

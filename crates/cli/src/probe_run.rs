@@ -6,8 +6,8 @@ use std::time::Instant;
 
 use fibfluid::geometry::{MeshFile, Vec3};
 use fibfluid::interact::{
-    FrameRow, Latency, Method, MethodBody, PathKind, ProbeError, ProbeOptions, Storage, ToolPath, check_method,
-    check_path, replay,
+    FrameRow, Latency, Method, MethodBody, PathKind, ProbeError, ProbeOptions, Storage, ToolPath,
+    check_method, check_path, replay,
 };
 use fibfluid::{ConstraintKind, Scene, Shape};
 use serde::Serialize;
@@ -284,4 +284,3 @@ pub fn run_probe_with(
     write_files_atomically(out, &files)?;
     Ok(report)
 }
-

@@ -283,7 +283,8 @@ fn every_bad_input_gives_one_clean_error_and_writes_nothing() {
         let output = if is_chainmail_scene(&name) {
             // ChainMail's settings act (and its lattice is sized) only when a ChainMail body
             // is built: probed with a one-frame grab of a free vertex.
-            let grab = parent.path().join("grab.csv");
+            let grab_dir = tempfile::tempdir().unwrap();
+            let grab = grab_dir.path().join("grab.csv");
             std::fs::write(&grab, "frame,vertex,ux,uy,uz\n0,2,0,-0.01,0\n").unwrap();
             let args: [&std::ffi::OsStr; 8] = [
                 "probe".as_ref(),

@@ -221,7 +221,10 @@ pub enum ReadError {
         bytes: u64,
     },
     /// The limit given in the environment is not a byte count.
-    #[error("{} = `{value}` is not a byte count (e.g. 1073741824, 512M, 4G)", crate::limits::MAX_FILE_BYTES_ENV)]
+    #[error(
+        "{} = `{value}` is not a byte count (e.g. 1073741824, 512M, 4G)",
+        crate::limits::MAX_FILE_BYTES_ENV
+    )]
     BadLimit {
         /// The value found.
         value: String,

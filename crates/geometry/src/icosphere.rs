@@ -91,4 +91,3 @@ pub fn fibonacci_sphere(n: usize) -> Vec<Vec3> {
         })
         .collect()
 }
-

@@ -180,6 +180,16 @@ impl MeshFile {
         self.to_file.iter().position(|&f| f as usize == i)
     }
 
+    /// The inverse of `to_file`: for each file vertex, its mesh index (`None` when no face
+    /// uses it). The one file-to-mesh map; build it once where many lookups follow.
+    pub fn file_to_mesh(&self) -> Vec<Option<usize>> {
+        let mut map = vec![None; self.file_vertex_count()];
+        for (m, &f) in self.to_file.iter().enumerate() {
+            map[f as usize] = Some(m);
+        }
+        map
+    }
+
     /// Number of vertices in the file.
     pub fn file_vertex_count(&self) -> usize {
         self.file_positions.len()

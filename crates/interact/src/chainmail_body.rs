@@ -21,8 +21,8 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use fibfluid_chainmail::{
-    Embedding, GeneralizedMaterial, Lattice, Material, PropagationOptions, PropagationReport,
-    RelaxOptions, RelaxReport, Scheme, TsveMaterial,
+    Embedding, GeneralizedMaterial, Lattice, Material, PropagationOptions, PropagationReport, RelaxOptions,
+    RelaxReport, Scheme, TsveMaterial,
 };
 use fibfluid_geometry::Vec3;
 use fibfluid_geometry::vec3::{add, sub};
@@ -130,7 +130,9 @@ impl ChainmailBody {
         let Shape::Surface(file) = &scene.shape else { return Err(ChainmailBodyError::NotASurface) };
         let rest = file.mesh.positions().to_vec();
         let fixed_axis = (0..rest.len())
-            .map(|v| (0..3).find(|&c| scene.constraints.get(v, c).is_some()).map(|c| ['x', 'y', 'z'][c]))
+            .map(|v| {
+                (0..3).find(|&c| scene.constraints.get(v, c).is_some()).map(|c| fibfluid_geometry::AXES[c])
+            })
             .collect();
         Self::new(rest, file.mesh.triangles(), fixed_axis, settings, variant, budget)
     }

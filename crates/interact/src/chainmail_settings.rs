@@ -133,7 +133,6 @@ impl ChainmailSettings {
     }
 }
 
-
 impl Variant {
     /// The variant a ChainMail [`Method`] runs (`None` for the other methods).
     pub fn of_method(method: Method) -> Option<Self> {
@@ -170,7 +169,12 @@ impl ChainmailSettings {
             return problem("spacing", None, "positive", h.to_string());
         }
         let limits = |lo, hi, region| match alpha_limits_problem(lo, hi) {
-            Some(p) => problem(p.name, region, p.rule, format!("{} along {}", p.value, ['x', 'y', 'z'][p.axis])),
+            Some(p) => problem(
+                p.name,
+                region,
+                p.rule,
+                format!("{} along {}", p.value, fibfluid_geometry::AXES[p.axis]),
+            ),
             None => Ok(()),
         };
         limits(self.alpha_min, self.alpha_max, None)?;
@@ -183,7 +187,12 @@ impl ChainmailSettings {
         for (k, r) in self.regions.iter().enumerate() {
             if r.min.iter().chain(&r.max).any(|v| !v.is_finite()) || (0..3).any(|c| r.min[c] > r.max[c]) {
                 let value = format!("{:?}", [r.min, r.max]);
-                return problem("box", Some(k), "finite, [[min x, y, z], [max x, y, z]] with min <= max", value);
+                return problem(
+                    "box",
+                    Some(k),
+                    "finite, [[min x, y, z], [max x, y, z]] with min <= max",
+                    value,
+                );
             }
             limits(r.alpha_min, r.alpha_max, Some(k))?;
         }

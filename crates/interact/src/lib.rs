@@ -90,12 +90,12 @@ pub mod replay;
 
 pub use body::FfmBody;
 pub use compliance::{Compliance, ComplianceOptions, MemoryEstimate, Storage};
-pub use fibfluid_linalg::memory_budget;
 pub use error::{InteractError, Result};
+pub use fibfluid_linalg::memory_budget;
+pub use fibfluid_sim::Method;
 pub use interactive::{Hold, Interactive};
 pub use method_body::{MethodBody, ProbeBody, ProbeOptions, build_body, linearized};
 pub use replay::{
-    FrameRow, Latency, MAX_FRAME, PathHold, PathKind, PathProblem, PathRow, ProbeError, Replay, ToolPath, check_method,
-    check_path, replay, replay_observed,
+    FrameRow, Latency, MAX_FRAME, PathHold, PathKind, PathProblem, PathRow, ProbeError, Replay, ToolPath,
+    check_method, check_path, replay, replay_observed,
 };
-pub use fibfluid_sim::Method;

@@ -5,7 +5,6 @@
 //! The file format is read by the scene crate; this module holds the parsed data and what
 //! is done with it.
 
-use std::collections::HashMap;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -259,8 +258,7 @@ pub struct PathHold {
 /// frame) and groups its rows by frame (`0..path.frames()`).
 pub fn check_path(path: &ToolPath, scene: &Model) -> std::result::Result<Vec<Vec<PathHold>>, ProbeError> {
     let Shape::Surface(file) = &scene.shape else { return Err(ProbeError::NotASurface) };
-    let to_mesh: HashMap<usize, usize> =
-        file.to_file.iter().enumerate().map(|(m, &f)| (f as usize, m)).collect();
+    let to_mesh = file.file_to_mesh();
     let count = file.file_vertex_count();
     let err =
         |line: usize, problem: PathProblem| ProbeError::Path { path: path.source.clone(), line, problem };
@@ -270,7 +268,7 @@ pub fn check_path(path: &ToolPath, scene: &Model) -> std::result::Result<Vec<Vec
         if fv >= count {
             return Err(err(row.line, PathProblem::UnknownVertex { vertex: fv, count }));
         }
-        let v = *to_mesh.get(&fv).ok_or_else(|| err(row.line, PathProblem::UnusedVertex { vertex: fv }))?;
+        let v = to_mesh[fv].ok_or_else(|| err(row.line, PathProblem::UnusedVertex { vertex: fv }))?;
         let fixed: Vec<usize> = (0..3).filter(|&c| scene.constraints.get(v, c).is_some()).collect();
         let refused = match path.kind {
             PathKind::Grab => !fixed.is_empty(),

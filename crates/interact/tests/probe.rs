@@ -11,8 +11,8 @@
 use fibfluid_assembly::{Material, Selector};
 use fibfluid_geometry::{Vec3, load_mesh};
 use fibfluid_interact::{
-    Compliance, ComplianceOptions, FfmBody, Hold, InteractError, Interactive, ProbeOptions, Storage, build_body,
-    linearized,
+    Compliance, ComplianceOptions, FfmBody, Hold, InteractError, Interactive, ProbeOptions, Storage,
+    build_body, linearized,
 };
 use fibfluid_linalg::{Backend, Choice};
 use fibfluid_sim::ConstraintKind as ConstraintMethod;
@@ -33,7 +33,8 @@ const F32_TOLERANCE: f64 = 8.0 * f32::EPSILON as f64;
 fn sphere(method: ConstraintMethod) -> Model {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/meshes/icosphere-2.obj");
     let file = load_mesh(path).expect("the sphere mesh loads");
-    let material = Material { young: [3000.0; 3], surface_tension: 3000.0, density: 1000.0, ..Material::default() };
+    let material =
+        Material { young: [3000.0; 3], surface_tension: 3000.0, density: 1000.0, ..Material::default() };
     let mut scene = Model::from_mesh("sphere", file, material);
     let rest = scene.rest_positions();
     scene.constraints.fix_selected(&Selector::Above { axis: 1, value: 0.8 }, &rest, [true; 3]).unwrap();

@@ -2,9 +2,7 @@
 
 use std::time::Instant;
 
-use crate::{
-    BorderedMatrix, FactorCost, FactorOptions, Factorization, Precision, Result, lu_flops,
-};
+use crate::{BorderedMatrix, FactorCost, FactorOptions, Factorization, Precision, Result, lu_flops};
 
 pub(crate) use crate::memory::{SINGLE_WHAT, check_alloc, check_dense_memory, try_collect};
 

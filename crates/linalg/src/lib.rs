@@ -29,9 +29,9 @@
 
 mod choice;
 mod dense;
-mod memory;
 mod error;
 mod matrix;
+mod memory;
 mod prescribed;
 mod solver;
 mod structured;
@@ -45,11 +45,11 @@ mod nalgebra_lu;
 mod openblas_lu;
 
 pub use choice::{Choice, ParseChoiceError};
+pub use error::{LinalgError, Result};
+pub use matrix::{Blocks, BorderedMatrix};
 pub use memory::{
     DENSE_MEMORY_FRACTION, available_memory_bytes, check_dense_memory, memory_budget, total_memory_bytes,
 };
-pub use error::{LinalgError, Result};
-pub use matrix::{Blocks, BorderedMatrix};
 pub use prescribed::{ConstrainedSolution, PrescribedSet};
 pub use solver::{
     DEFAULT_MAX_RESIDUAL, DEFAULT_TARGET_RESIDUAL, FactorCost, FactorOptions, Factorization,

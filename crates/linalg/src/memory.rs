@@ -30,7 +30,9 @@ fn meminfo_bytes(field: &str) -> Option<u64> {
 /// ChainMail lattice all check against it.
 pub fn memory_budget(limit: Option<u64>) -> u64 {
     limit.unwrap_or_else(|| {
-        available_memory_bytes().map(|b| (b as f64 * DENSE_MEMORY_FRACTION) as u64).unwrap_or(8 * 1024 * 1024 * 1024)
+        available_memory_bytes()
+            .map(|b| (b as f64 * DENSE_MEMORY_FRACTION) as u64)
+            .unwrap_or(8 * 1024 * 1024 * 1024)
     })
 }
 
@@ -90,4 +92,3 @@ pub(crate) fn try_collect<T>(
 pub(crate) const DENSE_WHAT: &str = "the dense matrix";
 /// The single-precision copy of the dense matrix (mixed precision).
 pub(crate) const SINGLE_WHAT: &str = "the single-precision dense matrix";
-

@@ -118,4 +118,3 @@ pub fn thread_note(threads: usize) -> String {
         env("OPENBLAS_CORETYPE")
     )
 }
-

@@ -82,7 +82,9 @@ fn shape(mesh: Option<MeshToml>, polygon: Option<PolygonToml>, dir: &Path) -> Re
         (None, Some(p)) => Ok(Shape::Polygon(Polygon::new(p.points).ok_or_else(|| {
             invalid("[polygon].points", SceneProblem::Conflict("at least 3 finite points are needed"))
         })?)),
-        (Some(_), Some(_)) => Err(unkeyed(SceneProblem::Conflict("give either [mesh] or [polygon], not both"))),
+        (Some(_), Some(_)) => {
+            Err(unkeyed(SceneProblem::Conflict("give either [mesh] or [polygon], not both")))
+        }
         (None, None) => Err(unkeyed(SceneProblem::Conflict("missing [mesh] (or [polygon]) table"))),
     }
 }
@@ -95,7 +97,11 @@ fn material(m: MaterialToml, fluid: Option<FluidToml>, axes: usize) -> Result<Ma
     };
     for (c, y) in young.iter().enumerate().take(axes) {
         if !(y.is_finite() && *y > 0.0) {
-            return Err(range("[material].young", "positive", format!("{y} along {}", fibfluid_geometry::AXES[c])));
+            return Err(range(
+                "[material].young",
+                "positive",
+                format!("{y} along {}", fibfluid_geometry::AXES[c]),
+            ));
         }
     }
     let gamma = m.surface_tension;
@@ -163,7 +169,9 @@ struct VertexMap<'a> {
 impl<'a> VertexMap<'a> {
     fn of(shape: &'a Shape) -> Self {
         match shape {
-            Shape::Surface(m) => Self { n: m.mesh.n_vertices(), positions: m.mesh.positions().to_vec(), file: Some(m) },
+            Shape::Surface(m) => {
+                Self { n: m.mesh.n_vertices(), positions: m.mesh.positions().to_vec(), file: Some(m) }
+            }
             Shape::Polygon(p) => Self { n: p.n_vertices(), positions: p.positions_3d(), file: None },
         }
     }
@@ -175,7 +183,9 @@ impl<'a> VertexMap<'a> {
             return Err(invalid(key, SceneProblem::VertexOutOfRange { vertex: v, count }));
         }
         match self.file {
-            Some(f) => f.from_file_index(v as usize).ok_or_else(|| invalid(key, SceneProblem::VertexUnused { vertex: v })),
+            Some(f) => f
+                .from_file_index(v as usize)
+                .ok_or_else(|| invalid(key, SceneProblem::VertexUnused { vertex: v })),
             None => Ok(v as usize),
         }
     }
@@ -232,10 +242,15 @@ fn selector(fix: &FixToml, key: &str, vertices: &VertexMap<'_>) -> Result<Select
         fix.bbox.is_some(),
     ];
     if kinds.iter().filter(|k| **k).count() != 1 {
-        return Err(invalid(key, SceneProblem::Conflict("give exactly one of above, below, top, bottom, vertices, box")));
+        return Err(invalid(
+            key,
+            SceneProblem::Conflict("give exactly one of above, below, top, bottom, vertices, box"),
+        ));
     }
     let need_axis = || {
-        axis.ok_or_else(|| invalid(key, SceneProblem::Conflict("`axis` is required with above/below/top/bottom")))
+        axis.ok_or_else(|| {
+            invalid(key, SceneProblem::Conflict("`axis` is required with above/below/top/bottom"))
+        })
     };
     let within = |v: f64, name: &str| {
         if v.is_nan() || v < 0.0 { Err(range(format!("{key}.{name}"), ">= 0", v)) } else { Ok(v) }
@@ -302,8 +317,9 @@ fn plates(specs: &[PlateToml], vertices: &VertexMap<'_>) -> Result<Vec<Plate>, I
         if !p.travel.is_finite() {
             return Err(range(format!("{key}.travel"), "finite", p.travel));
         }
-        let plate = Plate::new(p.point, p.normal, p.travel)
-            .ok_or_else(|| range(format!("{key}.normal"), "finite and non-zero", format!("{:?}", p.normal)))?;
+        let plate = Plate::new(p.point, p.normal, p.travel).ok_or_else(|| {
+            range(format!("{key}.normal"), "finite and non-zero", format!("{:?}", p.normal))
+        })?;
         plates.push(plate);
     }
     let (lo, hi) = fibfluid_geometry::bounding_box(&vertices.positions);

@@ -21,8 +21,8 @@ pub(crate) fn parse(spec: Option<ChainmailToml>) -> Result<ChainmailSettings, In
     s.beta = t.beta.map(PerAxis::get).unwrap_or(s.beta);
     s.tss = t.tss.unwrap_or(s.tss);
     if let Some(r) = t.relaxation {
-        s.relaxation = usize::try_from(r)
-            .map_err(|_| range(format!("{KEY}.relaxation"), "between 0 and 100000", r))?;
+        s.relaxation =
+            usize::try_from(r).map_err(|_| range(format!("{KEY}.relaxation"), "between 0 and 100000", r))?;
     }
     for r in t.material {
         let [min, max] = r.bbox;

@@ -39,7 +39,11 @@ macro_rules! through_sim {
         }
     )*};
 }
-through_sim!(fibfluid_geometry::GeometryError, fibfluid_assembly::AssemblyError, fibfluid_linalg::LinalgError);
+through_sim!(
+    fibfluid_geometry::GeometryError,
+    fibfluid_assembly::AssemblyError,
+    fibfluid_linalg::LinalgError
+);
 
 impl From<SceneError> for Error {
     fn from(e: SceneError) -> Self {

@@ -29,7 +29,6 @@ pub(crate) fn choice<T: Choice>(
     }
 }
 
-
 /// A problem that names no key.
 pub(crate) fn unkeyed(problem: SceneProblem) -> Invalid {
     Invalid { key: None, problem }

@@ -101,4 +101,3 @@ fn bracket_balance(s: &str) -> i64 {
         })
         .sum()
 }
-

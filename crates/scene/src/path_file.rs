@@ -52,8 +52,7 @@ fn excerpt(line: &str) -> String {
 /// Parses the text of a path file; `source` names it in errors.
 pub fn parse_tool_path(source: impl Into<PathBuf>, text: &str) -> Result<ToolPath, ProbeError> {
     let source = source.into();
-    let err =
-        |line: usize, problem: PathProblem| ProbeError::Path { path: source.clone(), line, problem };
+    let err = |line: usize, problem: PathProblem| ProbeError::Path { path: source.clone(), line, problem };
     let mut lines = text
         .lines()
         .enumerate()

@@ -164,4 +164,3 @@ pub(crate) struct RegionToml {
     pub(crate) alpha_min: Option<PerAxis>,
     pub(crate) alpha_max: Option<PerAxis>,
 }
-

@@ -109,4 +109,3 @@ impl Choice for ForceTiming {
     }
 }
 impl_choice!(ForceTiming);
-

@@ -31,9 +31,9 @@ pub mod samples;
 mod simulate;
 pub mod stages;
 
+pub use choices::{ForceTiming, Method, Mode, Stepping};
 pub use effects::{Ineffective, ineffective};
 pub use error::{Error, Result};
-pub use choices::{ForceTiming, Method, Mode, Stepping};
 pub use model::{
     MAX_STEPS, Model, PLATE_REST_TOLERANCE, PointForce, Shape, SolverOptions, VOLUME_NEWTON_ITERATIONS,
     VOLUME_TOLERANCE,

@@ -258,7 +258,6 @@ fn factor_stage(scene: &Model, c: &Costs) -> PlannedStage {
         Mode::Nonlinear => format!("{factor_reason}; once per operator evaluation"),
     };
     stage(names::FACTORIZATION, true, factor_reason, factor_bytes, factor_flops * (1.0 + refactors))
-
 }
 
 /// The loads and the operator refreshes of every step.

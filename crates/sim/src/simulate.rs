@@ -17,13 +17,13 @@ use fibfluid_geometry::{Boundary, FiberSet, Vec3, VisibilityOptions, cull_fibers
 use fibfluid_linalg::{FactorOptions, Factorization, FactorizationExt, LinearSolver, PrescribedSet};
 use serde::Serialize;
 
+use crate::choices::{ForceTiming, Mode, Stepping};
 use crate::contact::{
     Contact, MAX_ACTIVE_SET_ITERATIONS, PENETRATION_TOLERANCE, PlateRecord, TENSION_TOLERANCE,
 };
 use crate::guards::{Guard, GuardWarning, OnFailure, inverted_faces};
-use crate::plan::Plan;
-use crate::choices::{ForceTiming, Mode, Stepping};
 use crate::model::{Model, Shape, VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE};
+use crate::plan::Plan;
 use crate::stages::{StageLog, names};
 use crate::{Error, Result};
 
@@ -215,7 +215,11 @@ impl Simulation {
             Shape::Surface(_) => log.time(names::CONVEXITY, || Plan::from_scene(&scene)),
             Shape::Polygon(_) => Plan::from_scene(&scene),
         };
-        plan.check_memory(&scene.name, fibfluid_linalg::memory_budget(opts.max_memory), scene.solver.backend)?;
+        plan.check_memory(
+            &scene.name,
+            fibfluid_linalg::memory_budget(opts.max_memory),
+            scene.solver.backend,
+        )?;
         let mut factor_options = opts.factor;
         factor_options.precision = scene.solver.precision;
         let solver = scene.solver.backend.solver()?;
@@ -1032,7 +1036,7 @@ fn explain(e: Error, step: usize, from: f64, to: f64, n: usize) -> Error {
         Error::Linalg(L::NotPositiveDefinite { index, axis }) => (
             format!(
                 "the stiffness is not positive definite at vertex {index} along {}",
-                ['x', 'y', 'z'][*axis % 3]
+                fibfluid_geometry::AXES[*axis % 3]
             ),
             "a vertex may be left free, or the deformed shape is degenerate: check the [[fix]] tables, or take smaller steps",
         ),
@@ -1054,5 +1058,5 @@ fn unknown(index: usize, n: usize) -> String {
     if n == 0 || index >= 3 * n {
         return "the pressure".into();
     }
-    format!("vertex {} ({})", index % n, ['x', 'y', 'z'][index / n])
+    format!("vertex {} ({})", index % n, fibfluid_geometry::AXES[index / n])
 }

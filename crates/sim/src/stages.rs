@@ -53,12 +53,7 @@ impl StageLog {
                 s.seconds += seconds;
                 s.count += 1;
             }
-            None => self.stages.push(StageRecord {
-                name,
-                parent,
-                seconds,
-                count: 1,
-            }),
+            None => self.stages.push(StageRecord { name, parent, seconds, count: 1 }),
         }
     }
 
