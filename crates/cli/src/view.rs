@@ -55,9 +55,13 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
             .chain(Method::ALL.iter().copied().filter(|m| *m != args.method && *m != Method::Ffm))
             .map(|m| m.name().to_string())
             .collect(),
+        ..ServerOptions::default()
     };
     // Bind first: a port in use is reported before the (possibly long) precompute.
     let server = Server::bind(server_opts)?;
+    for warning in server.warnings() {
+        eprintln!("{warning}");
+    }
     let opts = args.response.options();
     // The FFM precompute is built once and shared by every client (each gets a clone:
     // its own holds and frame); ChainMail bodies are cheap and built per client.

@@ -17,15 +17,26 @@
 //!   than frames are coalesced: the last state wins). A bad message is answered by
 //!   `{"error": "..."}` and the connection stays open.
 //!
-//! One thread per connection; plain blocking I/O (tungstenite, no async runtime).
+//! One thread per connection; plain blocking I/O (tungstenite, no async runtime). The
+//! server is meant to survive hostile clients: open connections are capped (extra ones
+//! are answered 503), request heads must arrive whole within a timeout and a size limit,
+//! malformed requests and handshakes are answered 400 (426 for a WebSocket version other
+//! than 13), a message too big or a protocol violation is answered by a close frame (1009,
+//! 1002, 1007), a client that does not read is dropped after a write timeout, and a
+//! failing `accept` (out of descriptors) pauses instead of spinning. Binding an address
+//! other than loopback yields a warning ([`binding_warning`], [`Server::warnings`]).
 
+mod http;
 mod mesh;
 mod protocol;
 mod server;
 
 pub use mesh::ViewMesh;
 pub use protocol::{ClientMessage, MessageError, frame_json, parse_message, positions_le_f32};
-pub use server::{BodyFactory, Server, ServerHandle, ServerOptions, ViewerError};
+pub use server::{
+    BodyFactory, Server, ServerHandle, ServerOptions, ServerStats, ViewerError, binding_warning,
+    default_max_connections,
+};
 
 /// The page served at `GET /`: one HTML file with inline JavaScript and CSS (Canvas 2D, no
 /// external URL).

@@ -1,20 +1,20 @@
 //! The server: one listener, routing by request head, one thread per connection.
 
 use std::io::{ErrorKind, Read, Write};
-use std::net::{SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
+use std::net::{IpAddr, Shutdown, SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use fibfluid_geometry::Vec3;
 use fibfluid_interact::{InteractError, Interactive};
-use tungstenite::protocol::CloseFrame;
 use tungstenite::protocol::frame::coding::CloseCode;
+use tungstenite::protocol::{CloseFrame, Role};
 use tungstenite::{Message, WebSocket};
 
 use crate::protocol::{ClientMessage, MessageError, frame_json, parse_message, positions_le_f32};
-use crate::{INDEX_HTML, Result, ViewMesh};
+use crate::{INDEX_HTML, Result, ViewMesh, http};
 
 /// Builds a new body for a client from a method name (`ffm`, `tsve-chainmail`, ...); an
 /// unsupported method is [`ViewerError::UnsupportedMethod`].
@@ -79,23 +79,94 @@ pub struct ServerOptions {
     /// Methods offered in the page's switch, the default first (the factory refuses those it
     /// cannot build).
     pub methods: Vec<String>,
+    /// Most connections open at once (requests being read or answered and WebSocket
+    /// clients); one beyond is answered `503 Service Unavailable` and closed at once.
+    /// Default: [`default_max_connections`].
+    pub max_connections: usize,
+    /// How long a connection may take to send its whole request head (an HTTP request or
+    /// a WebSocket handshake); a slower one is answered `408 Request Timeout` and closed,
+    /// which frees its place. 10 s by default.
+    pub head_timeout: Duration,
+    /// How long one write to a client may block (a client that does not read fills its
+    /// socket's buffers); past it the client is dropped. 10 s by default.
+    pub write_timeout: Duration,
 }
 
 impl Default for ServerOptions {
     fn default() -> Self {
-        Self { host: "127.0.0.1".into(), port: 0, max_clients: 8, methods: vec!["ffm".into()] }
+        Self {
+            host: "127.0.0.1".into(),
+            port: 0,
+            max_clients: 8,
+            methods: vec!["ffm".into()],
+            max_connections: default_max_connections(),
+            head_timeout: Duration::from_secs(10),
+            write_timeout: Duration::from_secs(10),
+        }
     }
 }
 
-/// Largest request head read (bytes); a longer one is answered 431.
-const MAX_HEAD: usize = 16 * 1024;
+/// The default [`ServerOptions::max_connections`]: 256, or half the process's soft limit
+/// of open files when that is lower (read from `/proc/self/limits`; each connection holds
+/// one descriptor and the rest of the process needs some), at least 1.
+pub fn default_max_connections() -> usize {
+    let soft = std::fs::read_to_string("/proc/self/limits").ok().and_then(|text| {
+        let line = text.lines().find(|l| l.starts_with("Max open files"))?;
+        line["Max open files".len()..].split_whitespace().next()?.parse::<usize>().ok()
+    });
+    match soft {
+        Some(n) => (n / 2).clamp(1, 256),
+        None => 256,
+    }
+}
+
+/// The warning due when a server listens on `addr`: `None` for a loopback address
+/// (127.0.0.0/8, `::1`, or `::ffff:127.x.y.z`), otherwise a sentence saying that other
+/// machines can reach a server without authentication or encryption.
+pub fn binding_warning(addr: SocketAddr) -> Option<String> {
+    let ip = match addr.ip() {
+        IpAddr::V6(v6) => v6.to_ipv4_mapped().map(IpAddr::V4).unwrap_or(IpAddr::V6(v6)),
+        v4 => v4,
+    };
+    if ip.is_loopback() {
+        return None;
+    }
+    let reach = if ip.is_unspecified() {
+        "every network interface of this machine".to_string()
+    } else {
+        format!("{ip}, which is not a loopback address")
+    };
+    Some(format!(
+        "warning: the viewer listens on {addr} ({reach}): anyone who can reach this machine over the \
+         network can connect, and there is no authentication or encryption; bind 127.0.0.1 unless the \
+         network is trusted"
+    ))
+}
+
+/// Counters of a running server, from [`ServerHandle::stats`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ServerStats {
+    /// Connections open now (counted against [`ServerOptions::max_connections`]).
+    pub connections: usize,
+    /// WebSocket clients served now (counted against [`ServerOptions::max_clients`]).
+    pub clients: usize,
+    /// Connections answered 503 (or dropped when no thread could be started) since the
+    /// start.
+    pub refused: u64,
+    /// Failed `accept` calls since the start (out of descriptors, for instance); each is
+    /// followed by a pause of 10 ms to 0.5 s instead of an immediate retry.
+    pub accept_errors: u64,
+}
+
 /// Largest client WebSocket message (bytes): the protocol's messages are a few dozen
-/// bytes; a larger one ends the connection.
+/// bytes; a larger one is answered by a close frame with code 1009.
 const MAX_MESSAGE: usize = 64 * 1024;
 /// Most client messages applied to one frame.
 const MAX_BATCH: usize = 4096;
-/// How long a connection may take to send its request head.
-const HEAD_TIMEOUT: Duration = Duration::from_secs(10);
+/// First pause after a failed `accept`; it doubles with each failure in a row.
+const MIN_ACCEPT_PAUSE: Duration = Duration::from_millis(10);
+/// Longest pause after a failed `accept`.
+const MAX_ACCEPT_PAUSE: Duration = Duration::from_millis(500);
 
 struct Shared {
     mesh: ViewMesh,
@@ -104,6 +175,9 @@ struct Shared {
     factory: BodyFactory,
     opts: ServerOptions,
     clients: AtomicUsize,
+    connections: AtomicUsize,
+    refused: AtomicU64,
+    accept_errors: AtomicU64,
     stop: AtomicBool,
 }
 
@@ -123,7 +197,8 @@ pub struct ServerHandle {
 
 impl Server {
     /// Binds the listener. Nothing is served until [`run`](Self::run) or
-    /// [`spawn`](Self::spawn).
+    /// [`spawn`](Self::spawn). An address other than loopback is bound as asked; see
+    /// [`warnings`](Self::warnings).
     pub fn bind(opts: ServerOptions) -> Result<Self> {
         // An IPv6 literal needs brackets before the port.
         let addr = if opts.host.contains(':') && !opts.host.starts_with('[') {
@@ -147,6 +222,12 @@ impl Server {
         format!("http://{}/", self.local_addr())
     }
 
+    /// What the operator should know about this server before it serves: empty when it
+    /// listens on loopback only, else the [`binding_warning`] of its address.
+    pub fn warnings(&self) -> Vec<String> {
+        binding_warning(self.local_addr()).into_iter().collect()
+    }
+
     fn shared(self, mesh: ViewMesh, factory: BodyFactory) -> (TcpListener, Arc<Shared>) {
         let info_json = serde_json::json!({
             "methods": self.opts.methods,
@@ -161,6 +242,9 @@ impl Server {
             factory,
             opts: self.opts,
             clients: AtomicUsize::new(0),
+            connections: AtomicUsize::new(0),
+            refused: AtomicU64::new(0),
+            accept_errors: AtomicU64::new(0),
             stop: AtomicBool::new(false),
         });
         (self.listener, shared)
@@ -195,6 +279,16 @@ impl ServerHandle {
         format!("http://{}/", self.addr)
     }
 
+    /// The server's counters now.
+    pub fn stats(&self) -> ServerStats {
+        ServerStats {
+            connections: self.shared.connections.load(Ordering::SeqCst),
+            clients: self.shared.clients.load(Ordering::SeqCst),
+            refused: self.shared.refused.load(Ordering::SeqCst),
+            accept_errors: self.shared.accept_errors.load(Ordering::SeqCst),
+        }
+    }
+
     /// Stops accepting connections (open connections run to their end).
     pub fn stop(mut self) {
         self.shutdown();
@@ -219,128 +313,140 @@ impl Drop for ServerHandle {
 }
 
 fn accept_loop(listener: &TcpListener, shared: &Arc<Shared>) {
-    for stream in listener.incoming() {
+    let mut pause = Duration::ZERO;
+    loop {
+        let accepted = listener.accept();
         if shared.stop.load(Ordering::SeqCst) {
             break;
         }
-        let Ok(stream) = stream else { continue };
-        let shared = Arc::clone(shared);
-        std::thread::spawn(move || handle_connection(stream, &shared));
+        match accepted {
+            Ok((stream, _)) => {
+                pause = Duration::ZERO;
+                admit(stream, shared);
+            }
+            Err(e) if e.kind() == ErrorKind::Interrupted => {}
+            // Out of descriptors (EMFILE, ENFILE), of memory, or a connection that died in
+            // the queue: retrying at once would spin without freeing anything; pause, a
+            // little longer each time in a row.
+            Err(_) => {
+                shared.accept_errors.fetch_add(1, Ordering::SeqCst);
+                pause = (pause * 2).clamp(MIN_ACCEPT_PAUSE, MAX_ACCEPT_PAUSE);
+                std::thread::sleep(pause);
+            }
+        }
     }
 }
 
-/// The request line and the headers that matter for routing.
-struct Head {
-    len: usize,
-    method: String,
-    target: String,
-    upgrade: bool,
-}
+/// Holds one place of [`ServerOptions::max_connections`]; gives it back when dropped.
+struct ConnectionSlot(Arc<Shared>);
 
-/// Peeks at the request head without consuming it (so that a WebSocket handshake can read
-/// it again). `Ok(None)`: the head is too long.
-fn peek_head(stream: &TcpStream) -> std::io::Result<Option<Head>> {
-    let mut buf = vec![0u8; MAX_HEAD];
-    let start = Instant::now();
-    let mut last = 0;
-    loop {
-        let n = stream.peek(&mut buf)?;
-        if n == 0 {
-            return Err(std::io::Error::new(ErrorKind::UnexpectedEof, "connection closed before a request"));
-        }
-        if let Some(end) = buf[..n].windows(4).position(|w| w == b"\r\n\r\n") {
-            let text = String::from_utf8_lossy(&buf[..end]);
-            let mut lines = text.split("\r\n");
-            let mut first = lines.next().unwrap_or("").split_whitespace();
-            let method = first.next().unwrap_or("").to_string();
-            let target = first.next().unwrap_or("").to_string();
-            let upgrade = lines.any(|l| {
-                let mut kv = l.splitn(2, ':');
-                let (k, v) = (kv.next().unwrap_or("").trim(), kv.next().unwrap_or("").trim());
-                k.eq_ignore_ascii_case("upgrade") && v.eq_ignore_ascii_case("websocket")
-            });
-            return Ok(Some(Head { len: end + 4, method, target, upgrade }));
-        }
-        if n == MAX_HEAD {
-            return Ok(None);
-        }
-        if start.elapsed() > HEAD_TIMEOUT {
-            return Err(std::io::Error::new(ErrorKind::TimedOut, "request head too slow"));
-        }
-        if n == last {
-            std::thread::sleep(Duration::from_millis(1));
-        }
-        last = n;
+impl Drop for ConnectionSlot {
+    fn drop(&mut self) {
+        self.0.connections.fetch_sub(1, Ordering::SeqCst);
     }
 }
 
-fn respond(stream: &mut TcpStream, status: &str, content_type: &str, body: &[u8], head_only: bool) {
-    let head = format!(
-        "HTTP/1.1 {status}\r\nContent-Type: {content_type}\r\nContent-Length: {}\r\nCache-Control: no-store\r\nConnection: close\r\n\r\n",
+/// Starts serving an accepted connection on its own thread, or answers 503 when the
+/// server has [`ServerOptions::max_connections`] open.
+fn admit(stream: TcpStream, shared: &Arc<Shared>) {
+    let max = shared.opts.max_connections;
+    if shared.connections.fetch_add(1, Ordering::SeqCst) >= max {
+        shared.connections.fetch_sub(1, Ordering::SeqCst);
+        shared.refused.fetch_add(1, Ordering::SeqCst);
+        busy(stream, max);
+        return;
+    }
+    let slot = ConnectionSlot(Arc::clone(shared));
+    let spawned = std::thread::Builder::new().name("viewer-connection".into()).spawn(move || {
+        let shared = Arc::clone(&slot.0);
+        handle_connection(stream, &shared);
+        drop(slot);
+    });
+    if spawned.is_err() {
+        // The closure (the stream and the slot) is dropped: the connection closes.
+        shared.refused.fetch_add(1, Ordering::SeqCst);
+    }
+}
+
+/// Answers `503 Service Unavailable` from the accept loop without ever blocking it: the
+/// socket is non-blocking and the answer fits in its empty send buffer.
+fn busy(mut stream: TcpStream, max: usize) {
+    let _ = stream.set_nonblocking(true);
+    // Read what has already arrived: closing a socket with unread input resets the
+    // connection, which can discard the answer before the client reads it.
+    let mut sink = [0u8; 4096];
+    let _ = stream.read(&mut sink);
+    let body = format!("the viewer has {max} connections open (its limit); try again shortly\n");
+    let answer = format!(
+        "HTTP/1.1 503 Service Unavailable\r\nContent-Type: text/plain; charset=utf-8\r\nContent-Length: {}\r\n\
+         Retry-After: 1\r\nConnection: close\r\n\r\n{body}",
         body.len()
     );
-    let _ = stream.write_all(head.as_bytes());
-    if !head_only {
-        let _ = stream.write_all(body);
-    }
-    let _ = stream.flush();
-    let _ = stream.shutdown(std::net::Shutdown::Write);
+    let _ = stream.write_all(answer.as_bytes());
+    let _ = stream.shutdown(Shutdown::Write);
 }
 
 fn handle_connection(mut stream: TcpStream, shared: &Shared) {
-    let _ = stream.set_read_timeout(Some(HEAD_TIMEOUT));
     let _ = stream.set_nodelay(true);
-    let head = match peek_head(&stream) {
-        Ok(Some(h)) => h,
-        Ok(None) => {
-            respond(
-                &mut stream,
-                "431 Request Header Fields Too Large",
-                "text/plain",
-                b"request head too long\n",
-                false,
-            );
+    let _ = stream.set_write_timeout(Some(shared.opts.write_timeout));
+    let head = match http::read_head(&mut stream, shared.opts.head_timeout) {
+        Ok(h) => h,
+        Err(e) => {
+            if let Some((status, reason)) = e.answer() {
+                http::respond_text(&mut stream, status, "", &reason);
+            }
             return;
         }
-        Err(_) => return,
     };
     let (path, query) = head.target.split_once('?').unwrap_or((head.target.as_str(), ""));
-    if path == "/ws" && head.upgrade {
+    if path == "/ws" && head.values("upgrade").next().is_some() {
         let method = query
             .split('&')
             .find_map(|kv| kv.strip_prefix("method="))
             .map(str::to_string)
             .unwrap_or_else(|| shared.opts.methods.first().cloned().unwrap_or_default());
-        let _ = stream.set_read_timeout(None);
-        let config = tungstenite::protocol::WebSocketConfig::default()
-            .max_message_size(Some(MAX_MESSAGE))
-            .max_frame_size(Some(MAX_MESSAGE));
-        if let Ok(ws) = tungstenite::accept_with_config(stream, Some(config)) {
-            serve_client(ws, shared, &method);
+        match http::websocket_accept(&head) {
+            Ok(accept) => upgrade(stream, head.rest, &accept, shared, &method),
+            Err(r) => http::respond_text(&mut stream, r.status, r.headers, &r.reason),
         }
-        return;
-    }
-    // Consume the head (requests without a body are all this server answers).
-    let mut sink = vec![0u8; head.len];
-    if stream.read_exact(&mut sink).is_err() {
         return;
     }
     let head_only = head.method == "HEAD";
     if head.method != "GET" && !head_only {
-        respond(&mut stream, "405 Method Not Allowed", "text/plain", b"only GET\n", false);
+        http::respond_text(
+            &mut stream,
+            "405 Method Not Allowed",
+            "Allow: GET, HEAD\r\n",
+            "only GET and HEAD",
+        );
         return;
     }
-    match path {
-        "/" | "/index.html" => {
-            respond(&mut stream, "200 OK", "text/html; charset=utf-8", INDEX_HTML.as_bytes(), head_only)
-        }
-        "/mesh" => respond(&mut stream, "200 OK", "application/json", shared.mesh_json.as_bytes(), head_only),
-        "/info" => respond(&mut stream, "200 OK", "application/json", shared.info_json.as_bytes(), head_only),
-        "/ws" => {
-            respond(&mut stream, "400 Bad Request", "text/plain", b"WebSocket upgrade expected\n", head_only)
-        }
-        _ => respond(&mut stream, "404 Not Found", "text/plain", b"not found\n", head_only),
+    let (status, content_type, body) = match path {
+        "/" | "/index.html" => ("200 OK", "text/html; charset=utf-8", INDEX_HTML.as_bytes()),
+        "/mesh" => ("200 OK", "application/json", shared.mesh_json.as_bytes()),
+        "/info" => ("200 OK", "application/json", shared.info_json.as_bytes()),
+        "/ws" => ("400 Bad Request", "text/plain", &b"WebSocket upgrade expected\n"[..]),
+        _ => ("404 Not Found", "text/plain", &b"not found\n"[..]),
+    };
+    http::respond(&mut stream, status, content_type, "", body, head_only);
+}
+
+/// Answers a checked handshake with `101 Switching Protocols` and serves the client.
+fn upgrade(mut stream: TcpStream, rest: Vec<u8>, accept: &str, shared: &Shared, method: &str) {
+    let answer = format!(
+        "HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Accept: {accept}\r\n\r\n"
+    );
+    if stream.write_all(answer.as_bytes()).is_err() {
+        return;
     }
+    // A client may stay idle between drags: no read timeout once it is a WebSocket (the
+    // number of clients is bounded by `max_clients`); writes keep their timeout.
+    let _ = stream.set_read_timeout(None);
+    let config = tungstenite::protocol::WebSocketConfig::default()
+        .max_message_size(Some(MAX_MESSAGE))
+        .max_frame_size(Some(MAX_MESSAGE));
+    let ws = WebSocket::from_partially_read(stream, rest, Role::Server, Some(config));
+    serve_client(ws, shared, method);
 }
 
 fn error_json(text: &str) -> String {
@@ -419,7 +525,93 @@ impl Session<'_> {
 }
 
 fn is_would_block(e: &tungstenite::Error) -> bool {
-    matches!(e, tungstenite::Error::Io(io) if io.kind() == ErrorKind::WouldBlock)
+    matches!(e, tungstenite::Error::Io(io) if matches!(io.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut))
+}
+
+/// How a failed read ends the connection: the close frame owed to the client, if any
+/// (`None`: the client is gone or the socket failed, nothing to say).
+fn close_for(e: &tungstenite::Error) -> Option<CloseFrame> {
+    use tungstenite::error::ProtocolError;
+    let (code, reason) = match e {
+        tungstenite::Error::Capacity(_) => (CloseCode::Size, "message too big (64 KiB at most)".to_string()),
+        tungstenite::Error::Utf8(_) => (CloseCode::Invalid, "text message is not UTF-8".to_string()),
+        tungstenite::Error::Protocol(ProtocolError::ResetWithoutClosingHandshake) => return None,
+        tungstenite::Error::Protocol(p) => (CloseCode::Protocol, p.to_string().chars().take(100).collect()),
+        _ => return None,
+    };
+    Some(CloseFrame { code, reason: reason.into() })
+}
+
+/// Ends a connection whose input cannot be read any further (a message too big, a
+/// protocol violation): sends the close frame, then closes without waiting for the
+/// client's (its input is no longer framed).
+fn fail(mut ws: WebSocket<TcpStream>, frame: Option<CloseFrame>) {
+    let _ = ws.get_mut().set_nonblocking(false);
+    if let Some(frame) = frame {
+        let _ = ws.close(Some(frame));
+        let _ = ws.flush();
+        http::linger_close(ws.get_mut());
+    }
+}
+
+/// What one batch of client messages asks for.
+struct Batch {
+    /// When its first message was read (the frame's latency counts from there).
+    start: Instant,
+    /// A frame is due.
+    due: bool,
+    /// The client sent a close frame.
+    closed: bool,
+    /// The input failed: the connection ends (with this close frame, if any).
+    failed: Option<Option<CloseFrame>>,
+    /// Errors to send back, in order.
+    errors: Vec<String>,
+}
+
+impl Batch {
+    fn take(&mut self, session: &mut Session<'_>, read: tungstenite::Result<Message>) {
+        match read {
+            Ok(m) => {
+                self.closed |= matches!(m, Message::Close(_));
+                match session.apply(m) {
+                    Ok(d) => self.due |= d,
+                    Err(e) => self.errors.push(e.to_string()),
+                }
+            }
+            Err(e) => self.failed = Some(close_for(&e)),
+        }
+    }
+}
+
+/// Reads one message (waiting for it), then whatever else has already arrived (at most
+/// [`MAX_BATCH`] messages, so that a client sending without pause still gets frames).
+fn read_batch(ws: &mut WebSocket<TcpStream>, session: &mut Session<'_>) -> Batch {
+    let first = ws.read();
+    let mut batch =
+        Batch { start: Instant::now(), due: false, closed: false, failed: None, errors: Vec::new() };
+    // The socket has no read timeout here: a would-block is a write (of a pending pong or
+    // close) that timed out, and ends the connection like any failure.
+    batch.take(session, first);
+    if batch.closed || batch.failed.is_some() {
+        return batch;
+    }
+    if ws.get_mut().set_nonblocking(true).is_err() {
+        batch.failed = Some(None);
+        return batch;
+    }
+    for _ in 1..MAX_BATCH {
+        match ws.read() {
+            Err(e) if is_would_block(&e) => break,
+            next => batch.take(session, next),
+        }
+        if batch.closed || batch.failed.is_some() {
+            break;
+        }
+    }
+    if ws.get_mut().set_nonblocking(false).is_err() {
+        batch.failed.get_or_insert(None);
+    }
+    batch
 }
 
 fn serve_client(mut ws: WebSocket<TcpStream>, shared: &Shared, method: &str) {
@@ -451,68 +643,36 @@ fn serve_client(mut ws: WebSocket<TcpStream>, shared: &Shared, method: &str) {
     };
     let mut session =
         Session { mesh: &shared.mesh, body, positions: shared.mesh.positions.clone(), bytes: Vec::new() };
-    let mut errors: Vec<String> = Vec::new();
     loop {
-        let first = match ws.read() {
-            Ok(m) => m,
-            Err(e) if is_would_block(&e) => continue,
-            Err(_) => return,
-        };
-        let start = Instant::now();
-        let mut due = false;
-        let mut closed = matches!(first, Message::Close(_));
-        match session.apply(first) {
-            Ok(d) => due |= d,
-            Err(e) => errors.push(e.to_string()),
-        }
-        // Coalesce: apply whatever else has arrived (at most MAX_BATCH messages, so that a
-        // client sending without pause still gets frames); the last state wins.
-        if !closed && ws.get_mut().set_nonblocking(true).is_ok() {
-            for _ in 1..MAX_BATCH {
-                match ws.read() {
-                    Ok(m) => {
-                        closed |= matches!(m, Message::Close(_));
-                        match session.apply(m) {
-                            Ok(d) => due |= d,
-                            Err(e) => errors.push(e.to_string()),
-                        }
-                    }
-                    Err(e) if is_would_block(&e) => break,
-                    Err(_) => {
-                        closed = true;
-                        break;
-                    }
-                }
-            }
-            if ws.get_mut().set_nonblocking(false).is_err() {
+        let batch = read_batch(&mut ws, &mut session);
+        // Errors of the messages read before a failure are still answered.
+        for e in &batch.errors {
+            if ws.send(Message::text(error_json(e))).is_err() {
                 return;
             }
         }
-        for e in errors.drain(..) {
-            if ws.send(Message::text(error_json(&e))).is_err() {
-                return;
-            }
+        if let Some(frame) = batch.failed {
+            fail(ws, frame);
+            return;
         }
-        if closed {
+        if batch.closed {
             // Let tungstenite finish the close handshake.
             while ws.read().is_ok() {}
             return;
         }
-        if due {
-            match session.frame(start) {
-                Ok(text) => {
-                    if ws.write(Message::text(text)).is_err()
-                        || ws.send(Message::binary(session.bytes.clone())).is_err()
-                    {
-                        return;
-                    }
-                }
-                Err(e) => {
-                    if ws.send(Message::text(error_json(&e.to_string()))).is_err() {
-                        return;
-                    }
-                }
-            }
+        if batch.due && !send_frame(&mut ws, &mut session, batch.start) {
+            return;
         }
+    }
+}
+
+/// Computes and sends one frame (or the body's error). `false`: the connection is done (a
+/// write failed or timed out: the client does not read).
+fn send_frame(ws: &mut WebSocket<TcpStream>, session: &mut Session<'_>, start: Instant) -> bool {
+    match session.frame(start) {
+        Ok(text) => {
+            ws.write(Message::text(text)).is_ok() && ws.send(Message::binary(session.bytes.clone())).is_ok()
+        }
+        Err(e) => ws.send(Message::text(error_json(&e.to_string()))).is_ok(),
     }
 }

@@ -1,9 +1,10 @@
 //! Shared helpers: scenes, bodies, a server on a free port, a tiny HTTP client and a
 //! WebSocket client that reads frames.
 
-use std::io::{Read, Write};
+use std::io::{ErrorKind, Read, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::sync::Arc;
+use std::time::Duration;
 
 use fibfluid::geometry::Vec3;
 use fibfluid::interact::{FfmBody, Interactive, Storage};
@@ -28,6 +29,22 @@ pub fn scene_body(path: &str, storage: Storage) -> (Scene, FfmBody) {
 
 /// A server of `body` (each client gets a clone), on a free port of 127.0.0.1.
 pub fn serve(scene: &Scene, body: &FfmBody, max_clients: usize) -> ServerHandle {
+    serve_with(scene, body, ServerOptions { max_clients, ..test_options() })
+}
+
+/// The options of [`serve`] (a free port of 127.0.0.1, the methods `ffm` and
+/// `tsve-chainmail`).
+pub fn test_options() -> ServerOptions {
+    ServerOptions {
+        port: 0,
+        max_clients: 4,
+        methods: vec!["ffm".into(), "tsve-chainmail".into()],
+        ..Default::default()
+    }
+}
+
+/// A server of `body` with the given options.
+pub fn serve_with(scene: &Scene, body: &FfmBody, opts: ServerOptions) -> ServerHandle {
     let Shape::Surface(file) = &scene.shape else { panic!("a surface scene") };
     let mesh = ViewMesh::new(file, body).expect("mesh and body agree");
     let proto = body.clone();
@@ -38,12 +55,6 @@ pub fn serve(scene: &Scene, body: &FfmBody, max_clients: usize) -> ServerHandle 
             Err(ViewerError::UnsupportedMethod { method: name.to_string(), available: "ffm".into() })
         }
     });
-    let opts = ServerOptions {
-        port: 0,
-        max_clients,
-        methods: vec!["ffm".into(), "tsve-chainmail".into()],
-        ..Default::default()
-    };
     Server::bind(opts).expect("binds a free port").spawn(mesh, factory)
 }
 
@@ -161,4 +172,153 @@ pub fn max_dist(a: &[Vec3], b: &[Vec3]) -> f64 {
         .zip(b)
         .map(|(p, q)| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt())
         .fold(0.0, f64::max)
+}
+
+/// How long a test waits for an answer that must come (it proves an answer at all, not
+/// a speed).
+pub const ANSWER_TIMEOUT: Duration = Duration::from_secs(20);
+
+/// A connection to `addr` that reads with [`ANSWER_TIMEOUT`].
+pub fn connect(addr: SocketAddr) -> TcpStream {
+    let s = TcpStream::connect_timeout(&addr, ANSWER_TIMEOUT).expect("connects");
+    s.set_read_timeout(Some(ANSWER_TIMEOUT)).unwrap();
+    s.set_write_timeout(Some(ANSWER_TIMEOUT)).unwrap();
+    s
+}
+
+/// Reads until the server closes (or a reset after an answer), within [`ANSWER_TIMEOUT`];
+/// panics when nothing at all arrives in time.
+pub fn read_answer(s: &mut TcpStream) -> String {
+    let mut out = Vec::new();
+    let mut buf = [0u8; 4096];
+    loop {
+        match s.read(&mut buf) {
+            Ok(0) => break,
+            Ok(n) => out.extend_from_slice(&buf[..n]),
+            Err(e) if e.kind() == ErrorKind::Interrupted => {}
+            Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {
+                assert!(!out.is_empty(), "no answer within {ANSWER_TIMEOUT:?}");
+                break;
+            }
+            Err(_) => break,
+        }
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+/// Sends raw bytes as a request and returns the whole answer.
+pub fn raw_request(addr: SocketAddr, bytes: &[u8]) -> String {
+    let mut s = connect(addr);
+    s.write_all(bytes).expect("sends the request");
+    read_answer(&mut s)
+}
+
+/// The status line of an answer.
+pub fn status_line(answer: &str) -> &str {
+    answer.split("\r\n").next().unwrap_or("")
+}
+
+/// The body of an answer.
+pub fn answer_body(answer: &str) -> &str {
+    answer.split_once("\r\n\r\n").map_or("", |(_, b)| b)
+}
+
+/// A handshake request for `/ws` with the given extra header lines (each ending in
+/// `\r\n`).
+pub fn handshake(addr: SocketAddr, headers: &str) -> String {
+    format!("GET /ws HTTP/1.1\r\nHost: {addr}\r\n{headers}\r\n")
+}
+
+/// The header lines of a valid handshake (the key of RFC 6455's example).
+pub const GOOD_HANDSHAKE: &str = "Upgrade: websocket\r\nConnection: Upgrade\r\n\
+    Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n";
+
+/// A raw WebSocket connection after a valid handshake (101 checked).
+pub fn raw_websocket(addr: SocketAddr) -> TcpStream {
+    let mut s = connect(addr);
+    s.write_all(handshake(addr, GOOD_HANDSHAKE).as_bytes()).unwrap();
+    let mut head = Vec::new();
+    let mut byte = [0u8; 1];
+    while !head.ends_with(b"\r\n\r\n") {
+        s.read_exact(&mut byte).expect("the handshake answer");
+        head.push(byte[0]);
+    }
+    let head = String::from_utf8_lossy(&head);
+    assert!(head.starts_with("HTTP/1.1 101 Switching Protocols\r\n"), "{head}");
+    assert!(head.contains("Sec-WebSocket-Accept: s3pPLMBiTxaQ9kYGzzhZRbK+xOo=\r\n"), "{head}");
+    s
+}
+
+/// A client frame: `first` is the first byte (FIN, RSV and opcode), the payload is masked
+/// unless `masked` is false.
+pub fn client_frame(first: u8, payload: &[u8], masked: bool) -> Vec<u8> {
+    let mask_bit = if masked { 0x80 } else { 0 };
+    let mut out = vec![first];
+    match payload.len() {
+        n if n < 126 => out.push(mask_bit | n as u8),
+        n if n < 65536 => {
+            out.push(mask_bit | 126);
+            out.extend_from_slice(&(n as u16).to_be_bytes());
+        }
+        n => {
+            out.push(mask_bit | 127);
+            out.extend_from_slice(&(n as u64).to_be_bytes());
+        }
+    }
+    let key = [0x37, 0xfa, 0x21, 0x3d];
+    if masked {
+        out.extend_from_slice(&key);
+        out.extend(payload.iter().enumerate().map(|(i, b)| b ^ key[i % 4]));
+    } else {
+        out.extend_from_slice(payload);
+    }
+    out
+}
+
+/// A server frame: (opcode, payload), or `None` when the connection ends first.
+pub fn server_frame(s: &mut TcpStream) -> Option<(u8, Vec<u8>)> {
+    let mut h = [0u8; 2];
+    s.read_exact(&mut h).ok()?;
+    assert_eq!(h[1] & 0x80, 0, "server frames are not masked");
+    let len = match h[1] & 0x7f {
+        126 => {
+            let mut b = [0u8; 2];
+            s.read_exact(&mut b).ok()?;
+            u16::from_be_bytes(b) as usize
+        }
+        127 => {
+            let mut b = [0u8; 8];
+            s.read_exact(&mut b).ok()?;
+            u64::from_be_bytes(b) as usize
+        }
+        n => n as usize,
+    };
+    let mut payload = vec![0u8; len];
+    s.read_exact(&mut payload).ok()?;
+    Some((h[0] & 0x0f, payload))
+}
+
+/// Reads server frames up to a close frame: its (code, reason); `None` when the
+/// connection ends without one.
+pub fn close_frame(s: &mut TcpStream) -> Option<(u16, String)> {
+    loop {
+        let (opcode, payload) = server_frame(s)?;
+        if opcode == 8 {
+            assert!(payload.len() >= 2, "a close frame with a code");
+            let code = u16::from_be_bytes([payload[0], payload[1]]);
+            return Some((code, String::from_utf8_lossy(&payload[2..]).into_owned()));
+        }
+    }
+}
+
+/// Polls `done` every 20 ms for at most [`ANSWER_TIMEOUT`]; whether it came true.
+pub fn eventually(mut done: impl FnMut() -> bool) -> bool {
+    let start = std::time::Instant::now();
+    while start.elapsed() < ANSWER_TIMEOUT {
+        if done() {
+            return true;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    done()
 }
