@@ -176,15 +176,15 @@ impl Lattice {
         if count >= NONE as usize {
             return Err(ChainmailError::LatticeTooLarge { nodes: count as u128, limit: MAX_GRID_NODES });
         }
-        let node = |i: usize, j: usize, k: usize| i + dims[0] * (j + dims[1] * k);
         let mut node_to_element = vec![NONE; mask.len()];
         let mut coords = Vec::with_capacity(count);
         let mut rest = Vec::with_capacity(count);
         for k in 0..dims[2] {
             for j in 0..dims[1] {
                 for i in 0..dims[0] {
-                    if mask[node(i, j, k)] {
-                        node_to_element[node(i, j, k)] = coords.len() as u32;
+                    let node = i + dims[0] * (j + dims[1] * k);
+                    if mask[node] {
+                        node_to_element[node] = coords.len() as u32;
                         coords.push([i, j, k]);
                         rest.push([
                             origin[0] + i as f64 * spacing,
@@ -195,68 +195,19 @@ impl Lattice {
                 }
             }
         }
-        let lookup = |c: [isize; 3]| -> u32 {
-            if (0..3).any(|a| c[a] < 0 || c[a] as usize >= dims[a]) {
-                NONE
-            } else {
-                node_to_element[node(c[0] as usize, c[1] as usize, c[2] as usize)]
-            }
-        };
+        let grid = GridLookup { dims, node_to_element: &node_to_element };
         let neighbors: Vec<[u32; 6]> = coords
             .iter()
             .map(|c| {
                 let mut nb = [NONE; 6];
                 for (d, dir) in DIRS.iter().enumerate() {
-                    nb[d] = lookup([c[0] as isize + dir[0], c[1] as isize + dir[1], c[2] as isize + dir[2]]);
+                    nb[d] = grid.element(*c, *dir);
                 }
                 nb
             })
             .collect();
-
-        // Kuhn split of each full cell: 6 tets, one per axis permutation.
-        const PERMS: [[usize; 3]; 6] = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]];
-        let mut tets = Vec::new();
-        for c in &coords {
-            let mut corners = [NONE; 8];
-            for (b, corner) in corners.iter_mut().enumerate() {
-                *corner = lookup([
-                    c[0] as isize + (b & 1) as isize,
-                    c[1] as isize + ((b >> 1) & 1) as isize,
-                    c[2] as isize + ((b >> 2) & 1) as isize,
-                ]);
-            }
-            if corners.contains(&NONE) {
-                continue;
-            }
-            for p in PERMS {
-                let b1 = 1 << p[0];
-                let b2 = b1 | (1 << p[1]);
-                let mut t =
-                    [corners[0] as usize, corners[b1] as usize, corners[b2] as usize, corners[7] as usize];
-                if tet_volume([rest[t[0]], rest[t[1]], rest[t[2]], rest[t[3]]]) < 0.0 {
-                    t.swap(2, 3);
-                }
-                tets.push(t);
-            }
-        }
-        let mut tet_rest_volume = Vec::with_capacity(tets.len());
-        let mut tet_rest_dist = Vec::with_capacity(tets.len());
-        for t in &tets {
-            let p = [rest[t[0]], rest[t[1]], rest[t[2]], rest[t[3]]];
-            tet_rest_volume.push(tet_volume(p));
-            let mut c = [0.0; 3];
-            for q in &p {
-                for a in 0..3 {
-                    c[a] += 0.25 * q[a];
-                }
-            }
-            tet_rest_dist.push([
-                norm(sub(p[0], c)),
-                norm(sub(p[1], c)),
-                norm(sub(p[2], c)),
-                norm(sub(p[3], c)),
-            ]);
-        }
+        let tets = kuhn_tets(&grid, &coords, &rest);
+        let (tet_rest_volume, tet_rest_dist) = tet_rest_shapes(&tets, &rest);
         Ok(Self {
             dims,
             spacing,
@@ -446,4 +397,71 @@ impl Lattice {
     pub(crate) fn rest_offset(&self, i: usize, j: usize) -> Vec3 {
         sub(self.rest[j], self.rest[i])
     }
+}
+
+/// Finds the elements of occupied grid nodes while a lattice is being built.
+struct GridLookup<'a> {
+    dims: [usize; 3],
+    node_to_element: &'a [u32],
+}
+
+impl GridLookup<'_> {
+    /// The element at grid node `c + offset`, or `NONE` if that node is outside the grid or
+    /// not occupied.
+    fn element(&self, c: [usize; 3], offset: [isize; 3]) -> u32 {
+        let c: [isize; 3] = std::array::from_fn(|a| c[a] as isize + offset[a]);
+        if (0..3).any(|a| c[a] < 0 || c[a] as usize >= self.dims[a]) {
+            NONE
+        } else {
+            let [i, j, k] = c.map(|v| v as usize);
+            self.node_to_element[i + self.dims[0] * (j + self.dims[1] * k)]
+        }
+    }
+}
+
+/// Kuhn split of each full grid cell (all eight corners occupied, the cell's lowest corner
+/// at one of `coords`): six tetrahedra, one per axis permutation, each oriented positively
+/// at the `rest` positions.
+fn kuhn_tets(grid: &GridLookup<'_>, coords: &[[usize; 3]], rest: &[Vec3]) -> Vec<[usize; 4]> {
+    const PERMS: [[usize; 3]; 6] = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]];
+    let mut tets = Vec::new();
+    for &c in coords {
+        let mut corners = [NONE; 8];
+        for (b, corner) in corners.iter_mut().enumerate() {
+            *corner = grid.element(c, [(b & 1) as isize, ((b >> 1) & 1) as isize, ((b >> 2) & 1) as isize]);
+        }
+        if corners.contains(&NONE) {
+            continue;
+        }
+        for p in PERMS {
+            let b1 = 1 << p[0];
+            let b2 = b1 | (1 << p[1]);
+            let mut t =
+                [corners[0] as usize, corners[b1] as usize, corners[b2] as usize, corners[7] as usize];
+            if tet_volume([rest[t[0]], rest[t[1]], rest[t[2]], rest[t[3]]]) < 0.0 {
+                t.swap(2, 3);
+            }
+            tets.push(t);
+        }
+    }
+    tets
+}
+
+/// Rest volume of each tetrahedron and the rest distances of its four vertices from its
+/// barycenter.
+fn tet_rest_shapes(tets: &[[usize; 4]], rest: &[Vec3]) -> (Vec<f64>, Vec<[f64; 4]>) {
+    let mut volumes = Vec::with_capacity(tets.len());
+    let mut dists = Vec::with_capacity(tets.len());
+    for t in tets {
+        let p = [rest[t[0]], rest[t[1]], rest[t[2]], rest[t[3]]];
+        volumes.push(tet_volume(p));
+        let mut c = [0.0; 3];
+        for q in &p {
+            for a in 0..3 {
+                c[a] += 0.25 * q[a];
+            }
+        }
+        dists.push([norm(sub(p[0], c)), norm(sub(p[1], c)), norm(sub(p[2], c)), norm(sub(p[3], c))]);
+    }
+    (volumes, dists)
 }

@@ -100,8 +100,34 @@ impl Lattice {
                 reason: format!("{} is not finite and >= 0", options.tolerance),
             });
         }
+        let sponsor = self.sponsor_flags(moves)?;
+        let time_saving = match options.scheme {
+            Scheme::Auto => material.supports_time_saving() && self.same_displacement(moves),
+            Scheme::TimeSaving => true,
+            Scheme::Exhaustive => false,
+        };
         let n = self.len();
-        let mut sponsor = vec![false; n];
+        let max_processed = if options.max_processed == 0 { 64 * n } else { options.max_processed };
+        let mut wave = Wave::new(sponsor, options.tolerance * self.spacing(), time_saving);
+        for &(e, target) in moves {
+            if self.pos[e] != target {
+                wave.moved[e] = true;
+                self.pos[e] = target;
+            }
+            wave.enqueue(e);
+        }
+        if time_saving {
+            self.time_saving_wave(material, &mut wave)?;
+        } else {
+            self.exhaustive_waves(material, &mut wave, max_processed)?;
+        }
+        Ok(wave.finish())
+    }
+
+    /// Which elements are sponsors (listed in `moves`), after checking every move: index in
+    /// range, finite target, no element listed twice.
+    fn sponsor_flags(&self, moves: &[(usize, [f64; 3])]) -> Result<Vec<bool>> {
+        let mut sponsor = vec![false; self.len()];
         for (k, &(e, target)) in moves.iter().enumerate() {
             self.check_index(e)?;
             if target.iter().any(|v| !v.is_finite()) {
@@ -112,131 +138,128 @@ impl Lattice {
             }
             sponsor[e] = true;
         }
-        let time_saving = match options.scheme {
-            Scheme::Auto => material.supports_time_saving() && self.same_displacement(moves),
-            Scheme::TimeSaving => true,
-            Scheme::Exhaustive => false,
+        Ok(sponsor)
+    }
+
+    /// The time-saving scheme: each element is moved at most once, hence queued and
+    /// processed at most once; neighbours that already moved are not checked again.
+    fn time_saving_wave<M: Material + ?Sized>(&mut self, material: &M, wave: &mut Wave) -> Result<()> {
+        while let Some(i) = wave.queue.pop_front() {
+            wave.report.processed += 1;
+            wave.count[i] += 1;
+            for j in self.neighbors[i] {
+                if j == NONE {
+                    continue;
+                }
+                let j = j as usize;
+                if wave.sponsor[j] || wave.moved[j] {
+                    continue;
+                }
+                wave.report.checks += 1;
+                let cbr = material.cbr(i, j, self.rest_offset(i, j))?;
+                let rel = sub(self.pos[j], self.pos[i]);
+                if cbr.violation(rel) <= wave.tol {
+                    continue;
+                }
+                if self.inv_mass[j] == 0.0 {
+                    wave.report.blocked += 1;
+                    continue;
+                }
+                self.pos[j] = add(self.pos[i], cbr.clamp(rel));
+                wave.moved[j] = true;
+                wave.queue.push_back(j);
+            }
+        }
+        Ok(())
+    }
+
+    /// The exhaustive scheme: label-correcting propagation, axis by axis, until no link is
+    /// violated or `max_processed` elements were processed. An element is queued again
+    /// whenever it moves again.
+    fn exhaustive_waves<M: Material + ?Sized>(
+        &mut self,
+        material: &M,
+        wave: &mut Wave,
+        max_processed: usize,
+    ) -> Result<()> {
+        let n = self.len();
+        let mut order = MoveOrder {
+            immovable: (0..n).map(|e| wave.sponsor[e] || self.inv_mass[e] == 0.0).collect(),
+            stamp: vec![[0u64; 3]; n],
+            clock: 0,
         };
-        let max_processed = if options.max_processed == 0 { 64 * n } else { options.max_processed };
-        let tol = options.tolerance * self.spacing();
-
-        let mut report = PropagationReport { time_saving, converged: true, ..Default::default() };
-        let mut moved = vec![false; n];
-        let mut in_queue = vec![false; n];
-        let mut count = vec![0usize; n];
-        let mut queue = VecDeque::with_capacity(moves.len());
-        for &(e, target) in moves {
-            if self.pos[e] != target {
-                moved[e] = true;
-                self.pos[e] = target;
+        while let Some(i) = wave.queue.pop_front() {
+            wave.in_queue[i] = false;
+            if wave.report.processed >= max_processed {
+                wave.report.converged = false;
+                break;
             }
-            queue.push_back(e);
-            in_queue[e] = true;
-        }
-
-        if time_saving {
-            // Each element is moved at most once, hence queued and processed at most once;
-            // neighbours that already moved are not checked again.
-            while let Some(i) = queue.pop_front() {
-                report.processed += 1;
-                count[i] += 1;
-                for j in self.neighbors[i] {
-                    if j == NONE {
-                        continue;
-                    }
-                    let j = j as usize;
-                    if sponsor[j] || moved[j] {
-                        continue;
-                    }
-                    report.checks += 1;
-                    let cbr = material.cbr(i, j, self.rest_offset(i, j))?;
-                    let rel = sub(self.pos[j], self.pos[i]);
-                    if cbr.violation(rel) <= tol {
-                        continue;
-                    }
-                    if self.inv_mass[j] == 0.0 {
-                        report.blocked += 1;
-                        continue;
-                    }
-                    self.pos[j] = add(self.pos[i], cbr.clamp(rel));
-                    moved[j] = true;
-                    queue.push_back(j);
+            wave.report.processed += 1;
+            wave.count[i] += 1;
+            let mut requeue_i = false;
+            for j in self.neighbors[i] {
+                if j != NONE {
+                    requeue_i |= self.resolve_link(material, wave, &mut order, i, j as usize)?;
                 }
             }
-        } else {
-            // Label-correcting propagation, axis by axis. Of the two ends of a link violated
-            // along an axis, the one that moved last along that axis leads and the other
-            // follows; sponsors and fixed elements always lead. An element is queued again
-            // whenever it moves again.
-            let immovable: Vec<bool> = (0..n).map(|e| sponsor[e] || self.inv_mass[e] == 0.0).collect();
-            let mut stamp = vec![[0u64; 3]; n];
-            let mut clock = 0u64;
-            while let Some(i) = queue.pop_front() {
-                in_queue[i] = false;
-                if report.processed >= max_processed {
-                    report.converged = false;
-                    break;
-                }
-                report.processed += 1;
-                count[i] += 1;
-                let mut requeue_i = false;
-                for j in self.neighbors[i] {
-                    if j == NONE {
-                        continue;
-                    }
-                    let j = j as usize;
-                    report.checks += 1;
-                    let cbr = material.cbr(i, j, self.rest_offset(i, j))?;
-                    let rel = sub(self.pos[j], self.pos[i]);
-                    if cbr.violation(rel) <= tol {
-                        continue;
-                    }
-                    if immovable[i] && immovable[j] {
-                        report.blocked += 1;
-                        continue;
-                    }
-                    let back =
-                        if immovable[j] { Some(material.cbr(j, i, self.rest_offset(j, i))?) } else { None };
-                    let mut j_moved = false;
-                    for a in 0..3 {
-                        if rel[a] >= cbr.min[a] - tol && rel[a] <= cbr.max[a] + tol {
-                            continue;
-                        }
-                        clock += 1;
-                        if let Some(back) = &back {
-                            // `i` follows the immovable `j` along this axis.
-                            let r = self.pos[i][a] - self.pos[j][a];
-                            self.pos[i][a] = self.pos[j][a] + r.max(back.min[a]).min(back.max[a]);
-                            stamp[i][a] = clock;
-                            moved[i] = true;
-                            requeue_i = true;
-                        } else if !immovable[i] && stamp[j][a] > stamp[i][a] {
-                            // `j` moved along this axis after `i`: `j` leads (it is queued).
-                            if !in_queue[j] {
-                                in_queue[j] = true;
-                                queue.push_back(j);
-                            }
-                        } else {
-                            self.pos[j][a] = self.pos[i][a] + rel[a].max(cbr.min[a]).min(cbr.max[a]);
-                            stamp[j][a] = clock;
-                            moved[j] = true;
-                            j_moved = true;
-                        }
-                    }
-                    if j_moved && !in_queue[j] {
-                        in_queue[j] = true;
-                        queue.push_back(j);
-                    }
-                }
-                if requeue_i && !in_queue[i] {
-                    in_queue[i] = true;
-                    queue.push_back(i);
-                }
+            if requeue_i {
+                wave.enqueue(i);
             }
         }
-        report.moved = moved.iter().filter(|&&m| m).count();
-        report.max_processed_per_element = count.iter().copied().max().unwrap_or(0);
-        Ok(report)
+        Ok(())
+    }
+
+    /// Checks the link from the processed element `i` to its neighbour `j` and, if it is
+    /// violated, resolves it axis by axis: of the two ends, the one that moved last along
+    /// that axis leads and the other follows; sponsors and fixed elements always lead. A
+    /// following `j` is queued. Returns whether `i` followed (and must be queued again).
+    fn resolve_link<M: Material + ?Sized>(
+        &mut self,
+        material: &M,
+        wave: &mut Wave,
+        order: &mut MoveOrder,
+        i: usize,
+        j: usize,
+    ) -> Result<bool> {
+        let tol = wave.tol;
+        wave.report.checks += 1;
+        let cbr = material.cbr(i, j, self.rest_offset(i, j))?;
+        let rel = sub(self.pos[j], self.pos[i]);
+        if cbr.violation(rel) <= tol {
+            return Ok(false);
+        }
+        if order.immovable[i] && order.immovable[j] {
+            wave.report.blocked += 1;
+            return Ok(false);
+        }
+        let back = if order.immovable[j] { Some(material.cbr(j, i, self.rest_offset(j, i))?) } else { None };
+        let (mut i_moved, mut j_moved) = (false, false);
+        for a in 0..3 {
+            if rel[a] >= cbr.min[a] - tol && rel[a] <= cbr.max[a] + tol {
+                continue;
+            }
+            order.clock += 1;
+            if let Some(back) = &back {
+                // `i` follows the immovable `j` along this axis.
+                let r = self.pos[i][a] - self.pos[j][a];
+                self.pos[i][a] = self.pos[j][a] + r.max(back.min[a]).min(back.max[a]);
+                order.stamp[i][a] = order.clock;
+                wave.moved[i] = true;
+                i_moved = true;
+            } else if !order.immovable[i] && order.stamp[j][a] > order.stamp[i][a] {
+                // `j` moved along this axis after `i`: `j` leads (it is queued).
+                wave.enqueue(j);
+            } else {
+                self.pos[j][a] = self.pos[i][a] + rel[a].max(cbr.min[a]).min(cbr.max[a]);
+                order.stamp[j][a] = order.clock;
+                wave.moved[j] = true;
+                j_moved = true;
+            }
+        }
+        if j_moved {
+            wave.enqueue(j);
+        }
+        Ok(i_moved)
     }
 
     /// Whether all targets are the same displacement from rest (to within 1e-12 spacing).
@@ -252,4 +275,59 @@ impl Lattice {
             (0..3).all(|a| (d[a] - d0[a]).abs() <= 1e-12 * (h + d0[a].abs()))
         })
     }
+}
+
+/// Book-keeping of one [`Lattice::propagate`] call.
+struct Wave {
+    /// Elements listed in the moves.
+    sponsor: Vec<bool>,
+    /// Elements whose position changed.
+    moved: Vec<bool>,
+    in_queue: Vec<bool>,
+    /// Number of times each element was processed.
+    count: Vec<usize>,
+    queue: VecDeque<usize>,
+    /// Absolute tolerance of a CBR violation.
+    tol: f64,
+    report: PropagationReport,
+}
+
+impl Wave {
+    fn new(sponsor: Vec<bool>, tol: f64, time_saving: bool) -> Self {
+        let n = sponsor.len();
+        Self {
+            moved: vec![false; n],
+            in_queue: vec![false; n],
+            count: vec![0; n],
+            queue: VecDeque::new(),
+            sponsor,
+            tol,
+            report: PropagationReport { time_saving, converged: true, ..Default::default() },
+        }
+    }
+
+    /// Queues `e` unless it is queued already.
+    fn enqueue(&mut self, e: usize) {
+        if !self.in_queue[e] {
+            self.in_queue[e] = true;
+            self.queue.push_back(e);
+        }
+    }
+
+    /// The report, with the counts over elements filled in.
+    fn finish(self) -> PropagationReport {
+        let mut report = self.report;
+        report.moved = self.moved.iter().filter(|&&m| m).count();
+        report.max_processed_per_element = self.count.iter().copied().max().unwrap_or(0);
+        report
+    }
+}
+
+/// Which end of a violated link leads in the exhaustive scheme.
+struct MoveOrder {
+    /// Sponsors and fixed elements: they always lead.
+    immovable: Vec<bool>,
+    /// Per element and axis, the clock value of its last move along that axis (0: never).
+    stamp: Vec<[u64; 3]>,
+    clock: u64,
 }

@@ -1,5 +1,7 @@
 //! Log-log and linear line charts, and Pareto fronts.
 
+use plotters::coord::Shift;
+use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
 use plotters::prelude::*;
 
 use crate::error::{RenderError, Result};
@@ -119,6 +121,159 @@ fn legend_corner(samples: &[(f64, f64)], fw: f64, fh: f64) -> SeriesLabelPositio
         .unwrap_or(SeriesLabelPosition::UpperRight)
 }
 
+/// Checks a requested image size: both sides non-zero and at most [`crate::MAX_PIXELS`].
+fn chart_size(width: u32, height: u32) -> Result<(u32, u32)> {
+    if width == 0 || height == 0 {
+        return Err(RenderError::ZeroSize { width, height });
+    }
+    check_image_size(u64::from(width), u64::from(height))
+}
+
+/// Font sizes, line widths and legend geometry of a chart, scaled with the image's smaller
+/// side.
+struct ChartStyle {
+    /// The image's smaller side, in pixels.
+    min_side: f64,
+    caption_size: f64,
+    label_size: f64,
+    line_w: u32,
+    legend_margin: u32,
+    legend_area: u32,
+    /// Length of a line sample in the legend.
+    sample_len: i32,
+}
+
+impl ChartStyle {
+    fn new(w: u32, h: u32) -> Self {
+        let min_side = f64::from(h.min(w));
+        let label_size = (min_side * 0.03).clamp(10.0, 20.0);
+        let legend_margin = (label_size * 0.6).round() as u32;
+        let legend_area = (label_size * 2.2).round() as u32;
+        Self {
+            min_side,
+            caption_size: (min_side * 0.045).clamp(13.0, 30.0),
+            label_size,
+            line_w: ((min_side / 300.0).round() as u32).clamp(1, 4),
+            legend_margin,
+            legend_area,
+            sample_len: legend_area as i32 - legend_margin as i32 / 2,
+        }
+    }
+
+    /// Radius of the round data markers: `fraction` of the smaller side, between 2 and
+    /// `max` pixels.
+    fn marker(&self, fraction: f64, max: f64) -> u32 {
+        (self.min_side * fraction).round().clamp(2.0, max) as u32
+    }
+}
+
+/// Color of the `k`-th series: Tableau 10, repeating.
+fn series_color(k: usize) -> RGBColor {
+    let c = colorous::TABLEAU10[k % colorous::TABLEAU10.len()];
+    RGBColor(c.r, c.g, c.b)
+}
+
+type Root<'b> = DrawingArea<BitMapBackend<'b>, Shift>;
+
+/// A chart with axes `X` × `Y` drawn on a bitmap.
+type Chart<'a, 'b, X, Y> = ChartContext<'a, BitMapBackend<'b>, Cartesian2d<X, Y>>;
+
+/// Lets `draw` paint on a white `w` × `h` bitmap and returns the picture as PNG bytes.
+fn draw_png(w: u32, h: u32, draw: impl FnOnce(&Root<'_>) -> Result<()>) -> Result<Vec<u8>> {
+    let mut rgb = vec![255u8; w as usize * h as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        draw(&root)?;
+        root.present().map_err(draw_err)?;
+    }
+    rgb_to_png(&rgb, w, h)
+}
+
+/// One axis of a chart: its description, its range (linear or log) and its tick labels.
+struct Axis<'f, R> {
+    label: &'f str,
+    range: R,
+    format: &'f dyn Fn(&f64) -> String,
+}
+
+/// The chart of `root` over the axes `x` × `y`: caption, plot area, grid lines, tick
+/// labels and axis descriptions.
+fn chart_with_axes<'a, 'b, X, Y>(
+    root: &'a Root<'b>,
+    style: &ChartStyle,
+    title: &str,
+    x: Axis<'_, X>,
+    y: Axis<'_, Y>,
+) -> Result<Chart<'a, 'b, X::CoordDescType, Y::CoordDescType>>
+where
+    X: AsRangedCoord<Value = f64>,
+    Y: AsRangedCoord<Value = f64>,
+    X::CoordDescType: ValueFormatter<f64>,
+    Y::CoordDescType: ValueFormatter<f64>,
+{
+    let label_size = style.label_size;
+    let mut chart = ChartBuilder::on(root)
+        .caption(title, (FAMILY, style.caption_size))
+        .margin((label_size * 1.2) as u32)
+        .x_label_area_size((label_size * 3.4) as u32)
+        .y_label_area_size((label_size * 5.0) as u32)
+        .build_cartesian_2d(x.range, y.range)
+        .map_err(draw_err)?;
+    chart
+        .configure_mesh()
+        .x_desc(x.label)
+        .y_desc(y.label)
+        .label_style((FAMILY, label_size))
+        .axis_desc_style((FAMILY, label_size * 1.1))
+        .x_label_formatter(x.format)
+        .y_label_formatter(y.format)
+        .bold_line_style(RGBColor(200, 200, 200))
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()
+        .map_err(draw_err)?;
+    Ok(chart)
+}
+
+/// Draws the legend box of the labelled series of `chart` at `position`.
+fn draw_legend<'a, 'b: 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, BitMapBackend<'b>, CT>,
+    style: &ChartStyle,
+    position: SeriesLabelPosition,
+) -> Result<()> {
+    chart
+        .configure_series_labels()
+        .position(position)
+        .margin(style.legend_margin)
+        .legend_area_size(style.legend_area)
+        .label_font((FAMILY, style.label_size))
+        .background_style(WHITE.mix(0.9))
+        .border_style(RGBColor(120, 120, 120))
+        .draw()
+        .map_err(draw_err)
+}
+
+/// Smallest and largest x and y over all points of `series` and `pareto`.
+///
+/// Errors: [`RenderError::EmptyInput`] if there is no point at all.
+fn data_bounds(series: &[Series], pareto: &[(f64, f64)]) -> Result<((f64, f64), (f64, f64))> {
+    let all = series.iter().flat_map(|s| s.points.iter()).chain(pareto.iter());
+    let (mut x_lo, mut x_hi, mut y_lo, mut y_hi) =
+        (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    let mut count = 0usize;
+    for &(x, y) in all {
+        count += 1;
+        x_lo = x_lo.min(x);
+        x_hi = x_hi.max(x);
+        y_lo = y_lo.min(y);
+        y_hi = y_hi.max(y);
+    }
+    if count == 0 {
+        return Err(RenderError::EmptyInput { what: "the chart has no points".into() });
+    }
+    Ok(((x_lo, x_hi), (y_lo, y_hi)))
+}
+
 /// Draws a log-log chart and returns PNG bytes of `width` × `height`.
 ///
 /// Each series is a line with round markers in its own color (Tableau 10,
@@ -141,163 +296,166 @@ pub fn loglog_chart(
     width: u32,
     height: u32,
 ) -> Result<Vec<u8>> {
-    if width == 0 || height == 0 {
-        return Err(RenderError::ZeroSize { width, height });
-    }
-    let (w, h) = check_image_size(u64::from(width), u64::from(height))?;
+    let (w, h) = chart_size(width, height)?;
     for s in series {
         check_log_points(&s.label, &s.points)?;
     }
     check_log_points(PARETO_LABEL, pareto)?;
-    let all = series.iter().flat_map(|s| s.points.iter()).chain(pareto.iter());
-    let (mut x_lo, mut x_hi, mut y_lo, mut y_hi) =
-        (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
-    let mut count = 0usize;
-    for &(x, y) in all {
-        count += 1;
-        x_lo = x_lo.min(x);
-        x_hi = x_hi.max(x);
-        y_lo = y_lo.min(y);
-        y_hi = y_hi.max(y);
-    }
-    if count == 0 {
-        return Err(RenderError::EmptyInput { what: "the chart has no points".into() });
-    }
+    let ((x_lo, x_hi), (y_lo, y_hi)) = data_bounds(series, pareto)?;
     let (x_lo, x_hi) = log_axis_range(x_lo, x_hi);
     let (y_lo, y_hi) = log_axis_range(y_lo, y_hi);
     let (x_plain, y_plain) = (plain_axis(x_lo, x_hi), plain_axis(y_lo, y_hi));
     ensure_fonts()?;
 
-    let hf = f64::from(h.min(w));
-    let caption_size = (hf * 0.045).clamp(13.0, 30.0);
-    let label_size = (hf * 0.03).clamp(10.0, 20.0);
-    let desc_size = label_size * 1.1;
-    let line_w = ((hf / 300.0).round() as u32).clamp(1, 4);
-    let marker = (hf * 0.008).round().clamp(2.0, 6.0) as u32;
+    let style = ChartStyle::new(w, h);
+    let marker = style.marker(0.008, 6.0);
     let ring = (f64::from(marker) * 2.4).round() as u32;
-    let legend_margin = (label_size * 0.6).round() as u32;
-    let legend_area = (label_size * 2.2).round() as u32;
-    let sample_len = legend_area as i32 - legend_margin as i32 / 2;
+    let legend = LegendBox::new(series, pareto, &style)?;
 
-    // Legend entries, to size the legend box and pick its corner.
-    let mut entries: Vec<&str> =
-        series.iter().filter(|s| !s.points.is_empty()).map(|s| s.label.as_str()).collect();
-    if !pareto.is_empty() {
-        entries.push(PARETO_LABEL);
-    }
-    let mut legend_text_w = 0u32;
-    for e in &entries {
-        legend_text_w = legend_text_w.max(text_size(e, label_size)?.0);
-    }
-
-    let mut rgb = vec![255u8; w as usize * h as usize * 3];
-    {
-        let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
-        root.fill(&WHITE).map_err(draw_err)?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, (FAMILY, caption_size))
-            .margin((label_size * 1.2) as u32)
-            .x_label_area_size((label_size * 3.4) as u32)
-            .y_label_area_size((label_size * 5.0) as u32)
-            .build_cartesian_2d((x_lo..x_hi).log_scale(), (y_lo..y_hi).log_scale())
-            .map_err(draw_err)?;
+    draw_png(w, h, |root| {
         let x_fmt = |v: &f64| format_log_tick(*v, x_plain);
         let y_fmt = |v: &f64| format_log_tick(*v, y_plain);
-        chart
-            .configure_mesh()
-            .x_desc(x_label)
-            .y_desc(y_label)
-            .label_style((FAMILY, label_size))
-            .axis_desc_style((FAMILY, desc_size))
-            .x_label_formatter(&x_fmt)
-            .y_label_formatter(&y_fmt)
-            .bold_line_style(RGBColor(200, 200, 200))
-            .light_line_style(RGBColor(235, 235, 235))
-            .draw()
-            .map_err(draw_err)?;
-
+        let mut chart = chart_with_axes(
+            root,
+            &style,
+            title,
+            Axis { label: x_label, range: (x_lo..x_hi).log_scale(), format: &x_fmt },
+            Axis { label: y_label, range: (y_lo..y_hi).log_scale(), format: &y_fmt },
+        )?;
         for (k, s) in series.iter().enumerate() {
-            if s.points.is_empty() {
-                continue;
+            if !s.points.is_empty() {
+                draw_marked_line(&mut chart, s, series_color(k), &style, marker)?;
             }
-            let c = colorous::TABLEAU10[k % colorous::TABLEAU10.len()];
-            let color = RGBColor(c.r, c.g, c.b);
-            chart
-                .draw_series(LineSeries::new(s.points.iter().copied(), color.stroke_width(line_w)))
-                .map_err(draw_err)?
-                .label(s.label.as_str())
-                .legend(move |(x, y)| {
-                    EmptyElement::at((x, y))
-                        + PathElement::new(vec![(0, 0), (sample_len, 0)], color.stroke_width(line_w))
-                        + Circle::new((sample_len / 2, 0), marker, color.filled())
-                });
-            chart
-                .draw_series(s.points.iter().map(|&p| Circle::new(p, marker, color.filled())))
-                .map_err(draw_err)?;
         }
-
         if !pareto.is_empty() {
-            let mut front = pareto.to_vec();
-            front.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
-            let style = BLACK.stroke_width(line_w + 1);
-            let dash = (label_size * 0.6) as u32;
-            let legend_ring = ring.min((label_size * 0.45) as u32);
-            chart
-                .draw_series(DashedLineSeries::new(front.clone(), dash, dash * 2 / 3, style))
-                .map_err(draw_err)?
-                .label(PARETO_LABEL)
-                .legend(move |(x, y)| {
-                    let r = legend_ring as i32;
-                    let mid = sample_len / 2;
-                    EmptyElement::at((x, y))
-                        + PathElement::new(vec![(0, 0), (mid - r - 1, 0)], style)
-                        + PathElement::new(vec![(mid + r + 1, 0), (sample_len, 0)], style)
-                        + Circle::new((mid, 0), legend_ring, BLACK.stroke_width(2))
-                });
-            chart
-                .draw_series(front.iter().map(|&p| Circle::new(p, ring, BLACK.stroke_width(2))))
-                .map_err(draw_err)?;
+            draw_pareto_front(&mut chart, pareto, &style, ring)?;
         }
-
         // Put the legend in the corner where it hides the least data.
         let (plot_w, plot_h) = chart.plotting_area().dim_in_pixel();
-        let legend_w = f64::from(legend_text_w + legend_area + 2 * legend_margin + 10);
-        let legend_h = entries.len() as f64 * label_size * 1.3 + f64::from(2 * legend_margin + 10);
-        let (lx, ly) = (x_lo.log10(), y_lo.log10());
-        let (sx, sy) = (x_hi.log10() - lx, y_hi.log10() - ly);
-        let norm = |(x, y): (f64, f64)| ((x.log10() - lx) / sx, (y.log10() - ly) / sy);
-        let mut samples = Vec::new();
-        let mut lines: Vec<Vec<(f64, f64)>> = series.iter().map(|s| s.points.clone()).collect();
-        let mut front = pareto.to_vec();
-        front.sort_by(|a, b| a.0.total_cmp(&b.0));
-        lines.push(front);
-        for line in &lines {
-            let pts: Vec<(f64, f64)> = line.iter().map(|&p| norm(p)).collect();
-            samples.extend(pts.iter().copied());
-            for seg in pts.windows(2) {
-                for i in 1..16 {
-                    let t = f64::from(i) / 16.0;
-                    samples
-                        .push((seg[0].0 + t * (seg[1].0 - seg[0].0), seg[0].1 + t * (seg[1].1 - seg[0].1)));
-                }
+        let samples = log_line_samples(series, pareto, (x_lo, x_hi), (y_lo, y_hi));
+        let corner = legend_corner(
+            &samples,
+            legend.width / f64::from(plot_w.max(1)),
+            legend.height / f64::from(plot_h.max(1)),
+        );
+        draw_legend(&mut chart, &style, corner)
+    })
+}
+
+/// Pixel size of the legend box of a [`loglog_chart`]: one entry per non-empty series and
+/// one for a non-empty Pareto front.
+struct LegendBox {
+    width: f64,
+    height: f64,
+}
+
+impl LegendBox {
+    fn new(series: &[Series], pareto: &[(f64, f64)], style: &ChartStyle) -> Result<Self> {
+        let mut entries: Vec<&str> =
+            series.iter().filter(|s| !s.points.is_empty()).map(|s| s.label.as_str()).collect();
+        if !pareto.is_empty() {
+            entries.push(PARETO_LABEL);
+        }
+        let mut text_w = 0u32;
+        for e in &entries {
+            text_w = text_w.max(text_size(e, style.label_size)?.0);
+        }
+        Ok(Self {
+            width: f64::from(text_w + style.legend_area + 2 * style.legend_margin + 10),
+            height: entries.len() as f64 * style.label_size * 1.3 + f64::from(2 * style.legend_margin + 10),
+        })
+    }
+}
+
+/// Draws series `s` of a [`loglog_chart`] as a line with round markers, listed in the
+/// legend.
+fn draw_marked_line<'a, 'b: 'a, CT>(
+    chart: &mut ChartContext<'a, BitMapBackend<'b>, CT>,
+    s: &Series,
+    color: RGBColor,
+    style: &ChartStyle,
+    marker: u32,
+) -> Result<()>
+where
+    CT: CoordTranslate<From = (f64, f64)>,
+{
+    let (line_w, sample_len) = (style.line_w, style.sample_len);
+    chart
+        .draw_series(LineSeries::new(s.points.iter().copied(), color.stroke_width(line_w)))
+        .map_err(draw_err)?
+        .label(s.label.as_str())
+        .legend(move |(x, y)| {
+            EmptyElement::at((x, y))
+                + PathElement::new(vec![(0, 0), (sample_len, 0)], color.stroke_width(line_w))
+                + Circle::new((sample_len / 2, 0), marker, color.filled())
+        });
+    chart.draw_series(s.points.iter().map(|&p| Circle::new(p, marker, color.filled()))).map_err(draw_err)?;
+    Ok(())
+}
+
+/// Draws the (non-empty) `pareto` points as black rings of radius `ring` joined, in order
+/// of x, by a thick dashed line listed in the legend as [`PARETO_LABEL`].
+fn draw_pareto_front<'a, 'b: 'a, CT>(
+    chart: &mut ChartContext<'a, BitMapBackend<'b>, CT>,
+    pareto: &[(f64, f64)],
+    style: &ChartStyle,
+    ring: u32,
+) -> Result<()>
+where
+    CT: CoordTranslate<From = (f64, f64)>,
+{
+    let mut front = pareto.to_vec();
+    front.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    let stroke = BLACK.stroke_width(style.line_w + 1);
+    let dash = (style.label_size * 0.6) as u32;
+    let legend_ring = ring.min((style.label_size * 0.45) as u32);
+    let sample_len = style.sample_len;
+    chart
+        .draw_series(DashedLineSeries::new(front.clone(), dash, dash * 2 / 3, stroke))
+        .map_err(draw_err)?
+        .label(PARETO_LABEL)
+        .legend(move |(x, y)| {
+            let r = legend_ring as i32;
+            let mid = sample_len / 2;
+            EmptyElement::at((x, y))
+                + PathElement::new(vec![(0, 0), (mid - r - 1, 0)], stroke)
+                + PathElement::new(vec![(mid + r + 1, 0), (sample_len, 0)], stroke)
+                + Circle::new((mid, 0), legend_ring, BLACK.stroke_width(2))
+        });
+    chart
+        .draw_series(front.iter().map(|&p| Circle::new(p, ring, BLACK.stroke_width(2))))
+        .map_err(draw_err)?;
+    Ok(())
+}
+
+/// Points along the drawn lines of a [`loglog_chart`] (the series and the Pareto front in
+/// order of x), in normalized log coordinates of the axes `x` × `y`: every data point and
+/// 15 samples inside each segment.
+fn log_line_samples(
+    series: &[Series],
+    pareto: &[(f64, f64)],
+    (x_lo, x_hi): (f64, f64),
+    (y_lo, y_hi): (f64, f64),
+) -> Vec<(f64, f64)> {
+    let (lx, ly) = (x_lo.log10(), y_lo.log10());
+    let (sx, sy) = (x_hi.log10() - lx, y_hi.log10() - ly);
+    let norm = |(x, y): (f64, f64)| ((x.log10() - lx) / sx, (y.log10() - ly) / sy);
+    let mut samples = Vec::new();
+    let mut lines: Vec<Vec<(f64, f64)>> = series.iter().map(|s| s.points.clone()).collect();
+    let mut front = pareto.to_vec();
+    front.sort_by(|a, b| a.0.total_cmp(&b.0));
+    lines.push(front);
+    for line in &lines {
+        let pts: Vec<(f64, f64)> = line.iter().map(|&p| norm(p)).collect();
+        samples.extend(pts.iter().copied());
+        for seg in pts.windows(2) {
+            for i in 1..16 {
+                let t = f64::from(i) / 16.0;
+                samples.push((seg[0].0 + t * (seg[1].0 - seg[0].0), seg[0].1 + t * (seg[1].1 - seg[0].1)));
             }
         }
-        let corner =
-            legend_corner(&samples, legend_w / f64::from(plot_w.max(1)), legend_h / f64::from(plot_h.max(1)));
-
-        chart
-            .configure_series_labels()
-            .position(corner)
-            .margin(legend_margin)
-            .legend_area_size(legend_area)
-            .label_font((FAMILY, label_size))
-            .background_style(WHITE.mix(0.9))
-            .border_style(RGBColor(120, 120, 120))
-            .draw()
-            .map_err(draw_err)?;
-        root.present().map_err(draw_err)?;
     }
-    rgb_to_png(&rgb, w, h)
+    samples
 }
 
 /// Linear axis range around the data `[lo, hi]`: padded by 5 % of the span (a unit
@@ -343,10 +501,7 @@ pub fn line_chart(
     width: u32,
     height: u32,
 ) -> Result<Vec<u8>> {
-    if width == 0 || height == 0 {
-        return Err(RenderError::ZeroSize { width, height });
-    }
-    let (w, h) = check_image_size(u64::from(width), u64::from(height))?;
+    let (w, h) = chart_size(width, height)?;
     for s in series {
         if let Some(point) = s.points.iter().position(|(x, y)| !(x.is_finite() && y.is_finite())) {
             let (x, y) = s.points[point];
@@ -365,46 +520,21 @@ pub fn line_chart(
     let (y_lo, y_hi) = linear_axis_range(y_lo, y_hi, true);
     ensure_fonts()?;
 
-    let hf = f64::from(h.min(w));
-    let caption_size = (hf * 0.045).clamp(13.0, 30.0);
-    let label_size = (hf * 0.03).clamp(10.0, 20.0);
-    let desc_size = label_size * 1.1;
-    let line_w = ((hf / 300.0).round() as u32).clamp(1, 4);
-    let marker = (hf * 0.006).round().clamp(2.0, 5.0) as u32;
-    let legend_margin = (label_size * 0.6).round() as u32;
-    let legend_area = (label_size * 2.2).round() as u32;
-    let sample_len = legend_area as i32 - legend_margin as i32 / 2;
+    let style = ChartStyle::new(w, h);
+    let marker = style.marker(0.006, 5.0);
+    let (line_w, sample_len) = (style.line_w, style.sample_len);
 
-    let mut rgb = vec![255u8; w as usize * h as usize * 3];
-    {
-        let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
-        root.fill(&WHITE).map_err(draw_err)?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, (FAMILY, caption_size))
-            .margin((label_size * 1.2) as u32)
-            .x_label_area_size((label_size * 3.4) as u32)
-            .y_label_area_size((label_size * 5.0) as u32)
-            .build_cartesian_2d(x_lo..x_hi, y_lo..y_hi)
-            .map_err(draw_err)?;
-        chart
-            .configure_mesh()
-            .x_desc(x_label)
-            .y_desc(y_label)
-            .label_style((FAMILY, label_size))
-            .axis_desc_style((FAMILY, desc_size))
-            .x_label_formatter(&|v| format_linear_tick(*v))
-            .y_label_formatter(&|v| format_linear_tick(*v))
-            .bold_line_style(RGBColor(200, 200, 200))
-            .light_line_style(RGBColor(235, 235, 235))
-            .draw()
-            .map_err(draw_err)?;
+    draw_png(w, h, |root| {
+        let fmt = |v: &f64| format_linear_tick(*v);
+        let x = Axis { label: x_label, range: x_lo..x_hi, format: &fmt };
+        let y = Axis { label: y_label, range: y_lo..y_hi, format: &fmt };
+        let mut chart = chart_with_axes(root, &style, title, x, y)?;
         let labelled = series.iter().filter(|s| !s.points.is_empty()).count() > 1;
         for (k, s) in series.iter().enumerate() {
             if s.points.is_empty() {
                 continue;
             }
-            let c = colorous::TABLEAU10[k % colorous::TABLEAU10.len()];
-            let color = RGBColor(c.r, c.g, c.b);
+            let color = series_color(k);
             let drawn = chart
                 .draw_series(LineSeries::new(s.points.iter().copied(), color.stroke_width(line_w)))
                 .map_err(draw_err)?;
@@ -420,20 +550,10 @@ pub fn line_chart(
             }
         }
         if labelled {
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::UpperRight)
-                .margin(legend_margin)
-                .legend_area_size(legend_area)
-                .label_font((FAMILY, label_size))
-                .background_style(WHITE.mix(0.9))
-                .border_style(RGBColor(120, 120, 120))
-                .draw()
-                .map_err(draw_err)?;
+            draw_legend(&mut chart, &style, SeriesLabelPosition::UpperRight)?;
         }
-        root.present().map_err(draw_err)?;
-    }
-    rgb_to_png(&rgb, w, h)
+        Ok(())
+    })
 }
 
 #[cfg(test)]

@@ -1,5 +1,6 @@
 //! Shaded, scalar-colored surface panels with a shared color bar.
 
+use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::HPos;
 use tiny_skia::{Color, FillRule, Paint, PathBuilder, Pixmap, Rect, Transform};
@@ -237,6 +238,256 @@ impl Layout {
     }
 }
 
+/// The color-bar strip right of the panels: its place, its size and its tick labels.
+struct ColorBar {
+    /// Tick labels from the low end (bottom) to the high end (top).
+    tick_labels: Vec<String>,
+    /// Width of the widest tick label.
+    label_w: u32,
+    pad: f64,
+    /// Left edge of the bar.
+    x: f64,
+    /// Top edge of the bar.
+    top: f64,
+    bar_w: f64,
+    bar_h: f64,
+    tick_len: f64,
+    /// Width reserved for the rotated scalar label (0 without one).
+    scalar_band: f64,
+}
+
+impl ColorBar {
+    /// The bar for the color range `lo..hi`, right of panels `panels_w` pixels wide in
+    /// total.
+    fn new(layout: &Layout, (lo, hi): (f64, f64), scalar_label: &str, panels_w: u64) -> Result<Self> {
+        let tick_values: Vec<f64> = (0..5)
+            .map(|k| {
+                let f = f64::from(k) / 4.0;
+                lo * (1.0 - f) + hi * f
+            })
+            .collect();
+        let tick_labels = format_ticks(&tick_values);
+        let mut label_w = 0u32;
+        for label in &tick_labels {
+            label_w = label_w.max(text_size(label, layout.tick_size)?.0);
+        }
+        let pad = (layout.tick_size * 0.8).round();
+        let [_, my, _, mh] = layout.mesh_rect;
+        Ok(Self {
+            tick_labels,
+            label_w,
+            pad,
+            x: panels_w as f64 + pad,
+            top: my.round(),
+            bar_w: (layout.tick_size * 1.2).round(),
+            bar_h: mh.round().max(2.0),
+            tick_len: (layout.tick_size * 0.35).round().max(3.0),
+            scalar_band: if scalar_label.is_empty() { 0.0 } else { (layout.tick_size * 1.5).round() },
+        })
+    }
+
+    /// Width of the whole strip: bar, ticks, labels and scalar label, with padding.
+    fn strip_width(&self) -> f64 {
+        2.0 * self.pad
+            + self.bar_w
+            + self.tick_len
+            + 0.4 * self.pad
+            + f64::from(self.label_w)
+            + self.scalar_band
+    }
+
+    /// Pixel rows of the five ticks, from the bottom of the bar to its top.
+    fn tick_rows(&self) -> Vec<f64> {
+        (0..5)
+            .map(|k| (self.top + self.bar_h - 1.0 - (self.bar_h - 1.0) * f64::from(k) / 4.0).round())
+            .collect()
+    }
+
+    /// Left edge of the tick labels.
+    fn label_x(&self) -> i32 {
+        (self.x + self.bar_w + self.tick_len + 0.4 * self.pad).round() as i32
+    }
+
+    /// Paints the gradient rows, the outline and the tick marks (in `fg`).
+    fn paint(&self, pixmap: &mut Pixmap, colormap: Colormap, fg: RGBColor) {
+        let mut paint = Paint { anti_alias: false, ..Paint::default() };
+        let (x, top, w, h) = (self.x, self.top, self.bar_w, self.bar_h);
+        let rows = h as u32;
+        for row in 0..rows {
+            let t = 1.0 - f64::from(row) / f64::from(rows - 1);
+            let [r, g, b] = colormap.eval(t);
+            paint.set_color_rgba8(r, g, b, 255);
+            fill_rect(pixmap, &paint, x, top + f64::from(row), w, 1.0);
+        }
+        paint.set_color_rgba8(fg.0, fg.1, fg.2, 255);
+        let line = 1.0;
+        fill_rect(pixmap, &paint, x, top - line, w, line);
+        fill_rect(pixmap, &paint, x, top + h, w, line);
+        fill_rect(pixmap, &paint, x - line, top - line, line, h + 2.0);
+        fill_rect(pixmap, &paint, x + w, top - line, line, h + 2.0);
+        for y in self.tick_rows() {
+            fill_rect(pixmap, &paint, x + w, y, self.tick_len, line);
+        }
+    }
+
+    /// Writes the tick labels and, rotated beside them, `scalar_label`.
+    fn draw_labels<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+        tick_size: f64,
+        scalar_label: &str,
+        fg: RGBColor,
+    ) -> Result<()> {
+        let label_x = self.label_x();
+        for (label, y) in self.tick_labels.iter().zip(self.tick_rows()) {
+            draw_text_line(root, label, (label_x, y as i32), tick_size, HPos::Left, fg)?;
+        }
+        if !scalar_label.is_empty() {
+            let x = label_x as f64 + f64::from(self.label_w) + 0.5 * self.scalar_band + 0.2 * tick_size;
+            let y = self.top + 0.5 * self.bar_h;
+            draw_text_vertical(root, scalar_label, (x.round() as i32, y.round() as i32), tick_size, fg)?;
+        }
+        Ok(())
+    }
+}
+
+/// Where projected points land in a panel: the union of all panels' projections, centred
+/// and scaled to fit the mesh rectangle.
+struct Framing {
+    center: [f64; 2],
+    scale: f64,
+    mesh_rect: [f64; 4],
+}
+
+impl Framing {
+    fn fit(projected: &[Vec<[f64; 3]>], mesh_rect: [f64; 4]) -> Self {
+        let (mut min, mut max) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        let mut extent = 0.0f64;
+        for q in projected.iter().flatten() {
+            for k in 0..2 {
+                min[k] = min[k].min(q[k]);
+                max[k] = max[k].max(q[k]);
+                extent = extent.max(q[k].abs());
+            }
+        }
+        let [_, _, mw, mh] = mesh_rect;
+        let tiny = 1e-12 * (1.0 + extent);
+        let span = [(max[0] - min[0]).max(tiny), (max[1] - min[1]).max(tiny)];
+        let scale = (mw / span[0]).min(mh / span[1]);
+        let scale = if scale.is_finite() { scale } else { 1.0 };
+        let center = [0.5 * (min[0] + max[0]), 0.5 * (min[1] + max[1])];
+        Self { center, scale, mesh_rect }
+    }
+
+    /// Pixel position of the projected point `q` in the panel whose left edge is at `ox`.
+    fn to_px(&self, ox: f64, q: [f64; 3]) -> (f32, f32) {
+        let [mx, my, mw, mh] = self.mesh_rect;
+        (
+            (ox + mx + 0.5 * mw + (q[0] - self.center[0]) * self.scale) as f32,
+            (my + 0.5 * mh - (q[1] - self.center[1]) * self.scale) as f32,
+        )
+    }
+}
+
+/// How a face is colored: the color map of its mean scalar over `lo..hi`, darkened by
+/// two-sided Lambert shading.
+struct Shading {
+    /// Unit direction towards the light: from the camera, a bit from the upper left.
+    light: [f64; 3],
+    colormap: Colormap,
+    lo: f64,
+    hi: f64,
+}
+
+impl Shading {
+    fn new(camera: &Camera, colormap: Colormap, (lo, hi): (f64, f64)) -> Self {
+        let l: [f64; 3] =
+            std::array::from_fn(|k| -camera.forward[k] + 0.45 * camera.up[k] - 0.3 * camera.right[k]);
+        let n = norm(l);
+        Self { light: l.map(|c| c / n), colormap, lo, hi }
+    }
+
+    /// The color of the face with vertices `[a, b, c]` of `panel`, or `None` if it is
+    /// degenerate (covers no area).
+    fn face_color(&self, panel: &Surface<'_>, [a, b, c]: [usize; 3]) -> Option<[u8; 3]> {
+        let (pa, pb, pc) = (panel.positions[a], panel.positions[b], panel.positions[c]);
+        // Edges scaled to unit size so huge or tiny meshes neither
+        // overflow nor underflow.
+        let (e1, e2) = (sub(pb, pa), sub(pc, pa));
+        let m = e1.iter().chain(&e2).fold(0.0f64, |m, c| m.max(c.abs()));
+        let normal = cross(e1.map(|c| c / m), e2.map(|c| c / m));
+        let len = norm(normal);
+        if !(len > 0.0 && len.is_finite()) {
+            return None;
+        }
+        let lambert = (dot(normal, self.light) / len).abs();
+        let shade = 0.3 + 0.7 * lambert;
+        let mean = panel.scalar[a] / 3.0 + panel.scalar[b] / 3.0 + panel.scalar[c] / 3.0;
+        let rgb = self.colormap.eval((0.5 * mean - 0.5 * self.lo) / (0.5 * self.hi - 0.5 * self.lo));
+        Some(rgb.map(|ch| (f64::from(ch) * shade).round().clamp(0.0, 255.0) as u8))
+    }
+}
+
+/// Paints the faces of `panel` (vertices projected in `proj`) back to front into the panel
+/// whose left edge is at `ox`.
+fn paint_panel(
+    pixmap: &mut Pixmap,
+    panel: &Surface<'_>,
+    proj: &[[f64; 3]],
+    ox: f64,
+    framing: &Framing,
+    shading: &Shading,
+) {
+    let mut paint = Paint { anti_alias: false, ..Paint::default() };
+    let mut faces: Vec<(f64, usize)> = panel
+        .triangles
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let depth: f64 = t.iter().map(|&v| proj[v as usize][2]).sum();
+            (depth, i)
+        })
+        .collect();
+    // Back to front: farthest (largest depth) first.
+    faces.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+    for &(_, fi) in &faces {
+        let corners = panel.triangles[fi].map(|v| v as usize);
+        let Some([cr, cg, cb]) = shading.face_color(panel, corners) else {
+            continue;
+        };
+        paint.set_color_rgba8(cr, cg, cb, 255);
+        let [(x0, y0), (x1, y1), (x2, y2)] = corners.map(|v| framing.to_px(ox, proj[v]));
+        let mut pb = PathBuilder::with_capacity(4, 4);
+        pb.move_to(x0, y0);
+        pb.line_to(x1, y1);
+        pb.line_to(x2, y2);
+        pb.close();
+        if let Some(path) = pb.finish() {
+            pixmap.fill_path(&path, &paint, FillRule::Winding, Transform::identity(), None);
+        }
+    }
+}
+
+/// Writes the panel titles and the color bar's labels onto `rgb`, a `size` RGB picture.
+fn draw_text(
+    rgb: &mut [u8],
+    size: (u32, u32),
+    panels: &[Surface<'_>],
+    opts: &ViewOptions,
+    layout: &Layout,
+    bar: &ColorBar,
+) -> Result<()> {
+    let fg = text_color(opts.background);
+    let root = BitMapBackend::with_buffer(rgb, size).into_drawing_area();
+    let title_y = (layout.title_band * 0.55).round() as i32;
+    for (pi, panel) in panels.iter().enumerate() {
+        let cx = (f64::from(opts.width) * (pi as f64 + 0.5)).round() as i32;
+        draw_text_line(&root, &panel.title, (cx, title_y), layout.title_size, HPos::Center, fg)?;
+    }
+    bar.draw_labels(&root, layout.tick_size, &opts.scalar_label, fg)?;
+    root.present().map_err(crate::text::draw_err)
+}
+
 /// Renders `panels` side by side and returns PNG bytes.
 ///
 /// All panels share one orthographic camera ([`ViewOptions::view_dir`],
@@ -277,31 +528,14 @@ pub fn render_surfaces(
     for (i, p) in panels.iter().enumerate() {
         validate(i, p)?;
     }
-    let (lo, hi) = color_range(panels, range)?;
+    let range = color_range(panels, range)?;
     let camera = Camera::new(opts.view_dir, opts.up)?;
     ensure_fonts()?;
 
-    // Color-bar strip: bar, ticks, labels and the rotated scalar label.
     let layout = Layout::new(opts.width, opts.height);
-    let tick_values: Vec<f64> = (0..5)
-        .map(|k| {
-            let f = f64::from(k) / 4.0;
-            lo * (1.0 - f) + hi * f
-        })
-        .collect();
-    let tick_labels = format_ticks(&tick_values);
-    let mut label_w = 0u32;
-    for label in &tick_labels {
-        label_w = label_w.max(text_size(label, layout.tick_size)?.0);
-    }
-    let pad = (layout.tick_size * 0.8).round();
-    let bar_w = (layout.tick_size * 1.2).round();
-    let tick_len = (layout.tick_size * 0.35).round().max(3.0);
-    let scalar_band = if opts.scalar_label.is_empty() { 0.0 } else { (layout.tick_size * 1.5).round() };
-    let strip = 2.0 * pad + bar_w + tick_len + 0.4 * pad + f64::from(label_w) + scalar_band;
     let panels_w = u64::from(opts.width) * panels.len() as u64;
-    let (img_w, img_h) = check_image_size(panels_w + strip as u64, u64::from(opts.height))?;
-
+    let bar = ColorBar::new(&layout, range, &opts.scalar_label, panels_w)?;
+    let (img_w, img_h) = check_image_size(panels_w + bar.strip_width() as u64, u64::from(opts.height))?;
     let mut pixmap = Pixmap::new(img_w, img_h)
         .ok_or(RenderError::ImageTooLarge { width: u64::from(img_w), height: u64::from(img_h) })?;
     let [br, bg, bb] = opts.background;
@@ -310,103 +544,13 @@ pub fn render_surfaces(
     // Project every vertex once and frame the union of all panels.
     let projected: Vec<Vec<[f64; 3]>> =
         panels.iter().map(|p| p.positions.iter().map(|&x| camera.project(x)).collect()).collect();
-    let (mut min, mut max) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    let mut extent = 0.0f64;
-    for q in projected.iter().flatten() {
-        for k in 0..2 {
-            min[k] = min[k].min(q[k]);
-            max[k] = max[k].max(q[k]);
-            extent = extent.max(q[k].abs());
-        }
-    }
-    let [mx, my, mw, mh] = layout.mesh_rect;
-    let tiny = 1e-12 * (1.0 + extent);
-    let span = [(max[0] - min[0]).max(tiny), (max[1] - min[1]).max(tiny)];
-    let scale = (mw / span[0]).min(mh / span[1]);
-    let scale = if scale.is_finite() { scale } else { 1.0 };
-    let center = [0.5 * (min[0] + max[0]), 0.5 * (min[1] + max[1])];
-
-    // Light from the camera, a bit from the upper left.
-    let light = {
-        let l: [f64; 3] =
-            std::array::from_fn(|k| -camera.forward[k] + 0.45 * camera.up[k] - 0.3 * camera.right[k]);
-        let n = norm(l);
-        l.map(|c| c / n)
-    };
-
-    let mut paint = Paint { anti_alias: false, ..Paint::default() };
-    let mut faces: Vec<(f64, usize)> = Vec::new();
+    let framing = Framing::fit(&projected, layout.mesh_rect);
+    let shading = Shading::new(&camera, opts.colormap, range);
     for (pi, (panel, proj)) in panels.iter().zip(&projected).enumerate() {
         let ox = f64::from(opts.width) * pi as f64;
-        let to_px = |q: [f64; 3]| {
-            (
-                (ox + mx + 0.5 * mw + (q[0] - center[0]) * scale) as f32,
-                (my + 0.5 * mh - (q[1] - center[1]) * scale) as f32,
-            )
-        };
-        faces.clear();
-        faces.extend(panel.triangles.iter().enumerate().map(|(i, t)| {
-            let depth: f64 = t.iter().map(|&v| proj[v as usize][2]).sum();
-            (depth, i)
-        }));
-        // Back to front: farthest (largest depth) first.
-        faces.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
-        for &(_, fi) in &faces {
-            let [a, b, c] = panel.triangles[fi].map(|v| v as usize);
-            let (pa, pb, pc) = (panel.positions[a], panel.positions[b], panel.positions[c]);
-            // Edges scaled to unit size so huge or tiny meshes neither
-            // overflow nor underflow.
-            let (e1, e2) = (sub(pb, pa), sub(pc, pa));
-            let m = e1.iter().chain(&e2).fold(0.0f64, |m, c| m.max(c.abs()));
-            let normal = cross(e1.map(|c| c / m), e2.map(|c| c / m));
-            let len = norm(normal);
-            if !(len > 0.0 && len.is_finite()) {
-                continue; // degenerate triangle: covers no area
-            }
-            let lambert = (dot(normal, light) / len).abs();
-            let shade = 0.3 + 0.7 * lambert;
-            let mean = panel.scalar[a] / 3.0 + panel.scalar[b] / 3.0 + panel.scalar[c] / 3.0;
-            let rgb = opts.colormap.eval((0.5 * mean - 0.5 * lo) / (0.5 * hi - 0.5 * lo));
-            let [cr, cg, cb] = rgb.map(|ch| (f64::from(ch) * shade).round().clamp(0.0, 255.0) as u8);
-            paint.set_color_rgba8(cr, cg, cb, 255);
-
-            let mut pb = PathBuilder::with_capacity(4, 4);
-            let (x0, y0) = to_px(proj[a]);
-            let (x1, y1) = to_px(proj[b]);
-            let (x2, y2) = to_px(proj[c]);
-            pb.move_to(x0, y0);
-            pb.line_to(x1, y1);
-            pb.line_to(x2, y2);
-            pb.close();
-            if let Some(path) = pb.finish() {
-                pixmap.fill_path(&path, &paint, FillRule::Winding, Transform::identity(), None);
-            }
-        }
+        paint_panel(&mut pixmap, panel, proj, ox, &framing, &shading);
     }
-
-    // Color bar: gradient rows, outline and tick marks.
-    let fg = text_color(opts.background);
-    let bar_x = panels_w as f64 + pad;
-    let bar_top = my.round();
-    let bar_h = mh.round().max(2.0);
-    let rows = bar_h as u32;
-    for row in 0..rows {
-        let t = 1.0 - f64::from(row) / f64::from(rows - 1);
-        let [r, g, b] = opts.colormap.eval(t);
-        paint.set_color_rgba8(r, g, b, 255);
-        fill_rect(&mut pixmap, &paint, bar_x, bar_top + f64::from(row), bar_w, 1.0);
-    }
-    paint.set_color_rgba8(fg.0, fg.1, fg.2, 255);
-    let line = 1.0;
-    fill_rect(&mut pixmap, &paint, bar_x, bar_top - line, bar_w, line);
-    fill_rect(&mut pixmap, &paint, bar_x, bar_top + bar_h, bar_w, line);
-    fill_rect(&mut pixmap, &paint, bar_x - line, bar_top - line, line, bar_h + 2.0);
-    fill_rect(&mut pixmap, &paint, bar_x + bar_w, bar_top - line, line, bar_h + 2.0);
-    let tick_y: Vec<f64> =
-        (0..5).map(|k| (bar_top + bar_h - 1.0 - (bar_h - 1.0) * f64::from(k) / 4.0).round()).collect();
-    for &y in &tick_y {
-        fill_rect(&mut pixmap, &paint, bar_x + bar_w, y, tick_len, line);
-    }
+    bar.paint(&mut pixmap, opts.colormap, text_color(opts.background));
 
     // Text: drawn by plotters on an RGB copy of the picture.
     let mut rgb: Vec<u8> = Vec::with_capacity(img_w as usize * img_h as usize * 3);
@@ -414,29 +558,7 @@ pub fn render_surfaces(
         rgb.extend_from_slice(&[px.red(), px.green(), px.blue()]);
     }
     drop(pixmap);
-    {
-        let root = BitMapBackend::with_buffer(&mut rgb, (img_w, img_h)).into_drawing_area();
-        let title_y = (layout.title_band * 0.55).round() as i32;
-        for (pi, panel) in panels.iter().enumerate() {
-            let cx = (f64::from(opts.width) * (pi as f64 + 0.5)).round() as i32;
-            draw_text_line(&root, &panel.title, (cx, title_y), layout.title_size, HPos::Center, fg)?;
-        }
-        let label_x = (bar_x + bar_w + tick_len + 0.4 * pad).round() as i32;
-        for (label, &y) in tick_labels.iter().zip(&tick_y) {
-            draw_text_line(&root, label, (label_x, y as i32), layout.tick_size, HPos::Left, fg)?;
-        }
-        if !opts.scalar_label.is_empty() {
-            let x = label_x as f64 + f64::from(label_w) + 0.5 * scalar_band + 0.2 * layout.tick_size;
-            draw_text_vertical(
-                &root,
-                &opts.scalar_label,
-                (x.round() as i32, (bar_top + 0.5 * bar_h).round() as i32),
-                layout.tick_size,
-                fg,
-            )?;
-        }
-        root.present().map_err(crate::text::draw_err)?;
-    }
+    draw_text(&mut rgb, (img_w, img_h), panels, opts, &layout, &bar)?;
     rgb_to_png(&rgb, img_w, img_h)
 }
 
