@@ -53,7 +53,6 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
         // FFM is served only when its precompute is built (started with `--method ffm`).
         methods: std::iter::once(args.method)
             .chain(Method::ALL.iter().copied().filter(|m| *m != args.method && *m != Method::Ffm))
-            .map(|m| m.name().to_string())
             .collect(),
         ..ServerOptions::default()
     };
@@ -79,34 +78,24 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
         None
     };
     let budget = memory_budget(args.response.max_memory);
-    let chainmail = |method: Method| -> Result<Box<dyn Interactive + Send>, fibfluid_viewer::ViewerError> {
-        let variant = Variant::of_method(method).expect("a ChainMail method");
-        ChainmailBody::from_model(&scene, &scene.chainmail, variant, budget)
-            .map(|b| Box::new(b) as Box<dyn Interactive + Send>)
-            .map_err(|e| ViewerError::Build { method: method.to_string(), source: Box::new(e) })
-    };
+    let chainmail =
+        move |scene: &Scene, method: Method| -> Result<Box<dyn Interactive + Send>, ViewerError> {
+            let variant = Variant::of_method(method).expect("a ChainMail method");
+            ChainmailBody::from_model(scene, &scene.chainmail, variant, budget)
+                .map(|b| Box::new(b) as Box<dyn Interactive + Send>)
+                .map_err(|e| ViewerError::Build { method, source: Box::new(e) })
+        };
     let mesh = match &ffm {
         Some(body) => ViewMesh::new(file, body)?,
-        None => ViewMesh::new(file, chainmail(args.method)?.as_ref())?,
+        None => ViewMesh::new(file, chainmail(&scene, args.method)?.as_ref())?,
     };
     let scene_for_clients = scene.clone();
-    let factory: BodyFactory = Arc::new(move |name: &str| {
-        let method = name.parse::<Method>().map_err(|_| ViewerError::UnsupportedMethod {
-            method: name.to_string(),
-            available: available(ffm.is_some()),
-        })?;
-        match (method, &ffm) {
-            (Method::Ffm, Some(body)) => Ok(Box::new(body.clone()) as Box<dyn Interactive + Send>),
-            (Method::Ffm, None) => {
-                Err(ViewerError::UnsupportedMethod { method: name.to_string(), available: available(false) })
-            }
-            (other, _) => {
-                let variant = Variant::of_method(other).expect("a ChainMail method");
-                ChainmailBody::from_model(&scene_for_clients, &scene_for_clients.chainmail, variant, budget)
-                    .map(|b| Box::new(b) as Box<dyn Interactive + Send>)
-                    .map_err(|e| ViewerError::Build { method: other.to_string(), source: Box::new(e) })
-            }
+    let factory: BodyFactory = Arc::new(move |method: Method| match (method, &ffm) {
+        (Method::Ffm, Some(body)) => Ok(Box::new(body.clone()) as Box<dyn Interactive + Send>),
+        (Method::Ffm, None) => {
+            Err(ViewerError::UnsupportedMethod { method: method.to_string(), available: available(false) })
         }
+        (other, _) => chainmail(&scene_for_clients, other),
     });
     println!("fibfluid view: {} ({}, {}; Ctrl-C stops)", server.url(), scene.name, args.method);
     server.run(mesh, factory)?;

@@ -4,7 +4,7 @@ use std::time::Instant;
 
 use crate::{BorderedMatrix, FactorCost, FactorOptions, Factorization, Precision, Result, lu_flops};
 
-pub(crate) use crate::memory::{SINGLE_WHAT, check_alloc, check_dense_memory, try_collect};
+pub(crate) use crate::memory::{check_alloc, check_dense_memory};
 
 pub(crate) fn dense_lu_cost(dim: usize, seconds: f64, word_bytes: usize) -> FactorCost {
     FactorCost { flops: lu_flops(dim), seconds, bytes: dim * dim * word_bytes }

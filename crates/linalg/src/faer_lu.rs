@@ -14,7 +14,8 @@ use faer::perm::Perm;
 use faer::traits::ComplexField;
 use faer::{MatMut, MatRef};
 
-use crate::dense::{DenseFactorization, DenseKernel, SINGLE_WHAT, try_collect};
+use crate::dense::{DenseFactorization, DenseKernel};
+use crate::memory::{SINGLE_WHAT, try_collect};
 use crate::solver::check_pivots;
 use crate::{BorderedMatrix, FactorOptions, Factorization, LinearSolver, Precision, Result};
 

@@ -2,7 +2,8 @@
 
 use nalgebra::{DMatrix, DVector, Dyn, LU};
 
-use crate::dense::{DenseFactorization, DenseKernel, SINGLE_WHAT, try_collect};
+use crate::dense::{DenseFactorization, DenseKernel};
+use crate::memory::{SINGLE_WHAT, try_collect};
 use crate::solver::check_pivots;
 use crate::{BorderedMatrix, FactorOptions, Factorization, LinearSolver, Precision, Result};
 

@@ -32,7 +32,8 @@ use ndarray::{Array2, ShapeBuilder};
 use ndarray_linalg::layout::{AllocatedArray, AllocatedArrayMut};
 use ndarray_linalg::{Diag, Lapack, Pivot, SolveTriangularInplace, UPLO};
 
-use crate::dense::{DenseFactorization, DenseKernel, SINGLE_WHAT, try_collect};
+use crate::dense::{DenseFactorization, DenseKernel};
+use crate::memory::{SINGLE_WHAT, try_collect};
 use crate::solver::check_pivots;
 use crate::{BorderedMatrix, FactorOptions, Factorization, LinalgError, LinearSolver, Precision, Result};
 

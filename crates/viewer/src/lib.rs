@@ -26,21 +26,19 @@
 //! failing `accept` (out of descriptors) pauses instead of spinning. Binding an address
 //! other than loopback yields a warning ([`binding_warning`], [`Server::warnings`]).
 
+mod error;
 mod http;
 mod mesh;
 mod protocol;
 mod server;
 
+pub use error::{Result, ViewerError};
 pub use mesh::ViewMesh;
 pub use protocol::{ClientMessage, MessageError, frame_json, parse_message, positions_le_f32};
 pub use server::{
-    BodyFactory, Server, ServerHandle, ServerOptions, ServerStats, ViewerError, binding_warning,
-    default_max_connections,
+    BodyFactory, Server, ServerHandle, ServerOptions, ServerStats, binding_warning, default_max_connections,
 };
 
 /// The page served at `GET /`: one HTML file with inline JavaScript and CSS (Canvas 2D, no
 /// external URL).
 pub const INDEX_HTML: &str = include_str!("../assets/index.html");
-
-/// Result alias of this crate.
-pub type Result<T> = std::result::Result<T, ViewerError>;

@@ -8,64 +8,18 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use fibfluid_geometry::Vec3;
-use fibfluid_interact::{InteractError, Interactive};
+use fibfluid_interact::{Interactive, Method};
 use tungstenite::protocol::frame::coding::CloseCode;
 use tungstenite::protocol::{CloseFrame, Role};
 use tungstenite::{Message, WebSocket};
 
 use crate::protocol::{ClientMessage, MessageError, frame_json, parse_message, positions_le_f32};
-use crate::{INDEX_HTML, Result, ViewMesh, http};
+use crate::{INDEX_HTML, Result, ViewMesh, ViewerError, http};
 
-/// Builds a new body for a client from a method name (`ffm`, `tsve-chainmail`, ...); an
-/// unsupported method is [`ViewerError::UnsupportedMethod`].
+/// Builds a new body for a client for one of the server's [`ServerOptions::methods`]; a
+/// method it cannot build is [`ViewerError::UnsupportedMethod`].
 pub type BodyFactory =
-    Arc<dyn Fn(&str) -> std::result::Result<Box<dyn Interactive + Send>, ViewerError> + Send + Sync>;
-
-/// What can go wrong while starting or running the viewer.
-#[derive(Debug, thiserror::Error)]
-pub enum ViewerError {
-    /// The address cannot be resolved or bound.
-    #[error("cannot listen on {addr}: {source}")]
-    Bind {
-        /// The address asked for.
-        addr: String,
-        /// Why.
-        source: std::io::Error,
-    },
-    /// A method this server cannot build.
-    #[error("method `{method}` is not available in this viewer (available: {available})")]
-    UnsupportedMethod {
-        /// The method asked for.
-        method: String,
-        /// The methods it can build, comma separated.
-        available: String,
-    },
-    /// The body of a method could not be built.
-    #[error("cannot build the {method} body: {source}")]
-    Body {
-        /// The method.
-        method: String,
-        /// Why.
-        source: InteractError,
-    },
-    /// The body of a method could not be built for a reason of the method's own.
-    #[error("cannot build the {method} body: {source}")]
-    Build {
-        /// The method.
-        method: String,
-        /// Why.
-        source: Box<dyn std::error::Error + Send + Sync>,
-    },
-    /// The mesh and the body do not describe the same surface.
-    #[error("the mesh and the body disagree: {problem}")]
-    Mismatch {
-        /// What differs.
-        problem: String,
-    },
-    /// Accepting a connection failed.
-    #[error("viewer: {0}")]
-    Io(#[from] std::io::Error),
-}
+    Arc<dyn Fn(Method) -> std::result::Result<Box<dyn Interactive + Send>, ViewerError> + Send + Sync>;
 
 /// Options of the server.
 #[derive(Clone, Debug, PartialEq)]
@@ -78,7 +32,7 @@ pub struct ServerOptions {
     pub max_clients: usize,
     /// Methods offered in the page's switch, the default first (the factory refuses those it
     /// cannot build).
-    pub methods: Vec<String>,
+    pub methods: Vec<Method>,
     /// Most connections open at once (requests being read or answered and WebSocket
     /// clients); one beyond is answered `503 Service Unavailable` and closed at once.
     /// Default: [`default_max_connections`].
@@ -98,7 +52,7 @@ impl Default for ServerOptions {
             host: "127.0.0.1".into(),
             port: 0,
             max_clients: 8,
-            methods: vec!["ffm".into()],
+            methods: vec![Method::Ffm],
             max_connections: default_max_connections(),
             head_timeout: Duration::from_secs(10),
             write_timeout: Duration::from_secs(10),
@@ -167,6 +121,13 @@ const MAX_BATCH: usize = 4096;
 const MIN_ACCEPT_PAUSE: Duration = Duration::from_millis(10);
 /// Longest pause after a failed `accept`.
 const MAX_ACCEPT_PAUSE: Duration = Duration::from_millis(500);
+
+impl Shared {
+    /// The methods this server offers, comma separated.
+    fn available(&self) -> String {
+        self.opts.methods.iter().map(|m| m.to_string()).collect::<Vec<_>>().join(", ")
+    }
+}
 
 struct Shared {
     mesh: ViewMesh,
@@ -404,7 +365,7 @@ fn handle_connection(mut stream: TcpStream, shared: &Shared) {
             .split('&')
             .find_map(|kv| kv.strip_prefix("method="))
             .map(str::to_string)
-            .unwrap_or_else(|| shared.opts.methods.first().cloned().unwrap_or_default());
+            .unwrap_or_else(|| shared.opts.methods.first().map(|m| m.to_string()).unwrap_or_default());
         match http::websocket_accept(&head) {
             Ok(accept) => upgrade(stream, head.rest, &accept, shared, &method),
             Err(r) => http::respond_text(&mut stream, r.status, r.headers, &r.reason),
@@ -623,6 +584,11 @@ fn serve_client(mut ws: WebSocket<TcpStream>, shared: &Shared, method: &str) {
         return;
     }
     let _slot = ClientSlot(&shared.clients);
+    let Some(method) = method.parse::<Method>().ok().filter(|m| shared.opts.methods.contains(m)) else {
+        let e = ViewerError::UnsupportedMethod { method: method.to_string(), available: shared.available() };
+        refuse(ws, &e.to_string(), CloseCode::Policy);
+        return;
+    };
     let body = match (shared.factory)(method) {
         Ok(b) if b.n_vertices() == shared.mesh.to_file.len() => b,
         Ok(b) => {

@@ -7,8 +7,8 @@ use std::io::{ErrorKind, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::time::Duration;
 
-use fibfluid::Scene;
-use fibfluid::probe::interact::{FfmBody, Storage};
+use fibfluid_interact::{FfmBody, Storage};
+use fibfluid_scene::Scene;
 use fibfluid_viewer::{ServerHandle, ServerOptions, binding_warning};
 use tungstenite::Message;
 use tungstenite::protocol::frame::coding::CloseCode;

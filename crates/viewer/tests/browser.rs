@@ -13,7 +13,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use fibfluid::interact::Storage;
+use fibfluid_interact::Storage;
 use tiny_skia::Pixmap;
 
 use crate::common::{scene_body, serve, sphere_path};

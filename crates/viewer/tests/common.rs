@@ -6,10 +6,11 @@ use std::net::{SocketAddr, TcpStream};
 use std::sync::Arc;
 use std::time::Duration;
 
-use fibfluid::geometry::Vec3;
-use fibfluid::interact::{FfmBody, Interactive, Storage};
-use fibfluid::interact::{ProbeOptions, build_body};
-use fibfluid::{Scene, Shape};
+use fibfluid_geometry::Vec3;
+use fibfluid_interact::{FfmBody, Interactive, Method, Storage};
+use fibfluid_interact::{ProbeOptions, build_body};
+use fibfluid_scene::Scene;
+use fibfluid_sim::Shape;
 use fibfluid_viewer::{BodyFactory, Server, ServerHandle, ServerOptions, ViewMesh, ViewerError};
 use tungstenite::{Message, WebSocket, stream::MaybeTlsStream};
 
@@ -38,7 +39,7 @@ pub fn test_options() -> ServerOptions {
     ServerOptions {
         port: 0,
         max_clients: 4,
-        methods: vec!["ffm".into(), "tsve-chainmail".into()],
+        methods: vec![Method::Ffm, Method::TsveChainmail],
         ..Default::default()
     }
 }
@@ -48,11 +49,11 @@ pub fn serve_with(scene: &Scene, body: &FfmBody, opts: ServerOptions) -> ServerH
     let Shape::Surface(file) = &scene.shape else { panic!("a surface scene") };
     let mesh = ViewMesh::new(file, body).expect("mesh and body agree");
     let proto = body.clone();
-    let factory: BodyFactory = Arc::new(move |name: &str| {
-        if name == "ffm" {
+    let factory: BodyFactory = Arc::new(move |method: Method| {
+        if method == Method::Ffm {
             Ok(Box::new(proto.clone()) as Box<dyn Interactive + Send>)
         } else {
-            Err(ViewerError::UnsupportedMethod { method: name.to_string(), available: "ffm".into() })
+            Err(ViewerError::UnsupportedMethod { method: method.to_string(), available: "ffm".into() })
         }
     });
     Server::bind(opts).expect("binds a free port").spawn(mesh, factory)

@@ -11,7 +11,7 @@
 
 use std::time::Instant;
 
-use fibfluid::interact::{Interactive, Storage};
+use fibfluid_interact::{Interactive, Storage};
 
 use crate::common::{Client, scene_body, serve};
 
@@ -26,8 +26,8 @@ fn frame_rate_while_dragging() {
     let frames = env_or("FIBFLUID_VIEWER_FRAMES", 600);
     let dir = std::env::temp_dir().join(format!("fibfluid-viewer-rate-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let mesh = fibfluid::geometry::icosphere(level, 1.0);
-    fibfluid::geometry::write_obj(dir.join("sphere.obj"), mesh.positions(), mesh.triangles()).unwrap();
+    let mesh = fibfluid_geometry::icosphere(level, 1.0);
+    fibfluid_geometry::write_obj(dir.join("sphere.obj"), mesh.positions(), mesh.triangles()).unwrap();
     // The paper's sphere scene (fixtures/scenes/sphere.toml) on the finer mesh.
     let scene_text = std::fs::read_to_string(crate::common::sphere_path())
         .unwrap()

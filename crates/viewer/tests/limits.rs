@@ -10,7 +10,7 @@ use std::process::{Command, Stdio};
 use std::sync::mpsc::{Receiver, channel};
 use std::time::Duration;
 
-use fibfluid::probe::interact::Storage;
+use fibfluid_interact::Storage;
 use fibfluid_viewer::{ServerOptions, ServerStats, default_max_connections};
 
 use crate::common::{ANSWER_TIMEOUT, connect, eventually, raw_request, scene_body, serve_with};

@@ -2,12 +2,12 @@
 //! body driven directly, bad messages, coalescing, several clients, refusals.
 //!
 //! The reference for every frame is an [`FfmBody`] built from the same scene by
-//! `fibfluid::interact::build_body` and driven through the `Interactive` trait in this
+//! `fibfluid_interact::build_body` and driven through the `Interactive` trait in this
 //! process (the body's own exactness against full solves is tested in crates/interact).
 //! The mesh is checked against the OBJ file read independently and the scene's fixing rule.
 
-use fibfluid::geometry::{Vec3, load_mesh};
-use fibfluid::interact::{Interactive, Storage};
+use fibfluid_geometry::{Vec3, load_mesh};
+use fibfluid_interact::{Interactive, Storage};
 
 use crate::common::{Client, Reply, http_get, max_dist, scene_body, serve, sphere_path};
 
