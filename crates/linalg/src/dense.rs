@@ -88,34 +88,3 @@ impl<K: DenseKernel> Factorization for DenseFactorization<K> {
         Ok(cost)
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::LinalgError;
-    use crate::memory::{DENSE_WHAT, try_zeroed};
-
-    /// Allocations no machine can make (2^60 f64 = 8 EiB, a size that overflows usize)
-    /// come back as `OutOfMemory` naming the bytes, not as an abort.
-    #[test]
-    fn impossible_allocations_are_errors() {
-        let n = 1usize << 60;
-        assert_eq!(
-            check_alloc::<f64>(n, DENSE_WHAT),
-            Err(LinalgError::OutOfMemory { bytes: n * 8, what: DENSE_WHAT })
-        );
-        assert_eq!(
-            try_zeroed(usize::MAX / 2, DENSE_WHAT),
-            Err(LinalgError::OutOfMemory { bytes: usize::MAX, what: DENSE_WHAT })
-        );
-        let e = try_collect(n, std::iter::repeat(0f32), SINGLE_WHAT).unwrap_err();
-        assert_eq!(e, LinalgError::OutOfMemory { bytes: n * 4, what: SINGLE_WHAT });
-        assert!(
-            e.to_string().starts_with(&format!("cannot allocate {} bytes (4294967296.00 GiB)", n * 4)),
-            "{e}"
-        );
-        // A possible one works.
-        assert_eq!(try_zeroed(10, DENSE_WHAT).unwrap(), vec![0.0; 10]);
-        assert_eq!(try_collect(3, [1, 2, 3, 4].into_iter(), "x").unwrap(), vec![1, 2, 3]);
-    }
-}
