@@ -41,7 +41,7 @@ pub fn run(scene_path: &Path, out: &Path, flags: GridFlags) -> Result<(), CliErr
     // The grid sets the modes, so the scene's own mode says nothing about stiffening here.
     for w in fibfluid::ineffective(&scene) {
         if !matches!(w, fibfluid::Ineffective::StiffeningOutsideNonlinear { .. }) {
-            eprintln!("warning: {w}");
+            tell!("warning: {w}");
         }
     }
     scene.solver.constraints = flags.constraints.unwrap_or(scene.solver.constraints);
@@ -109,9 +109,9 @@ pub fn run(scene_path: &Path, out: &Path, flags: GridFlags) -> Result<(), CliErr
     ];
     fibfluid_cli::write_files_atomically(out, &files)?;
     for (name, _) in &files {
-        println!("wrote {}", out.join(name).display());
+        say!("wrote {}", out.join(name).display());
     }
     let ok = study.points.iter().filter(|p| p.error.is_none()).count();
-    println!("{ok} of {} configurations ran; {} skipped", study.points.len(), study.skipped.len());
+    say!("{ok} of {} configurations ran; {} skipped", study.points.len(), study.skipped.len());
     Ok(())
 }

@@ -26,13 +26,21 @@ pub fn run(args: &CompareArgs) -> Result<(), crate::CliError> {
     let path = load_tool_path(&args.path)?;
     let opts = args.response.options();
     let report = run_compare(&scene, &path, &args.out, &opts)?;
-    println!("{}: {} vertices, {} frames", report.scene, report.vertices, report.frames);
-    println!(
+    say!("{}: {} vertices, {} frames", report.scene, report.vertices, report.frames);
+    say!(
         "{:<22} {:>9} {:>10} {:>10} {:>10} {:>10} {:>9} {:>9} {:>9}",
-        "method", "setup s", "memory B", "p50 us", "p99 us", "max us", "dV max", "rest d", "rms/ffm"
+        "method",
+        "setup s",
+        "memory B",
+        "p50 us",
+        "p99 us",
+        "max us",
+        "dV max",
+        "rest d",
+        "rms/ffm"
     );
     for (name, m) in &report.methods {
-        println!(
+        say!(
             "{:<22} {:>9.3} {:>10} {:>10.1} {:>10.1} {:>10.1} {:>9.2e} {:>9.2e} {:>9.2e}",
             name,
             m.setup_seconds,
@@ -46,7 +54,7 @@ pub fn run(args: &CompareArgs) -> Result<(), crate::CliError> {
         );
     }
     for f in COMPARE_FILES {
-        println!("  wrote {}", args.out.join(f).display());
+        say!("  wrote {}", args.out.join(f).display());
     }
     Ok(())
 }

@@ -13,7 +13,10 @@ use fibfluid::{
 };
 use fibfluid_cli::MeshInfo;
 use indicatif::{ProgressBar, ProgressStyle};
+use say::num;
 
+#[macro_use]
+mod say;
 mod accuracy;
 mod compare;
 mod probe;
@@ -236,18 +239,18 @@ fn main() -> ExitCode {
                 // clap's message is several lines; keep the one that says what is wrong.
                 let text = e.to_string();
                 let first = text.lines().find(|l| !l.trim().is_empty()).unwrap_or("invalid arguments");
-                eprintln!("{}", first.trim());
+                tell!("{}", first.trim());
                 return ExitCode::from(2);
             }
-            let _ = e.print();
+            say!("{}", e.to_string().trim_end());
             return ExitCode::SUCCESS;
         }
     };
     if let Some(n) = cli.threads {
         match fibfluid::linalg::threads::try_set_threads(n) {
-            Ok(setting) => setting.note().into_iter().for_each(|note| eprintln!("note: {note}")),
+            Ok(setting) => setting.note().into_iter().for_each(|note| tell!("note: {note}")),
             Err(e) => {
-                eprintln!("error: --threads {n}: {}", one_line(&e.to_string()));
+                tell!("error: --threads {n}: {}", one_line(&e.to_string()));
                 return ExitCode::from(2);
             }
         }
@@ -258,7 +261,7 @@ fn main() -> ExitCode {
     match run(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {}", one_line(&e.to_string()));
+            tell!("error: {}", one_line(&e.to_string()));
             ExitCode::from(2)
         }
     }
@@ -273,7 +276,7 @@ fn byte_count(s: &str) -> Result<u64, String> {
 /// Prints each setting of the scene that cannot act as a `warning:` line on stderr.
 fn warn_ineffective(scene: &Scene) {
     for w in fibfluid::ineffective(scene) {
-        eprintln!("warning: {w}");
+        tell!("warning: {w}");
     }
 }
 
@@ -281,13 +284,32 @@ fn one_line(s: &str) -> String {
     s.split_whitespace().collect::<Vec<_>>().join(" ")
 }
 
+/// Seconds between the plain progress lines printed when stderr is not a terminal.
+const PROGRESS_LINE_SECONDS: f64 = 10.0;
+
+/// Progress of a long run on stderr, with an estimate of the time left: a bar on a
+/// terminal, else a plain line every [`PROGRESS_LINE_SECONDS`] (logs and pipes).
 fn progress(total: usize, what: &str) -> Option<Arc<dyn Fn(usize, usize) + Send + Sync>> {
     if total < 2 {
         return None;
     }
+    if !std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+        let what = what.to_string();
+        let start = Instant::now();
+        let last = std::sync::Mutex::new(0.0f64);
+        return Some(Arc::new(move |k, n| {
+            let elapsed = start.elapsed().as_secs_f64();
+            let Ok(mut last) = last.lock() else { return };
+            if k < n && elapsed - *last >= PROGRESS_LINE_SECONDS && k > 0 {
+                *last = elapsed;
+                let left = elapsed / k as f64 * (n - k) as f64;
+                tell!("{what}: step {k} of {n}, {elapsed:.0} s so far, about {left:.0} s left");
+            }
+        }));
+    }
     let bar = ProgressBar::new(total as u64);
     bar.set_style(
-        ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} steps ({elapsed})")
+        ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} steps ({elapsed}, about {eta} left)")
             .unwrap_or_else(|_| ProgressStyle::default_bar())
             .progress_chars("=> "),
     );
@@ -308,7 +330,7 @@ fn run(command: Command) -> Result<(), CliError> {
                 return Err(CliError::Flag {
                     flag: "level",
                     value: level.to_string(),
-                    problem: "at most 7 (655362 vertices)",
+                    problem: "at most 7 (163842 vertices; each level has 10 * 4^level + 2)",
                 });
             }
             if !(radius.is_finite() && radius > 0.0) {
@@ -326,7 +348,7 @@ fn run(command: Command) -> Result<(), CliError> {
                 .and_then(|mut m| m.validate().map(|_| m))
                 .map_err(|source| CliError::Radius { radius, source })?;
             fibfluid::geometry::write_obj(&out, m.positions(), m.triangles())?;
-            eprintln!("wrote {} ({} vertices, {} faces)", out.display(), m.n_vertices(), m.n_faces());
+            tell!("wrote {} ({} vertices, {} faces)", out.display(), m.n_vertices(), m.n_faces());
             Ok(())
         }
         Command::Plan { scene, over, json } => plan(&scene, &over, json),
@@ -350,22 +372,27 @@ fn mesh_info(path: &Path, json: bool, fibers_out: Option<&Path>) -> Result<(), C
         std::io::Write::flush(&mut f).map_err(io)?;
     }
     if json {
-        println!("{}", serde_json::to_string(&info)?);
+        say!("{}", serde_json::to_string(&info)?);
         return Ok(());
     }
     let (lo, hi) = (info.bbox_min, info.bbox_max);
-    println!("{}", info.path);
-    println!("  vertices        {} ({} in the file)", info.vertices, info.file_vertices);
-    println!("  faces           {}", info.faces);
-    println!("  closed          yes, genus {}", info.genus);
-    println!(
-        "  bounding box    [{:.4}, {:.4}, {:.4}] .. [{:.4}, {:.4}, {:.4}]",
-        lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+    say!("{}", info.path);
+    say!("  vertices        {} ({} in the file)", info.vertices, info.file_vertices);
+    say!("  faces           {}", info.faces);
+    say!("  closed          yes, genus {}", info.genus);
+    say!(
+        "  bounding box    [{}, {}, {}] .. [{}, {}, {}]",
+        num(lo[0]),
+        num(lo[1]),
+        num(lo[2]),
+        num(hi[0]),
+        num(hi[1]),
+        num(hi[2])
     );
-    println!("  area            {:.6}  (sum |S_i| = {:.6})", info.area, info.vertex_area_sum);
-    println!("  volume          {:.6}", info.volume);
-    println!("  convex          {}", if info.convex { "yes (every fiber kept, no test ran)" } else { "no" });
-    println!(
+    say!("  area            {}  (sum |S_i| = {})", num(info.area), num(info.vertex_area_sum));
+    say!("  volume          {}", num(info.volume));
+    say!("  convex          {}", if info.convex { "yes (every fiber kept, no test ran)" } else { "no" });
+    say!(
         "  fibers          {} of {} kept ({:.1} %; exit test removed {}, crossing test {})",
         info.fibers_kept,
         info.fibers_total,
@@ -373,9 +400,9 @@ fn mesh_info(path: &Path, json: bool, fibers_out: Option<&Path>) -> Result<(), C
         info.fibers_removed_exit,
         info.fibers_removed_crossing
     );
-    println!("  seconds         {:.3} (load, check, cull)", info.seconds);
+    say!("  seconds         {:.3} (load, check, cull)", info.seconds);
     for n in &info.notes {
-        println!("  note: {n}");
+        say!("  note: {n}");
     }
     Ok(())
 }
@@ -398,9 +425,9 @@ fn plan(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> {
     let plan = Plan::from_scene(&scene);
     let limit = fibfluid::memory_budget(over.max_memory);
     if json {
-        println!("{}", serde_json::to_string_pretty(&plan)?);
+        say!("{}", serde_json::to_string_pretty(&plan)?);
     } else {
-        println!(
+        say!(
             "{}: {} vertices, {} steps ({} / {} / {} / {})",
             scene.name,
             scene.n_vertices(),
@@ -410,9 +437,9 @@ fn plan(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> {
             scene.solver.stepping,
             scene.solver.precision
         );
-        println!("  {:<24} {:>4} {:>12} {:>12}  why", "stage", "run", "MiB", "GFLOP");
+        say!("  {:<24} {:>4} {:>12} {:>12}  why", "stage", "run", "MiB", "GFLOP");
         for s in &plan.stages {
-            println!(
+            say!(
                 "  {:<24} {:>4} {:>12.1} {:>12.3}  {}",
                 s.name,
                 if s.run { "yes" } else { "no" },
@@ -421,7 +448,7 @@ fn plan(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> {
                 s.reason
             );
         }
-        println!(
+        say!(
             "  total: {:.1} MiB peak (limit {:.1} MiB), {:.3} GFLOP",
             plan.memory_bytes as f64 / 1048576.0,
             limit as f64 / 1048576.0,
@@ -448,37 +475,37 @@ fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> 
     let mut report = Report::of(&sim, std::slice::from_ref(&load), notes);
     let written = fibfluid_cli::write_outputs(out, &sim, &report)?;
     report.seconds_total += start.elapsed().as_secs_f64();
-    println!(
-        "{}: {} vertices, {} steps ({} / {} / {}), max |u| = {:.6}, volume {:.6} -> {:.6} (drift {:.2e}), P = {:.6}, residual {:.1e}, {:.3} s",
+    say!(
+        "{}: {} vertices, {} steps ({} / {} / {}), max |u| = {}, volume {} -> {} (drift {:.2e}), P = {}, residual {:.1e}, {:.3} s",
         report.scene,
         report.vertices,
         report.steps,
         report.backend,
         report.mode,
         report.stepping,
-        report.max_displacement,
-        report.volume_initial,
-        report.volume_final,
+        num(report.max_displacement),
+        num(report.volume_initial),
+        num(report.volume_final),
         report.volume_drift,
-        report.pressure,
+        num(report.pressure),
         report.residual_max,
         report.seconds_total
     );
     for (k, r) in report.plates.iter().enumerate() {
         let (force, area) =
             (r.force.last().copied().unwrap_or(0.0), r.contact_area.last().copied().unwrap_or(0.0));
-        println!(
-            "  plate {}: force {:.6}, {} vertices in contact, contact area {:.6}, mean pressure {:.6}, gap {:.6}",
+        say!(
+            "  plate {}: force {}, {} vertices in contact, contact area {}, mean pressure {}, gap {}",
             k + 1,
-            force,
+            num(force),
             r.contact_vertices.last().copied().unwrap_or(0),
-            area,
-            if area > 0.0 { force / area } else { 0.0 },
-            r.gap.last().copied().unwrap_or(0.0)
+            num(area),
+            num(if area > 0.0 { force / area } else { 0.0 }),
+            num(r.gap.last().copied().unwrap_or(0.0))
         );
     }
     for w in written {
-        println!("  wrote {}", w.display());
+        say!("  wrote {}", w.display());
     }
     Ok(())
 }
@@ -488,14 +515,14 @@ fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> 
 fn print_step_notes(sim: &Simulation) {
     let warnings = sim.warnings();
     for w in warnings.iter().take(MAX_WARNING_LINES) {
-        eprintln!("warning: {w}");
+        tell!("warning: {w}");
     }
     if warnings.len() > MAX_WARNING_LINES {
-        eprintln!("warning: {} more guard warnings in report.json", warnings.len() - MAX_WARNING_LINES);
+        tell!("warning: {} more guard warnings in report.json", warnings.len() - MAX_WARNING_LINES);
     }
     let skipped = sim.step_stats().skipped;
     if skipped > 0 {
-        eprintln!(
+        tell!(
             "note: {skipped} load steps changed no load (a force applied at the last step only) and were skipped without a solve"
         );
     }
@@ -518,9 +545,9 @@ fn roundtrip(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> 
     });
     let rt = fibfluid::roundtrip(scene, &RunOptions { progress })?;
     if json {
-        println!("{}", serde_json::to_string(&rt)?);
+        say!("{}", serde_json::to_string(&rt)?);
     } else {
-        println!(
+        say!(
             "round trip, {} steps each way ({} / {} / {}): error {:.3e} ({:.4} %), volume drift {:.3e}, {:.3} s",
             rt.steps,
             rt.backend,
@@ -555,20 +582,26 @@ fn bench(sizes: &[usize], repeats: usize, json: bool) -> Result<(), CliError> {
         for row in fibfluid_cli::bench::bench_backends(n, repeats)? {
             match row {
                 Ok(r) => rows.push(r),
-                Err((backend, e)) => eprintln!("{backend} at N = {n}: {}", one_line(&e.to_string())),
+                Err((backend, e)) => tell!("{backend} at N = {n}: {}", one_line(&e.to_string())),
             }
         }
     }
     if json {
-        println!("{}", serde_json::to_string(&rows)?);
+        say!("{}", serde_json::to_string(&rows)?);
         return Ok(());
     }
-    println!(
+    say!(
         "{:<12} {:>6} {:>7} {:>12} {:>12} {:>9} {:>10}",
-        "backend", "N", "dim", "factor s", "solve s", "GFLOP/s", "MiB"
+        "backend",
+        "N",
+        "dim",
+        "factor s",
+        "solve s",
+        "GFLOP/s",
+        "MiB"
     );
     for r in &rows {
-        println!(
+        say!(
             "{:<12} {:>6} {:>7} {:>12.5} {:>12.6} {:>9.2} {:>10.1}",
             r.backend.to_string(),
             r.n_vertices,
@@ -579,7 +612,7 @@ fn bench(sizes: &[usize], repeats: usize, json: bool) -> Result<(), CliError> {
             r.memory_bytes as f64 / 1048576.0
         );
     }
-    println!(
+    say!(
         "(medians of {repeats} warm runs after one warm-up; the structured backend factors N x N blocks, the dense ones the (3N+1)^2 matrix)"
     );
     Ok(())

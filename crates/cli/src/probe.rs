@@ -51,7 +51,7 @@ pub fn run(args: &ProbeArgs) -> Result<(), crate::CliError> {
     let opts = args.response.options();
     let report = run_probe_with(&scene, &path, &args.out, &opts, args.method)?;
     let l = report.probe.latency_us;
-    println!(
+    say!(
         "{} ({}): {} vertices, {} frames ({} path, {} probed), precompute {:.3} s, {:.1} MiB ({}), frame latency p50 {:.1} us, p99 {:.1} us, max {:.1} us",
         report.scene,
         report.method,
@@ -67,7 +67,7 @@ pub fn run(args: &ProbeArgs) -> Result<(), crate::CliError> {
         l.max
     );
     for f in PROBE_FILES {
-        println!("  wrote {}", args.out.join(f).display());
+        say!("  wrote {}", args.out.join(f).display());
     }
     Ok(())
 }

@@ -189,9 +189,11 @@ pub fn run_probe_with(
     method: Method,
 ) -> Result<ProbeReport> {
     let start = Instant::now();
-    let Shape::Surface(file) = &scene.shape else { return Err(ProbeError::NotASurface.into()) };
+    let Shape::Surface(file) = &scene.shape else {
+        return Err(ProbeError::NotASurface { scene: scene.display_name() }.into());
+    };
     check_method(path, method)?;
-    let frames = check_path(path, scene)?;
+    let checked = check_path(path, scene)?;
     if let Some(blocked) = PROBE_FILES.iter().map(|f| out.join(f)).find(|p| p.is_dir()) {
         return Err(Error::OutputBlocked {
             path: blocked,
@@ -203,7 +205,7 @@ pub fn run_probe_with(
         MethodBody::Ffm(pb) => max_norm(pb.body.base_field()),
         MethodBody::Chainmail(_) => 0.0,
     };
-    let replay = replay(mb.interactive(), path.kind, &frames)?;
+    let replay = replay(mb.interactive(), &checked)?;
     let mut probed: Vec<usize> = replay.rows.iter().map(|r| r.file_vertex).collect();
     probed.sort_unstable();
     probed.dedup();

@@ -44,7 +44,7 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
     }
     let scene = Scene::load(&args.scene)?;
     let Shape::Surface(file) = &scene.shape else {
-        return Err(ProbeError::NotASurface.into());
+        return Err(ProbeError::NotASurface { scene: scene.display_name() }.into());
     };
     let server_opts = ServerOptions {
         host: args.host.clone(),
@@ -59,15 +59,15 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
     // Bind first: a port in use is reported before the (possibly long) precompute.
     let server = Server::bind(server_opts)?;
     for warning in server.warnings() {
-        eprintln!("{warning}");
+        tell!("{warning}");
     }
     let opts = args.response.options();
     // The FFM precompute is built once and shared by every client (each gets a clone:
     // its own holds and frame); ChainMail bodies are cheap and built per client.
     let ffm = if args.method == Method::Ffm {
-        eprintln!("building the ffm body of {} ({} vertices)...", scene.name, scene.n_vertices());
+        tell!("building the ffm body of {} ({} vertices)...", scene.name, scene.n_vertices());
         let pb = build_body(&scene, &opts)?;
-        eprintln!(
+        tell!(
             "  base solve {:.2} s, precompute {:.2} s, {:.1} MiB",
             pb.base_seconds,
             pb.precompute_seconds,
@@ -97,7 +97,7 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
         }
         (other, _) => chainmail(&scene_for_clients, other),
     });
-    println!("fibfluid view: {} ({}, {}; Ctrl-C stops)", server.url(), scene.name, args.method);
+    say!("fibfluid view: {} ({}, {}; Ctrl-C stops)", server.url(), scene.name, args.method);
     server.run(mesh, factory)?;
     Ok(())
 }

@@ -96,6 +96,6 @@ pub use fibfluid_sim::Method;
 pub use interactive::{Hold, Interactive};
 pub use method_body::{MethodBody, ProbeBody, ProbeOptions, build_body, linearized};
 pub use replay::{
-    FrameRow, Latency, MAX_FRAME, PathHold, PathKind, PathProblem, PathRow, ProbeError, Replay, ToolPath,
-    check_method, check_path, replay, replay_observed,
+    CheckedPath, FrameRow, Latency, MAX_FRAME, MAX_REACH, PathHold, PathKind, PathProblem, PathRow,
+    ProbeError, Replay, ToolPath, check_method, check_path, replay, replay_observed,
 };

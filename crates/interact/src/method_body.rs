@@ -50,7 +50,7 @@ pub fn linearized(scene: &Model) -> Model {
 /// precompute's peak would exceed the memory budget, naming the bytes.
 pub fn build_body(scene: &Model, opts: &ProbeOptions) -> Result<ProbeBody, ProbeError> {
     if !matches!(scene.shape, Shape::Surface(_)) {
-        return Err(ProbeError::NotASurface);
+        return Err(ProbeError::NotASurface { scene: scene.display_name() });
     }
     let n = scene.n_vertices();
     let nblocks = if scene.material.is_isotropic() && scene.constraints.is_uniform(3) { 1 } else { 3 };

@@ -18,6 +18,22 @@ use crate::{InteractError, Interactive};
 /// The largest frame number a path may use.
 pub const MAX_FRAME: usize = 10_000_000;
 
+/// A grab may move a vertex at most this many times the body's size (the diagonal of its
+/// bounding box) from rest: beyond, the linear response is meaningless and its arithmetic
+/// overflows.
+pub const MAX_REACH: f64 = 1e3;
+
+/// A path checked against a model: its holds grouped by frame, in the mesh's vertex order.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CheckedPath {
+    /// The path file (for messages).
+    pub source: PathBuf,
+    /// Grab or force.
+    pub kind: PathKind,
+    /// The holds of each frame, `0..frames`.
+    pub frames: Vec<Vec<PathHold>>,
+}
+
 /// What can go wrong while probing: a bad tool path (file and line), a refused body.
 #[derive(Debug, thiserror::Error)]
 pub enum ProbeError {
@@ -37,9 +53,23 @@ pub enum ProbeError {
         /// The path file.
         path: PathBuf,
     },
-    /// The body refused a request.
-    #[error("probe: {0}")]
+    /// The body refused a request outside a path.
+    #[error("{0}")]
     Body(#[from] InteractError),
+    /// The body refused a frame of a path: the file, the line of the frame's hold and the
+    /// frame.
+    #[error("{}:{line}: frame {frame}: {source}", path.display())]
+    Frame {
+        /// The path file.
+        path: PathBuf,
+        /// The line of the hold that failed (the frame's first hold when the whole frame
+        /// failed).
+        line: usize,
+        /// The frame.
+        frame: usize,
+        /// Why.
+        source: InteractError,
+    },
     /// The scene's body cannot be built (too large for the memory, singular).
     #[error("{scene}: {source}")]
     Build {
@@ -49,8 +79,11 @@ pub enum ProbeError {
         source: InteractError,
     },
     /// The scene is a 2D polygon.
-    #[error("probe needs a surface mesh; this scene is a 2D polygon")]
-    NotASurface,
+    #[error("{scene}: interactive methods need a surface mesh; this scene is a 2D polygon")]
+    NotASurface {
+        /// The scene file (or the scene's name when built in code).
+        scene: String,
+    },
     /// The scene's ChainMail body cannot be built.
     #[error("{scene}: {source}")]
     Chainmail {
@@ -70,6 +103,26 @@ pub enum ProbeError {
     /// The engine refused the model (memory, a singular system).
     #[error(transparent)]
     Sim(#[from] fibfluid_sim::Error),
+    /// Replaying the path would keep more than the memory budget (refused from counts,
+    /// before anything is built).
+    #[error(
+        "{}: {what}: {frames} frames x {vertices} vertices need {bytes} bytes, but {available} bytes may be used; use fewer frames",
+        path.display()
+    )]
+    PathTooLong {
+        /// The path file.
+        path: PathBuf,
+        /// What is kept per frame.
+        what: &'static str,
+        /// Frames of the path.
+        frames: usize,
+        /// Vertices of the body.
+        vertices: usize,
+        /// Bytes needed.
+        bytes: u128,
+        /// Bytes that may be used.
+        available: u64,
+    },
     /// The path file is a directory.
     #[error("{}: is a directory, not a path file", path.display())]
     IsDirectory {
@@ -178,6 +231,18 @@ pub enum PathProblem {
         /// `grabbed` or `pushed`.
         action: &'static str,
     },
+    /// A grab farther from rest than [`MAX_REACH`] times the body's size.
+    #[error(
+        "vertex {vertex}: a displacement of {distance:e} is more than {MAX_REACH:e} times the body's size ({size:e})"
+    )]
+    TooFar {
+        /// The vertex (file order).
+        vertex: usize,
+        /// The displacement's length.
+        distance: f64,
+        /// The diagonal of the body's bounding box.
+        size: f64,
+    },
     /// The same vertex twice in one frame.
     #[error("vertex {vertex} appears twice in frame {frame} (first on line {first})")]
     Duplicate {
@@ -254,12 +319,16 @@ pub struct PathHold {
     pub value: Vec3,
 }
 
-/// Checks a path against a scene (vertices exist, are used, are not fixed, appear once per
-/// frame) and groups its rows by frame (`0..path.frames()`).
-pub fn check_path(path: &ToolPath, scene: &Model) -> std::result::Result<Vec<Vec<PathHold>>, ProbeError> {
-    let Shape::Surface(file) = &scene.shape else { return Err(ProbeError::NotASurface) };
+/// Checks a path against a model (vertices exist, are used, are not fixed, appear once per
+/// frame, grabs stay within [`MAX_REACH`] of the body's size) and groups its rows by frame.
+pub fn check_path(path: &ToolPath, scene: &Model) -> std::result::Result<CheckedPath, ProbeError> {
+    let Shape::Surface(file) = &scene.shape else {
+        return Err(ProbeError::NotASurface { scene: scene.display_name() });
+    };
     let to_mesh = file.file_to_mesh();
     let count = file.file_vertex_count();
+    let (lo, hi) = fibfluid_geometry::bounding_box(file.mesh.positions());
+    let size = fibfluid_geometry::vec3::dist(lo, hi);
     let err =
         |line: usize, problem: PathProblem| ProbeError::Path { path: path.source.clone(), line, problem };
     let mut frames: Vec<Vec<PathHold>> = vec![Vec::new(); path.frames()];
@@ -276,8 +345,12 @@ pub fn check_path(path: &ToolPath, scene: &Model) -> std::result::Result<Vec<Vec
         };
         if refused {
             let action = if path.kind == PathKind::Grab { "grabbed" } else { "pushed" };
-            let axis = fibfluid_assembly::AXES[fixed[0]];
+            let axis = fibfluid_geometry::AXES[fixed[0]];
             return Err(err(row.line, PathProblem::FixedVertex { vertex: fv, axis, action }));
+        }
+        let distance = fibfluid_geometry::vec3::norm(row.value);
+        if path.kind == PathKind::Grab && !(distance <= MAX_REACH * size) {
+            return Err(err(row.line, PathProblem::TooFar { vertex: fv, distance, size }));
         }
         let frame = &mut frames[row.frame];
         if let Some(first) = frame.iter().find(|h| h.vertex == v) {
@@ -288,7 +361,7 @@ pub fn check_path(path: &ToolPath, scene: &Model) -> std::result::Result<Vec<Vec
         }
         frame.push(PathHold { line: row.line, vertex: v, file_vertex: fv, value: row.value });
     }
-    Ok(frames)
+    Ok(CheckedPath { source: path.source.clone(), kind: path.kind, frames })
 }
 
 /// One probed vertex in one frame (a row of `frames.csv`).
@@ -315,36 +388,37 @@ pub struct Replay {
     pub frames: usize,
 }
 
-/// Replays checked frames (from [`check_path`]) on a body: in each frame every vertex is
-/// released, the frame's holds are applied and the frame is updated.
-pub fn replay(
-    body: &mut dyn Interactive,
-    kind: PathKind,
-    frames: &[Vec<PathHold>],
-) -> std::result::Result<Replay, ProbeError> {
-    replay_observed(body, kind, frames, |_, _| {})
+/// Replays a checked path on a body: in each frame every vertex is released, the frame's
+/// holds are applied and the frame is updated. A refused hold or frame names the path
+/// file, the line and the frame.
+pub fn replay(body: &mut dyn Interactive, path: &CheckedPath) -> std::result::Result<Replay, ProbeError> {
+    replay_observed(body, path, |_, _| {})
 }
 
 /// [`replay`], calling `observe(frame, body)` after each frame's update (outside the timed
 /// part), for instance to record the surfaces.
 pub fn replay_observed(
     body: &mut dyn Interactive,
-    kind: PathKind,
-    frames: &[Vec<PathHold>],
+    path: &CheckedPath,
     mut observe: impl FnMut(usize, &dyn Interactive),
 ) -> std::result::Result<Replay, ProbeError> {
     let mut rows = Vec::new();
-    let mut latency_us = Vec::with_capacity(frames.len());
-    for (k, holds) in frames.iter().enumerate() {
+    let mut latency_us = Vec::with_capacity(path.frames.len());
+    let at = |frame: usize, line: usize| {
+        move |source: InteractError| ProbeError::Frame { path: path.source.clone(), line, frame, source }
+    };
+    for (k, holds) in path.frames.iter().enumerate() {
         let start = Instant::now();
         body.release_all();
         for h in holds {
-            match kind {
-                PathKind::Grab => body.grab(h.vertex, h.value)?,
-                PathKind::Force => body.push(h.vertex, h.value)?,
+            match path.kind {
+                PathKind::Grab => body.grab(h.vertex, h.value),
+                PathKind::Force => body.push(h.vertex, h.value),
             }
+            .map_err(at(k, h.line))?;
         }
-        body.update()?;
+        let line = holds.first().map(|h| h.line).unwrap_or(0);
+        body.update().map_err(at(k, line))?;
         latency_us.push(start.elapsed().as_secs_f64() * 1e6);
         let reactions = body.reactions();
         for h in holds {
@@ -358,7 +432,7 @@ pub fn replay_observed(
         }
         observe(k, &*body);
     }
-    Ok(Replay { rows, latency_us, frames: frames.len() })
+    Ok(Replay { rows, latency_us, frames: path.frames.len() })
 }
 
 /// Frame latency percentiles, microseconds.
