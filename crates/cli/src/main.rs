@@ -422,8 +422,10 @@ fn load_scene(path: &Path, over: &Overrides) -> Result<(Scene, StageRecord), Cli
 
 fn plan(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> {
     let (scene, _) = load_scene(path, over)?;
-    let plan = Plan::from_scene(&scene);
     let limit = fibfluid::memory_budget(over.max_memory);
+    // Refused from counts before the convexity check of a body that cannot fit.
+    Plan::from_counts(&scene).check_memory(&scene.name, limit, scene.solver.backend)?;
+    let plan = Plan::from_scene(&scene);
     if json {
         say!("{}", serde_json::to_string_pretty(&plan)?);
     } else {

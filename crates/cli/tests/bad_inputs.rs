@@ -26,6 +26,10 @@ const EXPECTED: &[(&str, &str)] = &[
     ("mesh-index-zero.obj", ":6: face index 0 (OBJ indices start at 1)"),
     ("mesh-is-a-directory.obj", "is a directory, not a mesh file"),
     ("mesh-nan.obj", ":4: vertex 2 has a non-finite coordinate"),
+    (
+        "mesh-near-duplicate-vertices.obj",
+        "vertices 0 and 12 are 1.00e-12 apart, 2.89e-13 of the body's size: a near-duplicate vertex",
+    ),
     ("mesh-negative-index.obj", ":9: relative face index -5 points before the first vertex"),
     ("mesh-non-manifold-edge.obj", "edge (0, 1) is shared by 4 faces (non-manifold)"),
     ("mesh-open.obj", "the surface is open"),

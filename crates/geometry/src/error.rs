@@ -45,6 +45,21 @@ pub enum MeshError {
         /// Second face.
         second: usize,
     },
+    /// Two vertices (nearly) at the same place: a crack, a pinch or a sliver that the
+    /// fibers and the solvers cannot resolve.
+    #[error(
+        "vertices {a} and {b} are {distance:.2e} apart, {relative:.2e} of the body's size: a near-duplicate vertex (merge the two or remove the sliver)"
+    )]
+    NearDuplicateVertices {
+        /// One vertex.
+        a: usize,
+        /// The other.
+        b: usize,
+        /// Their distance.
+        distance: f64,
+        /// Their distance over the bounding box's diagonal.
+        relative: f64,
+    },
     /// An edge is shared by more than two faces.
     #[error("edge ({a}, {b}) is shared by {faces} faces (non-manifold)")]
     NonManifoldEdge {

@@ -42,7 +42,7 @@ pub use io::{
     write_obj, write_obj_to,
 };
 pub use mesh::{
-    CONVEXITY_TOLERANCE, DEGENERATE_AREA, TriMesh, Validation, bounding_box, face_area_vector,
+    CONVEXITY_TOLERANCE, DEGENERATE_AREA, NEAR_DUPLICATE, TriMesh, Validation, bounding_box, face_area_vector,
     raw_vertex_vectors, vertex_area_vectors, volume,
 };
 pub use polygon::Polygon;

@@ -4,6 +4,11 @@ use crate::adjacency::Adjacency;
 use crate::error::{MeshError, ScaleSite};
 use crate::vec3::{Vec3, cross, dot, norm, scale, sub};
 
+/// Two used vertices closer than this fraction of the bounding box's diagonal are a
+/// near-duplicate ([`MeshError::NearDuplicateVertices`]); 1e-9 apart is still resolved by
+/// every backend (tests/hard_cases.rs).
+pub const NEAR_DUPLICATE: f64 = 1e-10;
+
 /// Relative area below which a face counts as degenerate: `area <= DEGENERATE_AREA * diag^2`
 /// with `diag` the bounding-box diagonal.
 pub const DEGENERATE_AREA: f64 = 1e-20;
@@ -143,6 +148,7 @@ impl TriMesh {
     /// degenerate or duplicate faces; flips the faces if they point inward.
     pub fn validate(&mut self) -> Result<Validation, MeshError> {
         self.check_faces()?;
+        self.check_near_duplicates()?;
         let n_edges = self.check_edges()?;
         let adj = self.adjacency();
         self.check_vertex_fans(&adj)?;
@@ -193,6 +199,30 @@ impl TriMesh {
         for w in sorted.windows(2) {
             if w[0].0 == w[1].0 {
                 return Err(MeshError::DuplicateFace { first: w[0].1, second: w[1].1 });
+            }
+        }
+        Ok(())
+    }
+
+    /// No two used vertices closer than [`NEAR_DUPLICATE`] of the diagonal (a sweep over
+    /// the vertices sorted along x: `O(N log N)` for a surface).
+    fn check_near_duplicates(&self) -> Result<(), MeshError> {
+        let diag = self.diagonal();
+        let eps = NEAR_DUPLICATE * diag;
+        let mut used = vec![false; self.n_vertices()];
+        self.triangles.iter().flatten().for_each(|&v| used[v as usize] = true);
+        let mut order: Vec<usize> = (0..self.n_vertices()).filter(|&v| used[v]).collect();
+        order.sort_unstable_by(|&a, &b| self.positions[a][0].total_cmp(&self.positions[b][0]));
+        for (k, &a) in order.iter().enumerate() {
+            for &b in &order[k + 1..] {
+                if self.positions[b][0] - self.positions[a][0] > eps {
+                    break;
+                }
+                let distance = norm(sub(self.positions[a], self.positions[b]));
+                if distance <= eps {
+                    let (a, b) = (a.min(b), a.max(b));
+                    return Err(MeshError::NearDuplicateVertices { a, b, distance, relative: distance / diag });
+                }
             }
         }
         Ok(())

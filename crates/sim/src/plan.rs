@@ -73,6 +73,26 @@ impl Plan {
         plan(scene, &size)
     }
 
+    /// The plan from the model's counts alone: no geometric test (the body is taken as
+    /// convex, which gives the smallest plan), so it costs microseconds even for a mesh
+    /// whose convexity check would take minutes. A model this plan refuses is refused
+    /// before anything else runs.
+    pub fn from_counts(scene: &Model) -> Plan {
+        let size = match &scene.shape {
+            Shape::Surface(m) => Size {
+                n: m.mesh.n_vertices() as f64,
+                faces: m.mesh.n_faces() as f64,
+                axes: 3,
+                convex: true,
+                polygon: false,
+            },
+            Shape::Polygon(p) => {
+                Size { n: p.n_vertices() as f64, faces: p.n_vertices() as f64, axes: 2, convex: true, polygon: true }
+            }
+        };
+        plan(scene, &size)
+    }
+
     /// Whether stage `name` runs.
     pub fn runs(&self, name: Stage) -> bool {
         self.stages.iter().any(|s| s.name == name && s.run)

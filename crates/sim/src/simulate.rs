@@ -210,6 +210,9 @@ impl Simulation {
     pub fn with_options(model: impl Into<Model>, opts: &SetupOptions) -> Result<Self> {
         let scene: Model = model.into();
         let started = Instant::now();
+        let limit = fibfluid_linalg::memory_budget(opts.max_memory);
+        // From counts first: a body too large is refused before its convexity check.
+        Plan::from_counts(&scene).check_memory(&scene.name, limit, scene.solver.backend)?;
         let mut log = StageLog::default();
         let plan = match scene.shape {
             Shape::Surface(_) => log.time(names::CONVEXITY, || Plan::from_scene(&scene)),
