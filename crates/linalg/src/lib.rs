@@ -32,6 +32,7 @@ mod dense;
 mod error;
 mod matrix;
 mod prescribed;
+mod residual;
 mod solver;
 mod structured;
 pub mod threads;
