@@ -94,9 +94,36 @@ fn stream_twice(buf: &[f64]) -> f64 {
     acc.iter().sum()
 }
 
+/// Prints the median of a few timed runs of each stage of a checked solve.
+fn breakdown(sys: &System, f: &dyn fibfluid_linalg::Factorization, rhs: &[f64]) {
+    let time = |what: &str, run: &mut dyn FnMut()| {
+        let mut t: Vec<f64> = (0..7)
+            .map(|_| {
+                let s = std::time::Instant::now();
+                run();
+                s.elapsed().as_secs_f64() * 1e3
+            })
+            .collect();
+        t.sort_by(f64::total_cmp);
+        println!("  {what}: {:.2} ms", t[3]);
+    };
+    let a = &sys.matrix;
+    let mut x = rhs.to_vec();
+    f.solve_unrefined(&mut x);
+    let (mut r, mut w) = (vec![0.0; x.len()], vec![0.0; x.len()]);
+    time("triangular solves + Schur step", &mut || {
+        let mut y = rhs.to_vec();
+        f.solve_unrefined(&mut y);
+    });
+    time("fused residual and |A||x|", &mut || a.residual(&x, rhs, &mut r, &mut w));
+    time("apply", &mut || a.apply(&x, &mut r));
+    time("apply_abs", &mut || a.apply_abs(&x, &mut w));
+}
+
 fn solve(c: &mut Criterion) {
     pin_threads();
-    for level in [4, 5] {
+    let max_level = std::env::var("FIBFLUID_BENCH_MAX_LEVEL").ok().and_then(|v| v.parse().ok()).unwrap_or(5);
+    for level in (4..=max_level).filter(|l| *l <= 5) {
         let (sys, rhs) = sphere(level);
         let n = sys.matrix.n_vertices();
         let f64_opts = FactorOptions::default();
@@ -107,6 +134,7 @@ fn solve(c: &mut Criterion) {
             let s = f.solve(&rhs).expect("solve");
             println!("N = {n}, {name}: {} refinement steps, backward error {:.2e}", s.refinement_steps, s.relative_residual);
         }
+        breakdown(&sys, f.as_ref(), &rhs);
         let buffer = vec![1.0f64; n * n];
         let mut g = c.benchmark_group(format!("solve/{n}"));
         g.sample_size(10).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(3));

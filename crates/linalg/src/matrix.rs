@@ -327,9 +327,10 @@ impl BorderedMatrix {
     }
 
     /// `r = b - A x` and `abs_ax = |A| |x|` (the numerator and denominator of the
-    /// componentwise backward error) in one pass over each block, reading only its lower
-    /// triangle: about a quarter of the bytes of [`apply`](Self::apply) followed by
-    /// [`apply_abs`](Self::apply_abs).
+    /// componentwise backward error) in one pass over each block: one matrix product
+    /// `K [x, |x|]` for a weighted Laplacian (`|K| |x| = 2 D |x| - K |x|`), otherwise one
+    /// pass over the lower triangle. [`apply`](Self::apply) followed by
+    /// [`apply_abs`](Self::apply_abs) reads each block twice.
     #[track_caller]
     pub fn residual(&self, x: &[f64], b: &[f64], r: &mut [f64], abs_ax: &mut [f64]) {
         self.residual_many(x, b, r, abs_ax, 1);
@@ -353,7 +354,11 @@ impl BorderedMatrix {
                 .flat_map(|k| (0..d).filter(move |&c| nblocks == 1 || c == bi).map(move |c| (k, c)))
                 .collect();
             let xs: Vec<&[f64]> = pairs.iter().map(|&(k, c)| &x[k * dim + c * n..k * dim + (c + 1) * n]).collect();
-            let prod = crate::residual::symmetric_products(self.block(bi), &xs);
+            let prod = if self.block_is_z_matrix[bi] {
+                crate::residual::z_matrix_products(self.block(bi), &xs)
+            } else {
+                crate::residual::symmetric_products(self.block(bi), &xs)
+            };
             let m = pairs.len();
             for (v, &(k, c)) in pairs.iter().enumerate() {
                 let (kx, kax) = (&prod[v * n..(v + 1) * n], &prod[(m + v) * n..(m + v + 1) * n]);

@@ -1,5 +1,10 @@
 //! The residual of a checked solve in one pass over each stiffness block.
 //!
+//! For a block whose off-diagonal entries are all <= 0 (a weighted Laplacian, with
+//! eliminated or penalized constraints), `|K| |x| = 2 D |x| - K |x|`, so one faer matrix
+//! product `K [x_1 .. x_m, |x_1| .. |x_m|]` (AVX-512 / AVX2 kernels, rayon pool) gives both
+//! ([`z_matrix_products`]). Other symmetric blocks use [`symmetric_products`].
+//!
 //! A checked solve needs `r = b - A x` and the denominator `|A| |x|` of the componentwise
 //! backward error. Done as two matrix products, that reads every block twice, in full. The
 //! kernel here reads each block once and only its lower triangle (the blocks are
@@ -11,6 +16,45 @@
 
 use faer::Mat;
 use rayon::prelude::*;
+
+/// Columns per faer product in [`z_matrix_products`].
+const MATVEC_COLUMNS: usize = 3;
+
+/// `(K X, |K| |X|)` for a block with no positive off-diagonal entry, in the layout of
+/// [`symmetric_products`]: one matrix product with 2 m columns.
+pub(crate) fn z_matrix_products(k: &Mat<f64>, xs: &[&[f64]]) -> Vec<f64> {
+    let n = k.nrows();
+    let m = xs.len();
+    let mut rhs = vec![0.0; 2 * m * n];
+    for (c, x) in xs.iter().enumerate() {
+        rhs[c * n..(c + 1) * n].copy_from_slice(x);
+        for (a, v) in rhs[(m + c) * n..(m + c + 1) * n].iter_mut().zip(x.iter()) {
+            *a = v.abs();
+        }
+    }
+    let mut out = vec![0.0; 2 * m * n];
+    let par = if n >= 512 { faer::get_global_parallelism() } else { faer::Par::Seq };
+    // faer multiplies by up to MATVEC_COLUMNS columns at the speed of reading K (a
+    // matrix-vector kernel); with more columns it packs K for its GEMM kernel, which for
+    // a thin right-hand side is slower than a second pass.
+    for (o, r) in out.chunks_mut(MATVEC_COLUMNS * n).zip(rhs.chunks(MATVEC_COLUMNS * n)) {
+        let cols = r.len() / n;
+        faer::linalg::matmul::matmul(
+            faer::MatMut::from_column_major_slice_mut(o, n, cols),
+            faer::Accum::Replace,
+            k.as_ref(),
+            faer::MatRef::from_column_major_slice(r, n, cols),
+            1.0,
+            par,
+        );
+    }
+    for (o, a) in out[m * n..].chunks_exact_mut(n).zip(rhs[m * n..].chunks_exact(n)) {
+        for (i, (oi, ai)) in o.iter_mut().zip(a).enumerate() {
+            *oi = 2.0 * k[(i, i)] * ai - *oi;
+        }
+    }
+    out
+}
 
 /// `(K X, |K| |X|)` for the vectors `xs` (each of length n) and a symmetric block `k`
 /// (only its lower triangle is read): returns `2 m n` values, `K x_c` at `[c n, (c + 1) n)`

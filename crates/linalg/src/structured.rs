@@ -47,7 +47,7 @@ enum Factor {
 /// by reading L once forward and once backward: on two cores the sequential solve with 3
 /// right-hand sides is 2 to 4 times faster up to N = 1000 and never slower up to N = 2562
 /// (measured with faer 0.24).
-const PAR_SOLVE_MIN_N: usize = usize::MAX;
+const PAR_SOLVE_MIN_N: usize = 2000;
 
 fn solve_par(n: usize) -> Par {
     if n >= PAR_SOLVE_MIN_N { faer::get_global_parallelism() } else { Par::Seq }
