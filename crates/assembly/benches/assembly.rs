@@ -22,7 +22,12 @@ use rayon::prelude::*;
 
 /// The 1-, 5- and 15-minute load averages.
 fn load() -> String {
-    std::fs::read_to_string("/proc/loadavg").unwrap_or_default().split_whitespace().take(3).collect::<Vec<_>>().join(" ")
+    std::fs::read_to_string("/proc/loadavg")
+        .unwrap_or_default()
+        .split_whitespace()
+        .take(3)
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 /// A fresh N x N matrix of the distances between the points (x, y, z given as arrays).
@@ -55,8 +60,14 @@ fn bench(c: &mut Criterion) {
         let fibers = FiberSet::all(n);
         let mut constraints = Constraints::new(n);
         constraints.fix_selected(&Selector::Above { axis: 1, value: 0.8 }, pos, [true; 3]).expect("a cap");
-        let body =
-            Body { axes: 3, positions: pos, vertex_areas: &areas, edges: &edges, fibers: &fibers, rest_positions: None };
+        let body = Body {
+            axes: 3,
+            positions: pos,
+            vertex_areas: &areas,
+            edges: &edges,
+            fibers: &fibers,
+            rest_positions: None,
+        };
         let material = Material::default();
         let opts =
             AssemblyOptions { method: ConstraintMethod::Eliminate, pressure_scaling: PressureScaling::Auto };

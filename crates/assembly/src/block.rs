@@ -112,7 +112,11 @@ fn fill_column(pairs: &PairData, spec: &BlockSpec, j: usize, col: &mut [f64]) ->
             let d = dist(pairs.body.positions[i], pairs.body.positions[j]);
             if d > 0.0 {
                 let t = gamma * (pairs.area[i] + pairs.area[j]) / (2.0 * d * d);
-                let w = if pairs.all_fibers || pairs.body.fibers.contains(i, j) { pairs.bulk(i, j).0 } else { 0.0 };
+                let w = if pairs.all_fibers || pairs.body.fibers.contains(i, j) {
+                    pairs.bulk(i, j).0
+                } else {
+                    0.0
+                };
                 col[i] = -(spec.young * w + t);
             }
         }

@@ -225,7 +225,8 @@ impl<'a> PairData<'a> {
     fn new(body: &'a Body<'a>, material: &'a Material, conn: f64) -> Self {
         let n = body.positions.len();
         let coord = |c: usize| body.positions.iter().map(|p| p[c]).collect();
-        let mut neighbors: Vec<Vec<u32>> = vec![Vec::new(); if material.surface_tension > 0.0 { n } else { 0 }];
+        let mut neighbors: Vec<Vec<u32>> =
+            vec![Vec::new(); if material.surface_tension > 0.0 { n } else { 0 }];
         if material.surface_tension > 0.0 {
             for e in body.edges {
                 neighbors[e[0] as usize].push(e[1]);
@@ -237,7 +238,11 @@ impl<'a> PairData<'a> {
             x: coord(0),
             y: coord(1),
             z: coord(2),
-            area: body.vertex_areas.iter().map(|s| (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt()).collect(),
+            area: body
+                .vertex_areas
+                .iter()
+                .map(|s| (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt())
+                .collect(),
             two_conn: 2.0 * conn,
             body,
             material,

@@ -40,18 +40,25 @@ fn pin_threads() -> usize {
 
 /// The 1-, 5- and 15-minute load averages.
 fn load() -> String {
-    std::fs::read_to_string("/proc/loadavg").unwrap_or_default().split_whitespace().take(3).collect::<Vec<_>>().join(" ")
+    std::fs::read_to_string("/proc/loadavg")
+        .unwrap_or_default()
+        .split_whitespace()
+        .take(3)
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 /// System of a body with every pair a fiber, cap y > 0.8 fixed, and a gravity step.
 fn system(pos: &[Vec3], areas: &[Vec3], edges: &[[u32; 2]], gamma: f64) -> (System, Vec<f64>) {
     let n = pos.len();
     let fibers = FiberSet::all(n);
-    let body = Body { axes: 3, positions: pos, vertex_areas: areas, edges, fibers: &fibers, rest_positions: None };
+    let body =
+        Body { axes: 3, positions: pos, vertex_areas: areas, edges, fibers: &fibers, rest_positions: None };
     let material = Material { surface_tension: gamma, ..Material::default() };
     let mut c = Constraints::new(n);
     c.fix_selected(&Selector::Above { axis: 1, value: 0.8 }, pos, [true; 3]).expect("a cap");
-    let opts = AssemblyOptions { method: ConstraintMethod::Eliminate, pressure_scaling: PressureScaling::Auto };
+    let opts =
+        AssemblyOptions { method: ConstraintMethod::Eliminate, pressure_scaling: PressureScaling::Auto };
     let sys = assemble(&body, &material, &c, &opts).expect("assemble");
     let loads = Loads { acceleration: [0.0, -1.0, 0.0], down: None, density: 1000.0, forces: &[] };
     let b = load_vector(3, pos, areas, &loads).expect("loads");
@@ -132,14 +139,21 @@ fn solve(c: &mut Criterion) {
         let fm = Structured.factorize(&sys.matrix, &mixed_opts).expect("factorize mixed");
         for (name, f) in [("f64", &f), ("mixed", &fm)] {
             let s = f.solve(&rhs).expect("solve");
-            println!("N = {n}, {name}: {} refinement steps, backward error {:.2e}", s.refinement_steps, s.relative_residual);
+            println!(
+                "N = {n}, {name}: {} refinement steps, backward error {:.2e}",
+                s.refinement_steps, s.relative_residual
+            );
         }
         breakdown(&sys, f.as_ref(), &rhs);
         let buffer = vec![1.0f64; n * n];
         let mut g = c.benchmark_group(format!("solve/{n}"));
         g.sample_size(10).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(3));
-        g.bench_function("checked solve f64", |b| b.iter(|| black_box(f.solve(black_box(&rhs)).expect("solve"))));
-        g.bench_function("checked solve mixed", |b| b.iter(|| black_box(fm.solve(black_box(&rhs)).expect("solve"))));
+        g.bench_function("checked solve f64", |b| {
+            b.iter(|| black_box(f.solve(black_box(&rhs)).expect("solve")))
+        });
+        g.bench_function("checked solve mixed", |b| {
+            b.iter(|| black_box(fm.solve(black_box(&rhs)).expect("solve")))
+        });
         g.bench_function("unrefined solve f64", |b| {
             b.iter(|| {
                 let mut x = rhs.clone();
@@ -161,7 +175,9 @@ fn factorize(c: &mut Criterion) {
     let mut g = c.benchmark_group("factorize/1000");
     g.sample_size(20).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(3));
     let opts = FactorOptions::default();
-    g.bench_function("structured", |b| b.iter(|| black_box(Structured.factorize(&sys.matrix, &opts).expect("factor"))));
+    g.bench_function("structured", |b| {
+        b.iter(|| black_box(Structured.factorize(&sys.matrix, &opts).expect("factor")))
+    });
     g.bench_function("faer-lu", |b| {
         b.iter(|| black_box(fibfluid_linalg::FaerLu.factorize(&sys.matrix, &opts).expect("factor")))
     });

@@ -353,7 +353,8 @@ impl BorderedMatrix {
             let pairs: Vec<(usize, usize)> = (0..count)
                 .flat_map(|k| (0..d).filter(move |&c| nblocks == 1 || c == bi).map(move |c| (k, c)))
                 .collect();
-            let xs: Vec<&[f64]> = pairs.iter().map(|&(k, c)| &x[k * dim + c * n..k * dim + (c + 1) * n]).collect();
+            let xs: Vec<&[f64]> =
+                pairs.iter().map(|&(k, c)| &x[k * dim + c * n..k * dim + (c + 1) * n]).collect();
             let prod = if self.block_is_z_matrix[bi] {
                 crate::residual::z_matrix_products(self.block(bi), &xs)
             } else {

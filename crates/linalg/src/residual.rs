@@ -76,11 +76,14 @@ pub(crate) fn symmetric_products(k: &Mat<f64>, xs: &[&[f64]]) -> Vec<f64> {
     if parts == 1 {
         return run(0);
     }
-    (0..parts).into_par_iter().map(run).reduce_with(|mut a, b| {
-        a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
-        a
-    })
-    .unwrap_or_else(|| vec![0.0; 2 * m * n])
+    (0..parts)
+        .into_par_iter()
+        .map(run)
+        .reduce_with(|mut a, b| {
+            a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
+            a
+        })
+        .unwrap_or_else(|| vec![0.0; 2 * m * n])
 }
 
 /// The columns `range` of the lower triangle, accumulated into `acc`.

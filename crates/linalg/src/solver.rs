@@ -202,7 +202,8 @@ pub trait FactorizationExt: Factorization {
                 }
                 xs.extend_from_slice(xk);
             }
-            let bs: Vec<f64> = active.iter().flat_map(|&k| b[k * dim..(k + 1) * dim].iter().copied()).collect();
+            let bs: Vec<f64> =
+                active.iter().flat_map(|&k| b[k * dim..(k + 1) * dim].iter().copied()).collect();
             let mut r = vec![0.0; xs.len()];
             let mut denom = vec![0.0; xs.len()];
             a.residual_many(&xs, &bs, &mut r, &mut denom, active.len());

@@ -119,7 +119,8 @@ impl LinearSolver for Structured {
         let start = Instant::now();
         let n = a.n_vertices();
         let nblocks = if a.is_shared() { 1 } else { a.axes() };
-        let factors = (0..nblocks).map(|c| factor_block(a.block(c), c, opts.precision)).collect::<Result<_>>()?;
+        let factors =
+            (0..nblocks).map(|c| factor_block(a.block(c), c, opts.precision)).collect::<Result<_>>()?;
         let bytes = nblocks * n * n * if opts.precision == Precision::F64 { 8 } else { 4 };
         let mut f = StructuredFactorization {
             // The blocks are shared with `a`, not copied.
@@ -362,5 +363,64 @@ impl Factorization for StructuredFactorization {
             seconds: start.elapsed().as_secs_f64(),
             bytes: 0,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Blocks, FactorizationExt};
+
+    /// A factorization of a 3-axis system with a shared SPD block (a path Laplacian plus
+    /// the identity) whose factor is then corrupted by `corrupt`.
+    fn corrupted(opts: FactorOptions, corrupt: impl Fn(&mut Vec<f64>, usize)) -> StructuredFactorization {
+        let n = 40;
+        let k = Mat::from_fn(n, n, |i, j| match i.abs_diff(j) {
+            0 => 3.0,
+            1 => -1.0,
+            _ => 0.0,
+        });
+        let border = (0..3).map(|c| (0..n).map(|i| 1.0 + ((i + c) % 5) as f64).collect()).collect();
+        let a = BorderedMatrix::new(Blocks::Shared(k), border, 1.0);
+        let mut factor = factor_block(a.block(0), 0, Precision::F64).unwrap();
+        if let Factor::F64(v) = &mut factor {
+            corrupt(v, n);
+        }
+        let mut f = StructuredFactorization {
+            matrix: a,
+            opts,
+            factors: vec![factor],
+            z: Mat::zeros(n, 3),
+            schur: 0.0,
+            cost: FactorCost::default(),
+        };
+        f.update_schur().unwrap();
+        f
+    }
+
+    #[test]
+    fn an_intact_factor_passes_the_check() {
+        let f = corrupted(FactorOptions { max_refinement_steps: 0, ..FactorOptions::default() }, |_, _| {});
+        let b: Vec<f64> = (0..f.matrix.dim()).map(|i| (i % 7) as f64 - 3.0).collect();
+        let s = f.solve(&b).unwrap();
+        assert!(s.relative_residual <= crate::DEFAULT_TARGET_RESIDUAL, "{}", s.relative_residual);
+    }
+
+    #[test]
+    fn a_corrupted_factor_is_caught_by_the_residual_check() {
+        let b: Vec<f64> = (0..3 * 40 + 1).map(|i| (i % 7) as f64 - 3.0).collect();
+        // One entry of L off by 1 %: without refinement the residual check rejects it.
+        let f = corrupted(FactorOptions { max_refinement_steps: 0, ..FactorOptions::default() }, |v, n| {
+            v[5 * n + 6] *= 1.01
+        });
+        let e = f.solve(&b).expect_err("a wrong factor");
+        assert!(matches!(e, LinalgError::ResidualTooLarge { .. }), "{e:?}");
+        // Grossly wrong (a pivot 100 times too large): refinement cannot repair it either.
+        let f = corrupted(FactorOptions::default(), |v, n| v[7 * n + 7] *= 100.0);
+        let e = f.solve(&b).expect_err("a wrong factor");
+        assert!(
+            matches!(e, LinalgError::ResidualTooLarge { .. } | LinalgError::NonFiniteSolution { .. }),
+            "{e:?}"
+        );
     }
 }
