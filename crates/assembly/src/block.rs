@@ -97,7 +97,7 @@ fn fill_column(pairs: &PairData, spec: &BlockSpec, j: usize, col: &mut [f64]) ->
     col[j] = 0.0;
     if col.iter().any(|v| !v.is_finite()) {
         // A zero (or NaN) distance on a kept fiber: name the pair, as the paper's loop would.
-        for i in (0..n_of(col)).filter(|&i| i != j && pairs.body.fibers.contains(i, j)) {
+        for i in (0..col.len()).filter(|&i| i != j && pairs.body.fibers.contains(i, j)) {
             let d = pairs.bulk(i, j).1;
             if !(d > 0.0) {
                 out.coincident = Some((i.min(j), i.max(j), d));
@@ -129,10 +129,6 @@ fn fill_column(pairs: &PairData, spec: &BlockSpec, j: usize, col: &mut [f64]) ->
     impose_fixed(spec, j, col);
     out.sks = spec.borders.iter().map(|s| if s[j] != 0.0 { s[j] * dot8(s, col) } else { 0.0 }).collect();
     out
-}
-
-fn n_of(col: &[f64]) -> usize {
-    col.len()
 }
 
 /// The constraint method on column j: a fixed column is zero (its diagonal is set to the
