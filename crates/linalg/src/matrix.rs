@@ -355,7 +355,7 @@ impl BorderedMatrix {
                 .collect();
             let xs: Vec<&[f64]> =
                 pairs.iter().map(|&(k, c)| &x[k * dim + c * n..k * dim + (c + 1) * n]).collect();
-            let prod = if self.block_is_z_matrix[bi] {
+            let prod = if self.block_is_z_matrix[bi] && n < crate::residual::STREAMING_MIN_N {
                 crate::residual::z_matrix_products(self.block(bi), &xs)
             } else {
                 crate::residual::symmetric_products(self.block(bi), &xs)
