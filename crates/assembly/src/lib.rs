@@ -20,6 +20,7 @@
 //! border is multiplied by `lambda_S / |S|` (`lambda_S = S' K S / S' S`, free degrees of
 //! freedom) so the pressure unknown has the same scale as the displacements.
 
+mod block;
 mod constraints;
 mod loads;
 mod material;

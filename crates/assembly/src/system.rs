@@ -3,9 +3,9 @@
 use std::time::Instant;
 
 use fibfluid_geometry::{FiberSet, Vec3};
-use fibfluid_linalg::{Blocks, BorderedMatrix, Mat};
-use rayon::prelude::*;
+use fibfluid_linalg::{Blocks, BorderedMatrix};
 
+use crate::block::{BlockSpec, fill_block};
 use crate::{AXES, AssemblyError, ConstraintMethod, Constraints, Material, Result};
 
 /// How the pressure unknown is scaled.
@@ -89,6 +89,13 @@ pub struct System {
 }
 
 /// Assembles the bordered system for a body, material and constraints.
+///
+/// Each K block is written once, column by column in parallel (K is symmetric, so column
+/// j is row j): the fiber weights of a column come from one loop over contiguous
+/// coordinate arrays (`d = sqrt(dx^2 + dy^2 + dz^2)`), compiled for the CPU's widest
+/// vector unit; the surface fibers, the diagonal, the elimination or penalty of fixed
+/// degrees of freedom and the terms of the automatic pressure scale follow while the
+/// column is in cache.
 pub fn assemble(
     body: &Body,
     material: &Material,
@@ -96,143 +103,63 @@ pub fn assemble(
     opts: &AssemblyOptions,
 ) -> Result<System> {
     let start = Instant::now();
-    material.check()?;
+    validate(body, material, constraints)?;
     let (n, axes) = (body.positions.len(), body.axes);
-    if constraints.n_vertices() != n {
-        return Err(AssemblyError::VertexOutOfRange { vertex: constraints.n_vertices(), vertices: n });
-    }
-    for c in 0..axes {
-        if constraints.count(c) == 0 {
-            return Err(AssemblyError::Unconstrained { axis: AXES[c] });
-        }
-    }
-    if (0..axes).all(|c| constraints.count(c) == n) {
-        return Err(AssemblyError::EverythingFixed);
-    }
     let conn = body.fibers.mean_connections();
-    let area: Vec<f64> =
-        body.vertex_areas.iter().map(|s| (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt()).collect();
-    let mut neighbors: Vec<Vec<u32>> = vec![Vec::new(); n];
-    if material.surface_tension > 0.0 {
-        for e in body.edges {
-            neighbors[e[0] as usize].push(e[1]);
-            neighbors[e[1] as usize].push(e[0]);
-        }
-        neighbors.iter_mut().for_each(|v| v.sort_unstable());
-    }
-    let rest = body.rest_positions.unwrap_or(body.positions);
-    // Row-major bulk (without Y) and surface weights; K is symmetric so row-major equals
-    // column-major and each row can be filled independently.
-    let mut bulk = vec![0.0f64; n * n];
-    let mut surf = vec![0.0f64; if material.surface_tension > 0.0 { n * n } else { 0 }];
-    let gamma = material.surface_tension;
-    let coincident = std::sync::Mutex::new(None);
-    let bulk_row = |(i, row): (usize, &mut [f64])| {
-        let pi = body.positions[i];
-        for j in 0..n {
-            if j == i || !body.fibers.contains(i, j) {
-                continue;
-            }
-            let d = dist(pi, body.positions[j]);
-            if !(d > 0.0) {
-                *coincident.lock().unwrap_or_else(|e| e.into_inner()) = Some((i.min(j), i.max(j), d));
-                continue;
-            }
-            let mut w = (area[i] + area[j]) / (2.0 * conn * d);
-            if !material.law.is_linear() {
-                let d0 = dist(rest[i], rest[j]);
-                w *= material.law.factor((d - d0) / d0);
-            }
-            row[j] = w;
-        }
-    };
-    // Small systems are filled on one thread: waking the pool costs more than the work.
-    if n * n < PARALLEL_WORK {
-        bulk.chunks_mut(n).enumerate().for_each(bulk_row);
-    } else {
-        bulk.par_chunks_mut(n).enumerate().for_each(bulk_row);
-    }
-    if let Some((i, j, distance)) = coincident.into_inner().unwrap_or(None) {
-        return Err(AssemblyError::CoincidentVertices { i, j, distance });
-    }
-    if gamma > 0.0 {
-        surf.par_chunks_mut(n).enumerate().for_each(|(i, row)| {
-            for &j in &neighbors[i] {
-                let j = j as usize;
-                let d = dist(body.positions[i], body.positions[j]);
-                if d > 0.0 {
-                    row[j] = gamma * (area[i] + area[j]) / (2.0 * d * d);
-                }
-            }
-        });
-    }
+    let pairs = PairData::new(body, material, conn);
     let shared = material.is_isotropic() && constraints.is_uniform(axes);
     let nblocks = if shared { 1 } else { axes };
     let mut blocks = Vec::with_capacity(nblocks);
     let mut diag_scale = [0.0; 3];
     let mut lifts = Vec::new();
+    let (mut sks, mut ss) = (vec![0.0; axes], vec![0.0; axes]);
     for c in 0..nblocks {
-        let y = material.young[c];
-        let mut k = Mat::<f64>::from_fn(n, n, |i, j| {
-            if i == j {
-                0.0
-            } else {
-                let s = if surf.is_empty() { 0.0 } else { surf[i * n + j] };
-                -(y * bulk[i * n + j] + s)
-            }
-        });
-        for j in 0..n {
-            let s: f64 = k.col(j).iter().sum();
-            k[(j, j)] = -s;
-        }
-        let free_diag: Vec<f64> =
-            (0..n).filter(|&i| constraints.get(i, c).is_none()).map(|i| k[(i, i)]).collect();
-        let mean_diag = free_diag.iter().sum::<f64>() / free_diag.len().max(1) as f64;
-        // Record lifts for every axis this block serves.
         let served: Vec<usize> = if shared { (0..axes).collect() } else { vec![c] };
-        for &axis in &served {
-            diag_scale[axis] = mean_diag;
-            for i in 0..n {
-                if let Some(v) = constraints.get(i, axis)
-                    && v != 0.0
-                    && opts.method == ConstraintMethod::Eliminate
-                {
-                    lifts.push(Lift {
-                        axis,
-                        vertex: i,
-                        value: v,
-                        column: k.col(i).iter().copied().collect(),
-                    });
+        let spec = BlockSpec {
+            young: material.young[c],
+            fixed: (0..n).map(|i| constraints.get(i, c).is_some()).collect(),
+            method: opts.method,
+            // Free border components of the served axes, for the automatic pressure scale.
+            borders: if opts.pressure_scaling == PressureScaling::Auto {
+                served.iter().map(|&a| free_border(body.vertex_areas, constraints, a)).collect()
+            } else {
+                Vec::new()
+            },
+            keep: (0..n)
+                .filter(|&i| {
+                    opts.method == ConstraintMethod::Eliminate
+                        && served.iter().any(|&a| constraints.get(i, a).is_some_and(|v| v != 0.0))
+                })
+                .collect(),
+        };
+        let block = fill_block(&pairs, &spec)?;
+        for (s, &axis) in served.iter().enumerate() {
+            diag_scale[axis] = block.mean_diag;
+            if let Some(&(num, den)) = block.scale_terms.get(s) {
+                (sks[axis], ss[axis]) = (num, den);
+            }
+            for (i, column) in &block.kept_columns {
+                if let Some(value) = constraints.get(*i, axis).filter(|v| *v != 0.0) {
+                    lifts.push(Lift { axis, vertex: *i, value, column: column.clone() });
                 }
             }
         }
-        for i in 0..n {
-            if constraints.get(i, c).is_none() {
-                continue;
-            }
-            match opts.method {
-                ConstraintMethod::Penalty { big } => k[(i, i)] = big,
-                ConstraintMethod::Eliminate => {
-                    for j in 0..n {
-                        k[(i, j)] = 0.0;
-                        k[(j, i)] = 0.0;
-                    }
-                    k[(i, i)] = mean_diag;
-                }
-            }
-        }
-        blocks.push(k);
+        blocks.push(block.k);
     }
+    // Lifts in vertex order within each axis, as the right-hand side expects them.
+    lifts.sort_by_key(|l| (l.axis, l.vertex));
     let blocks =
         if shared { Blocks::Shared(blocks.pop().expect("one block")) } else { Blocks::PerAxis(blocks) };
     let scale = match opts.pressure_scaling {
         PressureScaling::None => 1.0,
         PressureScaling::Auto => {
-            let s = auto_pressure_scale(&blocks, body.vertex_areas, constraints, axes);
+            let (num, den) = (sks.iter().sum::<f64>(), ss.iter().sum::<f64>());
+            let s = (num / den) / den.sqrt();
             if s.is_finite() && s > 0.0 { s } else { 1.0 }
         }
         PressureScaling::Factor(f) => f,
     };
+    let gamma = material.surface_tension;
     let mut system = System {
         matrix: BorderedMatrix::new(blocks, vec![vec![0.0; n]; axes], scale),
         stats: AssemblyStats {
@@ -254,37 +181,88 @@ pub fn assemble(
     Ok(system)
 }
 
-/// Below this many matrix entries assembly runs on one thread.
-const PARALLEL_WORK: usize = 1 << 16;
-
-/// The [`PressureScaling::Auto`] factor `lambda_S / |S|`, with `|S|` the 2-norm of the
-/// border over the free degrees of freedom and `lambda_S = S' K S / S' S` the Rayleigh
-/// quotient of the (constrained) blocks along it.
-///
-/// Along S the bordered matrix acts like `[[lambda_S, s |S|], [s |S|, 0]]`, whose eigenvalues
-/// are `lambda_S (1 +- sqrt(5)) / 2` when `s |S| = lambda_S`: the pressure then adds no
-/// eigenvalue outside the blocks' own range. The factor scales like K, so the condition
-/// number does not depend on the units of Y and gamma.
-fn auto_pressure_scale(blocks: &Blocks, areas: &[Vec3], constraints: &Constraints, axes: usize) -> f64 {
-    let (mut sks, mut ss) = (0.0, 0.0);
+/// The checks of [`assemble`] that need no matrix.
+fn validate(body: &Body, material: &Material, constraints: &Constraints) -> Result<()> {
+    material.check()?;
+    let (n, axes) = (body.positions.len(), body.axes);
+    if constraints.n_vertices() != n {
+        return Err(AssemblyError::VertexOutOfRange { vertex: constraints.n_vertices(), vertices: n });
+    }
     for c in 0..axes {
-        let k = match blocks {
-            Blocks::Shared(k) => k,
-            Blocks::PerAxis(ks) => &ks[c],
-        };
-        let free = |i: usize| constraints.get(i, c).is_none();
-        let s: Vec<f64> = (0..areas.len()).map(|i| if free(i) { areas[i][c] } else { 0.0 }).collect();
-        for (j, &sj) in s.iter().enumerate() {
-            if sj != 0.0 {
-                let col = k.col(j);
-                sks += sj * s.iter().enumerate().map(|(i, si)| si * col[i]).sum::<f64>();
-                ss += sj * sj;
-            }
+        if constraints.count(c) == 0 {
+            return Err(AssemblyError::Unconstrained { axis: AXES[c] });
         }
     }
-    (sks / ss) / ss.sqrt()
+    if (0..axes).all(|c| constraints.count(c) == n) {
+        return Err(AssemblyError::EverythingFixed);
+    }
+    Ok(())
 }
 
+/// Axis `c` of the vertex area vectors, zero at the vertices fixed along it.
+fn free_border(areas: &[Vec3], constraints: &Constraints, c: usize) -> Vec<f64> {
+    areas.iter().enumerate().map(|(i, s)| if constraints.get(i, c).is_none() { s[c] } else { 0.0 }).collect()
+}
+
+/// What the weight of a vertex pair depends on, in contiguous per-vertex arrays.
+pub(crate) struct PairData<'a> {
+    pub(crate) x: Vec<f64>,
+    pub(crate) y: Vec<f64>,
+    pub(crate) z: Vec<f64>,
+    /// `|S_i|`.
+    pub(crate) area: Vec<f64>,
+    /// `2 n_eff`, the denominator factor of Eq. 6.
+    pub(crate) two_conn: f64,
+    pub(crate) body: &'a Body<'a>,
+    pub(crate) material: &'a Material,
+    /// Every pair is a fiber (no bitset lookups).
+    pub(crate) all_fibers: bool,
+    /// Surface-edge neighbours of each vertex (empty when gamma = 0).
+    pub(crate) neighbors: Vec<Vec<u32>>,
+}
+
+impl<'a> PairData<'a> {
+    fn new(body: &'a Body<'a>, material: &'a Material, conn: f64) -> Self {
+        let n = body.positions.len();
+        let coord = |c: usize| body.positions.iter().map(|p| p[c]).collect();
+        let mut neighbors: Vec<Vec<u32>> =
+            vec![Vec::new(); if material.surface_tension > 0.0 { n } else { 0 }];
+        if material.surface_tension > 0.0 {
+            for e in body.edges {
+                neighbors[e[0] as usize].push(e[1]);
+                neighbors[e[1] as usize].push(e[0]);
+            }
+            neighbors.iter_mut().for_each(|v| v.sort_unstable());
+        }
+        Self {
+            x: coord(0),
+            y: coord(1),
+            z: coord(2),
+            area: body
+                .vertex_areas
+                .iter()
+                .map(|s| (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt())
+                .collect(),
+            two_conn: 2.0 * conn,
+            body,
+            material,
+            all_fibers: body.fibers.kept() == body.fibers.total(),
+            neighbors,
+        }
+    }
+
+    /// The bulk weight `w_ij` (Eq. 6, strain factor included) and the distance.
+    pub(crate) fn bulk(&self, i: usize, j: usize) -> (f64, f64) {
+        let d = dist(self.body.positions[i], self.body.positions[j]);
+        let mut w = (self.area[i] + self.area[j]) / (self.two_conn * d);
+        if !self.material.law.is_linear() {
+            let rest = self.body.rest_positions.unwrap_or(self.body.positions);
+            let d0 = dist(rest[i], rest[j]);
+            w *= self.material.law.factor((d - d0) / d0);
+        }
+        (w, d)
+    }
+}
 #[inline]
 fn dist(a: Vec3, b: Vec3) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()

@@ -33,6 +33,7 @@ mod error;
 mod matrix;
 mod memory;
 mod prescribed;
+mod residual;
 mod solver;
 mod structured;
 pub mod threads;

@@ -1,5 +1,7 @@
 //! The bordered matrix of the fiber–fluid method, in structured form.
 
+use std::sync::Arc;
+
 use faer::Mat;
 
 use crate::{LinalgError, Result};
@@ -27,14 +29,17 @@ pub enum Blocks {
 /// [`pressure_scale`](Self::pressure_scale): the last unknown is `P / pressure_scale` and
 /// the last right-hand side entry is `pressure_scale * volume_target`. The matrix is never
 /// stored densely unless [`to_dense`](Self::to_dense) is called.
+///
+/// The blocks are immutable once built and shared between clones (a clone copies the
+/// border only), so a factorization keeps the matrix it factors without copying N^2 values.
 #[derive(Clone, Debug)]
 pub struct BorderedMatrix {
     n: usize,
-    blocks: Blocks,
+    blocks: Arc<Blocks>,
     border: Vec<Vec<f64>>,
     pressure_scale: f64,
     /// Absolute row sums of each block (without the border), cached for `norm_inf`.
-    block_row_sums: Vec<Vec<f64>>,
+    block_row_sums: Arc<Vec<Vec<f64>>>,
     /// Per block: every off-diagonal entry is <= 0 (a weighted Laplacian with constraints),
     /// so `|K| |x| = 2 D |x| - K |x|` needs one matrix product.
     block_is_z_matrix: Vec<bool>,
@@ -61,22 +66,13 @@ impl BorderedMatrix {
         }
         let border =
             border.into_iter().map(|b| b.into_iter().map(|v| v * pressure_scale).collect()).collect();
-        let row_sums = |k: &Mat<f64>| -> Vec<f64> {
-            // K is symmetric, so column sums are row sums (and columns are contiguous).
-            (0..n).map(|j| k.col(j).iter().map(|v| v.abs()).sum()).collect()
+        let summaries: Vec<(Vec<f64>, bool)> = match &blocks {
+            Blocks::Shared(k) => vec![block_summary(k)],
+            Blocks::PerAxis(ks) => ks.iter().map(block_summary).collect(),
         };
-        let block_row_sums = match &blocks {
-            Blocks::Shared(k) => vec![row_sums(k)],
-            Blocks::PerAxis(ks) => ks.iter().map(row_sums).collect(),
-        };
-        let z_matrix = |k: &Mat<f64>| -> bool {
-            (0..n).all(|j| k.col(j).iter().enumerate().all(|(i, v)| i == j || *v <= 0.0))
-        };
-        let block_is_z_matrix = match &blocks {
-            Blocks::Shared(k) => vec![z_matrix(k)],
-            Blocks::PerAxis(ks) => ks.iter().map(z_matrix).collect(),
-        };
-        Self { n, blocks, border, pressure_scale, block_row_sums, block_is_z_matrix }
+        let block_is_z_matrix = summaries.iter().map(|s| s.1).collect();
+        let block_row_sums = Arc::new(summaries.into_iter().map(|s| s.0).collect());
+        Self { n, blocks: Arc::new(blocks), border, pressure_scale, block_row_sums, block_is_z_matrix }
     }
 
     /// Number of vertices N.
@@ -101,7 +97,7 @@ impl BorderedMatrix {
 
     /// The stiffness block of one axis.
     pub fn block(&self, axis: usize) -> &Mat<f64> {
-        match &self.blocks {
+        match &*self.blocks {
             Blocks::Shared(k) => k,
             Blocks::PerAxis(ks) => &ks[axis],
         }
@@ -109,7 +105,7 @@ impl BorderedMatrix {
 
     /// Whether one block serves every axis.
     pub fn is_shared(&self) -> bool {
-        matches!(self.blocks, Blocks::Shared(_))
+        matches!(*self.blocks, Blocks::Shared(_))
     }
 
     /// The border column of one axis as stored in the matrix (already scaled).
@@ -222,7 +218,7 @@ impl BorderedMatrix {
         let (n, d, dim) = (self.n, self.axes(), self.dim());
         assert!(x.len() == dim && y.len() == dim, "apply: vector length");
         let par = if n >= 512 { faer::get_global_parallelism() } else { faer::Par::Seq };
-        match &self.blocks {
+        match &*self.blocks {
             Blocks::Shared(k) => {
                 let xm = MatRef::from_column_major_slice(&x[..d * n], n, d);
                 let ym = MatMut::from_column_major_slice_mut(&mut y[..d * n], n, d);
@@ -283,7 +279,7 @@ impl BorderedMatrix {
         let val = |v: f64| if abs { v.abs() } else { v };
         let par = if n >= 512 { faer::get_global_parallelism() } else { faer::Par::Seq };
         let sign = if abs { -1.0 } else { 1.0 };
-        match &self.blocks {
+        match &*self.blocks {
             Blocks::Shared(k) => {
                 let xm = Mat::<f64>::from_fn(n, d * count, |i, j| val(x[(j / d) * dim + (j % d) * n + i]));
                 let mut ym = Mat::<f64>::zeros(n, d * count);
@@ -327,6 +323,66 @@ impl BorderedMatrix {
                 }
             }
             yk[dim - 1] = last;
+        }
+    }
+
+    /// `r = b - A x` and `abs_ax = |A| |x|` (the numerator and denominator of the
+    /// componentwise backward error) in one pass over each block: one matrix product
+    /// `K [x, |x|]` for a weighted Laplacian (`|K| |x| = 2 D |x| - K |x|`), otherwise one
+    /// pass over the lower triangle. [`apply`](Self::apply) followed by
+    /// [`apply_abs`](Self::apply_abs) reads each block twice.
+    #[track_caller]
+    pub fn residual(&self, x: &[f64], b: &[f64], r: &mut [f64], abs_ax: &mut [f64]) {
+        self.residual_many(x, b, r, abs_ax, 1);
+    }
+
+    /// [`residual`](Self::residual) for `count` vectors stored one after another (each
+    /// [`dim`](Self::dim) long): every vector's axes against a shared block in one pass, or
+    /// each per-axis block once for all vectors.
+    #[track_caller]
+    pub fn residual_many(&self, x: &[f64], b: &[f64], r: &mut [f64], abs_ax: &mut [f64], count: usize) {
+        let (n, d, dim) = (self.n, self.axes(), self.dim());
+        let len = count * dim;
+        assert!(
+            x.len() == len && b.len() == len && r.len() == len && abs_ax.len() == len,
+            "residual: vector length"
+        );
+        let nblocks = if self.is_shared() { 1 } else { d };
+        for bi in 0..nblocks {
+            // The (vector, axis) pairs this block multiplies.
+            let pairs: Vec<(usize, usize)> = (0..count)
+                .flat_map(|k| (0..d).filter(move |&c| nblocks == 1 || c == bi).map(move |c| (k, c)))
+                .collect();
+            let xs: Vec<&[f64]> =
+                pairs.iter().map(|&(k, c)| &x[k * dim + c * n..k * dim + (c + 1) * n]).collect();
+            let prod = if self.block_is_z_matrix[bi] && n < crate::residual::STREAMING_MIN_N {
+                crate::residual::z_matrix_products(self.block(bi), &xs)
+            } else {
+                crate::residual::symmetric_products(self.block(bi), &xs)
+            };
+            let m = pairs.len();
+            for (v, &(k, c)) in pairs.iter().enumerate() {
+                let (kx, kax) = (&prod[v * n..(v + 1) * n], &prod[(m + v) * n..(m + v + 1) * n]);
+                let p = x[k * dim + dim - 1];
+                let s = &self.border[c];
+                let off = k * dim + c * n;
+                for i in 0..n {
+                    r[off + i] = b[off + i] - (kx[i] + s[i] * p);
+                    abs_ax[off + i] = kax[i] + s[i].abs() * p.abs();
+                }
+            }
+        }
+        for k in 0..count {
+            let xk = &x[k * dim..(k + 1) * dim];
+            let (mut last, mut abs_last) = (0.0, 0.0);
+            for c in 0..d {
+                for (s, xi) in self.border[c].iter().zip(&xk[c * n..(c + 1) * n]) {
+                    last += s * xi;
+                    abs_last += s.abs() * xi.abs();
+                }
+            }
+            r[k * dim + dim - 1] = b[k * dim + dim - 1] - last;
+            abs_ax[k * dim + dim - 1] = abs_last;
         }
     }
 
@@ -412,7 +468,7 @@ impl BorderedMatrix {
     /// Returns an error naming the first non-finite entry, if any.
     pub fn check_finite(&self) -> Result<()> {
         let (n, dim) = (self.n, self.dim());
-        let blocks: Vec<&Mat<f64>> = match &self.blocks {
+        let blocks: Vec<&Mat<f64>> = match &*self.blocks {
             Blocks::Shared(k) => vec![k],
             Blocks::PerAxis(ks) => ks.iter().collect(),
         };
@@ -435,4 +491,21 @@ impl BorderedMatrix {
         }
         Ok(())
     }
+}
+
+/// The absolute row sums of a symmetric block (its column sums: columns are contiguous)
+/// and whether every off-diagonal entry is <= 0, in one pass, columns in parallel.
+fn block_summary(k: &Mat<f64>) -> (Vec<f64>, bool) {
+    use rayon::prelude::*;
+    let n = k.nrows();
+    let column = |j: usize| {
+        let col = k.col_as_slice(j);
+        let sum = col.iter().map(|v| v.abs()).sum::<f64>();
+        let z = col.iter().enumerate().all(|(i, v)| i == j || *v <= 0.0);
+        (sum, z)
+    };
+    let cols: Vec<(f64, bool)> =
+        if n >= 256 { (0..n).into_par_iter().map(column).collect() } else { (0..n).map(column).collect() };
+    let z = cols.iter().all(|c| c.1);
+    (cols.into_iter().map(|c| c.0).collect(), z)
 }

@@ -152,11 +152,7 @@ pub trait FactorizationExt: Factorization {
             if let Some(i) = x.iter().position(|v| !v.is_finite()) {
                 return Err(LinalgError::NonFiniteSolution { index: i });
             }
-            a.apply(&x, &mut r);
-            for (ri, bi) in r.iter_mut().zip(b) {
-                *ri = bi - *ri;
-            }
-            a.apply_abs(&x, &mut denom);
+            a.residual(&x, b, &mut r, &mut denom);
             rel = componentwise_backward_error(&r, &denom, b);
             if rel <= opts.target_residual || steps >= opts.max_refinement_steps {
                 break;
@@ -177,9 +173,8 @@ pub trait FactorizationExt: Factorization {
     /// as [`solve`](Self::solve) does each of them (same refinement, same checks), with
     /// every solve and refinement round made by one
     /// [`solve_many_unrefined`](Factorization::solve_many_unrefined) call, and every
-    /// residual check by one [`apply_many`](BorderedMatrix::apply_many) /
-    /// [`apply_abs_many`](BorderedMatrix::apply_abs_many) pass, over the right-hand sides
-    /// that still need it.
+    /// residual check by one [`residual_many`](BorderedMatrix::residual_many) pass, over
+    /// the right-hand sides that still need it.
     ///
     /// # Panics
     /// If `b.len() != count * dim()` (a programming error).
@@ -207,18 +202,16 @@ pub trait FactorizationExt: Factorization {
                 }
                 xs.extend_from_slice(xk);
             }
+            let bs: Vec<f64> =
+                active.iter().flat_map(|&k| b[k * dim..(k + 1) * dim].iter().copied()).collect();
             let mut r = vec![0.0; xs.len()];
             let mut denom = vec![0.0; xs.len()];
-            a.apply_many(&xs, &mut r, active.len());
-            a.apply_abs_many(&xs, &mut denom, active.len());
+            a.residual_many(&xs, &bs, &mut r, &mut denom, active.len());
             let mut corrections = Vec::new();
             let mut refine = Vec::new();
             for (j, &k) in active.iter().enumerate() {
                 let bk = &b[k * dim..(k + 1) * dim];
-                let rk = &mut r[j * dim..(j + 1) * dim];
-                for (ri, bi) in rk.iter_mut().zip(bk) {
-                    *ri = bi - *ri;
-                }
+                let rk = &r[j * dim..(j + 1) * dim];
                 rel[k] = componentwise_backward_error(rk, &denom[j * dim..(j + 1) * dim], bk);
                 if rel[k] > opts.target_residual && steps[k] < opts.max_refinement_steps {
                     corrections.extend_from_slice(rk);
@@ -322,10 +315,6 @@ pub fn componentwise_backward_error(r: &[f64], abs_ax: &[f64], b: &[f64]) -> f64
         };
         m.max(e)
     })
-}
-
-pub(crate) fn inf_norm(v: &[f64]) -> f64 {
-    v.iter().fold(0.0, |m, x| m.max(x.abs()))
 }
 
 /// Pivot threshold: a pivot at most this times `n eps` times its column's largest entry is

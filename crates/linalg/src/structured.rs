@@ -3,11 +3,11 @@
 use std::time::Instant;
 
 use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::linalg::cholesky::llt::solve::{solve_in_place, solve_in_place_scratch};
-use faer::linalg::solvers::Llt;
-use faer::{Mat, Par, Side};
+use faer::linalg::cholesky::llt::factor::{LltError, cholesky_in_place, cholesky_in_place_scratch};
+use faer::linalg::triangular_solve::{solve_lower_triangular_in_place, solve_upper_triangular_in_place};
+use faer::{Mat, MatMut, MatRef, Par};
+use rayon::prelude::*;
 
-use crate::solver::inf_norm;
 use crate::{
     BorderedMatrix, FactorCost, FactorOptions, Factorization, LinalgError, LinearSolver, Precision, Result,
     cholesky_flops,
@@ -25,36 +25,67 @@ use crate::{
 /// ```
 ///
 /// A new border (or a new volume target) costs triangular solves only.
+///
+/// Storage and passes: each factor `L` is one N x N column-major buffer (lower triangle),
+/// in f64, or in f32 with [`Precision::Mixed`] (half the bytes to stream; the checked
+/// solve refines with f64 residuals). A solve reads each factor once forward and once
+/// backward for every axis and right-hand side together: with a shared block the N x d
+/// columns of all axes go through one blocked triangular solve (faer, several right-hand
+/// sides); with per-axis blocks each axis's factor is read once for its columns, and the
+/// axes run in parallel on the rayon pool.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Structured;
 
-enum Chol {
-    F64(Llt<f64>),
-    F32(Llt<f32>),
+/// One Cholesky factor: the lower triangle of an N x N column-major buffer.
+enum Factor {
+    F64(Vec<f64>),
+    F32(Vec<f32>),
 }
 
-/// Parallelism of the triangular solves. They have a handful of right-hand sides (one per
-/// axis), so they are bound by reading L once forward and once backward; splitting them
-/// over threads costs more than it gains: on two cores the sequential solve with 3
-/// right-hand sides is 2 to 4 times faster up to N = 1000 and never slower up to N = 2562
-/// (measured with faer 0.24).
-const SOLVE_PAR: Par = Par::Seq;
+/// Below this N the triangular solves run on one thread; from it on they use faer's global
+/// parallelism. With a handful of right-hand sides they are bound by reading L; on two
+/// cores the sequential solve is 2 to 4 times faster up to N = 1000, while at N = 2,562
+/// the parallel one took 2.6 ms against 5.1 ms (faer 0.24, same run).
+const PAR_SOLVE_MIN_N: usize = 2000;
 
-impl Chol {
-    /// Solves K X = B in place for the columns of `b` (n x k).
-    fn solve(&self, b: &mut Mat<f64>) {
-        let (n, k) = (b.nrows(), b.ncols());
+fn solve_par(n: usize) -> Par {
+    if n >= PAR_SOLVE_MIN_N { faer::get_global_parallelism() } else { Par::Seq }
+}
+
+impl Factor {
+    fn n(&self) -> usize {
         match self {
-            Chol::F64(l) => {
-                let mut mem = MemBuffer::new(solve_in_place_scratch::<f64>(n, k, SOLVE_PAR));
-                solve_in_place(l.L(), b.as_mut(), SOLVE_PAR, MemStack::new(&mut mem));
+            Factor::F64(v) => v.len().isqrt(),
+            Factor::F32(v) => v.len().isqrt(),
+        }
+    }
+
+    /// The diagonal entry `L_ii`.
+    fn diag(&self, i: usize) -> f64 {
+        let n = self.n();
+        match self {
+            Factor::F64(v) => v[i * n + i],
+            Factor::F32(v) => v[i * n + i] as f64,
+        }
+    }
+
+    /// Solves `K X = B` in place for the columns of `b` (n x k): one blocked forward and
+    /// one blocked backward triangular solve over all k columns (each reads L once).
+    fn solve(&self, mut b: MatMut<'_, f64>, par: Par) {
+        let n = self.n();
+        match self {
+            Factor::F64(v) => {
+                let l = MatRef::from_column_major_slice(v, n, n);
+                solve_lower_triangular_in_place(l, b.as_mut(), par);
+                solve_upper_triangular_in_place(l.transpose(), b, par);
             }
-            Chol::F32(l) => {
-                let mut s = Mat::<f32>::from_fn(n, k, |i, j| b[(i, j)] as f32);
-                let mut mem = MemBuffer::new(solve_in_place_scratch::<f32>(n, k, SOLVE_PAR));
-                solve_in_place(l.L(), s.as_mut(), SOLVE_PAR, MemStack::new(&mut mem));
+            Factor::F32(v) => {
+                let l = MatRef::from_column_major_slice(v, n, n);
+                let mut s = Mat::<f32>::from_fn(n, b.ncols(), |i, j| b[(i, j)] as f32);
+                solve_lower_triangular_in_place(l, s.as_mut(), par);
+                solve_upper_triangular_in_place(l.transpose(), s.as_mut(), par);
                 for j in 0..b.ncols() {
-                    for i in 0..b.nrows() {
+                    for i in 0..n {
                         b[(i, j)] = s[(i, j)] as f64;
                     }
                 }
@@ -66,7 +97,7 @@ impl Chol {
 struct StructuredFactorization {
     matrix: BorderedMatrix,
     opts: FactorOptions,
-    chol: Vec<Chol>,
+    factors: Vec<Factor>,
     /// z_c = K_c^-1 S_c, one column per axis.
     z: Mat<f64>,
     schur: f64,
@@ -87,21 +118,14 @@ impl LinearSolver for Structured {
         let start = Instant::now();
         let n = a.n_vertices();
         let nblocks = if a.is_shared() { 1 } else { a.axes() };
-        // The factors (one n x n matrix per block): an error, not an abort, when they cannot
-        // be allocated.
-        crate::dense::check_alloc::<f64>(
-            n.saturating_mul(n).saturating_mul(nblocks),
-            "the Cholesky factors",
-        )?;
-        let mut chol = Vec::with_capacity(nblocks);
-        for c in 0..nblocks {
-            chol.push(factor_block(a.block(c), c, opts.precision)?);
-        }
+        let factors =
+            (0..nblocks).map(|c| factor_block(a.block(c), c, opts.precision)).collect::<Result<_>>()?;
         let bytes = nblocks * n * n * if opts.precision == Precision::F64 { 8 } else { 4 };
         let mut f = StructuredFactorization {
+            // The blocks are shared with `a`, not copied.
             matrix: a.clone(),
             opts: *opts,
-            chol,
+            factors,
             z: Mat::zeros(n, a.axes()),
             schur: 0.0,
             cost: FactorCost::default(),
@@ -116,33 +140,63 @@ impl LinearSolver for Structured {
     }
 }
 
-fn factor_block(k: &Mat<f64>, axis: usize, precision: Precision) -> Result<Chol> {
+/// Copies the lower triangle of `k` (upper triangle zero) into a fresh column-major buffer,
+/// columns in parallel (this also spreads the first touch of the pages over the threads),
+/// or reports that it cannot be allocated.
+fn lower_copy<T: Copy + Send + Default>(k: &Mat<f64>, cast: impl Fn(f64) -> T + Sync) -> Result<Vec<T>> {
+    let n = k.nrows();
+    crate::dense::check_alloc::<T>(n.saturating_mul(n), "the Cholesky factors")?;
+    let mut v = vec![T::default(); n * n];
+    let fill = |(j, col): (usize, &mut [T])| {
+        col[..j].fill(T::default());
+        for (d, s) in col[j..].iter_mut().zip(&k.col_as_slice(j)[j..]) {
+            *d = cast(*s);
+        }
+    };
+    if n >= 256 {
+        v.par_chunks_mut(n).enumerate().for_each(fill);
+    } else {
+        v.chunks_mut(n).enumerate().for_each(fill);
+    }
+    Ok(v)
+}
+
+/// Factors `a` (n x n, column-major, lower triangle) in place with faer's global
+/// parallelism; returns the index of a non-positive pivot.
+fn cholesky<T: faer::traits::RealField>(a: &mut [T], n: usize) -> std::result::Result<(), usize> {
+    let par = faer::get_global_parallelism();
+    let mut mem = MemBuffer::new(cholesky_in_place_scratch::<T>(n, par, Default::default()));
+    let m = MatMut::from_column_major_slice_mut(a, n, n);
+    cholesky_in_place(m, Default::default(), par, MemStack::new(&mut mem), Default::default())
+        .map(|_| ())
+        .map_err(|LltError::NonPositivePivot { index }| index)
+}
+
+fn factor_block(k: &Mat<f64>, axis: usize, precision: Precision) -> Result<Factor> {
     let n = k.nrows();
     let not_pd = |index| LinalgError::NotPositiveDefinite { axis, index };
-    let chol = match precision {
-        Precision::F64 => Chol::F64(Llt::new(k.as_ref(), Side::Lower).map_err(|e| match e {
-            faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index } => not_pd(index),
-        })?),
+    let factor = match precision {
+        Precision::F64 => {
+            let mut v = lower_copy(k, |x| x)?;
+            cholesky(&mut v, n).map_err(not_pd)?;
+            Factor::F64(v)
+        }
         Precision::Mixed => {
-            let s = Mat::<f32>::from_fn(n, n, |i, j| k[(i, j)] as f32);
-            Chol::F32(Llt::new(s.as_ref(), Side::Lower).map_err(|e| match e {
-                faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index } => not_pd(index),
-            })?)
+            let mut v = lower_copy(k, |x| x as f32)?;
+            cholesky(&mut v, n).map_err(not_pd)?;
+            Factor::F32(v)
         }
     };
     // A Laplacian with nothing fixed is singular, but rounding can leave a tiny positive
     // last pivot: compare each pivot L_ii^2 with its diagonal entry.
     let tol = n as f64 * eps(precision);
     for i in 0..n {
-        let lii = match &chol {
-            Chol::F64(l) => l.L()[(i, i)],
-            Chol::F32(l) => l.L()[(i, i)] as f64,
-        };
+        let lii = factor.diag(i);
         if !(lii * lii > tol * k[(i, i)].abs()) {
             return Err(not_pd(i));
         }
     }
-    Ok(chol)
+    Ok(factor)
 }
 
 fn eps(p: Precision) -> f64 {
@@ -153,22 +207,38 @@ fn eps(p: Precision) -> f64 {
 }
 
 impl StructuredFactorization {
-    fn chol_of(&self, axis: usize) -> &Chol {
-        if self.chol.len() == 1 { &self.chol[0] } else { &self.chol[axis] }
+    /// Solves `K_c X_c = B_c` for every axis c; `cols[c]` holds axis c's columns (n x k).
+    /// A shared factor takes one matrix of every column (`cols` of length 1).
+    fn solve_blocks(&self, cols: &mut [MatMut<'_, f64>]) {
+        let n = self.matrix.n_vertices();
+        if self.factors.len() == 1 {
+            for b in cols.iter_mut() {
+                self.factors[0].solve(b.as_mut(), solve_par(n));
+            }
+        } else if n >= 256 {
+            // Three different factors, each streamed once for its own columns; the axes
+            // share the cores (one thread each: no nested parallelism).
+            cols.par_iter_mut().zip(&self.factors).for_each(|(b, f)| f.solve(b.as_mut(), Par::Seq));
+        } else {
+            cols.iter_mut().zip(&self.factors).for_each(|(b, f)| f.solve(b.as_mut(), Par::Seq));
+        }
     }
 
-    /// Solves K_c X = B for every axis; `b` is n x d, one column per axis.
-    fn solve_blocks(&self, b: &mut Mat<f64>) {
-        let d = self.matrix.axes();
-        if self.chol.len() == 1 {
-            self.chol[0].solve(b);
-        } else {
-            for c in 0..d {
-                let mut col = Mat::<f64>::from_fn(b.nrows(), 1, |i, _| b[(i, c)]);
-                self.chol_of(c).solve(&mut col);
-                for i in 0..b.nrows() {
-                    b[(i, c)] = col[(i, 0)];
-                }
+    /// Solves the N x m blocks of `y` (n x (d * count), column `k d + c` = axis c of
+    /// right-hand side k) by one pass over each factor.
+    fn solve_columns(&self, y: &mut Mat<f64>, count: usize) {
+        let (n, d) = (self.matrix.n_vertices(), self.matrix.axes());
+        if self.factors.len() == 1 {
+            self.solve_blocks(&mut [y.as_mut()]);
+            return;
+        }
+        let mut per_axis: Vec<Mat<f64>> =
+            (0..d).map(|c| Mat::from_fn(n, count, |i, k| y[(i, k * d + c)])).collect();
+        let mut views: Vec<MatMut<'_, f64>> = per_axis.iter_mut().map(|m| m.as_mut()).collect();
+        self.solve_blocks(&mut views);
+        for (c, m) in per_axis.iter().enumerate() {
+            for k in 0..count {
+                y.col_mut(k * d + c).copy_from(m.col(k));
             }
         }
     }
@@ -176,7 +246,7 @@ impl StructuredFactorization {
     fn update_schur(&mut self) -> Result<()> {
         let (n, d) = (self.matrix.n_vertices(), self.matrix.axes());
         let mut z = Mat::<f64>::from_fn(n, d, |i, c| self.matrix.border(c)[i]);
-        self.solve_blocks(&mut z);
+        self.solve_columns(&mut z, 1);
         let mut schur = 0.0;
         for c in 0..d {
             let s = self.matrix.border(c);
@@ -191,12 +261,30 @@ impl StructuredFactorization {
         if !(schur > floor) || !schur.is_finite() {
             return Err(LinalgError::SingularPivot { index: self.matrix.dim() - 1, pivot: schur });
         }
-        if inf_norm(z.col(0).try_as_col_major().map(|c| c.as_slice()).unwrap_or(&[])).is_nan() {
+        if z.col(0).iter().any(|v| v.is_nan()) {
             return Err(LinalgError::NonFiniteSolution { index: 0 });
         }
         self.z = z;
         self.schur = schur;
         Ok(())
+    }
+
+    /// The Schur step of one right-hand side: `out` gets `u_c = y_c - P z_c` and `P`, with
+    /// `y_c` column `c` of `y` (n x d, already `K_c^-1 b_c`) and `t` the volume target.
+    fn schur_step(&self, y: MatRef<'_, f64>, t: f64, out: &mut [f64]) {
+        let (n, d) = (self.matrix.n_vertices(), self.matrix.axes());
+        let mut sy = 0.0;
+        for c in 0..d {
+            sy += self.matrix.border(c).iter().zip(y.col(c).iter()).map(|(s, v)| s * v).sum::<f64>();
+        }
+        let p = (sy - t) / self.schur;
+        for c in 0..d {
+            let (yc, zc) = (y.col(c), self.z.col(c));
+            for (i, o) in out[c * n..(c + 1) * n].iter_mut().enumerate() {
+                *o = yc[i] - p * zc[i];
+            }
+        }
+        out[d * n] = p;
     }
 }
 
@@ -217,8 +305,35 @@ impl Factorization for StructuredFactorization {
         self.cost
     }
 
+    /// The axes of the right-hand side form an N x d matrix in place (the paper's layout
+    /// stores all x, then all y, then all z): one pass over a shared factor for the three
+    /// columns, without a copy.
     fn solve_unrefined(&self, rhs: &mut [f64]) {
-        self.solve_many_unrefined(rhs, 1);
+        let (n, d) = (self.matrix.n_vertices(), self.matrix.axes());
+        assert_eq!(rhs.len(), d * n + 1, "solve: rhs length");
+        if self.factors.len() > 1 {
+            return self.solve_many_unrefined(rhs, 1);
+        }
+        let t = rhs[d * n];
+        {
+            let (u, _) = rhs.split_at_mut(d * n);
+            let m = MatMut::from_column_major_slice_mut(u, n, d);
+            self.solve_blocks(&mut [m]);
+        }
+        // u_c = y_c - P z_c, in place.
+        let ym = MatRef::from_column_major_slice(&rhs[..d * n], n, d);
+        let mut sy = 0.0;
+        for c in 0..d {
+            sy += self.matrix.border(c).iter().zip(ym.col(c).iter()).map(|(s, v)| s * v).sum::<f64>();
+        }
+        let p = (sy - t) / self.schur;
+        for c in 0..d {
+            let zc = self.z.col(c);
+            for (i, o) in rhs[c * n..(c + 1) * n].iter_mut().enumerate() {
+                *o -= p * zc[i];
+            }
+        }
+        rhs[d * n] = p;
     }
 
     /// Every axis of every right-hand side in one pass over each factor: the columns form
@@ -230,35 +345,10 @@ impl Factorization for StructuredFactorization {
         let dim = d * n + 1;
         assert_eq!(rhs.len(), count * dim, "solve_many: rhs length");
         let mut y = Mat::<f64>::from_fn(n, d * count, |i, j| rhs[(j / d) * dim + (j % d) * n + i]);
-        if self.chol.len() == 1 {
-            self.chol[0].solve(&mut y);
-        } else {
-            for c in 0..d {
-                let mut cols = Mat::<f64>::from_fn(n, count, |i, k| y[(i, k * d + c)]);
-                self.chol_of(c).solve(&mut cols);
-                for k in 0..count {
-                    for i in 0..n {
-                        y[(i, k * d + c)] = cols[(i, k)];
-                    }
-                }
-            }
-        }
+        self.solve_columns(&mut y, count);
         for (k, out) in rhs.chunks_exact_mut(dim).enumerate() {
             let t = out[d * n];
-            let mut sy = 0.0;
-            for c in 0..d {
-                let s = self.matrix.border(c);
-                for i in 0..n {
-                    sy += s[i] * y[(i, k * d + c)];
-                }
-            }
-            let p = (sy - t) / self.schur;
-            for c in 0..d {
-                for i in 0..n {
-                    out[c * n + i] = y[(i, k * d + c)] - p * self.z[(i, c)];
-                }
-            }
-            out[d * n] = p;
+            self.schur_step(y.subcols(k * d, d), t, out);
         }
     }
 
@@ -272,5 +362,64 @@ impl Factorization for StructuredFactorization {
             seconds: start.elapsed().as_secs_f64(),
             bytes: 0,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Blocks, FactorizationExt};
+
+    /// A factorization of a 3-axis system with a shared SPD block (a path Laplacian plus
+    /// the identity) whose factor is then corrupted by `corrupt`.
+    fn corrupted(opts: FactorOptions, corrupt: impl Fn(&mut Vec<f64>, usize)) -> StructuredFactorization {
+        let n = 40;
+        let k = Mat::from_fn(n, n, |i, j| match i.abs_diff(j) {
+            0 => 3.0,
+            1 => -1.0,
+            _ => 0.0,
+        });
+        let border = (0..3).map(|c| (0..n).map(|i| 1.0 + ((i + c) % 5) as f64).collect()).collect();
+        let a = BorderedMatrix::new(Blocks::Shared(k), border, 1.0);
+        let mut factor = factor_block(a.block(0), 0, Precision::F64).unwrap();
+        if let Factor::F64(v) = &mut factor {
+            corrupt(v, n);
+        }
+        let mut f = StructuredFactorization {
+            matrix: a,
+            opts,
+            factors: vec![factor],
+            z: Mat::zeros(n, 3),
+            schur: 0.0,
+            cost: FactorCost::default(),
+        };
+        f.update_schur().unwrap();
+        f
+    }
+
+    #[test]
+    fn an_intact_factor_passes_the_check() {
+        let f = corrupted(FactorOptions { max_refinement_steps: 0, ..FactorOptions::default() }, |_, _| {});
+        let b: Vec<f64> = (0..f.matrix.dim()).map(|i| (i % 7) as f64 - 3.0).collect();
+        let s = f.solve(&b).unwrap();
+        assert!(s.relative_residual <= crate::DEFAULT_TARGET_RESIDUAL, "{}", s.relative_residual);
+    }
+
+    #[test]
+    fn a_corrupted_factor_is_caught_by_the_residual_check() {
+        let b: Vec<f64> = (0..3 * 40 + 1).map(|i| (i % 7) as f64 - 3.0).collect();
+        // One entry of L off by 1 %: without refinement the residual check rejects it.
+        let f = corrupted(FactorOptions { max_refinement_steps: 0, ..FactorOptions::default() }, |v, n| {
+            v[5 * n + 6] *= 1.01
+        });
+        let e = f.solve(&b).expect_err("a wrong factor");
+        assert!(matches!(e, LinalgError::ResidualTooLarge { .. }), "{e:?}");
+        // Grossly wrong (a pivot 100 times too large): refinement cannot repair it either.
+        let f = corrupted(FactorOptions::default(), |v, n| v[7 * n + 7] *= 100.0);
+        let e = f.solve(&b).expect_err("a wrong factor");
+        assert!(
+            matches!(e, LinalgError::ResidualTooLarge { .. } | LinalgError::NonFiniteSolution { .. }),
+            "{e:?}"
+        );
     }
 }
