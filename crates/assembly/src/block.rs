@@ -3,8 +3,8 @@
 use fibfluid_linalg::Mat;
 use rayon::prelude::*;
 
-use crate::system::PairData;
-use crate::{AssemblyError, ConstraintMethod, Result};
+use crate::body::Body;
+use crate::{AssemblyError, ConstraintMethod, Material, Result};
 
 /// What one block is built from besides the pair data.
 pub(crate) struct BlockSpec {
@@ -210,5 +210,65 @@ impl pulp::WithSimd for Weights<'_, '_> {
             let d = (dx * dx + dy * dy + dz * dz).sqrt();
             *v = -(young * ((a + aj) / (two_conn * d)));
         }
+    }
+}
+
+/// What the weight of a vertex pair depends on, in contiguous per-vertex arrays.
+pub(crate) struct PairData<'a> {
+    pub(crate) x: Vec<f64>,
+    pub(crate) y: Vec<f64>,
+    pub(crate) z: Vec<f64>,
+    /// `|S_i|`.
+    pub(crate) area: Vec<f64>,
+    /// `2 n_eff`, the denominator factor of Eq. 6.
+    pub(crate) two_conn: f64,
+    pub(crate) body: &'a Body<'a>,
+    pub(crate) material: &'a Material,
+    /// Every pair is a fiber (no bitset lookups).
+    pub(crate) all_fibers: bool,
+    /// Surface-edge neighbours of each vertex (empty when gamma = 0).
+    pub(crate) neighbors: Vec<Vec<u32>>,
+}
+
+impl<'a> PairData<'a> {
+    pub(crate) fn new(body: &'a Body<'a>, material: &'a Material, conn: f64) -> Self {
+        let n = body.positions.len();
+        let coord = |c: usize| body.positions.iter().map(|p| p[c]).collect();
+        let mut neighbors: Vec<Vec<u32>> =
+            vec![Vec::new(); if material.surface_tension > 0.0 { n } else { 0 }];
+        if material.surface_tension > 0.0 {
+            for e in body.edges {
+                neighbors[e[0] as usize].push(e[1]);
+                neighbors[e[1] as usize].push(e[0]);
+            }
+            neighbors.iter_mut().for_each(|v| v.sort_unstable());
+        }
+        Self {
+            x: coord(0),
+            y: coord(1),
+            z: coord(2),
+            area: body
+                .vertex_areas
+                .iter()
+                .map(|s| (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt())
+                .collect(),
+            two_conn: 2.0 * conn,
+            body,
+            material,
+            all_fibers: body.fibers.kept() == body.fibers.total(),
+            neighbors,
+        }
+    }
+
+    /// The bulk weight `w_ij` (Eq. 6, strain factor included) and the distance.
+    pub(crate) fn bulk(&self, i: usize, j: usize) -> (f64, f64) {
+        let d = dist(self.body.positions[i], self.body.positions[j]);
+        let mut w = (self.area[i] + self.area[j]) / (self.two_conn * d);
+        if !self.material.law.is_linear() {
+            let rest = self.body.rest_positions.unwrap_or(self.body.positions);
+            let d0 = dist(rest[i], rest[j]);
+            w *= self.material.law.factor((d - d0) / d0);
+        }
+        (w, d)
     }
 }

@@ -21,16 +21,18 @@
 //! freedom) so the pressure unknown has the same scale as the displacements.
 
 mod block;
+mod body;
 mod constraints;
 mod loads;
 mod material;
 mod synthetic;
 mod system;
 
+pub use body::Body;
 pub use constraints::{ConstraintKind, ConstraintMethod, Constraints, DEFAULT_PENALTY, Selector};
 pub use loads::{Loads, depths, load_vector};
 pub use material::{Material, StiffnessLaw};
-pub use system::{AssemblyOptions, AssemblyStats, Body, PressureScaling, System, assemble};
+pub use system::{AssemblyOptions, AssemblyStats, PressureScaling, System, assemble};
 
 /// What can go wrong while assembling.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

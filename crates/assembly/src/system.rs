@@ -2,10 +2,11 @@
 
 use std::time::Instant;
 
-use fibfluid_geometry::{FiberSet, Vec3};
+use fibfluid_geometry::Vec3;
 use fibfluid_linalg::{Blocks, BorderedMatrix};
 
-use crate::block::{BlockSpec, fill_block};
+use crate::block::{BlockSpec, PairData, fill_block};
+use crate::body::Body;
 use crate::{AXES, AssemblyError, ConstraintMethod, Constraints, Material, Result};
 
 /// How the pressure unknown is scaled.
@@ -30,23 +31,6 @@ pub struct AssemblyOptions {
     pub method: ConstraintMethod,
     /// Pressure scaling.
     pub pressure_scaling: PressureScaling,
-}
-
-/// The body as the assembly sees it (a triangle mesh or the paper's 2D polygon).
-#[derive(Clone, Copy, Debug)]
-pub struct Body<'a> {
-    /// 2 (polygon) or 3 (surface).
-    pub axes: usize,
-    /// Positions the stiffness is computed on.
-    pub positions: &'a [Vec3],
-    /// Vertex area vectors S of that shape.
-    pub vertex_areas: &'a [Vec3],
-    /// Surface edges (surface fibers), each once.
-    pub edges: &'a [[u32; 2]],
-    /// Kept bulk fibers.
-    pub fibers: &'a FiberSet,
-    /// Rest positions, for strain-dependent materials (None = `positions`).
-    pub rest_positions: Option<&'a [Vec3]>,
 }
 
 /// What assembly did.
@@ -202,70 +186,6 @@ fn validate(body: &Body, material: &Material, constraints: &Constraints) -> Resu
 /// Axis `c` of the vertex area vectors, zero at the vertices fixed along it.
 fn free_border(areas: &[Vec3], constraints: &Constraints, c: usize) -> Vec<f64> {
     areas.iter().enumerate().map(|(i, s)| if constraints.get(i, c).is_none() { s[c] } else { 0.0 }).collect()
-}
-
-/// What the weight of a vertex pair depends on, in contiguous per-vertex arrays.
-pub(crate) struct PairData<'a> {
-    pub(crate) x: Vec<f64>,
-    pub(crate) y: Vec<f64>,
-    pub(crate) z: Vec<f64>,
-    /// `|S_i|`.
-    pub(crate) area: Vec<f64>,
-    /// `2 n_eff`, the denominator factor of Eq. 6.
-    pub(crate) two_conn: f64,
-    pub(crate) body: &'a Body<'a>,
-    pub(crate) material: &'a Material,
-    /// Every pair is a fiber (no bitset lookups).
-    pub(crate) all_fibers: bool,
-    /// Surface-edge neighbours of each vertex (empty when gamma = 0).
-    pub(crate) neighbors: Vec<Vec<u32>>,
-}
-
-impl<'a> PairData<'a> {
-    fn new(body: &'a Body<'a>, material: &'a Material, conn: f64) -> Self {
-        let n = body.positions.len();
-        let coord = |c: usize| body.positions.iter().map(|p| p[c]).collect();
-        let mut neighbors: Vec<Vec<u32>> =
-            vec![Vec::new(); if material.surface_tension > 0.0 { n } else { 0 }];
-        if material.surface_tension > 0.0 {
-            for e in body.edges {
-                neighbors[e[0] as usize].push(e[1]);
-                neighbors[e[1] as usize].push(e[0]);
-            }
-            neighbors.iter_mut().for_each(|v| v.sort_unstable());
-        }
-        Self {
-            x: coord(0),
-            y: coord(1),
-            z: coord(2),
-            area: body
-                .vertex_areas
-                .iter()
-                .map(|s| (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt())
-                .collect(),
-            two_conn: 2.0 * conn,
-            body,
-            material,
-            all_fibers: body.fibers.kept() == body.fibers.total(),
-            neighbors,
-        }
-    }
-
-    /// The bulk weight `w_ij` (Eq. 6, strain factor included) and the distance.
-    pub(crate) fn bulk(&self, i: usize, j: usize) -> (f64, f64) {
-        let d = dist(self.body.positions[i], self.body.positions[j]);
-        let mut w = (self.area[i] + self.area[j]) / (self.two_conn * d);
-        if !self.material.law.is_linear() {
-            let rest = self.body.rest_positions.unwrap_or(self.body.positions);
-            let d0 = dist(rest[i], rest[j]);
-            w *= self.material.law.factor((d - d0) / d0);
-        }
-        (w, d)
-    }
-}
-#[inline]
-fn dist(a: Vec3, b: Vec3) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
 impl System {

@@ -42,8 +42,8 @@ pub use io::{
     write_obj, write_obj_to,
 };
 pub use mesh::{
-    CONVEXITY_TOLERANCE, DEGENERATE_AREA, NEAR_DUPLICATE, TriMesh, Validation, bounding_box, face_area_vector,
-    raw_vertex_vectors, vertex_area_vectors, volume,
+    CONVEXITY_TOLERANCE, DEGENERATE_AREA, NEAR_DUPLICATE, TriMesh, Validation, bounding_box,
+    face_area_vector, raw_vertex_vectors, vertex_area_vectors, volume,
 };
 pub use polygon::Polygon;
 pub use vec3::{AXES, Vec3};

@@ -221,7 +221,12 @@ impl TriMesh {
                 let distance = norm(sub(self.positions[a], self.positions[b]));
                 if distance <= eps {
                     let (a, b) = (a.min(b), a.max(b));
-                    return Err(MeshError::NearDuplicateVertices { a, b, distance, relative: distance / diag });
+                    return Err(MeshError::NearDuplicateVertices {
+                        a,
+                        b,
+                        distance,
+                        relative: distance / diag,
+                    });
                 }
             }
         }

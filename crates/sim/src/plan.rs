@@ -86,9 +86,13 @@ impl Plan {
                 convex: true,
                 polygon: false,
             },
-            Shape::Polygon(p) => {
-                Size { n: p.n_vertices() as f64, faces: p.n_vertices() as f64, axes: 2, convex: true, polygon: true }
-            }
+            Shape::Polygon(p) => Size {
+                n: p.n_vertices() as f64,
+                faces: p.n_vertices() as f64,
+                axes: 2,
+                convex: true,
+                polygon: true,
+            },
         };
         plan(scene, &size)
     }
