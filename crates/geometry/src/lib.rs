@@ -12,6 +12,8 @@
 //! - Files: OBJ and STL in ([`load_mesh`]; regular files only, at most
 //!   [`DEFAULT_MAX_FILE_BYTES`] unless raised, see [`read_file_limited`]), OBJ out ([`write_obj`]); [`Polygon`] for the
 //!   paper's 2D example; [`icosphere`] for the sphere cases.
+//! - Voxelization ([`inside_lattice`], [`for_each_inside_line`]): which points of a regular
+//!   lattice lie inside a closed surface, by exact-predicate ray crossings along x.
 
 mod adjacency;
 mod boundary;
@@ -25,6 +27,7 @@ mod limits;
 mod mesh;
 mod polygon;
 pub mod vec3;
+mod voxel;
 
 pub use adjacency::Adjacency;
 pub use boundary::Boundary;
@@ -47,3 +50,4 @@ pub use mesh::{
 };
 pub use polygon::Polygon;
 pub use vec3::{AXES, Vec3};
+pub use voxel::{PointLattice, for_each_inside_line, inside_lattice};

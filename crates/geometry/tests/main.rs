@@ -6,3 +6,4 @@ mod common;
 mod fibers;
 mod properties;
 mod reader;
+mod voxel;

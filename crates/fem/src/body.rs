@@ -1,0 +1,332 @@
+//! The assembled, constrained and factored body; loads and solutions.
+
+use std::collections::HashMap;
+use std::time::Instant;
+
+use faer::Mat;
+use faer::sparse::SparseColMat;
+use fibfluid_geometry::Vec3;
+use fibfluid_geometry::vec3::dist;
+use serde::Serialize;
+
+use crate::assemble::{FIXED, assemble_lower, cell_matrix, number_free_dofs, symmetric_mul};
+use crate::error::{FemError, Result};
+use crate::factor::SparseCholesky;
+use crate::grid::{Element, Embedded, FemOptions, SparseGrid};
+use crate::tissue::Tissue;
+
+/// Largest accepted relative residual `|K u - f| / |f|` of a solve.
+pub const RESIDUAL_LIMIT: f64 = 1e-8;
+
+/// Static loads: a uniform acceleration acting on the tissue's mass, and point forces on
+/// surface vertices.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Loads {
+    /// Gravitational acceleration, m/s^2 (body force `rho g` per unit volume).
+    pub gravity: Vec3,
+    /// `(surface vertex, force in N)`; several forces on one vertex add up.
+    pub point_forces: Vec<(usize, Vec3)>,
+}
+
+/// The static response to one [`Loads`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct FemSolution {
+    /// Displacement of every grid node (0 on fixed axes).
+    pub node_displacements: Vec<Vec3>,
+    /// Displacement of every surface vertex (trilinear interpolation of its cell's nodes).
+    pub surface_displacements: Vec<Vec3>,
+    /// The measured relative residual `|K u - f| / |f|` over the free dofs (0 when `f = 0`).
+    pub residual: f64,
+}
+
+/// Sizes and timings of a body, for reports.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FemStats {
+    /// Cells along the longest side.
+    pub resolution: usize,
+    /// Active cells.
+    pub cells: usize,
+    /// Grid nodes.
+    pub nodes: usize,
+    /// Free degrees of freedom (unknowns).
+    pub dofs: usize,
+    /// Stored nonzeros of K's lower triangle.
+    pub nonzeros: usize,
+    /// Stored values of the Cholesky factor.
+    pub factor_nonzeros: usize,
+    /// Seconds to build the grid's stiffness (pattern and values).
+    pub assembly_seconds: f64,
+    /// Seconds of the sparse Cholesky (symbolic and numeric).
+    pub factor_seconds: f64,
+    /// Seconds of the last [`FemBody::solve`] (0 before the first).
+    pub solve_seconds: f64,
+}
+
+/// A sparse-grid body with fixed degrees of freedom eliminated and K factored once.
+///
+/// Fixed vertices: a surface vertex fixed along axis `a` fixes axis `a` of every node of its
+/// cell whose trilinear weight for that vertex is nonzero (after snapping to the cell's
+/// faces within [`crate::SNAP`]); those node dofs are removed from the system (zero
+/// displacement). A vertex on a cell face or edge therefore fixes only the nodes of that
+/// face or edge; a vertex strictly inside a cell fixes all eight. The same rule applies to
+/// the points of every surface triangle whose three vertices are all fixed along `a`
+/// (sampled at spacing at most `h / 2`, see [`fixed_surface_samples`]): a fixed patch of
+/// the surface clamps every cell it passes through, however coarse the surface mesh is
+/// against the grid. Without this, a grid finer than the surface mesh would hold the body at
+/// isolated nodes (point supports, whose displacement grows without bound as `h -> 0`).
+pub struct FemBody {
+    pub(crate) grid: SparseGrid,
+    pub(crate) tissue: Tissue,
+    pub(crate) free: Vec<usize>,
+    pub(crate) n_free: usize,
+    pub(crate) k_lower: SparseColMat<usize, f64>,
+    pub(crate) factor: SparseCholesky,
+    pub(crate) stats: FemStats,
+    /// `K^-1 C^T` columns of held vertices, computed on first hold: per vertex, 3 columns.
+    pub(crate) compliance: HashMap<usize, [Vec<f64>; 3]>,
+}
+
+impl std::fmt::Debug for FemBody {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FemBody").field("tissue", &self.tissue).field("stats", &self.stats).finish()
+    }
+}
+
+/// Points of a triangle at barycentric spacing `1/k` with `k = ceil(2 * longest edge / h)`:
+/// samples at most `h / 2` apart, the corners included.
+pub fn fixed_surface_samples(corners: [Vec3; 3], h: f64) -> Vec<Vec3> {
+    let edge = (0..3).map(|i| dist(corners[i], corners[(i + 1) % 3])).fold(0.0, f64::max);
+    let k = ((2.0 * edge / h).ceil() as usize).clamp(1, 1 << 12);
+    let mut out = Vec::with_capacity((k + 1) * (k + 2) / 2);
+    for i in 0..=k {
+        for j in 0..=k - i {
+            let (s, t) = (i as f64 / k as f64, j as f64 / k as f64);
+            out.push(std::array::from_fn(|a| {
+                corners[0][a] + s * (corners[1][a] - corners[0][a]) + t * (corners[2][a] - corners[0][a])
+            }));
+        }
+    }
+    out
+}
+
+/// The fixed dofs (`3 n + a`) of the rule in [`FemBody`]'s docs.
+fn fixed_dofs(grid: &SparseGrid, fixed: &[[bool; 3]]) -> Vec<bool> {
+    let mut fixed_dof = vec![false; 3 * grid.n_nodes()];
+    let mut mark = |e: &Embedded, axes: [bool; 3]| {
+        for b in 0..8 {
+            for a in 0..3 {
+                if axes[a] && e.weights[b] > 0.0 {
+                    fixed_dof[3 * e.nodes[b] + a] = true;
+                }
+            }
+        }
+    };
+    for (e, &axes) in grid.embedding().iter().zip(fixed) {
+        mark(e, axes);
+    }
+    let pos = grid.surface_positions();
+    for t in grid.surface_triangles() {
+        let axes: [bool; 3] = std::array::from_fn(|a| t.iter().all(|&v| fixed[v as usize][a]));
+        if axes.iter().any(|&f| f) {
+            for p in fixed_surface_samples(t.map(|v| pos[v as usize]), grid.cell_size()) {
+                if let Some(e) = grid.locate(p) {
+                    mark(&e, axes);
+                }
+            }
+        }
+    }
+    fixed_dof
+}
+
+impl FemBody {
+    /// Voxelizes, assembles and factors in one call: [`SparseGrid::from_surface`] at
+    /// `options.resolution`, then [`FemBody::with_element`].
+    pub fn from_surface(
+        positions: &[Vec3],
+        triangles: &[[u32; 3]],
+        tissue: &Tissue,
+        fixed: &[[bool; 3]],
+        options: &FemOptions,
+    ) -> Result<Self> {
+        let grid = SparseGrid::from_surface(positions, triangles, options.resolution)?;
+        Self::with_element(grid, tissue, fixed, options.element)
+    }
+
+    /// Assembles and factors the B-bar body (see [`FemBody::with_element`]).
+    pub fn new(grid: SparseGrid, tissue: &Tissue, fixed: &[[bool; 3]]) -> Result<Self> {
+        Self::with_element(grid, tissue, fixed, Element::BBar)
+    }
+
+    /// Assembles K over the free dofs (`fixed[v][a]`: surface vertex `v` fixed along axis
+    /// `a`, see the type's docs for the rule) and factors it.
+    ///
+    /// Errors: an invalid tissue, `fixed` not one entry per surface vertex, every dof fixed
+    /// ([`FemError::NothingFree`]), too few fixed to stop rigid motion
+    /// ([`FemError::NotPositiveDefinite`]).
+    pub fn with_element(
+        grid: SparseGrid,
+        tissue: &Tissue,
+        fixed: &[[bool; 3]],
+        element: Element,
+    ) -> Result<Self> {
+        tissue.validate()?;
+        if fixed.len() != grid.n_vertices() {
+            return Err(FemError::LengthMismatch {
+                what: "fixed",
+                expected: grid.n_vertices(),
+                found: fixed.len(),
+            });
+        }
+        let fixed_dof = fixed_dofs(&grid, fixed);
+        let (free, n_free) = number_free_dofs(&fixed_dof);
+        if n_free == 0 {
+            return Err(FemError::NothingFree);
+        }
+        let start = Instant::now();
+        let cell = cell_matrix(&grid, tissue, element);
+        let k_lower = assemble_lower(&grid, &cell, &free, n_free);
+        let assembly_seconds = start.elapsed().as_secs_f64();
+        let start = Instant::now();
+        let factor = SparseCholesky::new(k_lower.as_ref())?;
+        let factor_seconds = start.elapsed().as_secs_f64();
+        let stats = FemStats {
+            resolution: grid.resolution(),
+            cells: grid.n_cells(),
+            nodes: grid.n_nodes(),
+            dofs: n_free,
+            nonzeros: k_lower.val().len(),
+            factor_nonzeros: factor.nonzeros(),
+            assembly_seconds,
+            factor_seconds,
+            solve_seconds: 0.0,
+        };
+        Ok(Self { grid, tissue: *tissue, free, n_free, k_lower, factor, stats, compliance: HashMap::new() })
+    }
+
+    /// The grid.
+    pub fn grid(&self) -> &SparseGrid {
+        &self.grid
+    }
+
+    /// The tissue.
+    pub fn tissue(&self) -> &Tissue {
+        &self.tissue
+    }
+
+    /// Sizes and timings.
+    pub fn stats(&self) -> FemStats {
+        self.stats
+    }
+
+    /// Whether axis `a` of node `n` is fixed.
+    ///
+    /// # Panics
+    /// When `n >= grid().n_nodes()` or `a >= 3`.
+    #[track_caller]
+    pub fn is_fixed(&self, n: usize, a: usize) -> bool {
+        assert!(a < 3);
+        self.free[3 * n + a] == FIXED
+    }
+
+    /// The static response to `loads`.
+    ///
+    /// Errors: a vertex index out of range, a non-finite load, a residual above
+    /// [`RESIDUAL_LIMIT`].
+    pub fn solve(&mut self, loads: &Loads) -> Result<FemSolution> {
+        Ok(self.solve_many(std::slice::from_ref(loads))?.remove(0))
+    }
+
+    /// The responses to several loads, solved in one pass over the factor.
+    ///
+    /// Errors: as [`FemBody::solve`].
+    pub fn solve_many(&mut self, loads: &[Loads]) -> Result<Vec<FemSolution>> {
+        let start = Instant::now();
+        let mut rhs = Mat::<f64>::zeros(self.n_free, loads.len());
+        for (j, l) in loads.iter().enumerate() {
+            let f = self.load_vector(l)?;
+            for (i, v) in f.into_iter().enumerate() {
+                rhs[(i, j)] = v;
+            }
+        }
+        let mut x = rhs.clone();
+        self.factor.solve_in_place(x.as_mut());
+        let mut out = Vec::with_capacity(loads.len());
+        for j in 0..loads.len() {
+            let u: Vec<f64> = (0..self.n_free).map(|i| x[(i, j)]).collect();
+            let f: Vec<f64> = (0..self.n_free).map(|i| rhs[(i, j)]).collect();
+            let residual = self.residual(&u, &f)?;
+            let node_displacements = self.node_values(&u);
+            let surface_displacements = self.grid.interpolate(&node_displacements);
+            out.push(FemSolution { node_displacements, surface_displacements, residual });
+        }
+        self.stats.solve_seconds = start.elapsed().as_secs_f64();
+        Ok(out)
+    }
+
+    /// `|K u - f| / |f|` (0 when both vanish), refused above [`RESIDUAL_LIMIT`].
+    pub(crate) fn residual(&self, u: &[f64], f: &[f64]) -> Result<f64> {
+        let ku = symmetric_mul(&self.k_lower, u);
+        let num: f64 = ku.iter().zip(f).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt();
+        let den: f64 = f.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let residual = if den > 0.0 { num / den } else { num };
+        if !(residual <= RESIDUAL_LIMIT) {
+            return Err(FemError::Residual { residual, limit: RESIDUAL_LIMIT });
+        }
+        Ok(residual)
+    }
+
+    /// Node displacements from the free-dof vector (0 on fixed dofs).
+    pub(crate) fn node_values(&self, u: &[f64]) -> Vec<Vec3> {
+        (0..self.grid.n_nodes())
+            .map(|n| {
+                std::array::from_fn(|a| match self.free[3 * n + a] {
+                    FIXED => 0.0,
+                    f => u[f],
+                })
+            })
+            .collect()
+    }
+
+    /// The free-dof force vector of `loads`: `rho g fill h^3 / 8` on each node of each
+    /// cell, point forces spread to their cell's nodes by the trilinear weights (the
+    /// virtual-work-consistent loads); components on fixed dofs go to the supports.
+    pub(crate) fn load_vector(&self, loads: &Loads) -> Result<Vec<f64>> {
+        if loads.gravity.iter().any(|v| !v.is_finite()) {
+            return Err(FemError::NonFinite { what: "gravity" });
+        }
+        let mut f = vec![0.0; self.n_free];
+        let node_mass = self.tissue.density * self.grid.cell_size().powi(3) / 8.0;
+        if loads.gravity != [0.0; 3] {
+            for (nodes, fill) in self.grid.cell_nodes().iter().zip(self.grid.fill()) {
+                for &n in nodes {
+                    for a in 0..3 {
+                        self.add(&mut f, n, a, fill * node_mass * loads.gravity[a]);
+                    }
+                }
+            }
+        }
+        for &(v, force) in &loads.point_forces {
+            let e = self
+                .grid
+                .embedding()
+                .get(v)
+                .ok_or(FemError::VertexOutOfRange { vertex: v, vertices: self.grid.n_vertices() })?;
+            if force.iter().any(|x| !x.is_finite()) {
+                return Err(FemError::NonFinite { what: "point force" });
+            }
+            for b in 0..8 {
+                for a in 0..3 {
+                    self.add(&mut f, e.nodes[b], a, e.weights[b] * force[a]);
+                }
+            }
+        }
+        Ok(f)
+    }
+
+    fn add(&self, f: &mut [f64], node: usize, axis: usize, value: f64) {
+        let i = self.free[3 * node + axis];
+        if i != FIXED {
+            f[i] += value;
+        }
+    }
+}

@@ -1,0 +1,120 @@
+//! Errors of the FEM crate.
+
+use fibfluid_geometry::MeshError;
+
+/// Everything that can go wrong when building or solving a finite-element body.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FemError {
+    /// A material parameter is out of its range.
+    #[error("tissue parameter {name} = {value} is invalid: {reason}")]
+    InvalidTissue {
+        /// The parameter (`young`, `poisson` or `density`).
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// What is required.
+        reason: &'static str,
+    },
+    /// The resolution is 0 or above [`crate::MAX_RESOLUTION`].
+    #[error("resolution {resolution} is outside 1..={max}")]
+    InvalidResolution {
+        /// The resolution asked for.
+        resolution: usize,
+        /// The largest resolution allowed.
+        max: usize,
+    },
+    /// The body's extent along an axis is below one cell.
+    #[error(
+        "the body is {thickness:e} thick along {axis}, thinner than a cell ({cell:e}); raise the resolution"
+    )]
+    ThinnerThanCell {
+        /// The axis (`x`, `y` or `z`).
+        axis: char,
+        /// The body's extent along that axis.
+        thickness: f64,
+        /// The cell size.
+        cell: f64,
+    },
+    /// The grid would exceed [`crate::MAX_CELLS`] cells.
+    #[error("the grid needs {cells} cells, more than the limit {limit}")]
+    TooManyCells {
+        /// Cells of the full grid.
+        cells: u128,
+        /// The limit.
+        limit: usize,
+    },
+    /// The surface has no vertex or no triangle.
+    #[error("the surface is empty ({vertices} vertices, {triangles} triangles)")]
+    EmptySurface {
+        /// Vertex count.
+        vertices: usize,
+        /// Triangle count.
+        triangles: usize,
+    },
+    /// The surface data is malformed (index out of range, non-finite vertex).
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    /// A per-vertex array has the wrong length.
+    #[error("{what} has {found} entries, expected {expected} (one per surface vertex)")]
+    LengthMismatch {
+        /// Which array.
+        what: &'static str,
+        /// Expected length.
+        expected: usize,
+        /// Actual length.
+        found: usize,
+    },
+    /// A surface vertex index is out of range.
+    #[error("surface vertex {vertex} does not exist ({vertices} vertices)")]
+    VertexOutOfRange {
+        /// The index.
+        vertex: usize,
+        /// Vertex count.
+        vertices: usize,
+    },
+    /// A load or target value is NaN or infinite.
+    #[error("{what} has a non-finite value")]
+    NonFinite {
+        /// Which input.
+        what: &'static str,
+    },
+    /// No degree of freedom is fixed, or too few to stop rigid motion: the stiffness is
+    /// singular.
+    #[error("the stiffness matrix is not positive definite (too few fixed vertices to stop rigid motion?)")]
+    NotPositiveDefinite,
+    /// Every node is fixed: nothing to solve.
+    #[error("every degree of freedom is fixed")]
+    NothingFree,
+    /// A held vertex's axis is carried only by fixed nodes, and its target there is not 0.
+    #[error("held vertex {vertex} cannot move along axis {axis}: every node carrying it is fixed")]
+    HeldOnFixed {
+        /// The vertex.
+        vertex: usize,
+        /// The axis (0, 1, 2).
+        axis: usize,
+    },
+    /// The same vertex is held twice, or the held vertices' constraints are linearly
+    /// dependent (more held vertices in a cell than the cell has nodes).
+    #[error("the held vertices' constraints are dependent (vertex {vertex})")]
+    DependentHolds {
+        /// A vertex involved.
+        vertex: usize,
+    },
+    /// The solution's residual `|K u - f| / |f|` is above the limit.
+    #[error("solve residual {residual:e} is above {limit:e}")]
+    Residual {
+        /// The measured residual.
+        residual: f64,
+        /// The limit.
+        limit: f64,
+    },
+    /// The sparse factorization could not allocate or failed for a non-numerical reason.
+    #[error("sparse factorization failed: {reason}")]
+    Factorization {
+        /// faer's message.
+        reason: String,
+    },
+}
+
+/// Result with [`FemError`].
+pub type Result<T, E = FemError> = std::result::Result<T, E>;

@@ -1,0 +1,58 @@
+//! Sparse-grid finite elements: static linear elasticity of a body bounded by a closed
+//! triangle surface, the project's reference ("yardstick") method.
+//!
+//! # The problem
+//! Find the displacement `u` with `div sigma + rho g = 0`, `sigma = lambda tr(eps) I +
+//! 2 mu eps`, `eps = (grad u + grad u^T) / 2`, zero displacement on the fixed axes and point
+//! forces on surface vertices. Equivalently minimize
+//! `integral of mu |dev eps|^2 + kappa/2 (tr eps)^2 - rho g . u` minus the point forces' work,
+//! with `mu = E / (2 (1 + nu))`, `kappa = E / (3 (1 - 2 nu))`.
+//!
+//! # Discretization (SOFA's sparse grid)
+//! - [`SparseGrid`]: a regular grid of cubes of edge `h = longest bounding-box side /
+//!   resolution`, centred on the box; the active cells are those holding a surface vertex or
+//!   an inside sample point. Each cell's fill fraction `phi` (the share of its 4^3 sub-cell
+//!   centres inside the surface, by exact ray crossings, [`fibfluid_geometry::inside_lattice`])
+//!   scales its stiffness and its mass, so partly filled boundary cells carry only the
+//!   material they contain.
+//! - Each cell is a trilinear (Q1, 8-node) hexahedron. **Locking**: the volumetric energy
+//!   `kappa (tr eps)^2` uses the cell's mean dilatation (B-bar, Hughes 1980), which on a cube
+//!   equals selective reduced integration of that term at the cell centre; the deviatoric
+//!   energy `2 mu |dev eps|^2` is integrated with 2x2x2 Gauss points. As nu -> 0.5 only one
+//!   volumetric constraint per cell remains, so the element does not lock
+//!   ([`Element::FullQ1`] integrates everything fully and does lock, for comparison).
+//! - The surface is embedded: vertex `v` in cell `c` moves with the trilinear interpolation
+//!   `u(v) = sum_b w_b u_b` of the cell's 8 nodes; a point force `F` on `v` puts `w_b F` on
+//!   node `b` (virtual work). Gravity puts `phi rho g h^3 / 8` on each node of each cell.
+//! - Fixed vertices: a surface vertex fixed along axis `a` fixes axis `a` of every node of
+//!   its cell with nonzero weight for it, and so does every point of a surface triangle
+//!   whose three vertices are fixed along `a` (see [`FemBody`]); those dofs are eliminated.
+//!
+//! # Linear algebra
+//! K (symmetric positive definite once rigid motions are fixed) is stored as its lower
+//! triangle in compressed columns and factored once by faer's sparse Cholesky (AMD ordering,
+//! supernodal when it pays). [`FemBody::solve_many`] solves several loads in one pass over
+//! the factor; [`FemBody::respond_held`] holds surface vertices at given displacements by a
+//! capacitance update of the same factor, with compliance columns cached per held vertex.
+//!
+//! # Entry points
+//! [`Tissue`], [`GridEstimate::of`] (sizes before any allocation), [`SparseGrid`],
+//! [`FemBody`], [`Loads`], [`FemSolution`], [`HeldResponse`], [`FemStats`], [`FemError`].
+
+mod assemble;
+mod body;
+mod element;
+mod error;
+mod factor;
+mod grid;
+mod held;
+mod tissue;
+
+pub use body::{FemBody, FemSolution, FemStats, Loads, RESIDUAL_LIMIT, fixed_surface_samples};
+pub use error::{FemError, Result};
+pub use grid::{
+    DEFAULT_RESOLUTION, Element, Embedded, FemOptions, GridEstimate, MAX_CELLS, MAX_RESOLUTION, MIN_FILL,
+    SNAP, SUBSAMPLES, SparseGrid,
+};
+pub use held::HeldResponse;
+pub use tissue::Tissue;

@@ -1,0 +1,80 @@
+//! Bad input gives the typed errors, never a panic.
+
+use crate::common::*;
+use fibfluid_fem::{FemBody, FemError, FemOptions, GridEstimate, Loads, SparseGrid, Tissue};
+
+#[test]
+fn bad_tissue_is_refused() {
+    for (e, nu, rho, name) in [
+        (0.0, 0.3, 1.0, "young"),
+        (-1.0, 0.3, 1.0, "young"),
+        (f64::NAN, 0.3, 1.0, "young"),
+        (1.0, 0.5, 1.0, "poisson"),
+        (1.0, 0.7, 1.0, "poisson"),
+        (1.0, -1.0, 1.0, "poisson"),
+        (1.0, f64::NAN, 1.0, "poisson"),
+        (1.0, 0.3, -1.0, "density"),
+    ] {
+        match Tissue::new(e, nu, rho) {
+            Err(FemError::InvalidTissue { name: n, .. }) => assert_eq!(n, name),
+            other => panic!("({e}, {nu}, {rho}): {other:?}"),
+        }
+    }
+    assert!(Tissue::new(1.0, 0.499, 0.0).is_ok());
+}
+
+#[test]
+fn bad_grids_are_refused() {
+    let (pos, tris) = box_surface([0.0; 3], [8, 2, 1], 0.25);
+    assert!(matches!(GridEstimate::of(&pos, 0), Err(FemError::InvalidResolution { resolution: 0, .. })));
+    assert!(matches!(SparseGrid::from_surface(&pos, &tris, 0), Err(FemError::InvalidResolution { .. })));
+    // 2 x 0.5 x 0.25: at resolution 4 a cell is 0.5, thicker than the body along z.
+    match GridEstimate::of(&pos, 4) {
+        Err(e @ FemError::ThinnerThanCell { axis: 'z', .. }) => {
+            let text = e.to_string();
+            assert!(text.contains("2.5e-1") && text.contains("5e-1"), "{text}");
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(GridEstimate::of(&pos, 8).is_ok());
+    assert!(matches!(GridEstimate::of(&[], 8), Err(FemError::EmptySurface { .. })));
+    let mut bad = tris.clone();
+    bad[0][0] = 10_000;
+    assert!(matches!(SparseGrid::from_surface(&pos, &bad, 8), Err(FemError::Mesh(_))));
+}
+
+#[test]
+fn bad_constraints_and_loads_are_refused() {
+    let (pos, tris) = box_surface([0.0; 3], [4, 2, 2], 0.5);
+    let tissue = Tissue::new(1e4, 0.45, 1000.0).unwrap();
+    let opts = FemOptions { resolution: 4, ..Default::default() };
+    let none = vec![[false; 3]; pos.len()];
+    assert!(matches!(
+        FemBody::from_surface(&pos, &tris, &tissue, &none, &opts),
+        Err(FemError::NotPositiveDefinite)
+    ));
+    assert!(matches!(
+        FemBody::from_surface(&pos, &tris, &tissue, &none[1..], &opts),
+        Err(FemError::LengthMismatch { .. })
+    ));
+    // At resolution 2 (2 x 1 x 1 cells) every node is on the surface.
+    let all = vec![[true; 3]; pos.len()];
+    let coarse = FemOptions { resolution: 2, ..Default::default() };
+    assert!(matches!(FemBody::from_surface(&pos, &tris, &tissue, &all, &coarse), Err(FemError::NothingFree)));
+    let fixed: Vec<[bool; 3]> = pos.iter().map(|p| [p[0] == 0.0; 3]).collect();
+    let mut body = FemBody::from_surface(&pos, &tris, &tissue, &fixed, &opts).unwrap();
+    let far = Loads { point_forces: vec![(pos.len(), [1.0, 0.0, 0.0])], ..Default::default() };
+    assert!(matches!(body.solve(&far), Err(FemError::VertexOutOfRange { .. })));
+    let nan = Loads { gravity: [0.0, f64::NAN, 0.0], ..Default::default() };
+    assert!(matches!(body.solve(&nan), Err(FemError::NonFinite { .. })));
+    let v = pos.iter().position(|p| p[0] == 2.0).unwrap();
+    assert!(matches!(
+        body.respond_held(&Loads::default(), &[(v, [0.1; 3]), (v, [0.1; 3])]),
+        Err(FemError::DependentHolds { .. })
+    ));
+    let clamped = fixed.iter().position(|f| f[0]).unwrap();
+    assert!(matches!(
+        body.respond_held(&Loads::default(), &[(clamped, [0.1, 0.0, 0.0])]),
+        Err(FemError::HeldOnFixed { axis: 0, .. })
+    ));
+}

@@ -1,0 +1,8 @@
+//! The integration tests of this package, in one binary (one link instead of one per file).
+
+mod beam;
+mod common;
+mod errors;
+mod golden;
+mod held;
+mod patch;
