@@ -39,16 +39,17 @@ pub mod ndarray_io;
 
 pub use fibfluid_scene::{Error, Result, Scene, SceneError, SceneProblem, load_tool_path, parse_tool_path};
 pub use fibfluid_sim::{
-    Backend, BodyShape, Choice, ConstraintKind, Counters, Direction, ForceTiming, Ineffective, MAX_STEPS,
-    MIN_ADAPTIVE_STEP, Method, Mode, Model, ParseChoiceError, Plan, PlannedStage, PointForce, Precision,
-    Report, Response, RoundTrip, RunOptions, SetupOptions, Shape, Simulation, SkippedStage, SolverOptions,
-    Stage, State, StepStats, Stepping, VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE, ineffective,
-    memory_budget, roundtrip, roundtrip_error,
+    Backend, BodyShape, Choice, ConstraintKind, Counters, Direction, FemSettings, ForceTiming, Ineffective,
+    LengthUnit, MAX_STEPS, MIN_ADAPTIVE_STEP, Method, Mode, Model, ParseChoiceError, Plan, PlannedStage,
+    PointForce, Precision, Report, Response, RoundTrip, RunOptions, SetupOptions, Shape, Simulation,
+    SkippedStage, SolverOptions, Stage, StageRecord, State, StepStats, Stepping, Tissue,
+    VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE, ineffective, memory_budget, roundtrip, roundtrip_error,
 };
 pub use fibfluid_sim::{contact, guards, plan, stages};
 
 pub use fibfluid_assembly as assembly;
 pub use fibfluid_chainmail as chainmail;
+pub use fibfluid_fem as fem;
 pub use fibfluid_geometry as geometry;
 pub use fibfluid_interact as interact;
 pub use fibfluid_linalg as linalg;

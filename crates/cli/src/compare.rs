@@ -26,32 +26,40 @@ pub fn run(args: &CompareArgs) -> Result<(), crate::CliError> {
     let path = load_tool_path(&args.path)?;
     let opts = args.response.options();
     let report = run_compare(&scene, &path, &args.out, &opts)?;
-    say!("{}: {} vertices, {} frames", report.scene, report.vertices, report.frames);
     say!(
-        "{:<22} {:>9} {:>10} {:>10} {:>10} {:>10} {:>9} {:>9} {:>9}",
+        "{}: {} vertices, {} frames; {} against {}",
+        report.scene,
+        report.vertices,
+        report.frames,
+        report.compared,
+        report.reference
+    );
+    say!(
+        "{:<22} {:>9} {:>10} {:>10} {:>10} {:>9} {:>9} {:>9}",
         "method",
         "setup s",
         "memory B",
         "p50 us",
         "p99 us",
-        "max us",
-        "dV max",
-        "rest d",
-        "rms/ffm"
+        "error",
+        "worst",
+        "dV max"
     );
     for (name, m) in &report.methods {
         say!(
-            "{:<22} {:>9.3} {:>10} {:>10.1} {:>10.1} {:>10.1} {:>9.2e} {:>9.2e} {:>9.2e}",
+            "{:<22} {:>9.3} {:>10} {:>10.1} {:>10.1} {:>9.3} {:>9.3} {:>9.2e}",
             name,
             m.setup_seconds,
             m.memory_bytes,
             m.latency_us.p50,
             m.latency_us.p99,
-            m.latency_us.max,
-            m.volume_change_max,
-            m.rest_distance_after_release,
-            m.surface_rms_vs_ffm
+            m.error_vs_reference,
+            m.worst_vertex_error,
+            m.volume_change_max
         );
+    }
+    for (name, why) in &report.skipped {
+        say!("{name:<22} skipped: {why}");
     }
     for f in COMPARE_FILES {
         say!("  wrote {}", args.out.join(f).display());

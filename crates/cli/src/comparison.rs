@@ -1,26 +1,31 @@
-//! `fibfluid compare`: the same tool path replayed with the fiber–fluid method,
-//! TSVE-ChainMail and Generalized ChainMail, with the numbers a user comparing the methods
-//! asks for (`compare.json`) and the three surfaces side by side (`compare.png`).
+//! `fibfluid compare`: the same grab path replayed with every method — the fiber–fluid
+//! method, TSVE-ChainMail, Generalized ChainMail and, when the scene gives `[tissue]`, the
+//! finite-element method — with each method's frame cost beside its error against the
+//! reference (the FEM when it runs, else FFM): accuracy against time, side by side
+//! (`compare.json`, `compare.png`).
+//!
+//! Like is compared with like: ChainMail carries neither gravity nor point forces, so every
+//! method is measured by its **tool-induced displacement**, each frame's surface minus the
+//! method's own base state (the scene's loads for FFM and the FEM, rest for ChainMail).
 //!
 //! Per method (`M` in `compare.json`):
 //!
-//! - `setup_seconds`: FFM base solve and precompute; ChainMail voxelization and embedding.
-//! - `memory_bytes`: the body's [`Interactive::memory_bytes`](fibfluid::interact::Interactive::memory_bytes).
-//! - `latency_us`: frame latency percentiles (`p50`, `p99`, `max`, nearest rank).
-//! - `volume_change_max`: the largest `|V / V0 - 1|` of the deformed surface over the
-//!   frames (`V0` the rest surface's volume).
-//! - `rest_distance_after_release`: the largest vertex distance from rest after the last
-//!   frame, over the rest bounding-box diagonal (a path ends with frames holding nothing;
-//!   relaxation runs there). FFM's includes its base state (the scene's loads), to which it
-//!   returns.
-//! - `surface_rms_vs_ffm`: the RMS vertex distance to FFM's surface over all frames and
-//!   vertices, over the diagonal (0 for FFM itself).
+//! - `setup_seconds`, `memory_bytes`, `latency_us` (frame cost: `p50`, `p99`, `max`).
+//! - `carries_scene_loads`: whether the base state holds the scene's gravity and forces.
+//! - `base_max_displacement`: the base state's largest displacement (m).
+//! - `error_vs_reference`: relative L2 over all frames and vertices of the tool-induced
+//!   displacement against the reference's, `sqrt(sum |d - d_ref|^2 / sum |d_ref|^2)`.
+//! - `worst_vertex_error`: the largest `|d - d_ref|` of any vertex and frame over the
+//!   reference's largest `|d_ref|`.
+//! - `volume_change_max`: the largest `|V / V0 - 1|` over the frames.
+//! - `rest_distance_after_release`: the largest vertex distance from the base state after the
+//!   last frame, over the rest bounding-box diagonal.
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
 use fibfluid::geometry::Vec3;
-use fibfluid::geometry::vec3::{dist, norm};
+use fibfluid::geometry::vec3::{dist, norm, sub};
 use fibfluid::interact::{
     CheckedPath, Latency, Method, MethodBody, ProbeError, ProbeOptions, ToolPath, check_method, check_path,
     replay_observed,
@@ -34,6 +39,9 @@ use crate::{Error, Result};
 /// Names of the files [`run_compare`] writes.
 pub const COMPARE_FILES: [&str; 2] = ["compare.json", "compare.png"];
 
+/// What is compared, as `compare.json` says it.
+pub const COMPARED: &str = "tool-induced displacement: each frame's surface minus the method's own base state (ChainMail carries no gravity or point forces)";
+
 /// One method's numbers in `compare.json`.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct MethodMetrics {
@@ -43,12 +51,18 @@ pub struct MethodMetrics {
     pub memory_bytes: usize,
     /// Frame latency, microseconds.
     pub latency_us: Latency,
+    /// Whether the base state carries the scene's gravity and point forces.
+    pub carries_scene_loads: bool,
+    /// Largest displacement of the base state (m).
+    pub base_max_displacement: f64,
+    /// Relative L2 of the tool-induced displacement against the reference's.
+    pub error_vs_reference: f64,
+    /// Largest vertex error over the reference's largest tool-induced displacement.
+    pub worst_vertex_error: f64,
     /// Largest `|V / V0 - 1|` over the frames.
     pub volume_change_max: f64,
-    /// Largest vertex distance from rest after the last frame, over the diagonal.
+    /// Largest vertex distance from the base state after the last frame, over the diagonal.
     pub rest_distance_after_release: f64,
-    /// RMS vertex distance to FFM's surface over all frames, over the diagonal.
-    pub surface_rms_vs_ffm: f64,
 }
 
 /// `compare.json`.
@@ -62,33 +76,74 @@ pub struct CompareReport {
     pub frames: usize,
     /// Vertices of the surface.
     pub vertices: usize,
-    /// Rest bounding-box diagonal (the scale of the relative distances).
+    /// Rest bounding-box diagonal (m; the scale of the relative distances).
     pub diagonal: f64,
+    /// What is compared.
+    pub compared: &'static str,
+    /// The method the errors are measured against (the FEM when it runs).
+    pub reference: Method,
     /// The frame shown in `compare.png`: the first frame of the path's largest grab.
     pub shown_frame: usize,
     /// Numbers per method, by method name.
     pub methods: BTreeMap<String, MethodMetrics>,
+    /// Methods that did not run, with the reason.
+    pub skipped: BTreeMap<String, String>,
 }
 
-/// One method's replay: its metrics and its surface at the shown frame.
+/// One method's replay: its metrics and its tool-induced displacement at the shown frame.
 struct Run {
     metrics: MethodMetrics,
     shown: Vec<Vec3>,
 }
 
-/// Bytes a comparison keeps per frame and vertex: FFM's surface (the reference of the
-/// others' distances).
+/// Bytes a comparison keeps per frame and vertex: the reference's tool-induced displacement.
 const BYTES_PER_FRAME_VERTEX: u128 = 24;
 
-/// Replays `path` on `scene` with the three methods and writes [`COMPARE_FILES`] into `out`
-/// (all or nothing). The path must be a grab path (ChainMail has no forces); it is checked,
-/// and the memory the comparison keeps is checked against the budget from counts, before
-/// any body is built.
+/// The methods a scene can compare, the reference first, and those it cannot with why.
+fn methods_of(scene: &Scene) -> (Vec<Method>, BTreeMap<String, String>) {
+    let mut skipped = BTreeMap::new();
+    let mut methods = vec![Method::Ffm, Method::TsveChainmail, Method::GeneralizedChainmail];
+    if scene.tissue.is_some() {
+        methods.insert(0, Method::Fem);
+    } else {
+        skipped
+            .insert(Method::Fem.to_string(), "the scene has no [tissue] (E in Pa, poisson, density)".into());
+    }
+    if !scene.ffm_material {
+        methods.retain(|m| *m != Method::Ffm);
+        skipped.insert(Method::Ffm.to_string(), "the scene has no [material] for FFM".into());
+    }
+    (methods, skipped)
+}
+
+/// Refuses, from counts, a path whose reference displacements would not fit.
+fn check_size(path: &ToolPath, frames: usize, vertices: usize, opts: &ProbeOptions) -> Result<()> {
+    let bytes = frames as u128 * vertices as u128 * BYTES_PER_FRAME_VERTEX;
+    let available = memory_budget(opts.max_memory_bytes);
+    if bytes > available as u128 {
+        return Err(ProbeError::PathTooLong {
+            path: path.source.clone(),
+            what: "a comparison keeps the reference's displacement at every frame",
+            frames,
+            vertices,
+            bytes,
+            available,
+        }
+        .into());
+    }
+    Ok(())
+}
+
+/// Replays `path` on `scene` with every method it can run and writes [`COMPARE_FILES`] into
+/// `out` (all or nothing). The path must be a grab path (ChainMail has no forces); it is
+/// checked, and the memory the comparison keeps is checked against the budget from counts,
+/// before any body is built.
 pub fn run_compare(scene: &Scene, path: &ToolPath, out: &Path, opts: &ProbeOptions) -> Result<CompareReport> {
     let Shape::Surface(file) = &scene.shape else {
         return Err(ProbeError::NotASurface { scene: scene.display_name() }.into());
     };
-    for &m in Method::ALL {
+    let (methods, skipped) = methods_of(scene);
+    for &m in &methods {
         check_method(path, m)?;
     }
     let checked = check_path(path, scene)?;
@@ -99,70 +154,84 @@ pub fn run_compare(scene: &Scene, path: &ToolPath, out: &Path, opts: &ProbeOptio
         });
     }
     let rest = file.mesh.positions().to_vec();
-    let frames = checked.frames.len();
-    let bytes = frames as u128 * rest.len() as u128 * BYTES_PER_FRAME_VERTEX;
-    let available = memory_budget(opts.max_memory_bytes);
-    if bytes > available as u128 {
-        return Err(ProbeError::PathTooLong {
-            path: path.source.clone(),
-            what: "a comparison keeps FFM's surface at every frame",
-            frames,
-            vertices: rest.len(),
-            bytes,
-            available,
-        }
-        .into());
-    }
-    let triangles = file.mesh.triangles();
+    check_size(path, checked.frames.len(), rest.len(), opts)?;
     let (lo, hi) = fibfluid::geometry::bounding_box(&rest);
     let diagonal = dist(lo, hi);
     let shown = largest_grab_frame(&checked);
-    let mut reference: Vec<Vec<Vec3>> = Vec::with_capacity(frames);
+    let mut reference: Vec<Vec<Vec3>> = Vec::with_capacity(checked.frames.len());
     let mut runs: Vec<(Method, Run)> = Vec::new();
-    for &method in Method::ALL {
-        let mut body = MethodBody::build(scene, &scene.chainmail, method, opts)?;
-        let setup_seconds = body.setup_seconds();
-        let mut tally = Tally::new(fibfluid::geometry::volume(&rest, triangles));
-        let replay = replay_observed(body.interactive(), &checked, |k, b| {
-            let p = b.positions();
-            tally.volume(fibfluid::geometry::volume(p, triangles));
-            match reference.get(k) {
-                Some(r) => tally.distance(p, r),
-                None => reference.push(p.to_vec()),
-            }
-            if k == shown {
-                tally.shown = p.to_vec();
-            }
-        })?;
-        let b = body.interactive_ref();
-        let after = b.positions().iter().zip(&rest).map(|(p, r)| dist(*p, *r)).fold(0.0, f64::max);
-        let metrics = MethodMetrics {
-            setup_seconds,
-            memory_bytes: b.memory_bytes(),
-            latency_us: Latency::of(&replay.latency_us),
-            volume_change_max: tally.volume_change_max,
-            rest_distance_after_release: after / diagonal,
-            surface_rms_vs_ffm: tally.rms() / diagonal,
-        };
-        runs.push((method, Run { metrics, shown: std::mem::take(&mut tally.shown) }));
+    for &method in &methods {
+        let run = replay_method(scene, method, &checked, opts, &mut reference, shown, diagonal)?;
+        runs.push((method, run));
     }
-    let png = compare_png(&runs, &rest, triangles, shown)?;
+    let png = compare_png(&runs, &rest, file.mesh.triangles(), shown, scene)?;
     let report = CompareReport {
         scene: scene.name.clone(),
         path: path.source.display().to_string(),
-        frames,
+        frames: checked.frames.len(),
         vertices: rest.len(),
         diagonal,
+        compared: COMPARED,
+        reference: methods[0],
         shown_frame: shown,
         methods: runs.into_iter().map(|(m, r)| (m.name().to_string(), r.metrics)).collect(),
+        skipped,
     };
     let json = serde_json::to_string_pretty(&report)? + "\n";
     write_files_atomically(out, &[(COMPARE_FILES[0], json.into_bytes()), (COMPARE_FILES[1], png)])?;
     Ok(report)
 }
 
+/// Replays the path with one method; the first method fills `reference` with its
+/// tool-induced displacements, the others are measured against it.
+fn replay_method(
+    scene: &Scene,
+    method: Method,
+    checked: &CheckedPath,
+    opts: &ProbeOptions,
+    reference: &mut Vec<Vec<Vec3>>,
+    shown: usize,
+    diagonal: f64,
+) -> Result<Run> {
+    let Shape::Surface(file) = &scene.shape else { unreachable!("checked by run_compare") };
+    let triangles = file.mesh.triangles();
+    let mut body = MethodBody::build(scene, &scene.chainmail, method, opts)?;
+    let setup_seconds = body.setup_seconds();
+    let base = body.interactive_ref().positions().to_vec();
+    let rest = body.interactive_ref().rest_positions().to_vec();
+    let base_max = base.iter().zip(&rest).map(|(p, r)| dist(*p, *r)).fold(0.0, f64::max);
+    let mut tally = Tally::new(fibfluid::geometry::volume(&rest, triangles));
+    let is_reference = reference.is_empty();
+    let replay = replay_observed(body.interactive(), checked, |k, b| {
+        let p = b.positions();
+        tally.volume(fibfluid::geometry::volume(p, triangles));
+        let d: Vec<Vec3> = p.iter().zip(&base).map(|(p, q)| sub(*p, *q)).collect();
+        if is_reference {
+            reference.push(d.clone());
+        }
+        tally.against(&d, &reference[k]);
+        if k == shown {
+            tally.shown = d;
+        }
+    })?;
+    let b = body.interactive_ref();
+    let after = b.positions().iter().zip(&base).map(|(p, r)| dist(*p, *r)).fold(0.0, f64::max);
+    let metrics = MethodMetrics {
+        setup_seconds,
+        memory_bytes: b.memory_bytes(),
+        latency_us: Latency::of(&replay.latency_us),
+        carries_scene_loads: !method.is_chainmail(),
+        base_max_displacement: base_max,
+        error_vs_reference: tally.relative_l2(),
+        worst_vertex_error: tally.worst(),
+        volume_change_max: tally.volume_change_max,
+        rest_distance_after_release: after / diagonal,
+    };
+    Ok(Run { metrics, shown: std::mem::take(&mut tally.shown) })
+}
+
 /// The frame of largest displacement: where the tool's largest grab is (the first such
-/// frame); the scene's own loads (FFM's base state) do not count.
+/// frame); the scene's own loads (the base state) do not count.
 fn largest_grab_frame(path: &CheckedPath) -> usize {
     let tool = |k: usize| path.frames[k].iter().map(|h| norm(h.value)).fold(0.0, f64::max);
     let mut shown = 0;
@@ -178,49 +247,87 @@ fn largest_grab_frame(path: &CheckedPath) -> usize {
 struct Tally {
     v0: f64,
     volume_change_max: f64,
-    sum_sq: f64,
-    count: usize,
+    diff_sq: f64,
+    reference_sq: f64,
+    worst_diff: f64,
+    reference_max: f64,
     shown: Vec<Vec3>,
 }
 
 impl Tally {
     fn new(v0: f64) -> Self {
-        Self { v0, volume_change_max: 0.0, sum_sq: 0.0, count: 0, shown: Vec::new() }
+        Self {
+            v0,
+            volume_change_max: 0.0,
+            diff_sq: 0.0,
+            reference_sq: 0.0,
+            worst_diff: 0.0,
+            reference_max: 0.0,
+            shown: Vec::new(),
+        }
     }
 
     fn volume(&mut self, v: f64) {
         self.volume_change_max = self.volume_change_max.max((v / self.v0 - 1.0).abs());
     }
 
-    fn distance(&mut self, surface: &[Vec3], reference: &[Vec3]) {
-        for (p, q) in surface.iter().zip(reference) {
-            let d = dist(*p, *q);
-            self.sum_sq += d * d;
-            self.count += 1;
+    fn against(&mut self, d: &[Vec3], reference: &[Vec3]) {
+        for (p, q) in d.iter().zip(reference) {
+            let e = dist(*p, *q);
+            self.diff_sq += e * e;
+            self.worst_diff = self.worst_diff.max(e);
+            let r = norm(*q);
+            self.reference_sq += r * r;
+            self.reference_max = self.reference_max.max(r);
         }
     }
 
-    fn rms(&self) -> f64 {
-        if self.count > 0 { (self.sum_sq / self.count as f64).sqrt() } else { 0.0 }
+    fn relative_l2(&self) -> f64 {
+        if self.reference_sq > 0.0 { (self.diff_sq / self.reference_sq).sqrt() } else { 0.0 }
+    }
+
+    fn worst(&self) -> f64 {
+        if self.reference_max > 0.0 { self.worst_diff / self.reference_max } else { 0.0 }
     }
 }
 
-/// The three surfaces at frame `k`, side by side, colored by `|u|` on one scale.
-fn compare_png(runs: &[(Method, Run)], rest: &[Vec3], triangles: &[[u32; 3]], k: usize) -> Result<Vec<u8>> {
+/// Each method's tool-induced displacement at frame `k`, on the rest shape, side by side on
+/// one color scale.
+fn compare_png(
+    runs: &[(Method, Run)],
+    rest: &[Vec3],
+    triangles: &[[u32; 3]],
+    k: usize,
+    scene: &Scene,
+) -> Result<Vec<u8>> {
+    let to_unit = 1.0 / scene.unit.metres();
     let mags: Vec<Vec<f64>> =
-        runs.iter().map(|(_, r)| r.shown.iter().zip(rest).map(|(p, q)| dist(*p, *q)).collect()).collect();
+        runs.iter().map(|(_, r)| r.shown.iter().map(|d| to_unit * norm(*d)).collect()).collect();
+    let shapes: Vec<Vec<Vec3>> = runs
+        .iter()
+        .map(|(_, r)| {
+            rest.iter().zip(&r.shown).map(|(p, d)| [p[0] + d[0], p[1] + d[1], p[2] + d[2]]).collect()
+        })
+        .collect();
     let top = mags.iter().flatten().copied().fold(0.0, f64::max);
     let range = (0.0, if top > 0.0 { top } else { 1.0 });
+    let reference = runs.first().map(|(m, _)| *m);
     let panels: Vec<fibfluid::render::Surface<'_>> = runs
         .iter()
         .zip(&mags)
-        .map(|((m, r), mag)| fibfluid::render::Surface {
-            positions: &r.shown,
+        .zip(&shapes)
+        .map(|(((m, r), mag), shape)| fibfluid::render::Surface {
+            positions: shape,
             triangles,
             scalar: mag,
-            title: format!("{m}, frame {k}"),
+            title: if Some(*m) == reference {
+                format!("{m} (reference), frame {k}")
+            } else {
+                format!("{m}, frame {k}: error {:.0} %", 100.0 * r.metrics.error_vs_reference)
+            },
         })
         .collect();
-    let opts = fibfluid::render::ViewOptions { scalar_label: "|u|".into(), ..Default::default() };
+    let label = format!("tool-induced |u| ({})", scene.unit);
+    let opts = fibfluid::render::ViewOptions { scalar_label: label, ..Default::default() };
     Ok(fibfluid::render::render_surfaces(&panels, Some(range), &opts)?)
 }

@@ -14,6 +14,6 @@ pub mod study;
 pub use error::{Error, Result};
 pub use info::MeshInfo;
 pub use output::{
-    COMPRESSION_FILE, OUTPUT_FILES, compression_png, render_png, write_fibers_vtk, write_files_atomically,
-    write_outputs, write_vtk,
+    COMPRESSION_FILE, OUTPUT_FILES, SurfaceResult, compression_png, render_png, write_fem_outputs,
+    write_fibers_vtk, write_files_atomically, write_outputs, write_vtk,
 };

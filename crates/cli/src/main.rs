@@ -8,8 +8,8 @@ use std::time::Instant;
 use clap::{Parser, Subcommand};
 use fibfluid::stages::{StageRecord, names};
 use fibfluid::{
-    Backend, ConstraintKind, Mode, Plan, Precision, Report, RunOptions, Scene, SetupOptions, Simulation,
-    Stepping,
+    Backend, ConstraintKind, Method, Mode, Plan, Precision, Report, RunOptions, Scene, SetupOptions,
+    Simulation, Stepping,
 };
 use fibfluid_cli::MeshInfo;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -196,6 +196,12 @@ struct Overrides {
     /// Constraint method (penalty, eliminate); the scene's `penalty` value is kept.
     #[arg(long)]
     constraints: Option<ConstraintKind>,
+    /// Method of a batch run: ffm or fem (the finite-element reference; needs [tissue]).
+    #[arg(long)]
+    method: Option<Method>,
+    /// Cells along the longest side of the finite-element grid (`[fem] resolution`).
+    #[arg(long)]
+    resolution: Option<usize>,
     /// Refuse the scene when its plan needs more than this many bytes (default: the
     /// machine's memory).
     #[arg(long, value_name = "BYTES")]
@@ -213,6 +219,33 @@ impl Overrides {
         s.stepping = self.stepping.unwrap_or(s.stepping);
         s.precision = self.precision.unwrap_or(s.precision);
         s.constraints = self.constraints.unwrap_or(s.constraints);
+        if let Some(m) = self.method {
+            if m.is_chainmail() {
+                return Err(CliError::Flag {
+                    flag: "method",
+                    value: m.to_string(),
+                    problem: "a batch run is ffm or fem (ChainMail is interactive: probe, compare, view)",
+                });
+            }
+            if m == Method::Ffm && !scene.ffm_material {
+                return Err(CliError::Flag {
+                    flag: "method",
+                    value: m.to_string(),
+                    problem: "the scene has no [material] table for FFM",
+                });
+            }
+            scene.model.solver.method = m;
+        }
+        if let Some(r) = self.resolution {
+            if !(1..=fibfluid::fem::MAX_RESOLUTION).contains(&r) {
+                return Err(CliError::Flag {
+                    flag: "resolution",
+                    value: r.to_string(),
+                    problem: "must be between 1 and 256",
+                });
+            }
+            scene.model.fem.resolution = r;
+        }
         if let Some(n) = self.steps {
             if !(1..=fibfluid::MAX_STEPS).contains(&n) {
                 return Err(CliError::Flag {
@@ -468,6 +501,9 @@ fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> 
         fibfluid::Shape::Surface(m) => m.notes.clone(),
         _ => vec![],
     };
+    if scene.solver.method == Method::Fem {
+        return run_fem(scene, load, notes, out, over);
+    }
     let steps = scene.steps;
     let mut sim = Simulation::with_options(scene, &over.setup())?;
     let opts = RunOptions { progress: progress(steps, "run") };
@@ -514,6 +550,42 @@ fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> 
 
 /// Guard warnings (one line each, at most [`MAX_WARNING_LINES`]) and skipped steps, on
 /// stderr.
+/// `run` with the finite-element method.
+fn run_fem(
+    scene: Scene,
+    load: StageRecord,
+    notes: Vec<String>,
+    out: &Path,
+    over: &Overrides,
+) -> Result<(), CliError> {
+    let run = fibfluid::sim::fem_run::FemRun::new(scene, over.max_memory)?;
+    let start = Instant::now();
+    let mut report = fibfluid::sim::fem_run::FemReport::of(&run, std::slice::from_ref(&load), notes);
+    let written = fibfluid_cli::write_fem_outputs(out, &run, &report)?;
+    report.seconds_total += start.elapsed().as_secs_f64();
+    let unit = run.model.unit;
+    let to_unit = 1.0 / unit.metres();
+    say!(
+        "{}: {} vertices, fem (resolution {}, {} cells, {} unknowns), E = {} Pa, nu = {}, max |u| = {} {unit}, volume {} -> {} m^3, residual {:.1e}, {:.3} s",
+        report.scene,
+        report.vertices,
+        report.fem.resolution,
+        report.fem.cells,
+        report.fem.dofs,
+        num(report.tissue.young),
+        report.tissue.poisson,
+        num(report.max_displacement * to_unit),
+        num(report.volume_initial),
+        num(report.volume_final),
+        report.residual,
+        report.seconds_total
+    );
+    for w in written {
+        say!("  wrote {}", w.display());
+    }
+    Ok(())
+}
+
 fn print_step_notes(sim: &Simulation) {
     let warnings = sim.warnings();
     for w in warnings.iter().take(MAX_WARNING_LINES) {

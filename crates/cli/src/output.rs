@@ -5,7 +5,8 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use fibfluid::geometry::Vec3;
-use fibfluid::{Report, Shape, Simulation};
+use fibfluid::sim::fem_run::{FemReport, FemRun};
+use fibfluid::{Model, Report, Shape, Simulation};
 
 use crate::{Error, Result};
 
@@ -85,24 +86,24 @@ pub fn render_png(sim: &Simulation) -> Result<Vec<u8>> {
     if !sim.model().plates.is_empty() {
         return render_plates_png(sim);
     }
-    let tris = triangles_of(sim);
-    let rest = sim.rest_positions();
-    let now = sim.positions();
-    let mag: Vec<f64> = now
-        .iter()
-        .zip(rest)
-        .map(|(p, r)| ((p[0] - r[0]).powi(2) + (p[1] - r[1]).powi(2) + (p[2] - r[2]).powi(2)).sqrt())
-        .collect();
+    let title = format!("deformed ({} steps, {})", sim.model().steps, sim.model().solver.mode);
+    render_rest_and_deformed(&SurfaceResult::of_simulation(sim), &title)
+}
+
+/// The rest and deformed shapes side by side, the deformed one colored by `|u|` in the
+/// mesh's unit.
+fn render_rest_and_deformed(surface: &SurfaceResult<'_>, title: &str) -> Result<Vec<u8>> {
+    let (rest, now) = (surface.rest, surface.positions);
+    let to_unit = 1.0 / surface.model.unit.metres();
+    let mag: Vec<f64> =
+        now.iter().zip(rest).map(|(p, r)| to_unit * fibfluid::geometry::vec3::dist(*p, *r)).collect();
     let zero = vec![0.0; mag.len()];
-    let opts = fibfluid::render::ViewOptions { scalar_label: "|u|".into(), ..Default::default() };
+    let label = format!("|u| ({})", surface.model.unit);
+    let opts = fibfluid::render::ViewOptions { scalar_label: label, ..Default::default() };
+    let tris = &surface.triangles;
     let panels = [
-        fibfluid::render::Surface { positions: rest, triangles: &tris, scalar: &zero, title: "rest".into() },
-        fibfluid::render::Surface {
-            positions: now,
-            triangles: &tris,
-            scalar: &mag,
-            title: format!("deformed ({} steps, {})", sim.model().steps, sim.model().solver.mode),
-        },
+        fibfluid::render::Surface { positions: rest, triangles: tris, scalar: &zero, title: "rest".into() },
+        fibfluid::render::Surface { positions: now, triangles: tris, scalar: &mag, title: title.to_string() },
     ];
     Ok(fibfluid::render::render_surfaces(&panels, None, &opts)?)
 }
@@ -224,45 +225,98 @@ pub fn compression_png(sim: &Simulation) -> Result<Vec<u8>> {
     )?)
 }
 
-/// Writes every output of a run into `dir` (see [`write_files_atomically`]).
+/// A deformed surface to write: the model (its mesh, name and unit), rest and deformed
+/// positions in metres, the mesh's triangles.
+pub struct SurfaceResult<'a> {
+    /// The model.
+    pub model: &'a Model,
+    /// Rest positions (m).
+    pub rest: &'a [Vec3],
+    /// Deformed positions (m).
+    pub positions: &'a [Vec3],
+    /// Triangles (a polygon: a fan, for pictures only).
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl<'a> SurfaceResult<'a> {
+    /// The surface of an FFM simulation.
+    pub fn of_simulation(sim: &'a Simulation) -> Self {
+        Self {
+            model: sim.model(),
+            rest: sim.rest_positions(),
+            positions: sim.positions(),
+            triangles: triangles_of(sim),
+        }
+    }
+
+    /// The surface of a finite-element run.
+    pub fn of_fem(run: &'a FemRun) -> Self {
+        let triangles = match &run.model.shape {
+            Shape::Surface(m) => m.mesh.triangles().to_vec(),
+            Shape::Polygon(_) => Vec::new(),
+        };
+        Self { model: &run.model, rest: &run.rest, positions: &run.positions, triangles }
+    }
+
+    /// Positions in the mesh file's vertex order and unit, and the triangles in file
+    /// indices.
+    fn in_file_terms(&self, positions: &[Vec3]) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+        let to_unit = 1.0 / self.model.unit.metres();
+        let (p, t) = match &self.model.shape {
+            Shape::Surface(m) => (m.positions_in_file_order(positions), m.triangles_in_file_order()),
+            Shape::Polygon(_) => (positions.to_vec(), self.triangles.clone()),
+        };
+        (p.into_iter().map(|x| x.map(|c| c * to_unit)).collect(), t)
+    }
+}
+
+/// Writes every output of an FFM run into `dir` (see [`write_files_atomically`]).
 pub fn write_outputs(dir: &Path, sim: &Simulation, report: &Report) -> Result<Vec<PathBuf>> {
-    let tris_out;
-    let (positions, triangles): (Vec<Vec3>, &[[u32; 3]]) = match &sim.model().shape {
-        Shape::Surface(m) => {
-            tris_out = m.triangles_in_file_order();
-            (m.positions_in_file_order(sim.positions()), &tris_out)
-        }
-        Shape::Polygon(_) => {
-            tris_out = triangles_of(sim);
-            (sim.positions().to_vec(), &tris_out)
-        }
-    };
-    let rest_file: Vec<Vec3> = match &sim.model().shape {
-        Shape::Surface(m) => m.positions_in_file_order(sim.rest_positions()),
-        Shape::Polygon(_) => sim.rest_positions().to_vec(),
-    };
+    let json = serde_json::to_string_pretty(report)? + "\n";
+    let png = render_png(sim)?;
+    let extra =
+        if sim.model().plates.is_empty() { vec![] } else { vec![(COMPRESSION_FILE, compression_png(sim)?)] };
+    write_surface(dir, &SurfaceResult::of_simulation(sim), json, png, extra)
+}
+
+/// Writes every output of a finite-element run into `dir`.
+pub fn write_fem_outputs(dir: &Path, run: &FemRun, report: &FemReport) -> Result<Vec<PathBuf>> {
+    let surface = SurfaceResult::of_fem(run);
+    let json = serde_json::to_string_pretty(report)? + "\n";
+    let title = format!("deformed (fem, resolution {})", run.stats.resolution);
+    let png = render_rest_and_deformed(&surface, &title)?;
+    write_surface(dir, &surface, json, png, vec![])
+}
+
+/// `deformed.obj` and `deformed.vtk` (file order, the mesh's unit), `report.json`,
+/// `render.png` and any extra pictures, all or nothing.
+fn write_surface(
+    dir: &Path,
+    surface: &SurfaceResult<'_>,
+    json: String,
+    png: Vec<u8>,
+    extra: Vec<(&str, Vec<u8>)>,
+) -> Result<Vec<PathBuf>> {
+    let (positions, triangles) = surface.in_file_terms(surface.positions);
+    let (rest, _) = surface.in_file_terms(surface.rest);
     let disp: Vec<Vec3> =
-        positions.iter().zip(&rest_file).map(|(p, r)| [p[0] - r[0], p[1] - r[1], p[2] - r[2]]).collect();
+        positions.iter().zip(&rest).map(|(p, r)| [p[0] - r[0], p[1] - r[1], p[2] - r[2]]).collect();
     let io = |name: &str| {
         let path = dir.join(name);
         move |source| Error::Io { path, source }
     };
     let mut obj = Vec::new();
-    fibfluid::geometry::write_obj_to(&mut obj, &positions, triangles).map_err(io(OUTPUT_FILES[0]))?;
+    fibfluid::geometry::write_obj_to(&mut obj, &positions, &triangles).map_err(io(OUTPUT_FILES[0]))?;
     let mut vtk = Vec::new();
-    write_vtk(&mut vtk, &format!("fibfluid {}", sim.model().name), &positions, triangles, &disp)
-        .map_err(io(OUTPUT_FILES[1]))?;
-    let json = serde_json::to_string_pretty(report)? + "\n";
-    let png = render_png(sim)?;
+    let title = format!("fibfluid {} ({})", surface.model.name, surface.model.unit);
+    write_vtk(&mut vtk, &title, &positions, &triangles, &disp).map_err(io(OUTPUT_FILES[1]))?;
     let mut files = vec![
         (OUTPUT_FILES[0], obj),
         (OUTPUT_FILES[1], vtk),
         (OUTPUT_FILES[2], json.into_bytes()),
         (OUTPUT_FILES[3], png),
     ];
-    if !sim.model().plates.is_empty() {
-        files.push((COMPRESSION_FILE, compression_png(sim)?));
-    }
+    files.extend(extra);
     write_files_atomically(dir, &files)
 }
 

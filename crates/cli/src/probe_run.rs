@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use fibfluid::fem::FemStats;
 use fibfluid::geometry::{MeshFile, Vec3};
 use fibfluid::interact::{
     FrameRow, Latency, Method, MethodBody, PathKind, ProbeError, ProbeOptions, Storage, ToolPath,
@@ -61,9 +62,12 @@ pub struct ProbeReport {
     pub final_max_displacement: f64,
     /// Pressure change after the last frame (`null` for ChainMail, which has no pressure).
     pub final_pressure: Option<f64>,
-    /// The ChainMail lattice (absent for FFM).
+    /// The ChainMail lattice (absent for the other methods).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub chainmail: Option<ChainmailStats>,
+    /// The finite-element grid (absent for the other methods).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fem: Option<FemStats>,
     /// Wall-clock seconds of the whole probe run.
     pub seconds_total: f64,
 }
@@ -204,6 +208,7 @@ pub fn run_probe_with(
     let base_max = match &mb {
         MethodBody::Ffm(pb) => max_norm(pb.body.base_field()),
         MethodBody::Chainmail(_) => 0.0,
+        MethodBody::Fem(b) => max_norm(fibfluid::interact::Interactive::field(b.as_ref())),
     };
     let replay = replay(mb.interactive(), &checked)?;
     let mut probed: Vec<usize> = replay.rows.iter().map(|r| r.file_vertex).collect();
@@ -211,51 +216,28 @@ pub fn run_probe_with(
     probed.dedup();
     let body = mb.interactive_ref();
     let forces = body.supports_forces();
-    let (precision, constraints, base_seconds, precompute_seconds, final_pressure, chainmail) = match &mb {
-        MethodBody::Ffm(pb) => (
-            opts.storage,
-            Some(scene.solver.constraints),
-            pb.base_seconds,
-            pb.precompute_seconds,
-            Some(pb.body.pressure()),
-            None,
-        ),
-        MethodBody::Chainmail(cb) => (
-            Storage::F64,
-            None,
-            0.0,
-            cb.setup_seconds(),
-            None,
-            Some(ChainmailStats {
-                spacing: cb.lattice().spacing(),
-                elements: cb.lattice().len(),
-                tetrahedra: cb.lattice().tets().len(),
-                tss: scene.chainmail.tss,
-                relaxation: scene.chainmail.relaxation,
-                setup_seconds: cb.setup_seconds(),
-            }),
-        ),
-    };
+    let d = MethodDetails::of(&mb, scene, opts);
     let mut report = ProbeReport {
         scene: scene.name.clone(),
         path: path.source.display().to_string(),
         method,
         kind: path.kind,
-        precision,
-        constraints,
+        precision: d.precision,
+        constraints: d.constraints,
         probe: ProbeStats {
             frames: replay.frames,
             vertices: body.n_vertices(),
             probed_vertices: probed.len(),
-            precompute_seconds,
+            precompute_seconds: d.precompute_seconds,
             memory_bytes: body.memory_bytes(),
             latency_us: Latency::of(&replay.latency_us),
         },
-        base_seconds,
+        base_seconds: d.base_seconds,
         base_max_displacement: base_max,
         final_max_displacement: max_norm(body.field()),
-        final_pressure,
-        chainmail,
+        final_pressure: d.final_pressure,
+        chainmail: d.chainmail,
+        fem: d.fem,
         seconds_total: 0.0,
     };
     let png = if forces {
@@ -285,4 +267,52 @@ pub fn run_probe_with(
     ];
     write_files_atomically(out, &files)?;
     Ok(report)
+}
+
+/// What a probe report says of the method's body.
+struct MethodDetails {
+    precision: Storage,
+    constraints: Option<ConstraintKind>,
+    base_seconds: f64,
+    precompute_seconds: f64,
+    final_pressure: Option<f64>,
+    chainmail: Option<ChainmailStats>,
+    fem: Option<FemStats>,
+}
+
+impl MethodDetails {
+    fn of(mb: &MethodBody, scene: &Scene, opts: &ProbeOptions) -> Self {
+        let none = Self {
+            precision: Storage::F64,
+            constraints: None,
+            base_seconds: 0.0,
+            precompute_seconds: 0.0,
+            final_pressure: None,
+            chainmail: None,
+            fem: None,
+        };
+        match mb {
+            MethodBody::Ffm(pb) => Self {
+                precision: opts.storage,
+                constraints: Some(scene.solver.constraints),
+                base_seconds: pb.base_seconds,
+                precompute_seconds: pb.precompute_seconds,
+                final_pressure: Some(pb.body.pressure()),
+                ..none
+            },
+            MethodBody::Chainmail(cb) => Self {
+                precompute_seconds: cb.setup_seconds(),
+                chainmail: Some(ChainmailStats {
+                    spacing: cb.lattice().spacing(),
+                    elements: cb.lattice().len(),
+                    tetrahedra: cb.lattice().tets().len(),
+                    tss: scene.chainmail.tss,
+                    relaxation: scene.chainmail.relaxation,
+                    setup_seconds: cb.setup_seconds(),
+                }),
+                ..none
+            },
+            MethodBody::Fem(b) => Self { base_seconds: b.setup_seconds(), fem: Some(b.stats()), ..none },
+        }
+    }
 }

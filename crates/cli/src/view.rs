@@ -6,6 +6,7 @@ use std::sync::Arc;
 
 use fibfluid::interact::chainmail_body::ChainmailBody;
 use fibfluid::interact::chainmail_settings::Variant;
+use fibfluid::interact::fem_body::FemInteractive;
 use fibfluid::interact::{Interactive, Method, ProbeError, build_body};
 use fibfluid::{Choice, Scene, Shape, memory_budget};
 use fibfluid_viewer::{BodyFactory, Server, ServerOptions, ViewMesh, ViewerError};
@@ -50,9 +51,11 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
         host: args.host.clone(),
         port: args.port,
         max_clients: args.max_clients,
-        // FFM is served only when its precompute is built (started with `--method ffm`).
+        // FFM is served only when its precompute is built (started with `--method ffm`); the
+        // FEM when the scene gives [tissue].
         methods: std::iter::once(args.method)
             .chain(Method::ALL.iter().copied().filter(|m| *m != args.method && *m != Method::Ffm))
+            .filter(|m| *m != Method::Fem || scene.tissue.is_some())
             .collect(),
         ..ServerOptions::default()
     };
@@ -77,13 +80,21 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
     } else {
         None
     };
-    let budget = memory_budget(args.response.max_memory);
+    let max_memory = args.response.max_memory;
+    let budget = memory_budget(max_memory);
+    // ChainMail and FEM bodies are built per client (a voxelization, or a sparse factor).
     let chainmail =
         move |scene: &Scene, method: Method| -> Result<Box<dyn Interactive + Send>, ViewerError> {
-            let variant = Variant::of_method(method).expect("a ChainMail method");
-            ChainmailBody::from_model(scene, &scene.chainmail, variant, budget)
-                .map(|b| Box::new(b) as Box<dyn Interactive + Send>)
-                .map_err(|e| ViewerError::Build { method, source: Box::new(e) })
+            let built: Result<Box<dyn Interactive + Send>, Box<dyn std::error::Error + Send + Sync>> =
+                match Variant::of_method(method) {
+                    Some(variant) => ChainmailBody::from_model(scene, &scene.chainmail, variant, budget)
+                        .map(|b| Box::new(b) as Box<dyn Interactive + Send>)
+                        .map_err(|e| Box::new(e) as _),
+                    None => FemInteractive::new(scene, max_memory)
+                        .map(|b| Box::new(b) as Box<dyn Interactive + Send>)
+                        .map_err(|e| Box::new(e) as _),
+                };
+            built.map_err(|source| ViewerError::Build { method, source })
         };
     let mesh = match &ffm {
         Some(body) => ViewMesh::new(file, body)?,
@@ -103,7 +114,7 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
 }
 
 /// The methods a viewer serves: ChainMail always; FFM when its precompute was built (the
-/// viewer was started with `--method ffm`, the default).
+/// viewer was started with `--method ffm`, the default); the FEM with `[tissue]`.
 fn available(ffm: bool) -> String {
     Method::ALL.iter().filter(|m| ffm || **m != Method::Ffm).map(|m| m.name()).collect::<Vec<_>>().join(", ")
 }

@@ -58,6 +58,22 @@ const EXPECTED: &[(&str, &str)] = &[
         "scene-force-vertex-out-of-range.toml",
         "scene-force-vertex-out-of-range.toml:14: [[force]] #1.vertex: vertex 42 is out of range",
     ),
+    (
+        "scene-fem-poisson-half.toml",
+        "scene-fem-poisson-half.toml:7: [tissue].poisson: must be in (-1, 0.5): 0.5 is the incompressible limit",
+    ),
+    (
+        "scene-fem-resolution-zero.toml",
+        "scene-fem-resolution-zero.toml:18: [fem].resolution: must be between 1 and 256",
+    ),
+    (
+        "scene-fem-thin-body.toml",
+        "scene-fem-thin-body.toml: fem: the body is 2e-2 thick along z, thinner than a cell (6.25e-2)",
+    ),
+    (
+        "scene-fem-young-zero.toml",
+        "scene-fem-young-zero.toml:6: [tissue].young: must be finite and > 0 (Pa), got 0",
+    ),
     ("scene-is-a-directory.toml", "is a directory, not a scene file"),
     ("scene-malformed.toml", "scene-malformed.toml:2: unclosed table, expected `]` (column 6)"),
     ("scene-mesh-is-directory.toml", "mesh-is-a-directory.obj:0: is a directory, not a mesh file"),

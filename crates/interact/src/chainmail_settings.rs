@@ -139,7 +139,7 @@ impl Variant {
         match method {
             Method::TsveChainmail => Some(Variant::Tsve),
             Method::GeneralizedChainmail => Some(Variant::Generalized),
-            Method::Ffm => None,
+            Method::Ffm | Method::Fem => None,
         }
     }
 }

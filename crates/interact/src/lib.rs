@@ -84,6 +84,7 @@ pub mod chainmail_body;
 pub mod chainmail_settings;
 mod compliance;
 mod error;
+pub mod fem_body;
 mod interactive;
 mod method_body;
 pub mod replay;

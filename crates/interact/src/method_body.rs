@@ -9,6 +9,7 @@ use fibfluid_sim::{Method, Mode, Model, RunOptions, Shape, Simulation};
 
 use crate::chainmail_body::ChainmailBody;
 use crate::chainmail_settings::{ChainmailSettings, Variant};
+use crate::fem_body::FemInteractive;
 use crate::replay::ProbeError;
 use crate::{Compliance, ComplianceOptions, FfmBody, InteractError, Interactive, Storage, memory_budget};
 
@@ -92,6 +93,8 @@ pub enum MethodBody {
     Ffm(Box<ProbeBody>),
     /// A ChainMail body.
     Chainmail(Box<ChainmailBody>),
+    /// The finite-element body.
+    Fem(Box<FemInteractive>),
 }
 
 impl MethodBody {
@@ -103,9 +106,12 @@ impl MethodBody {
         method: Method,
         opts: &ProbeOptions,
     ) -> Result<Self, ProbeError> {
-        match Variant::of_method(method) {
-            None => Ok(MethodBody::Ffm(Box::new(build_body(scene, opts)?))),
-            Some(variant) => {
+        match (method, Variant::of_method(method)) {
+            (Method::Fem, _) => {
+                Ok(MethodBody::Fem(Box::new(FemInteractive::new(scene, opts.max_memory_bytes)?)))
+            }
+            (_, None) => Ok(MethodBody::Ffm(Box::new(build_body(scene, opts)?))),
+            (_, Some(variant)) => {
                 let budget = memory_budget(opts.max_memory_bytes);
                 let body = ChainmailBody::from_model(scene, chainmail, variant, budget)
                     .map_err(|source| ProbeError::Chainmail { scene: scene.display_name(), source })?;
@@ -119,6 +125,7 @@ impl MethodBody {
         match self {
             MethodBody::Ffm(b) => &mut b.body,
             MethodBody::Chainmail(b) => b.as_mut(),
+            MethodBody::Fem(b) => b.as_mut(),
         }
     }
 
@@ -127,15 +134,17 @@ impl MethodBody {
         match self {
             MethodBody::Ffm(b) => &b.body,
             MethodBody::Chainmail(b) => b.as_ref(),
+            MethodBody::Fem(b) => b.as_ref(),
         }
     }
 
     /// Seconds of the setup: base solve and precompute (FFM), voxelization and embedding
-    /// (ChainMail).
+    /// (ChainMail), voxelization, assembly, factorization and base solve (FEM).
     pub fn setup_seconds(&self) -> f64 {
         match self {
             MethodBody::Ffm(b) => b.base_seconds + b.precompute_seconds,
             MethodBody::Chainmail(b) => b.setup_seconds(),
+            MethodBody::Fem(b) => b.setup_seconds(),
         }
     }
 }

@@ -58,7 +58,7 @@ macro_rules! impl_choice {
         }
         impl ::std::fmt::Display for $t {
             fn fmt(&self, f: &mut ::std::fmt::Formatter<'_>) -> ::std::fmt::Result {
-                f.write_str($crate::Choice::name(*self))
+                f.pad($crate::Choice::name(*self))
             }
         }
         impl ::serde::Serialize for $t {

@@ -6,7 +6,10 @@ use fibfluid_assembly::{Constraints, DEFAULT_PENALTY, Material, Selector, Stiffn
 use fibfluid_geometry::{Polygon, ReadOptions, load_mesh_with};
 use fibfluid_sim::contact::{Plate, PlateProblem, check_plates};
 use fibfluid_sim::guards::Guards;
-use fibfluid_sim::{ForceTiming, MAX_STEPS, Model, PLATE_REST_TOLERANCE, PointForce, Shape, SolverOptions};
+use fibfluid_sim::{
+    FemSettings, ForceTiming, LengthUnit, MAX_STEPS, Method, Model, PLATE_REST_TOLERANCE, PointForce, Shape,
+    SolverOptions, Tissue,
+};
 
 use crate::error::SceneProblem;
 use crate::invalid::{Invalid, choice, invalid, range, unkeyed};
@@ -23,9 +26,27 @@ fn axis_index(s: &str, key: &str) -> Result<usize, Invalid> {
 
 /// The scene's values, built from its tables; `dir` resolves the mesh path.
 pub(crate) fn build(spec: SceneToml, dir: &Path, name: String) -> Result<Model, Invalid> {
-    let shape = shape(spec.mesh, spec.polygon, dir)?;
+    let unit =
+        spec.mesh.as_ref().map(|m| choice("[mesh].unit", m.unit.clone(), LengthUnit::M)).transpose()?;
+    let unit = unit.unwrap_or_default();
+    let shape = shape(spec.mesh, spec.polygon, dir, unit)?;
     let axes = if matches!(shape, Shape::Polygon(_)) { 2 } else { 3 };
-    let material = material(spec.material, spec.fluid, axes)?;
+    let solver = solver(spec.solver)?;
+    let tissue = spec.tissue.map(tissue).transpose()?;
+    let fem = fem_settings(spec.fem)?;
+    let material = match (spec.material, solver.method) {
+        (Some(m), _) => material(m, spec.fluid, axes)?,
+        // Unused by the FEM; no density or surface tension, so no FFM setting looks ineffective.
+        (None, Method::Fem) if tissue.is_some() => {
+            Material { density: 0.0, surface_tension: 0.0, ..Material::default() }
+        }
+        (None, Method::Fem) => {
+            return Err(unkeyed(SceneProblem::Conflict(
+                "method fem needs a [tissue] table (young in Pa, poisson, density in kg/m^3)",
+            )));
+        }
+        (None, _) => return Err(unkeyed(SceneProblem::Conflict("missing [material] table"))),
+    };
     let (steps, tolerance) = load(spec.load)?;
     let guards = guards(spec.guards)?;
     let gravity = spec.gravity.map(|g| g.acceleration).unwrap_or([0.0; 3]);
@@ -35,7 +56,6 @@ pub(crate) fn build(spec: SceneToml, dir: &Path, name: String) -> Result<Model, 
     let vertices = VertexMap::of(&shape);
     let constraints = constraints(&spec.fix, &vertices, axes)?;
     let forces = forces(&spec.force, &vertices)?;
-    let solver = solver(spec.solver)?;
     for c in 0..axes {
         if constraints.count(c) == 0 {
             return Err(Invalid {
@@ -54,11 +74,47 @@ pub(crate) fn build(spec: SceneToml, dir: &Path, name: String) -> Result<Model, 
     model.guards = guards;
     model.plates = plates;
     model.solver = solver;
+    model.tissue = tissue;
+    model.fem = fem;
+    model.unit = unit;
     Ok(model)
 }
 
-/// The body: a mesh file or a polygon.
-fn shape(mesh: Option<MeshToml>, polygon: Option<PolygonToml>, dir: &Path) -> Result<Shape, Invalid> {
+/// `[tissue]`: what the tissue is, in SI units, checked by the FEM's own rule.
+fn tissue(t: TissueToml) -> Result<Tissue, Invalid> {
+    let density = t.density.unwrap_or(0.0);
+    Tissue::new(t.young, t.poisson, density).map_err(|e| match e {
+        fibfluid_fem::FemError::InvalidTissue { name, value, .. } => {
+            let rule = match name {
+                "young" => "finite and > 0 (Pa)",
+                "poisson" => "in (-1, 0.5): 0.5 is the incompressible limit the linear FEM cannot take",
+                _ => "finite and >= 0 (kg/m^3)",
+            };
+            range(format!("[tissue].{name}"), rule, value)
+        }
+        other => invalid("[tissue]", SceneProblem::Tissue(other)),
+    })
+}
+
+/// `[fem]`.
+fn fem_settings(f: Option<FemToml>) -> Result<FemSettings, Invalid> {
+    let mut s = FemSettings::default();
+    if let Some(r) = f.and_then(|f| f.resolution) {
+        if !(1..=fibfluid_fem::MAX_RESOLUTION as i64).contains(&r) {
+            return Err(range("[fem].resolution", "between 1 and 256 (cells along the longest side)", r));
+        }
+        s.resolution = r as usize;
+    }
+    Ok(s)
+}
+
+/// The body: a mesh file (converted from its unit to metres) or a polygon.
+fn shape(
+    mesh: Option<MeshToml>,
+    polygon: Option<PolygonToml>,
+    dir: &Path,
+    unit: LengthUnit,
+) -> Result<Shape, Invalid> {
     match (mesh, polygon) {
         (Some(m), None) => {
             let mesh_path = dir.join(&m.path);
@@ -74,8 +130,9 @@ fn shape(mesh: Option<MeshToml>, polygon: Option<PolygonToml>, dir: &Path) -> Re
                 return Err(range("[mesh].scale", "positive", s));
             }
             // Scaled before validation: coordinates too large or small for f64 are checked
-            // in the units the scene uses.
-            let file = load_mesh_with(&mesh_path, &ReadOptions { scale: m.scale, ..Default::default() })
+            // in the units the scene uses (metres inside).
+            let scale = Some(m.scale.unwrap_or(1.0) * unit.metres()).filter(|s| *s != 1.0);
+            let file = load_mesh_with(&mesh_path, &ReadOptions { scale, ..Default::default() })
                 .map_err(|e| invalid("[mesh].path", SceneProblem::Mesh(e)))?;
             Ok(Shape::Surface(Box::new(file)))
         }
@@ -299,6 +356,14 @@ fn solver(s: Option<SolverToml>) -> Result<SolverOptions, Invalid> {
     solver.stepping = choice("[solver].stepping", s.stepping, solver.stepping)?;
     solver.precision = choice("[solver].precision", s.precision, solver.precision)?;
     solver.constraints = choice("[solver].constraints", s.constraints, solver.constraints)?;
+    solver.method = choice("[solver].method", s.method, solver.method)?;
+    if solver.method.is_chainmail() {
+        return Err(range(
+            "[solver].method",
+            "ffm or fem (ChainMail is interactive only: probe, compare, view)",
+            solver.method,
+        ));
+    }
     solver.penalty = s.penalty.unwrap_or(DEFAULT_PENALTY);
     if !(solver.penalty.is_finite() && solver.penalty > 0.0) {
         return Err(range("[solver].penalty", "positive", solver.penalty));

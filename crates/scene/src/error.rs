@@ -161,6 +161,9 @@ pub enum SceneProblem {
     /// A constraint that cannot be applied.
     #[error(transparent)]
     Constraint(fibfluid_assembly::AssemblyError),
+    /// A `[tissue]` value the finite-element method refuses.
+    #[error(transparent)]
+    Tissue(fibfluid_fem::FemError),
     /// A plate whose normal points away from the body.
     #[error("the plate faces away from the body (its normal must point towards the body)")]
     PlateFacesAway,

@@ -45,6 +45,9 @@ pub struct Scene {
     pub model: Model,
     /// How the ChainMail methods voxelize and deform the body (`[chainmail]`).
     pub chainmail: ChainmailSettings,
+    /// Whether the scene gives FFM's fiber material (`[material]`); a scene with only
+    /// `[tissue]` runs the finite-element method.
+    pub ffm_material: bool,
 }
 
 impl Deref for Scene {
@@ -68,7 +71,7 @@ impl From<Scene> for Model {
 
 impl From<Model> for Scene {
     fn from(model: Model) -> Scene {
-        Scene { model, chainmail: ChainmailSettings::default() }
+        Scene { model, chainmail: ChainmailSettings::default(), ffm_material: true }
     }
 }
 
@@ -108,8 +111,9 @@ impl Scene {
             at(key, line, problem)
         };
         let chainmail = chainmail_section::parse(spec.chainmail.take()).map_err(located)?;
+        let ffm_material = spec.material.is_some();
         let mut model = build::build(spec, dir, name).map_err(located)?;
         model.source = Some(path.to_path_buf());
-        Ok(Self { model, chainmail })
+        Ok(Self { model, chainmail, ffm_material })
     }
 }

@@ -8,7 +8,9 @@ use serde::Deserialize;
 pub(crate) struct SceneToml {
     pub(crate) mesh: Option<MeshToml>,
     pub(crate) polygon: Option<PolygonToml>,
-    pub(crate) material: MaterialToml,
+    pub(crate) material: Option<MaterialToml>,
+    pub(crate) tissue: Option<TissueToml>,
+    pub(crate) fem: Option<FemToml>,
     pub(crate) fluid: Option<FluidToml>,
     pub(crate) load: Option<LoadToml>,
     pub(crate) gravity: Option<GravityToml>,
@@ -37,6 +39,21 @@ pub(crate) struct PlateToml {
 pub(crate) struct MeshToml {
     pub(crate) path: String,
     pub(crate) scale: Option<f64>,
+    pub(crate) unit: Option<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct TissueToml {
+    pub(crate) young: f64,
+    pub(crate) poisson: f64,
+    pub(crate) density: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct FemToml {
+    pub(crate) resolution: Option<i64>,
 }
 
 #[derive(Deserialize)]
@@ -122,6 +139,7 @@ pub(crate) struct SolverToml {
     pub(crate) precision: Option<String>,
     pub(crate) constraints: Option<String>,
     pub(crate) penalty: Option<f64>,
+    pub(crate) method: Option<String>,
 }
 
 #[derive(Deserialize)]

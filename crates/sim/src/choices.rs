@@ -14,16 +14,21 @@ pub enum Method {
     TsveChainmail,
     /// Generalized (traditional) ChainMail (interactive only; grabs only).
     GeneralizedChainmail,
+    /// The finite-element reference: linear elasticity on a sparse voxel grid (batch runs
+    /// and interactive probing, forces and grabs; needs `[tissue]`).
+    Fem,
 }
 
 impl Choice for Method {
     const WHAT: &'static str = "method";
-    const ALL: &'static [Self] = &[Method::Ffm, Method::TsveChainmail, Method::GeneralizedChainmail];
+    const ALL: &'static [Self] =
+        &[Method::Ffm, Method::TsveChainmail, Method::GeneralizedChainmail, Method::Fem];
     fn name(self) -> &'static str {
         match self {
             Method::Ffm => "ffm",
             Method::TsveChainmail => "tsve-chainmail",
             Method::GeneralizedChainmail => "generalized-chainmail",
+            Method::Fem => "fem",
         }
     }
 }
@@ -109,3 +114,40 @@ impl Choice for ForceTiming {
     }
 }
 impl_choice!(ForceTiming);
+
+/// The length unit of a mesh file (`[mesh] unit`): positions are converted to metres on
+/// reading and back on writing; everything inside is SI.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum LengthUnit {
+    /// Metres (the default).
+    #[default]
+    M,
+    /// Centimetres.
+    Cm,
+    /// Millimetres.
+    Mm,
+}
+
+impl Choice for LengthUnit {
+    const WHAT: &'static str = "length unit";
+    const ALL: &'static [Self] = &[LengthUnit::M, LengthUnit::Cm, LengthUnit::Mm];
+    fn name(self) -> &'static str {
+        match self {
+            LengthUnit::M => "m",
+            LengthUnit::Cm => "cm",
+            LengthUnit::Mm => "mm",
+        }
+    }
+}
+impl_choice!(LengthUnit);
+
+impl LengthUnit {
+    /// Metres per unit.
+    pub fn metres(self) -> f64 {
+        match self {
+            LengthUnit::M => 1.0,
+            LengthUnit::Cm => 1e-2,
+            LengthUnit::Mm => 1e-3,
+        }
+    }
+}

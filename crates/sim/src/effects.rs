@@ -12,7 +12,7 @@ use std::fmt;
 use fibfluid_assembly::StiffnessLaw;
 use fibfluid_geometry::Vec3;
 
-use crate::choices::Mode;
+use crate::choices::{Method, Mode};
 use crate::model::{Model, Shape};
 
 /// A setting of a scene that has no effect on the run.
@@ -21,6 +21,11 @@ pub enum Ineffective {
     /// `[gravity]` is set but the fluid density is 0: gravity acts only through the
     /// hydrostatic load `rho a h S`, which is then zero.
     GravityWithoutDensity {
+        /// The acceleration asked for.
+        acceleration: Vec3,
+    },
+    /// `[gravity]` is set for the finite-element method but `[tissue] density` is 0.
+    GravityWithoutTissueDensity {
         /// The acceleration asked for.
         acceleration: Vec3,
     },
@@ -59,6 +64,11 @@ impl fmt::Display for Ineffective {
                 "[gravity] acceleration = [{}, {}, {}] has no effect: the fluid density is 0 and gravity acts only through the hydrostatic pressure; set [fluid] density (e.g. 1000)",
                 a[0], a[1], a[2]
             ),
+            Ineffective::GravityWithoutTissueDensity { acceleration: a } => write!(
+                f,
+                "[gravity] acceleration = [{}, {}, {}] has no effect: [tissue] density is 0 (set it in kg/m^3, e.g. 1000)",
+                a[0], a[1], a[2]
+            ),
             Ineffective::DensityWithoutGravity { density } => write!(
                 f,
                 "[fluid] density = {density} has no effect without gravity (it enters only the hydrostatic load); add [gravity] acceleration or remove [fluid]"
@@ -88,11 +98,17 @@ impl fmt::Display for Ineffective {
 pub fn ineffective(scene: &Model) -> Vec<Ineffective> {
     let mut found = Vec::new();
     let has_gravity = scene.gravity.iter().any(|&g| g != 0.0);
-    let density = scene.material.density;
+    let fem = scene.solver.method == Method::Fem;
+    // FFM's gravity acts through the fluid's density, the FEM's through the tissue's.
+    let density = if fem { scene.tissue.map(|t| t.density).unwrap_or(0.0) } else { scene.material.density };
     if has_gravity && density == 0.0 {
-        found.push(Ineffective::GravityWithoutDensity { acceleration: scene.gravity });
+        found.push(if fem {
+            Ineffective::GravityWithoutTissueDensity { acceleration: scene.gravity }
+        } else {
+            Ineffective::GravityWithoutDensity { acceleration: scene.gravity }
+        });
     }
-    if !has_gravity && density > 0.0 {
+    if !has_gravity && density > 0.0 && !fem {
         found.push(Ineffective::DensityWithoutGravity { density });
     }
     let stiffens = match &scene.material.law {
@@ -100,7 +116,7 @@ pub fn ineffective(scene: &Model) -> Vec<Ineffective> {
         StiffnessLaw::Quadratic { c } => *c != 0.0,
         StiffnessLaw::Custom(_) => true,
     };
-    if stiffens && scene.solver.mode != Mode::Nonlinear {
+    if stiffens && scene.solver.mode != Mode::Nonlinear && !fem {
         found.push(Ineffective::StiffeningOutsideNonlinear { mode: scene.solver.mode });
     }
     let axes = if matches!(scene.shape, Shape::Polygon(_)) { 2 } else { 3 };

@@ -12,6 +12,24 @@ pub enum Error {
     /// A linear solve failed (singular system, residual too large).
     #[error("linear solver: {0}")]
     Linalg(#[from] fibfluid_linalg::LinalgError),
+    /// The finite-element method failed (grid, tissue, factorization, solve).
+    #[error("{scene}: fem: {source}")]
+    Fem {
+        /// The scene.
+        scene: String,
+        /// What failed.
+        source: fibfluid_fem::FemError,
+    },
+    /// The model lacks what its method needs, or asks what the method cannot do.
+    #[error("{scene}: {method}: {problem}")]
+    MethodNeeds {
+        /// The scene.
+        scene: String,
+        /// The method.
+        method: crate::Method,
+        /// What is missing or unsupported.
+        problem: &'static str,
+    },
     /// A load or query names a vertex the body does not have.
     #[error("vertex {vertex} does not exist: the body has {vertices} vertices")]
     VertexOutOfRange {

@@ -23,6 +23,7 @@ mod choices;
 pub mod contact;
 mod effects;
 mod error;
+pub mod fem_run;
 pub mod guards;
 mod model;
 pub mod plan;
@@ -31,12 +32,12 @@ pub mod samples;
 mod simulate;
 pub mod stages;
 
-pub use choices::{ForceTiming, Method, Mode, Stepping};
+pub use choices::{ForceTiming, LengthUnit, Method, Mode, Stepping};
 pub use effects::{Ineffective, ineffective};
 pub use error::{Error, Result};
 pub use model::{
-    MAX_STEPS, Model, PLATE_REST_TOLERANCE, PointForce, Shape, SolverOptions, VOLUME_NEWTON_ITERATIONS,
-    VOLUME_TOLERANCE,
+    FemSettings, MAX_STEPS, Model, PLATE_REST_TOLERANCE, PointForce, Shape, SolverOptions,
+    VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE,
 };
 pub use plan::{Plan, PlannedStage};
 pub use report::{Report, RoundTrip, SkippedStage, roundtrip, roundtrip_error};
@@ -47,4 +48,5 @@ pub use simulate::{
 pub use stages::{Stage, StageLog, StageRecord};
 
 pub use fibfluid_assembly::ConstraintKind;
+pub use fibfluid_fem::Tissue;
 pub use fibfluid_linalg::{Backend, Choice, ParseChoiceError, Precision, memory_budget};

@@ -8,7 +8,7 @@ use fibfluid_assembly::{ConstraintKind, ConstraintMethod, Constraints, DEFAULT_P
 use fibfluid_geometry::{MeshFile, Polygon, Vec3};
 use fibfluid_linalg::{Backend, Precision};
 
-use crate::choices::{ForceTiming, Mode, Stepping};
+use crate::choices::{ForceTiming, LengthUnit, Method, Mode, Stepping};
 
 use crate::contact::Plate;
 use crate::guards::Guards;
@@ -39,6 +39,8 @@ pub struct SolverOptions {
     pub constraints: ConstraintKind,
     /// The penalty's diagonal value (used when `constraints` is `penalty`).
     pub penalty: f64,
+    /// The method a batch run uses (`[solver] method`): FFM or the FEM.
+    pub method: Method,
 }
 
 impl SolverOptions {
@@ -58,6 +60,7 @@ impl Default for SolverOptions {
             precision: Precision::F64,
             constraints: ConstraintKind::Eliminate,
             penalty: DEFAULT_PENALTY,
+            method: Method::Ffm,
         }
     }
 }
@@ -99,6 +102,25 @@ pub struct Model {
     pub plates: Vec<Plate>,
     /// Solver choices.
     pub solver: SolverOptions,
+    /// What the tissue is, in SI units (`[tissue]`): the finite-element method's material.
+    pub tissue: Option<fibfluid_fem::Tissue>,
+    /// The finite-element method's settings (`[fem]`).
+    pub fem: FemSettings,
+    /// The length unit of the mesh file: positions inside are in metres.
+    pub unit: LengthUnit,
+}
+
+/// The finite-element method's settings (`[fem]`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FemSettings {
+    /// Cells along the bounding box's longest side.
+    pub resolution: usize,
+}
+
+impl Default for FemSettings {
+    fn default() -> Self {
+        Self { resolution: fibfluid_fem::DEFAULT_RESOLUTION }
+    }
 }
 
 impl Model {
@@ -127,6 +149,9 @@ impl Model {
             guards: Guards::default(),
             plates: vec![],
             solver: SolverOptions::default(),
+            tissue: None,
+            fem: FemSettings::default(),
+            unit: LengthUnit::M,
         }
     }
 

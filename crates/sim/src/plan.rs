@@ -10,7 +10,7 @@
 use fibfluid_linalg::{Backend, Precision, cholesky_flops, lu_flops};
 use serde::Serialize;
 
-use crate::choices::{Mode, Stepping};
+use crate::choices::{Method, Mode, Stepping};
 use crate::model::{Model, Shape, VOLUME_NEWTON_ITERATIONS};
 use crate::stages::{Stage, names};
 use crate::{Error, Result};
@@ -54,6 +54,9 @@ struct Size {
 impl Plan {
     /// Plans the run of `scene` with its solver options and load steps.
     pub fn from_scene(scene: &Model) -> Plan {
+        if scene.solver.method == Method::Fem {
+            return fem_plan(scene);
+        }
         let size = match &scene.shape {
             Shape::Surface(m) => Size {
                 n: m.mesh.n_vertices() as f64,
@@ -78,6 +81,9 @@ impl Plan {
     /// whose convexity check would take minutes. A model this plan refuses is refused
     /// before anything else runs.
     pub fn from_counts(scene: &Model) -> Plan {
+        if scene.solver.method == Method::Fem {
+            return fem_plan(scene);
+        }
         let size = match &scene.shape {
             Shape::Surface(m) => Size {
                 n: m.mesh.n_vertices() as f64,
@@ -122,7 +128,9 @@ impl Plan {
             stage: self.largest_stage().map(|s| s.name).unwrap_or(names::FACTORIZATION),
             needed: self.memory_bytes,
             available: limit,
-            hint: if backend.is_dense() {
+            hint: if self.runs(names::VOXELIZATION) {
+                "lower [fem] resolution"
+            } else if backend.is_dense() {
                 "use the `structured` backend (it never forms the dense matrix) or a coarser mesh"
             } else {
                 "use a coarser mesh (the stiffness blocks are dense N x N)"
@@ -405,4 +413,56 @@ fn step_stages(scene: &Model, c: &Costs) -> Vec<PlannedStage> {
     });
     st.push(stage(names::UPDATE, true, "positions += du", 0.0, steps * d * n));
     st
+}
+
+/// The finite-element method's plan, from the grid's estimate (counts only): voxelization,
+/// assembly, factorization and one solve.
+fn fem_plan(scene: &Model) -> Plan {
+    let positions = scene.rest_positions();
+    let st = match fibfluid_fem::GridEstimate::of(&positions, scene.fem.resolution) {
+        Ok(e) => {
+            let cells = e.cells as f64;
+            let samples = (fibfluid_fem::SUBSAMPLES as f64).powi(3);
+            vec![
+                stage(
+                    names::VOXELIZATION,
+                    true,
+                    format!(
+                        "{} x {} x {} cells of {:.3e} m, fill from {samples} samples each",
+                        e.dims[0], e.dims[1], e.dims[2], e.cell_size
+                    ),
+                    cells * 80.0,
+                    cells * samples * 40.0,
+                ),
+                stage(
+                    names::ASSEMBLY,
+                    true,
+                    format!("B-bar hexahedra: K with up to {} stored nonzeros", e.nonzeros),
+                    e.nonzeros as f64 * 16.0,
+                    cells * 24.0 * 24.0 * 2.0,
+                ),
+                stage(
+                    names::FACTORIZATION,
+                    true,
+                    format!(
+                        "sparse Cholesky of up to {} unknowns (~{:.3e} factor nonzeros, estimated)",
+                        e.dofs, e.factor_nonzeros
+                    ),
+                    e.factor_bytes,
+                    e.factor_flops,
+                ),
+                stage(
+                    names::SOLVE,
+                    true,
+                    "one solve: the whole load at once (linear)",
+                    e.dofs as f64 * 8.0,
+                    4.0 * e.factor_nonzeros,
+                ),
+            ]
+        }
+        Err(e) => vec![stage(names::VOXELIZATION, false, format!("cannot build the grid: {e}"), 0.0, 0.0)],
+    };
+    let memory_bytes = st.iter().map(|s| s.bytes).sum();
+    let flops = st.iter().map(|s| s.flops).sum();
+    Plan { stages: st, memory_bytes, flops }
 }

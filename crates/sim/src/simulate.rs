@@ -17,7 +17,7 @@ use fibfluid_geometry::{Boundary, FiberSet, Vec3, VisibilityOptions, cull_fibers
 use fibfluid_linalg::{FactorOptions, Factorization, FactorizationExt, LinearSolver, PrescribedSet};
 use serde::Serialize;
 
-use crate::choices::{ForceTiming, Mode, Stepping};
+use crate::choices::{ForceTiming, Method, Mode, Stepping};
 use crate::contact::{
     Contact, MAX_ACTIVE_SET_ITERATIONS, PENETRATION_TOLERANCE, PlateRecord, TENSION_TOLERANCE,
 };
@@ -209,6 +209,13 @@ impl Simulation {
     /// [`new`](Self::new) with explicit setup options.
     pub fn with_options(model: impl Into<Model>, opts: &SetupOptions) -> Result<Self> {
         let scene: Model = model.into();
+        if scene.solver.method != Method::Ffm {
+            return Err(Error::MethodNeeds {
+                scene: scene.display_name(),
+                method: scene.solver.method,
+                problem: "is not run by the fiber-fluid Simulation (fem: `fem_run::FemRun`; ChainMail: interactive bodies)",
+            });
+        }
         let started = Instant::now();
         let limit = fibfluid_linalg::memory_budget(opts.max_memory);
         // From counts first: a body too large is refused before its convexity check.

@@ -101,6 +101,8 @@ pub enum Stage {
     Convexity,
     /// Exit and crossing tests of the fibers.
     Visibility,
+    /// The finite-element method's sparse voxel grid (active cells, fill, embedding).
+    Voxelization,
     /// Vertex area vectors.
     Areas,
     /// Bulk fibers (Eq. 6) and the Laplacian blocks.
@@ -137,6 +139,7 @@ impl Choice for Stage {
         Stage::LoadScene,
         Stage::Convexity,
         Stage::Visibility,
+        Stage::Voxelization,
         Stage::Areas,
         Stage::Assembly,
         Stage::SurfaceFibers,
@@ -157,6 +160,7 @@ impl Choice for Stage {
             Stage::LoadScene => "load scene and mesh",
             Stage::Convexity => "convexity check",
             Stage::Visibility => "fiber visibility tests",
+            Stage::Voxelization => "voxelization",
             Stage::Areas => "area vectors",
             Stage::Assembly => "assembly",
             Stage::SurfaceFibers => "surface fibers",
@@ -185,6 +189,8 @@ pub mod names {
     pub const CONVEXITY: Stage = Stage::Convexity;
     /// Exit and crossing tests of the fibers.
     pub const VISIBILITY: Stage = Stage::Visibility;
+    /// The finite-element method's sparse voxel grid.
+    pub const VOXELIZATION: Stage = Stage::Voxelization;
     /// Vertex area vectors.
     pub const AREAS: Stage = Stage::Areas;
     /// Bulk fibers (Eq. 6) and the Laplacian blocks.

@@ -1,0 +1,238 @@
+//! The finite-element method as a batch run: a model's surface voxelized into a sparse
+//! grid of B-bar hexahedra (`fibfluid-fem`), its clamps, gravity and point forces applied in
+//! full, one factorization and one solve (linear elasticity needs no load steps).
+//!
+//! The model's `[tissue]` (Young's modulus in Pa, Poisson's ratio, density in kg/m^3) is the
+//! material; positions are in metres (the scene converts the mesh's declared unit). A
+//! vertex fixed along an axis holds the grid nodes that carry it (`fibfluid_fem::FemBody`
+//! states the rule); a prescribed non-zero displacement and plates are not carried yet and
+//! are refused by name.
+
+use std::time::Instant;
+
+use fibfluid_fem::{FemBody, FemOptions, FemStats, GridEstimate, Loads, Tissue};
+use fibfluid_geometry::Vec3;
+use serde::Serialize;
+
+use crate::choices::{LengthUnit, Method};
+use crate::model::{Model, Shape};
+use crate::stages::{StageLog, StageRecord, names};
+use crate::{Error, Result};
+
+/// A failure of the finite-element crate, with the scene named.
+fn failed(model: &Model) -> impl Fn(fibfluid_fem::FemError) -> Error + '_ {
+    move |source| Error::Fem { scene: model.display_name(), source }
+}
+
+/// The problem of a model that the finite-element method cannot run.
+fn needs(model: &Model, problem: &'static str) -> Error {
+    Error::MethodNeeds { scene: model.display_name(), method: Method::Fem, problem }
+}
+
+/// The model's tissue, or the error that names the missing `[tissue]` section.
+pub fn tissue_of(model: &Model) -> Result<Tissue> {
+    let tissue = model
+        .tissue
+        .ok_or_else(|| needs(model, "needs a [tissue] section (young in Pa, poisson, density in kg/m^3)"))?;
+    tissue.validate().map_err(failed(model))?;
+    Ok(tissue)
+}
+
+/// The grid the model would get, from counts, refused when its estimated factor would not
+/// fit in `limit` bytes.
+pub fn estimate(model: &Model, limit: u64) -> Result<GridEstimate> {
+    let Shape::Surface(file) = &model.shape else {
+        return Err(needs(model, "needs a surface mesh (this scene is a 2D polygon)"));
+    };
+    let est = GridEstimate::of(file.mesh.positions(), model.fem.resolution).map_err(failed(model))?;
+    if est.factor_bytes > limit as f64 {
+        return Err(Error::TooLarge {
+            scene: model.display_name(),
+            stage: names::FACTORIZATION,
+            needed: est.factor_bytes as u64,
+            available: limit,
+            hint: "lower [fem] resolution",
+        });
+    }
+    Ok(est)
+}
+
+/// Per surface vertex, the axes the model fixes. A prescribed non-zero displacement is
+/// refused (the FEM holds fixed vertices at zero).
+pub fn fixed_axes(model: &Model) -> Result<Vec<[bool; 3]>> {
+    if model.constraints.has_nonzero() {
+        return Err(needs(
+            model,
+            "holds fixed vertices at zero: prescribed non-zero displacements are not supported",
+        ));
+    }
+    Ok((0..model.n_vertices())
+        .map(|v| std::array::from_fn(|a| model.constraints.get(v, a).is_some()))
+        .collect())
+}
+
+/// The model's loads in full: gravity and every point force (their timing is a stepping
+/// matter; the linear FEM applies the whole load at once).
+pub fn full_loads(model: &Model) -> Loads {
+    Loads { gravity: model.gravity, point_forces: model.forces.iter().map(|f| (f.vertex, f.value)).collect() }
+}
+
+/// Builds the model's finite-element body (voxelized, assembled, factored), refusing from
+/// counts first.
+pub fn build_body(model: &Model, limit: u64, log: &mut StageLog) -> Result<FemBody> {
+    if !model.plates.is_empty() {
+        return Err(needs(model, "does not carry [[plate]] contact yet (use --method ffm)"));
+    }
+    let tissue = tissue_of(model)?;
+    estimate(model, limit)?;
+    let fixed = fixed_axes(model)?;
+    let Shape::Surface(file) = &model.shape else { unreachable!("estimate refused a polygon") };
+    let options = FemOptions { resolution: model.fem.resolution, ..FemOptions::default() };
+    let start = Instant::now();
+    let body = FemBody::from_surface(file.mesh.positions(), file.mesh.triangles(), &tissue, &fixed, &options)
+        .map_err(failed(model))?;
+    let total = start.elapsed().as_secs_f64();
+    let stats = body.stats();
+    log.add(names::VOXELIZATION, (total - stats.assembly_seconds - stats.factor_seconds).max(0.0));
+    log.add(names::ASSEMBLY, stats.assembly_seconds);
+    log.add(names::FACTORIZATION, stats.factor_seconds);
+    Ok(body)
+}
+
+/// A finished finite-element run.
+#[derive(Debug)]
+pub struct FemRun {
+    /// The model.
+    pub model: Model,
+    /// Rest positions (metres).
+    pub rest: Vec<Vec3>,
+    /// Deformed positions (metres).
+    pub positions: Vec<Vec3>,
+    /// The tissue.
+    pub tissue: Tissue,
+    /// The body's sizes and timings.
+    pub stats: FemStats,
+    /// The solve's measured relative residual.
+    pub residual: f64,
+    /// Stage times.
+    pub log: StageLog,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+}
+
+impl FemRun {
+    /// Runs the model with the finite-element method; `max_memory` as for FFM's setup.
+    pub fn new(model: impl Into<Model>, max_memory: Option<u64>) -> Result<Self> {
+        let model: Model = model.into();
+        let start = Instant::now();
+        let limit = fibfluid_linalg::memory_budget(max_memory);
+        let mut log = StageLog::default();
+        let mut body = build_body(&model, limit, &mut log)?;
+        let solution = log.time(names::SOLVE, || body.solve(&full_loads(&model))).map_err(failed(&model))?;
+        let rest = model.rest_positions();
+        let positions = rest
+            .iter()
+            .zip(&solution.surface_displacements)
+            .map(|(p, u)| [p[0] + u[0], p[1] + u[1], p[2] + u[2]])
+            .collect();
+        Ok(Self {
+            tissue: *body.tissue(),
+            stats: body.stats(),
+            residual: solution.residual,
+            rest,
+            positions,
+            log,
+            seconds: start.elapsed().as_secs_f64(),
+            model,
+        })
+    }
+}
+
+/// The units every number of a report is in.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Units {
+    /// Lengths, positions and displacements inside the report (SI).
+    pub length: &'static str,
+    /// The mesh file's unit (output meshes are written back in it).
+    pub mesh: LengthUnit,
+    /// Forces.
+    pub force: &'static str,
+    /// Stresses, pressures and moduli.
+    pub pressure: &'static str,
+    /// Volumes.
+    pub volume: &'static str,
+}
+
+impl Units {
+    /// SI, with the mesh file's unit.
+    pub fn si(mesh: LengthUnit) -> Self {
+        Self { length: "m", mesh, force: "N", pressure: "Pa", volume: "m^3" }
+    }
+}
+
+/// `report.json` of a finite-element run.
+#[derive(Clone, Debug, Serialize)]
+pub struct FemReport {
+    /// Scene name.
+    pub scene: String,
+    /// `fem`.
+    pub method: Method,
+    /// The units of the numbers below.
+    pub units: Units,
+    /// The tissue (Pa, -, kg/m^3).
+    pub tissue: Tissue,
+    /// Vertices of the surface.
+    pub vertices: usize,
+    /// Grid, sizes and timings.
+    pub fem: FemStats,
+    /// Largest displacement (m).
+    pub max_displacement: f64,
+    /// Mean displacement (m).
+    pub mean_displacement: f64,
+    /// Volume enclosed by the surface before (m^3).
+    pub volume_initial: f64,
+    /// Volume after (m^3).
+    pub volume_final: f64,
+    /// The solve's measured relative residual `|K u - f| / |f|`.
+    pub residual: f64,
+    /// Stages with their seconds.
+    pub stages: Vec<StageRecord>,
+    /// Notes (mesh warnings, etc.).
+    pub notes: Vec<String>,
+    /// Wall-clock seconds of the whole run.
+    pub seconds_total: f64,
+}
+
+impl FemReport {
+    /// The report of a run, with the caller's extra stage records (reading the scene) and
+    /// notes.
+    pub fn of(run: &FemRun, extra_stages: &[StageRecord], notes: Vec<String>) -> Self {
+        let disp: Vec<f64> =
+            run.positions.iter().zip(&run.rest).map(|(p, r)| fibfluid_geometry::vec3::dist(*p, *r)).collect();
+        let (volume_initial, volume_final) = match &run.model.shape {
+            Shape::Surface(m) => (
+                fibfluid_geometry::volume(&run.rest, m.mesh.triangles()),
+                fibfluid_geometry::volume(&run.positions, m.mesh.triangles()),
+            ),
+            Shape::Polygon(_) => (0.0, 0.0),
+        };
+        let mut stages = extra_stages.to_vec();
+        stages.extend_from_slice(run.log.records());
+        Self {
+            scene: run.model.name.clone(),
+            method: Method::Fem,
+            units: Units::si(run.model.unit),
+            tissue: run.tissue,
+            vertices: run.rest.len(),
+            fem: run.stats,
+            max_displacement: disp.iter().copied().fold(0.0, f64::max),
+            mean_displacement: disp.iter().sum::<f64>() / disp.len().max(1) as f64,
+            volume_initial,
+            volume_final,
+            residual: run.residual,
+            stages,
+            notes,
+            seconds_total: run.seconds + extra_stages.iter().map(|s| s.seconds).sum::<f64>(),
+        }
+    }
+}
