@@ -8,4 +8,5 @@ mod memory_guard;
 mod plates;
 mod scenes;
 mod stepping;
+mod units;
 mod volume_properties;
