@@ -62,9 +62,29 @@ enum CliError {
         /// What is wrong.
         problem: &'static str,
     },
+    /// An error of the engine on a scene: the scene file named once.
+    #[error("{}", engine_message(path, source))]
+    Engine {
+        /// The scene file.
+        path: PathBuf,
+        /// What failed.
+        source: fibfluid::sim::Error,
+    },
     /// An error of the viewer (binding, building a body).
     #[error(transparent)]
     Viewer(#[from] fibfluid_viewer::ViewerError),
+}
+
+/// The engine's message with the scene file in front, unless it names the scene already.
+fn engine_message(path: &Path, e: &fibfluid::sim::Error) -> String {
+    let text = e.to_string();
+    let name = path.display().to_string();
+    if text.starts_with(&name) { text } else { format!("{name}: {text}") }
+}
+
+/// Wraps an engine error with the scene file it ran on.
+fn in_scene(path: &Path) -> impl Fn(fibfluid::sim::Error) -> CliError + '_ {
+    move |source| CliError::Engine { path: path.to_path_buf(), source }
 }
 
 /// Errors that reach the command line through the library's error type.
@@ -505,9 +525,9 @@ fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> 
         return run_fem(scene, load, notes, out, over);
     }
     let steps = scene.steps;
-    let mut sim = Simulation::with_options(scene, &over.setup())?;
+    let mut sim = Simulation::with_options(scene, &over.setup()).map_err(in_scene(path))?;
     let opts = RunOptions { progress: progress(steps, "run") };
-    sim.run(&opts)?;
+    sim.run(&opts).map_err(in_scene(path))?;
     print_step_notes(&sim);
     let start = Instant::now();
     let mut report = Report::of(&sim, std::slice::from_ref(&load), notes);
@@ -558,7 +578,8 @@ fn run_fem(
     out: &Path,
     over: &Overrides,
 ) -> Result<(), CliError> {
-    let run = fibfluid::sim::fem_run::FemRun::new(scene, over.max_memory)?;
+    let path = scene.source.clone().unwrap_or_default();
+    let run = fibfluid::sim::fem_run::FemRun::new(scene, over.max_memory).map_err(in_scene(&path))?;
     let start = Instant::now();
     let mut report = fibfluid::sim::fem_run::FemReport::of(&run, std::slice::from_ref(&load), notes);
     let written = fibfluid_cli::write_fem_outputs(out, &run, &report)?;
@@ -617,7 +638,7 @@ fn roundtrip(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> 
         });
         both_ways
     });
-    let rt = fibfluid::roundtrip(scene, &RunOptions { progress })?;
+    let rt = fibfluid::roundtrip(scene, &RunOptions { progress }).map_err(in_scene(path))?;
     if json {
         say!("{}", serde_json::to_string(&rt)?);
     } else {

@@ -486,3 +486,106 @@ fn every_bad_probe_path_gives_one_clean_error_and_writes_nothing() {
     }
     assert!(problems.is_empty(), "{} problems:\n{}", problems.len(), problems.join("\n"));
 }
+
+/// One run of the binary and the problems with its failure: exit 2, one `error:` line that
+/// contains every fragment, no panic.
+fn one_line_failure(args: &[&std::ffi::OsStr], fragments: &[&str]) -> Vec<String> {
+    let dir = tempfile::tempdir().unwrap();
+    let out = fibfluid(args, dir.path());
+    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+    let mut problems = Vec::new();
+    let what = format!("{:?}", args);
+    if out.status.code() != Some(2) {
+        problems.push(format!("{what}: exit {:?}, expected 2: {stderr}", out.status.code()));
+    }
+    let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error: ")).collect();
+    if errors.len() != 1 || stderr.contains("panicked") {
+        problems.push(format!("{what}: expected one error line, got: {stderr}"));
+    }
+    for f in fragments {
+        if !stderr.contains(f) {
+            problems.push(format!("{what}: the error lacks `{f}`: {stderr}"));
+        }
+    }
+    if stderr.len() > 600 {
+        problems.push(format!("{what}: a {}-byte error is not one line a user can read", stderr.len()));
+    }
+    problems
+}
+
+#[test]
+fn a_closed_stdout_is_a_normal_end() {
+    let scene = fixtures_dir().join("scenes/sphere.toml");
+    let mesh = fixtures_dir().join("meshes/liver2.obj");
+    let runs: [Vec<&std::ffi::OsStr>; 3] = [
+        vec!["plan".as_ref(), scene.as_os_str()],
+        vec!["mesh-info".as_ref(), mesh.as_os_str()],
+        vec!["icosphere".as_ref(), "--level".as_ref(), "9".as_ref()],
+    ];
+    for args in runs {
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(reader);
+        let out = Command::new(env!("CARGO_BIN_EXE_fibfluid"))
+            .args(&args)
+            .stdout(writer)
+            .stderr(std::process::Stdio::piped())
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+        assert!(matches!(out.status.code(), Some(0) | Some(2)), "{args:?}: {:?} {stderr}", out.status.code());
+    }
+}
+
+#[test]
+fn hostile_path_files_and_flags_get_one_line() {
+    let scene = fixtures_dir().join("scenes/sphere.toml");
+    let rectangle = fixtures_dir().join("scenes/rectangle.toml");
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("fifo.csv");
+    assert!(Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    let long_header = dir.path().join("long-header.csv");
+    std::fs::write(&long_header, "x".repeat(200_000) + "\n0,1,0,0,0\n").unwrap();
+    let far = dir.path().join("far.csv");
+    std::fs::write(&far, "frame,vertex,ux,uy,uz\n0,36,0,1e308,0\n").unwrap();
+    let many = dir.path().join("many-frames.csv");
+    std::fs::write(&many, "frame,vertex,ux,uy,uz\n0,36,0,-0.1,0\n1000000,,,,\n").unwrap();
+    let big = dir.path().join("big.csv");
+    std::fs::write(&big, "frame,vertex,ux,uy,uz\n".to_string() + &"0,36,0,-0.1,0\n".repeat(100)).unwrap();
+    let out = dir.path().join("out");
+    let probe = |path: &Path| -> Vec<&std::ffi::OsStr> {
+        let mut v: Vec<&std::ffi::OsStr> = vec!["probe".as_ref(), scene.as_os_str(), "--path".as_ref()];
+        v.push(path.as_os_str().to_owned().leak());
+        v.extend(["--out".as_ref(), out.as_os_str()]);
+        v
+    };
+    let mut problems = Vec::new();
+    problems.extend(one_line_failure(&probe(Path::new("/dev/zero")), &["/dev/zero", "not a regular file"]));
+    problems.extend(one_line_failure(&probe(&fifo), &["fifo.csv", "not a regular file"]));
+    problems.extend(one_line_failure(&probe(&long_header), &["long-header.csv:1", "bad header"]));
+    problems.extend(one_line_failure(&probe(&far), &["far.csv:2", "more than"]));
+    let mut capped = vec!["--max-file-bytes".as_ref(), "100".as_ref()];
+    capped.extend(probe(&big));
+    problems.extend(one_line_failure(&capped, &["big.csv"]));
+    let compare: Vec<&std::ffi::OsStr> = vec![
+        "compare".as_ref(),
+        scene.as_os_str(),
+        "--path".as_ref(),
+        many.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+        "--max-memory".as_ref(),
+        "100000000".as_ref(),
+    ];
+    problems.extend(one_line_failure(&compare, &["many-frames.csv", "1000001 frames", "use fewer frames"]));
+    problems.extend(one_line_failure(
+        &["view".as_ref(), rectangle.as_os_str()],
+        &["rectangle.toml", "2D polygon"],
+    ));
+    problems.extend(one_line_failure(
+        &["icosphere".as_ref(), "--level".as_ref(), "9".as_ref(), "--out".as_ref(), out.as_os_str()],
+        &["at most 7 (163842 vertices"],
+    ));
+    assert!(problems.is_empty(), "{} problems:\n{}", problems.len(), problems.join("\n"));
+    assert!(!out.exists(), "a refused command wrote {}", out.display());
+}

@@ -537,7 +537,8 @@ fn compare_writes_the_documented_keys() {
             "memory_bytes",
             "volume_change_max",
             "rest_distance_after_release",
-            "surface_rms_vs_ffm",
+            "error_vs_reference",
+            "worst_vertex_error",
         ] {
             assert!(m[k].as_f64().is_some_and(|v| v.is_finite() && v >= 0.0), "{name}.{k}: {}", m[k]);
         }
@@ -545,8 +546,12 @@ fn compare_writes_the_documented_keys() {
             assert!(m["latency_us"][k].as_f64().unwrap() > 0.0, "{name}.latency_us.{k}");
         }
     }
-    assert_eq!(methods["ffm"]["surface_rms_vs_ffm"], 0.0);
-    assert!(methods["tsve-chainmail"]["surface_rms_vs_ffm"].as_f64().unwrap() > 0.0);
+    // Without [tissue] the FEM is skipped (named) and FFM is the reference.
+    assert_eq!(json["reference"], "ffm");
+    assert!(json["skipped"]["fem"].as_str().unwrap().contains("[tissue]"));
+    assert_eq!(methods["ffm"]["error_vs_reference"], 0.0);
+    assert!(methods["tsve-chainmail"]["error_vs_reference"].as_f64().unwrap() > 0.0);
+    assert_eq!(methods["tsve-chainmail"]["carries_scene_loads"], false);
     // The paper's two claims on this path (a 1-unit pull of a unit sphere, then 3 release
     // frames). Measured: volume change 0.023 (TSVE) against 0.46 (Generalized); distance
     // from rest after release 0.095 against 0.30 of the diagonal (TSVE still returning:
@@ -560,4 +565,75 @@ fn compare_writes_the_documented_keys() {
     );
     let png = std::fs::read(out.join("compare.png")).unwrap();
     assert_eq!(&png[1..4], b"PNG");
+}
+
+#[test]
+fn compare_with_tissue_measures_every_method_against_the_fem() {
+    let tmp = tempfile::tempdir().unwrap();
+    let sphere = std::fs::read_to_string(root().join("fixtures/scenes/sphere.toml")).unwrap();
+    let mesh = root().join("fixtures/meshes/icosphere-2.obj");
+    let scene = tmp.path().join("sphere-tissue.toml");
+    let text = sphere.replace("../meshes/icosphere-2.obj", &mesh.display().to_string())
+        + "\n[tissue]\nyoung = 3000.0\npoisson = 0.45\ndensity = 1000.0\n\n[fem]\nresolution = 12\n";
+    std::fs::write(&scene, text).unwrap();
+    let path = root().join("fixtures/paths/sphere-poke.csv");
+    let out = tmp.path().join("cmp");
+    let o =
+        bin().arg("compare").arg(&scene).arg("--path").arg(&path).arg("--out").arg(&out).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let json = read_json(&out.join("compare.json"));
+    assert_eq!(json["reference"], "fem");
+    let methods = json["methods"].as_object().unwrap();
+    let mut names: Vec<&String> = methods.keys().collect();
+    names.sort();
+    assert_eq!(names, ["fem", "ffm", "generalized-chainmail", "tsve-chainmail"]);
+    assert_eq!(methods["fem"]["error_vs_reference"], 0.0);
+    for name in ["ffm", "tsve-chainmail", "generalized-chainmail"] {
+        let e = methods[name]["error_vs_reference"].as_f64().unwrap();
+        // Different models of the same grab: never identical, never unbounded.
+        assert!(e > 0.0 && e.is_finite(), "{name}: {e}");
+        assert!(methods[name]["latency_us"]["p50"].as_f64().unwrap() > 0.0);
+    }
+    // The FEM's base state sags under the scene's gravity; ChainMail's stays at rest.
+    assert!(methods["fem"]["base_max_displacement"].as_f64().unwrap() > 0.0);
+    assert_eq!(methods["tsve-chainmail"]["base_max_displacement"], 0.0);
+}
+
+#[test]
+fn run_with_the_fem_writes_its_report_and_mesh_in_the_file_unit() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mesh = root().join("fixtures/meshes/icosphere-2.obj");
+    let scene = tmp.path().join("fem.toml");
+    std::fs::write(
+        &scene,
+        format!(
+            "[mesh]\npath = \"{}\"\nunit = \"cm\"\n\n[tissue]\nyoung = 5000.0\npoisson = 0.45\ndensity = 1000.0\n\n\
+             [gravity]\nacceleration = [0.0, -9.81, 0.0]\n\n[[fix]]\naxis = \"y\"\nabove = 0.8\n\n\
+             [solver]\nmethod = \"fem\"\n\n[fem]\nresolution = 12\n",
+            mesh.display()
+        ),
+    )
+    .unwrap();
+    let out = tmp.path().join("out");
+    let o = bin().arg("run").arg(&scene).arg("--out").arg(&out).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report = read_json(&out.join("report.json"));
+    assert_eq!(report["method"], "fem");
+    assert_eq!(report["units"]["mesh"], "cm");
+    assert_eq!(report["units"]["length"], "m");
+    assert_eq!(report["fem"]["resolution"], 12);
+    // Written back in centimetres: the deformed sphere overlays its unit-radius input.
+    let rest = read_obj_positions(&mesh);
+    let deformed = read_obj_positions(&out.join("deformed.obj"));
+    let largest = rest
+        .iter()
+        .zip(&deformed)
+        .map(|(a, b)| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt())
+        .fold(0.0, f64::max);
+    let reported_cm = report["max_displacement"].as_f64().unwrap() * 100.0;
+    assert!(largest > 0.0 && largest < 0.5, "moved {largest} cm");
+    // The same displacement, read back from the file in cm and reported in m.
+    assert!((largest - reported_cm).abs() <= 1e-9 * reported_cm, "{largest} cm vs {reported_cm} cm");
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains(" cm,") && stdout.contains("Pa"), "{stdout}");
 }
