@@ -100,7 +100,7 @@ fn the_fem_holds_its_clamps_and_sags_under_gravity() {
 fn the_fem_is_refused_from_counts_when_it_cannot_fit() {
     let dir = tempfile::tempdir().unwrap();
     let mut scene = scene_in(dir.path(), "m", 1.0, "fem");
-    scene.fem.resolution = 200;
+    scene.fem.resolution = 120;
     match FemRun::new(scene, Some(1 << 20)) {
         Err(SimError::TooLarge { needed, available, hint, .. }) => {
             assert!(needed > available && available == 1 << 20);

@@ -146,15 +146,14 @@ pub fn probe_chart_by(
     Ok(fibfluid::render::line_chart(title, "frame", y_label, &series, 900, 520)?)
 }
 
-/// `final.obj`: the surface at `positions`, written in the mesh file's vertex order.
-pub fn final_obj(file: &MeshFile, positions: &[Vec3]) -> Result<Vec<u8>> {
+/// `final.obj`: the surface at `positions` (m), written in the mesh file's vertex order and
+/// unit (`to_unit` file units per metre).
+pub fn final_obj(file: &MeshFile, positions: &[Vec3], to_unit: f64) -> Result<Vec<u8>> {
     let mut obj = Vec::new();
-    fibfluid::geometry::write_obj_to(
-        &mut obj,
-        &file.positions_in_file_order(positions),
-        &file.triangles_in_file_order(),
-    )
-    .map_err(|source| Error::Io { path: PathBuf::from("final.obj"), source })?;
+    let ordered: Vec<Vec3> =
+        file.positions_in_file_order(positions).into_iter().map(|p| p.map(|c| c * to_unit)).collect();
+    fibfluid::geometry::write_obj_to(&mut obj, &ordered, &file.triangles_in_file_order())
+        .map_err(|source| Error::Io { path: PathBuf::from("final.obj"), source })?;
     Ok(obj)
 }
 
@@ -210,7 +209,10 @@ pub fn run_probe_with(
         MethodBody::Chainmail(_) => 0.0,
         MethodBody::Fem(b) => max_norm(fibfluid::interact::Interactive::field(b.as_ref())),
     };
-    let replay = replay(mb.interactive(), &checked)?;
+    let mut replay = replay(mb.interactive(), &checked)?;
+    // Displacements go out in the mesh's unit, like the mesh (forces stay in newtons).
+    let to_unit = 1.0 / scene.unit.metres();
+    replay.rows.iter_mut().for_each(|r| r.displacement = r.displacement.map(|c| c * to_unit));
     let mut probed: Vec<usize> = replay.rows.iter().map(|r| r.file_vertex).collect();
     probed.sort_unstable();
     probed.dedup();
@@ -256,7 +258,7 @@ pub fn run_probe_with(
         );
         probe_chart_by(&title, replay.frames, &replay.rows, "|u| at the probed vertex", |r| r.displacement)?
     };
-    let obj = final_obj(file, body.positions())?;
+    let obj = final_obj(file, body.positions(), to_unit)?;
     report.seconds_total = start.elapsed().as_secs_f64();
     let json = serde_json::to_string_pretty(&report)? + "\n";
     let files = [

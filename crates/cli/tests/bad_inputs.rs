@@ -464,7 +464,7 @@ fn every_bad_probe_path_gives_one_clean_error_and_writes_nothing() {
             "--method",
             "gibson",
             "--method",
-            "`gibson` is not a method (expected one of: ffm, tsve-chainmail, generalized-chainmail)",
+            "`gibson` is not a method (expected one of: ffm, tsve-chainmail, generalized-chainmail, fem)",
         ),
     ] {
         let (parent, out) = out_with_user_file();
@@ -564,7 +564,7 @@ fn hostile_path_files_and_flags_get_one_line() {
     problems.extend(one_line_failure(&probe(&fifo), &["fifo.csv", "not a regular file"]));
     problems.extend(one_line_failure(&probe(&long_header), &["long-header.csv:1", "bad header"]));
     problems.extend(one_line_failure(&probe(&far), &["far.csv:2", "more than"]));
-    let mut capped = vec!["--max-file-bytes".as_ref(), "100".as_ref()];
+    let mut capped = vec!["--max-file-bytes".as_ref(), "1000".as_ref()];
     capped.extend(probe(&big));
     problems.extend(one_line_failure(&capped, &["big.csv"]));
     let compare: Vec<&std::ffi::OsStr> = vec![

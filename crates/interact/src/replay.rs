@@ -348,7 +348,12 @@ pub fn check_path(path: &ToolPath, scene: &Model) -> std::result::Result<Checked
             let axis = fibfluid_geometry::AXES[fixed[0]];
             return Err(err(row.line, PathProblem::FixedVertex { vertex: fv, axis, action }));
         }
-        let distance = fibfluid_geometry::vec3::norm(row.value);
+        // Displacements are written in the mesh's unit, like the mesh; forces in newtons.
+        let value = match path.kind {
+            PathKind::Grab => row.value.map(|c| c * scene.unit.metres()),
+            PathKind::Force => row.value,
+        };
+        let distance = fibfluid_geometry::vec3::norm(value);
         if path.kind == PathKind::Grab && !(distance <= MAX_REACH * size) {
             return Err(err(row.line, PathProblem::TooFar { vertex: fv, distance, size }));
         }
@@ -359,7 +364,7 @@ pub fn check_path(path: &ToolPath, scene: &Model) -> std::result::Result<Checked
                 PathProblem::Duplicate { vertex: fv, frame: row.frame, first: first.line },
             ));
         }
-        frame.push(PathHold { line: row.line, vertex: v, file_vertex: fv, value: row.value });
+        frame.push(PathHold { line: row.line, vertex: v, file_vertex: fv, value });
     }
     Ok(CheckedPath { source: path.source.clone(), kind: path.kind, frames })
 }

@@ -53,7 +53,7 @@ pub(crate) fn build(spec: SceneToml, dir: &Path, name: String) -> Result<Model, 
     if let Some(c) = gravity.iter().find(|c| !c.is_finite()) {
         return Err(range("[gravity].acceleration", "finite", c));
     }
-    let vertices = VertexMap::of(&shape);
+    let vertices = VertexMap::of(&shape, unit);
     let constraints = constraints(&spec.fix, &vertices, axes)?;
     let forces = forces(&spec.force, &vertices)?;
     for c in 0..axes {
@@ -221,15 +221,19 @@ struct VertexMap<'a> {
     n: usize,
     positions: Vec<fibfluid_geometry::Vec3>,
     file: Option<&'a fibfluid_geometry::MeshFile>,
+    /// Metres per length unit of the scene: lengths written in the scene (selectors,
+    /// plates) are in the mesh's unit, like the mesh's own numbers.
+    metres: f64,
 }
 
 impl<'a> VertexMap<'a> {
-    fn of(shape: &'a Shape) -> Self {
+    fn of(shape: &'a Shape, unit: LengthUnit) -> Self {
+        let metres = unit.metres();
         match shape {
             Shape::Surface(m) => {
-                Self { n: m.mesh.n_vertices(), positions: m.mesh.positions().to_vec(), file: Some(m) }
+                Self { n: m.mesh.n_vertices(), positions: m.mesh.positions().to_vec(), file: Some(m), metres }
             }
-            Shape::Polygon(p) => Self { n: p.n_vertices(), positions: p.positions_3d(), file: None },
+            Shape::Polygon(p) => Self { n: p.n_vertices(), positions: p.positions_3d(), file: None, metres },
         }
     }
 
@@ -312,16 +316,17 @@ fn selector(fix: &FixToml, key: &str, vertices: &VertexMap<'_>) -> Result<Select
     let within = |v: f64, name: &str| {
         if v.is_nan() || v < 0.0 { Err(range(format!("{key}.{name}"), ">= 0", v)) } else { Ok(v) }
     };
+    let m = vertices.metres;
     Ok(if let Some(v) = fix.above {
-        Selector::Above { axis: need_axis()?, value: v }
+        Selector::Above { axis: need_axis()?, value: v * m }
     } else if let Some(v) = fix.below {
-        Selector::Below { axis: need_axis()?, value: v }
+        Selector::Below { axis: need_axis()?, value: v * m }
     } else if let Some(v) = fix.top {
-        Selector::Top { axis: need_axis()?, within: within(v, "top")? }
+        Selector::Top { axis: need_axis()?, within: within(v, "top")? * m }
     } else if let Some(v) = fix.bottom {
-        Selector::Bottom { axis: need_axis()?, within: within(v, "bottom")? }
+        Selector::Bottom { axis: need_axis()?, within: within(v, "bottom")? * m }
     } else if let Some(b) = fix.bbox {
-        Selector::Box { min: b[0], max: b[1] }
+        Selector::Box { min: b[0].map(|c| c * m), max: b[1].map(|c| c * m) }
     } else {
         let list = fix.vertices.as_deref().unwrap_or(&[]);
         let key = format!("{key}.vertices");
@@ -382,7 +387,8 @@ fn plates(specs: &[PlateToml], vertices: &VertexMap<'_>) -> Result<Vec<Plate>, I
         if !p.travel.is_finite() {
             return Err(range(format!("{key}.travel"), "finite", p.travel));
         }
-        let plate = Plate::new(p.point, p.normal, p.travel).ok_or_else(|| {
+        let m = vertices.metres;
+        let plate = Plate::new(p.point.map(|c| c * m), p.normal, p.travel * m).ok_or_else(|| {
             range(format!("{key}.normal"), "finite and non-zero", format!("{:?}", p.normal))
         })?;
         plates.push(plate);

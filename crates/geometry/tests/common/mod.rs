@@ -21,6 +21,7 @@ pub const FIXTURES: &[(&str, i64)] = &[
     ("liver-smooth.obj", 0),
     ("liver.obj", 0),
     ("liver2.obj", 0),
+    ("slab.obj", 0),
     ("spot.obj", 0),
     ("tongue.obj", 0),
     ("torus2_for_collision.obj", 1),
