@@ -551,7 +551,7 @@ fn hostile_path_files_and_flags_get_one_line() {
     let many = dir.path().join("many-frames.csv");
     std::fs::write(&many, "frame,vertex,ux,uy,uz\n0,36,0,-0.1,0\n1000000,,,,\n").unwrap();
     let big = dir.path().join("big.csv");
-    std::fs::write(&big, "frame,vertex,ux,uy,uz\n".to_string() + &"0,36,0,-0.1,0\n".repeat(100)).unwrap();
+    std::fs::write(&big, "frame,vertex,ux,uy,uz\n".to_string() + &"0,36,0,-0.1,0\n".repeat(2000)).unwrap();
     let out = dir.path().join("out");
     let probe = |path: &Path| -> Vec<&std::ffi::OsStr> {
         let mut v: Vec<&std::ffi::OsStr> = vec!["probe".as_ref(), scene.as_os_str(), "--path".as_ref()];
@@ -564,7 +564,7 @@ fn hostile_path_files_and_flags_get_one_line() {
     problems.extend(one_line_failure(&probe(&fifo), &["fifo.csv", "not a regular file"]));
     problems.extend(one_line_failure(&probe(&long_header), &["long-header.csv:1", "bad header"]));
     problems.extend(one_line_failure(&probe(&far), &["far.csv:2", "more than"]));
-    let mut capped = vec!["--max-file-bytes".as_ref(), "1000".as_ref()];
+    let mut capped = vec!["--max-file-bytes".as_ref(), "20000".as_ref()];
     capped.extend(probe(&big));
     problems.extend(one_line_failure(&capped, &["big.csv"]));
     let compare: Vec<&std::ffi::OsStr> = vec![
