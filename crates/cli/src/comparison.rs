@@ -6,7 +6,9 @@
 //!
 //! Like is compared with like: ChainMail carries neither gravity nor point forces, so every
 //! method is measured by its **tool-induced displacement**, each frame's surface minus the
-//! method's own base state (the scene's loads for FFM and the FEM, rest for ChainMail).
+//! method's own base state (the scene's loads for FFM and the FEM, rest for ChainMail), and
+//! every grab is applied as a displacement from that base state (the tool moves a vertex
+//! from where the scene's loads left it in that method).
 //!
 //! Per method (`M` in `compare.json`):
 //!
@@ -27,8 +29,8 @@ use std::path::Path;
 use fibfluid::geometry::Vec3;
 use fibfluid::geometry::vec3::{dist, norm, sub};
 use fibfluid::interact::{
-    CheckedPath, Latency, Method, MethodBody, ProbeError, ProbeOptions, ToolPath, check_method, check_path,
-    replay_observed,
+    CheckedPath, Latency, Method, MethodBody, PathKind, ProbeError, ProbeOptions, ToolPath, check_method,
+    check_path, replay_observed,
 };
 use fibfluid::{Choice, Scene, Shape, memory_budget};
 use serde::Serialize;
@@ -40,7 +42,7 @@ use crate::{Error, Result};
 pub const COMPARE_FILES: [&str; 2] = ["compare.json", "compare.png"];
 
 /// What is compared, as `compare.json` says it.
-pub const COMPARED: &str = "tool-induced displacement: each frame's surface minus the method's own base state (ChainMail carries no gravity or point forces)";
+pub const COMPARED: &str = "tool-induced displacement: grabs applied from, and surfaces measured against, each method's own base state (ChainMail carries no gravity or point forces)";
 
 /// One method's numbers in `compare.json`.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -202,7 +204,8 @@ fn replay_method(
     let base_max = base.iter().zip(&rest).map(|(p, r)| dist(*p, *r)).fold(0.0, f64::max);
     let mut tally = Tally::new(fibfluid::geometry::volume(&rest, triangles));
     let is_reference = reference.is_empty();
-    let replay = replay_observed(body.interactive(), checked, |k, b| {
+    let from_base = from_own_base(checked, &base, &rest);
+    let replay = replay_observed(body.interactive(), &from_base, |k, b| {
         let p = b.positions();
         tally.volume(fibfluid::geometry::volume(p, triangles));
         let d: Vec<Vec3> = p.iter().zip(&base).map(|(p, q)| sub(*p, *q)).collect();
@@ -228,6 +231,20 @@ fn replay_method(
         rest_distance_after_release: after / diagonal,
     };
     Ok(Run { metrics, shown: std::mem::take(&mut tally.shown) })
+}
+
+/// The path with every grab taken from the method's own base state: the tool moves a
+/// vertex by the path's displacement from where the scene's loads left it, so a method that
+/// carries gravity and one that does not (ChainMail) are pulled by the same tool.
+fn from_own_base(checked: &CheckedPath, base: &[Vec3], rest: &[Vec3]) -> CheckedPath {
+    let mut shifted = checked.clone();
+    if checked.kind == PathKind::Grab {
+        for h in shifted.frames.iter_mut().flatten() {
+            let u = sub(base[h.vertex], rest[h.vertex]);
+            h.value = [h.value[0] + u[0], h.value[1] + u[1], h.value[2] + u[2]];
+        }
+    }
+    shifted
 }
 
 /// The frame of largest displacement: where the tool's largest grab is (the first such
