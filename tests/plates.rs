@@ -1,9 +1,14 @@
 //! Compression between rigid plates: frictionless unilateral contact, checked on a sphere
-//! squeezed between two symmetric plates in every mode and stepping scheme.
+//! squeezed between two symmetric plates in every mode and stepping scheme; the reported
+//! plate forces checked against the final state's force, recomputed independently.
 
+use fibfluid::assembly::{
+    AssemblyOptions, Body, ConstraintMethod, Loads, PressureScaling, assemble, load_vector,
+};
 use fibfluid::contact::{MAX_ACTIVE_SET_ITERATIONS, PENETRATION_TOLERANCE};
-use fibfluid::geometry::vec3::norm;
-use fibfluid::{Error, Mode, RunOptions, Scene, SceneProblem, Simulation, Stepping};
+use fibfluid::geometry::Vec3;
+use fibfluid::geometry::vec3::{norm, sub};
+use fibfluid::{Error, ForceTiming, Mode, RunOptions, Scene, SceneProblem, Simulation, Stepping};
 
 /// The unit sphere (162 vertices) between plates at y = +-1 closing by `travel` each.
 /// By symmetry the equator (y = 0) stays in its plane, and the vertices on the x and z
@@ -134,4 +139,141 @@ fn bad_plates_are_scene_errors() {
         }
         other => panic!("a plate through the body at rest must be refused: {other:?}"),
     }
+}
+
+/// The force on the body at the final contacts of plate `plate`, recomputed from the final
+/// state: `K u + P S - f` at each contact vertex (its free axes), along the plate's
+/// normal, summed. `K` and `S` are assembled here, in the paper's raw form (penalty, no
+/// pressure scaling), on the shapes the mode's operator describes at the state: the rest
+/// shape for both in paper mode; the rest shape for `K` and the final shape for `S` in
+/// refresh mode; the final shape for both in nonlinear mode. `u` is the final
+/// displacement from rest, `P` the final pressure, `f` the scene's loads at full load.
+fn state_force(sim: &Simulation, plate: usize) -> f64 {
+    let (model, body) = (sim.model(), sim.body());
+    let (rest, now) = (sim.rest_positions(), sim.positions());
+    let (k_shape, s_shape) = match model.solver.mode {
+        Mode::Paper => (rest, rest),
+        Mode::Refresh => (rest, now),
+        Mode::Nonlinear => (now, now),
+    };
+    let axes = body.boundary.axes();
+    let k_areas = body.boundary.vertex_area_vectors(k_shape);
+    let shape = Body {
+        axes,
+        positions: k_shape,
+        vertex_areas: &k_areas,
+        edges: &body.edges,
+        fibers: &body.fibers,
+        rest_positions: Some(rest),
+    };
+    let opts = AssemblyOptions {
+        method: ConstraintMethod::Penalty { big: 1e9 },
+        pressure_scaling: PressureScaling::None,
+    };
+    let system = assemble(&shape, &model.material, &model.constraints, &opts).unwrap();
+    let areas = body.boundary.vertex_area_vectors(s_shape);
+    let forces: Vec<(usize, Vec3)> = model.forces.iter().map(|f| (f.vertex, f.value)).collect();
+    assert!(model.forces.iter().all(|f| f.timing == ForceTiming::Ramp));
+    let loads =
+        Loads { acceleration: model.gravity, down: None, density: model.material.density, forces: &forces };
+    let now_areas = body.boundary.vertex_area_vectors(now);
+    let f = load_vector(axes, now, &now_areas, &loads).unwrap();
+    let u: Vec<Vec3> = now.iter().zip(rest).map(|(p, r)| sub(*p, *r)).collect();
+    let n = now.len();
+    let normal = model.plates[plate].normal;
+    let mut total = 0.0;
+    for c in sim.state().contacts.iter().filter(|c| c.plate == plate) {
+        let i = c.vertex;
+        for a in (0..axes).filter(|&a| model.constraints.get(i, a).is_none()) {
+            let k = system.matrix.block(a);
+            let ku: f64 = (0..n).map(|j| k[(i, j)] * u[j][a]).sum();
+            total += normal[a] * (ku + sim.pressure() * areas[i][a] - f[a * n + i]);
+        }
+    }
+    total
+}
+
+/// Runs `scene` in `mode` with `steps` equal steps and checks every plate's reported
+/// final force against [`state_force`] (2 %); returns the reported forces.
+fn checked_forces(scene: &Scene, mode: Mode, steps: usize) -> Vec<f64> {
+    let mut scene = scene.clone();
+    scene.solver.mode = mode;
+    scene.steps = steps;
+    let mut sim = Simulation::new(scene).unwrap();
+    sim.run(&RunOptions::default()).unwrap();
+    let reported: Vec<f64> = sim.plate_records().iter().map(|r| *r.force.last().unwrap()).collect();
+    let largest = reported.iter().fold(0.0f64, |m, f| m.max(f.abs()));
+    assert!(largest > 0.0, "{mode} {steps} steps: no plate force");
+    for (k, &force) in reported.iter().enumerate() {
+        assert_eq!(sim.plate_records()[k].force.len(), steps, "{mode}: one record per step");
+        let expected = state_force(&sim, k);
+        assert!(
+            (force - expected).abs() <= 0.02 * largest,
+            "{mode} {steps} steps, plate {k}: reported {force} N, the final state's force {expected} N"
+        );
+    }
+    reported
+}
+
+/// The reported forces are the final state's at 1, 10 and 40 steps; in paper mode (a
+/// fixed linear operator) the final state, and so its force, does not depend on the steps.
+fn forces_are_the_states(scene: &Scene, modes: &[Mode]) {
+    for &mode in modes {
+        let runs: Vec<Vec<f64>> =
+            [1, 10, 40].iter().map(|&steps| checked_forces(scene, mode, steps)).collect();
+        if mode == Mode::Paper {
+            for run in &runs[1..] {
+                for (a, b) in run.iter().zip(&runs[0]) {
+                    assert!(
+                        (a - b).abs() <= 1e-3 * b.abs().max(1e-12),
+                        "paper: {runs:?} depends on the steps"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn breast_compression_reports_the_final_states_force() {
+    let scene = Scene::load("fixtures/scenes/breast-compression.toml").unwrap();
+    forces_are_the_states(&scene, &[Mode::Paper, Mode::Refresh]);
+}
+
+/// SOFA's coarse liver (181 vertices, concave, about 65 x 49 x 44) between two paddles,
+/// the upper one closing by 12: a second body, with culled fibers, in every mode.
+#[test]
+fn liver_between_paddles_reports_the_final_states_force() {
+    let mesh = std::fs::canonicalize("fixtures/meshes/liver.obj").unwrap();
+    let text = format!(
+        r#"
+[mesh]
+path = "{}"
+scale = 10.0
+[material]
+young = 0.003
+surface_tension = 0.01
+[load]
+steps = 10
+[[fix]]
+axis = "y"
+bottom = 0.0
+[[plate]]
+point = [0.0, 2.1788, 0.0]
+normal = [0.0, 1.0, 0.0]
+travel = 0.0
+[[plate]]
+point = [0.0, 51.572, 0.0]
+normal = [0.0, -1.0, 0.0]
+travel = 12.0
+[solver]
+stepping = "heun"
+"#,
+        mesh.display()
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("liver-paddles-coarse.toml");
+    std::fs::write(&path, text).unwrap();
+    let scene = Scene::load(&path).unwrap();
+    forces_are_the_states(&scene, &[Mode::Paper, Mode::Refresh, Mode::Nonlinear]);
 }

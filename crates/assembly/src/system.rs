@@ -268,6 +268,21 @@ impl System {
         r
     }
 
+    /// `(K u)` at the free degree of freedom (`vertex`, `axis`) for displacements `u`: the
+    /// force of the fibers on the vertex along the axis. The columns of eliminated
+    /// degrees of freedom that hold a non-zero prescribed value are put back, so the
+    /// value is that of the stiffness before elimination. Meaningless at a fixed degree
+    /// of freedom (its row is the constraint's).
+    pub fn stiffness_force(&self, vertex: usize, axis: usize, u: &[Vec3]) -> f64 {
+        // K is symmetric: row `vertex` is column `vertex`, which is contiguous.
+        let column = self.matrix.block(axis).col(vertex);
+        let mut sum: f64 = column.iter().zip(u).map(|(k, d)| k * d[axis]).sum();
+        for lift in self.lifts.iter().filter(|l| l.axis == axis) {
+            sum += lift.column[vertex] * u[lift.vertex][axis];
+        }
+        sum
+    }
+
     /// Splits a solution into per-vertex displacements and the (physical) pressure.
     pub fn split_solution(&self, x: &[f64]) -> (Vec<Vec3>, f64) {
         let n = self.matrix.n_vertices();

@@ -827,3 +827,35 @@ proptest! {
         }
     }
 }
+
+/// `System::stiffness_force` at a free degree of freedom is the row of the stiffness
+/// before elimination times u: under elimination (a prescribed non-zero value's column
+/// put back) it equals the penalty form's raw row, on the sphere with the paper's
+/// constraints and one vertex prescribed a non-zero displacement.
+#[test]
+fn stiffness_force_is_the_row_before_elimination() {
+    let shape = sphere();
+    let mut c = paper_constraints(&shape);
+    let moved = (0..shape.n()).find(|&i| c.get(i, 1).is_some()).unwrap();
+    c.prescribe(moved, 1, 0.05).unwrap();
+    let n = shape.n();
+    let u: Vec<[f64; 3]> = (0..n)
+        .map(|i| match (0..3).map(|a| c.get(i, a)).collect::<Vec<_>>()[..] {
+            [Some(x), Some(y), Some(z)] => [x, y, z],
+            _ => [(i as f64 * 0.37).sin(), (i as f64 * 0.11).cos(), (i as f64 * 0.53).sin()],
+        })
+        .collect();
+    let raw = shape.assemble(&paper_material(), &c, PENALTY, PressureScaling::None).unwrap();
+    let eliminated =
+        shape.assemble(&paper_material(), &c, ConstraintMethod::Eliminate, PressureScaling::Auto).unwrap();
+    for i in (0..n).filter(|&i| c.get(i, 1).is_none()) {
+        for a in 0..3 {
+            let k = raw.matrix.block(a);
+            let expected: f64 = (0..n).map(|j| k[(i, j)] * u[j][a]).sum();
+            let got = eliminated.stiffness_force(i, a, &u);
+            assert!((got - expected).abs() <= 1e-9 * k[(i, i)], "vertex {i} axis {a}: {got} vs {expected}");
+            let penalty = raw.stiffness_force(i, a, &u);
+            assert!((penalty - expected).abs() <= 1e-12 * k[(i, i)], "vertex {i} axis {a} (penalty)");
+        }
+    }
+}

@@ -8,6 +8,11 @@
 //! released. Each step iterates this active set until it no longer changes
 //! ([`MAX_ACTIVE_SET_ITERATIONS`] at most).
 //!
+//! A contact's force is that of the state reached, not a sum of the steps' reactions:
+//! `K u + P S - f` at the vertex (u the displacement from rest, P the pressure, f the
+//! loads at the state), along the plate's normal, with the operator of the state as the
+//! mode defines it (`docs/plates.md`).
+//!
 //! A change of the active set is a change of the constraints on the kept factorization:
 //! one solve per new contact and a k x k refactor of the capacitance
 //! ([`PrescribedSet`](fibfluid_linalg::PrescribedSet)), never a refactorization of the
@@ -56,7 +61,8 @@ pub struct Contact {
     pub plate: usize,
     /// Vertex.
     pub vertex: usize,
-    /// Force along the plate's normal (positive: pushing the body).
+    /// Force of the plate on the body along the plate's normal (positive: pushing the
+    /// body), from the state: `K u + P S - f` at the vertex (see the module docs).
     pub force: f64,
 }
 
@@ -70,7 +76,8 @@ impl Contact {
 /// One plate's record over the steps (`report.json` `plates`).
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct PlateRecord {
-    /// Sum of the contact forces along the normal after each step.
+    /// Sum of the contact forces along the normal after each step (each the force of the
+    /// state after the step, see [`Contact::force`]).
     pub force: Vec<f64>,
     /// Sum of the vertex areas |S_i| in contact after each step.
     pub contact_area: Vec<f64>,

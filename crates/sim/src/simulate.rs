@@ -140,8 +140,6 @@ struct Evaluation {
     dp: f64,
     /// Euler/Heun difference, when estimated.
     estimate: Option<f64>,
-    /// Contact multipliers, in the order of the active contacts.
-    multipliers: Vec<f64>,
 }
 
 /// What a step did.
@@ -188,11 +186,10 @@ pub struct Simulation {
     counters: Counters,
     stats: StepStats,
     warnings: Vec<GuardWarning>,
-    /// Contacts of the current solves: (plate, vertex), the step's normal motion onto the
-    /// plate, and the multipliers accumulated over the step.
+    /// Contacts of the current solves: (plate, vertex) and the step's normal motion onto
+    /// the plate.
     contact_active: Vec<(usize, usize)>,
     contact_values: Vec<f64>,
-    contact_increment: Vec<f64>,
     plate_records: Vec<PlateRecord>,
     log: StageLog,
     started: Instant,
@@ -287,7 +284,6 @@ impl Simulation {
             warnings: vec![],
             contact_active: vec![],
             contact_values: vec![],
-            contact_increment: vec![],
             plate_records: vec![PlateRecord::default(); plates],
             log,
             started,
@@ -473,7 +469,8 @@ impl Simulation {
                         last_to: last0 + sign * next,
                     },
                 };
-                let saved = (self.state.clone(), self.stats.clone(), self.warnings.len());
+                let saved =
+                    (self.state.clone(), self.stats.clone(), self.warnings.len(), self.plate_records.clone());
                 let outcome = self.take_step(&inc, true)?;
                 let estimate = outcome.estimate.unwrap_or(0.0);
                 let allowed = tolerance * self.body.diagonal;
@@ -489,6 +486,8 @@ impl Simulation {
                     self.state = saved.0;
                     self.stats = saved.1;
                     self.warnings.truncate(saved.2);
+                    // A rejected step leaves no plate record either.
+                    self.plate_records = saved.3;
                     self.stats.rejected += 1;
                     h *= 0.5;
                 }
@@ -556,7 +555,7 @@ impl Simulation {
             let result = self.evaluate(&inc_here, estimate);
             let step_residual = self.counters.residual_max;
             self.counters.residual_max = residual_before.max(step_residual);
-            let Evaluation { du, dp, estimate: est, multipliers } = result.map_err(explained)?;
+            let Evaluation { du, dp, estimate: est } = result.map_err(explained)?;
             self.log.time(names::UPDATE, || {
                 for (p, d) in self.state.positions.iter_mut().zip(&du) {
                     *p = add(*p, *d);
@@ -565,18 +564,15 @@ impl Simulation {
             self.state.pressure += dp;
             self.state.load_factor = inc.to;
             self.state.last_forces = inc.last_to;
-            self.contact_increment = multipliers;
             if self.model.solver.mode != Mode::Paper {
                 self.correct_volume().map_err(explained)?;
             }
             if self.model.plates.is_empty() {
                 break (est, step_residual);
             }
-            // Contact forces after the step: the multipliers are the increments of minus
-            // the force along each contact's normal.
-            for (c, r) in active.iter_mut().zip(&self.contact_increment) {
-                c.force -= r;
-            }
+            // The contacts' forces are those of the state this iteration reached: a
+            // rejected iteration leaves nothing behind.
+            self.contact_forces(&mut active).map_err(explained)?;
             let (changed, next, newly_released) = self.update_active_set(&active, inc.to);
             if !changed {
                 self.state.contacts = active;
@@ -617,6 +613,66 @@ impl Simulation {
             .map(|c| -self.model.plates[c.plate].gap(self.state.positions[c.vertex], to))
             .collect();
         self.contact_active = active.iter().map(|c| (c.plate, c.vertex)).collect();
+    }
+
+    /// Sets each contact's force from the current state: the force on the body at the
+    /// contact's vertex, `K u + P S - f` (u the displacement from rest, P the pressure, f
+    /// the loads at the state), over the vertex's free axes, along the plate's normal.
+    /// This is minus the reaction that holds the vertex on the plate, whatever path the
+    /// steps took. `K` and `S` are the operator of the state as the mode defines it:
+    /// paper mode's rest operator (the one it factors), refresh mode's rest `K` with `S`
+    /// of the current shape, nonlinear mode's `K` and `S` assembled on the current shape.
+    fn contact_forces(&mut self, contacts: &mut [Contact]) -> Result<()> {
+        if contacts.is_empty() {
+            return Ok(());
+        }
+        let s = &self.state.positions;
+        let (n, axes) = (s.len(), self.axes());
+        let current = self.log.time(names::AREAS, || self.body.boundary.vertex_area_vectors(s));
+        let reassembled = match self.model.solver.mode {
+            Mode::Nonlinear => {
+                Some(self.log.time(names::REASSEMBLY, || assemble_on(&self.model, &self.body, s, &current))?)
+            }
+            Mode::Paper | Mode::Refresh => None,
+        };
+        let (system, border) = match (self.model.solver.mode, &reassembled) {
+            (Mode::Paper, _) => (&self.factored.system, &self.factored.border_areas),
+            (_, Some(system)) => (system, &current),
+            (_, None) => (&self.factored.system, &current),
+        };
+        let u: Vec<Vec3> = s.iter().zip(&self.body.rest).map(|(p, r)| sub(*p, *r)).collect();
+        let (lambda, last) = (self.state.load_factor, self.state.last_forces);
+        let forces: Vec<(usize, Vec3)> = self
+            .model
+            .forces
+            .iter()
+            .map(|f| {
+                let k = match f.timing {
+                    ForceTiming::Ramp => lambda,
+                    ForceTiming::Last => last,
+                };
+                (f.vertex, scale(f.value, k))
+            })
+            .collect();
+        let loads = Loads {
+            acceleration: scale(self.model.gravity, lambda),
+            down: Some(self.model.gravity),
+            density: self.model.material.density,
+            forces: &forces,
+        };
+        let f = load_vector(axes, s, &current, &loads)?;
+        let pressure = self.state.pressure;
+        for c in contacts.iter_mut() {
+            let normal = self.model.plates[c.plate].normal;
+            c.force = (0..axes)
+                .filter(|&a| self.model.constraints.get(c.vertex, a).is_none())
+                .map(|a| {
+                    let own = system.stiffness_force(c.vertex, a, &u) + pressure * border[c.vertex][a];
+                    normal[a] * (own - f[a * n + c.vertex])
+                })
+                .sum();
+        }
+        Ok(())
     }
 
     /// The next active set after a step: contacts turned tensile are released, vertices
@@ -701,19 +757,18 @@ impl Simulation {
         let target = self.prepare_operator(&s)?;
         let b1 = self.load_increment(&s, inc.da, &inc.forces)?;
         if self.model.solver.stepping == Stepping::Euler && !estimate {
-            let (x, r) = self.solve(&b1, target, inc.prescribed, true)?;
+            let x = self.solve(&b1, target, inc.prescribed, true)?;
             let (u, p) = self.factored.system.split_solution(&x);
-            return Ok(Evaluation { du: u, dp: p, estimate: None, multipliers: r });
+            return Ok(Evaluation { du: u, dp: p, estimate: None });
         }
-        let (xb, rb) = self.solve(&b1, 0.0, inc.prescribed, true)?;
+        let xb = self.solve(&b1, 0.0, inc.prescribed, true)?;
         let (ub, pb) = self.factored.system.split_solution(&xb);
-        let (ut, pt, rt) = if target != 0.0 {
+        let (ut, pt) = if target != 0.0 {
             let zero = vec![0.0; b1.len()];
-            let (xt, rt) = self.solve(&zero, target, 0.0, false)?;
-            let (ut, pt) = self.factored.system.split_solution(&xt);
-            (ut, pt, rt)
+            let xt = self.solve(&zero, target, 0.0, false)?;
+            self.factored.system.split_solution(&xt)
         } else {
-            (vec![[0.0; 3]; s.len()], 0.0, vec![0.0; rb.len()])
+            (vec![[0.0; 3]; s.len()], 0.0)
         };
         let predicted: Vec<Vec3> = (0..s.len()).map(|i| add(add(s[i], ub[i]), ut[i])).collect();
         let open = self.log.begin(names::PREDICTOR);
@@ -722,14 +777,13 @@ impl Simulation {
             self.solve(&b2, 0.0, inc.prescribed, true)
         });
         self.log.end(open);
-        let (x2, r2) = corrected?;
+        let x2 = corrected?;
         let (u2, p2) = self.factored.system.split_solution(&x2);
         // Heun minus Euler: half the difference of the two slopes.
         let est =
             estimate.then(|| ub.iter().zip(&u2).map(|(a, b)| 0.5 * norm(sub(*b, *a))).fold(0.0, f64::max));
-        let r = (0..rb.len()).map(|k| 0.5 * (rb[k] + r2[k]) + rt[k]).collect();
         let u = (0..s.len()).map(|i| add(scale(add(ub[i], u2[i]), 0.5), ut[i])).collect();
-        Ok(Evaluation { du: u, dp: 0.5 * (pb + p2) + pt, estimate: est, multipliers: r })
+        Ok(Evaluation { du: u, dp: 0.5 * (pb + p2) + pt, estimate: est })
     }
 
     /// Guard warnings so far.
@@ -756,7 +810,7 @@ impl Simulation {
         }
         let loads = Loads { forces, ..Default::default() };
         let b = load_vector(self.axes(), &self.state.positions, &self.factored.border_areas, &loads)?;
-        let (x, _) = self.solve(&b, 0.0, 1.0, false)?;
+        let x = self.solve(&b, 0.0, 1.0, false)?;
         Ok(self.factored.system.split_solution(&x))
     }
 
@@ -886,7 +940,7 @@ impl Simulation {
         let zero = vec![0.0; self.axes() * self.state.positions.len()];
         let solved = self.solve(&zero, 1.0, 0.0, false);
         self.log.end(open);
-        let (xw, rw) = solved?;
+        let xw = solved?;
         let (w, pw) = self.factored.system.split_solution(&xw);
         let start = self.state.positions.clone();
         let along = |alpha: f64| -> Vec<Vec3> {
@@ -908,9 +962,6 @@ impl Simulation {
         }
         self.state.positions = along(alpha);
         self.state.pressure += alpha * pw;
-        for (acc, rk) in self.contact_increment.iter_mut().zip(&rw) {
-            *acc += alpha * rk;
-        }
         Ok(())
     }
 
@@ -937,28 +988,22 @@ impl Simulation {
 
     /// One solve with the current factorization; with active contacts, under their
     /// constraints (`step`: each contact's vertex moves onto its plate; otherwise it
-    /// keeps its normal position). Returns the solution and the contacts' multipliers,
-    /// in the order of the active contacts.
-    fn solve(
-        &mut self,
-        b: &[f64],
-        target: f64,
-        prescribed_scale: f64,
-        step: bool,
-    ) -> Result<(Vec<f64>, Vec<f64>)> {
+    /// keeps its normal position). The contacts' forces are not taken from the
+    /// multipliers: see [`contact_forces`](Self::contact_forces).
+    fn solve(&mut self, b: &[f64], target: f64, prescribed_scale: f64, step: bool) -> Result<Vec<f64>> {
         if !self.contact_active.is_empty() {
             self.sync_contact_set()?;
         }
         let f = &self.factored;
         let rhs = f.system.rhs(b, target, &f.border_areas, prescribed_scale);
         let start = Instant::now();
-        let (x, multipliers) = if self.contact_active.is_empty() {
+        let x = if self.contact_active.is_empty() {
             let sol = f.factorization.solve(&rhs)?;
             self.counters.residual_max = self.counters.residual_max.max(sol.relative_residual);
             self.counters.refinement_steps_max = self.counters.refinement_steps_max.max(sol.refinement_steps);
-            (sol.x, vec![])
+            sol.x
         } else {
-            // The set's order is its insertion order; values and multipliers follow it.
+            // The set's order is its insertion order; the values follow it.
             let keys = f.contact.keys();
             let order: Vec<usize> = self
                 .contact_active
@@ -973,12 +1018,11 @@ impl Simulation {
             }
             let sol = f.contact.solve(f.factorization.as_ref(), &rhs, &values)?;
             self.counters.residual_max = self.counters.residual_max.max(sol.relative_residual);
-            let r = order.iter().map(|&j| sol.multipliers[j]).collect();
-            (sol.x, r)
+            sol.x
         };
         self.log.add(names::SOLVE, start.elapsed().as_secs_f64());
         self.counters.solves += 1;
-        Ok((x, multipliers))
+        Ok(x)
     }
 
     /// Makes the factorization's contact constraints those of the active contacts.
