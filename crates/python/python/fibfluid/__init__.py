@@ -138,21 +138,16 @@ class Scene:
         self._native.update(values)
         return self
 
-    def __getattr__(self, name: str) -> Any:
-        if name in _SETTINGS:
-            return self._native.get(name)
-        raise AttributeError(f"'Scene' object has no attribute '{name}'")
-
     def __setattr__(self, name: str, value: Any) -> None:
-        if name in _SETTINGS:
-            self._native.set(name, value)
+        # Settings and the `settings` and `solver` dicts are properties with setters; any
+        # other name is a typo or a read-only value, which must not pass silently.
+        prop = getattr(type(self), name, None)
+        if isinstance(prop, property) and prop.fset is not None:
+            prop.fset(self, value)
         elif name in _READ_ONLY:
             raise Error(f"`{name}` is read only")
         else:
             raise Error(f"unknown setting `{name}` (known: {', '.join(_SETTINGS)})")
-
-    def __dir__(self) -> List[str]:
-        return sorted(set(super().__dir__()) | set(_SETTINGS))
 
     # -- the body -------------------------------------------------------------------
 
@@ -201,6 +196,38 @@ class Scene:
 
 
 _SETTINGS: Tuple[str, ...] = tuple(_native.NativeScene.names())
+
+#: What each setting is (the scene file's key in brackets).
+_SETTING_DOCS: Dict[str, str] = {
+    "steps": "Load steps, 1 to 1000000 ([load].steps).",
+    "tolerance": "Adaptive steps: the largest error estimate of a step, in (0, 1), or None ([load].tolerance).",
+    "gravity": "Final acceleration (x, y, z), reached over the steps ([gravity].acceleration).",
+    "young": "Young's modulus: a float, or (x, y, z) when it differs per axis ([material].young).",
+    "surface_tension": "Surface tension, >= 0 ([material].surface_tension).",
+    "density": "The fluid's density, >= 0 ([fluid].density).",
+    "stiffening": "Quadratic stiffening coefficient c >= 0, or None for linear fibers ([material].stiffening).",
+    "backend": "Linear backend: structured, faer-lu, nalgebra-lu ([solver].backend).",
+    "mode": "Stepping mode: paper, refresh, nonlinear ([solver].mode).",
+    "stepping": "Stepping scheme: euler, heun ([solver].stepping).",
+    "precision": "Factorization precision: f64, mixed ([solver].precision).",
+    "constraints": "How fixed vertices are imposed: eliminate, penalty ([solver].constraints).",
+    "penalty": "The penalty's diagonal value, > 0 ([solver].penalty).",
+}
+
+
+def _setting(name: str) -> property:
+    def get(self: Scene) -> Any:
+        return self._native.get(name)
+
+    def set(self: Scene, value: Any) -> None:
+        self._native.set(name, value)
+
+    return property(get, set, doc=_SETTING_DOCS.get(name, name))
+
+
+for _name in _SETTINGS:
+    setattr(Scene, _name, _setting(_name))
+del _name
 _READ_ONLY: Tuple[str, ...] = ("name", "source", "n_vertices", "vertices", "faces", "fixed_vertices", "notes")
 
 
