@@ -54,9 +54,9 @@ def test_displacement_is_positions_minus_rest(py_run):
 def test_report_equals_the_command_lines_report_json(cli_run, py_run):
     _, report = cli_run
     assert without_timings(py_run.report) == without_timings(report)
-    # Same stages, in the same order, load_scene first (as the command line records it).
+    # Same stages, in the same order, the scene's loading first (as the command line records it).
     assert [s["name"] for s in py_run.report["stages"]] == [s["name"] for s in report["stages"]]
-    assert py_run.report["stages"][0]["name"] == "load_scene"
+    assert py_run.report["stages"][0]["name"] == "load scene and mesh"
     assert py_run.pressure == pytest.approx(report["pressure"], rel=0, abs=0)
 
 

@@ -1,0 +1,52 @@
+#!/usr/bin/env bash
+# CI for the Python package: installs it as a user does (a fresh virtual environment and
+# the one line `pip install ./crates/python`, which builds it with maturin), then runs its
+# pytest suite. Exits non-zero on any failure, and when pytest collects no test.
+#
+# The suite compares a run with the command line's `deformed.obj`. The command line is
+# taken from `cargo test --workspace --no-run`: run after `.ci/run`'s `cargo test
+# --workspace`, that is the binary already built, so nothing is compiled twice. Set
+# FIBFLUID_CLI to a `fibfluid` binary to use that one instead.
+#
+# Needs: Python >= 3.9 with venv, cargo (Rust 1.95), network access to PyPI (maturin, numpy,
+# pytest).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+
+python=${PYTHON:-python3}
+venv=$(mktemp -d "${TMPDIR:-/tmp}/fibfluid-py.XXXXXX")
+trap 'rm -rf "$venv"' EXIT
+
+echo "== python package: fresh venv ($("$python" --version 2>&1)) in $venv"
+"$python" -m venv "$venv"
+echo "== pip install ./crates/python pytest numpy"
+"$venv/bin/python" -m pip install --disable-pip-version-check --progress-bar off ./crates/python pytest numpy
+
+if [ -z "${FIBFLUID_CLI:-}" ]; then
+  echo "== the command line to compare with (cargo test --workspace --no-run)"
+  FIBFLUID_CLI=$(cargo test --workspace --no-run --message-format=json-render-diagnostics |
+    "$venv/bin/python" -c '
+import json, sys
+for line in sys.stdin:
+    m = json.loads(line)
+    t = m.get("target", {})
+    if m.get("reason") == "compiler-artifact" and t.get("name") == "fibfluid" and t.get("kind") == ["bin"] and m.get("executable"):
+        print(m["executable"])
+        break
+')
+  if [ -z "$FIBFLUID_CLI" ]; then
+    echo "error: cargo built no fibfluid binary" >&2
+    exit 1
+  fi
+  export FIBFLUID_CLI
+fi
+echo "   FIBFLUID_CLI=$FIBFLUID_CLI"
+
+echo "== pytest crates/python/tests"
+status=0
+"$venv/bin/python" -m pytest crates/python/tests -q -p no:cacheprovider || status=$?
+if [ "$status" -eq 5 ]; then
+  echo "error: pytest collected no test" >&2
+  exit 1
+fi
+exit "$status"
