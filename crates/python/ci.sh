@@ -18,7 +18,17 @@ venv=$(mktemp -d "${TMPDIR:-/tmp}/fibfluid-py.XXXXXX")
 trap 'rm -rf "$venv"' EXIT
 
 echo "== python package: fresh venv ($("$python" --version 2>&1)) in $venv"
-"$python" -m venv "$venv"
+if ! "$python" -m venv "$venv"; then
+  # Debian's system Python keeps venv in a package of its own.
+  if [ "$(id -u)" -eq 0 ] && command -v apt-get >/dev/null 2>&1; then
+    apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-venv >/dev/null
+    "$python" -m venv "$venv"
+  else
+    echo "error: $python -m venv failed (install python3-venv)" >&2
+    exit 1
+  fi
+fi
 echo "== pip install ./crates/python pytest numpy"
 "$venv/bin/python" -m pip install --disable-pip-version-check --progress-bar off ./crates/python pytest numpy
 

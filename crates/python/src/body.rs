@@ -13,6 +13,9 @@ use crate::arrays::{points_array, vec3};
 use crate::scene::NativeScene;
 use crate::{error, guard, lib_error};
 
+/// A frame as `step` returns it: positions `(N, 3)` and reactions `(k, 4)`.
+type Frame<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
+
 /// An interactive body: grab, push, release, step.
 #[pyclass(module = "fibfluid._native", name = "NativeBody")]
 pub(crate) struct NativeBody {
@@ -132,10 +135,7 @@ impl NativeBody {
 
     /// Applies the holds and computes the frame (the GIL released): returns the positions
     /// `(N, 3)` in file order and the reactions `(k, 4)`: file vertex, force x, y, z.
-    fn step<'py>(
-        &mut self,
-        py: Python<'py>,
-    ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>)> {
+    fn step<'py>(&mut self, py: Python<'py>) -> PyResult<Frame<'py>> {
         guard(|| {
             let body = &mut self.body;
             let reactions = py

@@ -73,7 +73,7 @@ impl NativeScene {
             scene.model.gravity = old.gravity;
             scene.model.steps = old.steps;
             scene.model.tolerance = old.tolerance;
-            scene.model.guards = old.guards.clone();
+            scene.model.guards = old.guards;
             scene.model.solver = old.solver.clone();
             scene.chainmail = old.chainmail.clone();
             Ok(NativeScene { scene, load_seconds: start.elapsed().as_secs_f64() })

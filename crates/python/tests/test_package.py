@@ -1,9 +1,12 @@
 """The package itself: version, stubs, the lock file."""
 
-import tomllib
 from pathlib import Path
 
+import pytest
+
 import fibfluid
+
+tomllib = pytest.importorskip("tomllib", reason="tomllib needs Python 3.11")
 
 CRATE = Path(__file__).resolve().parents[1]
 REPO = CRATE.parents[1]
