@@ -37,12 +37,13 @@ if [ -z "${FIBFLUID_CLI:-}" ]; then
   FIBFLUID_CLI=$(cargo test --workspace --no-run --message-format=json-render-diagnostics |
     "$venv/bin/python" -c '
 import json, sys
-for line in sys.stdin:
+found = ""
+for line in sys.stdin:  # read it all: cargo must not write into a closed pipe
     m = json.loads(line)
     t = m.get("target", {})
-    if m.get("reason") == "compiler-artifact" and t.get("name") == "fibfluid" and t.get("kind") == ["bin"] and m.get("executable"):
-        print(m["executable"])
-        break
+    if m.get("reason") == "compiler-artifact" and t.get("name") == "fibfluid" and t.get("kind") == ["bin"]:
+        found = m.get("executable") or found
+print(found)
 ')
   if [ -z "$FIBFLUID_CLI" ]; then
     echo "error: cargo built no fibfluid binary" >&2
