@@ -13,6 +13,12 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 
+# The crate is outside the workspace (docs/python.md): the root's `cargo fmt --all` and
+# `cargo clippy --workspace` do not see it. `--locked`: its Cargo.lock must be up to date.
+echo "== rustfmt and clippy of crates/python"
+cargo fmt --manifest-path crates/python/Cargo.toml -- --check
+cargo clippy --manifest-path crates/python/Cargo.toml --all-targets --locked -- -D warnings
+
 python=${PYTHON:-python3}
 venv=$(mktemp -d "${TMPDIR:-/tmp}/fibfluid-py.XXXXXX")
 trap 'rm -rf "$venv"' EXIT
