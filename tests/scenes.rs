@@ -453,3 +453,39 @@ fn settings_that_cannot_act_are_found_and_really_do_nothing() {
     without.forces.clear();
     same(s, without, "a force on a fixed vertex");
 }
+
+#[test]
+fn load_with_mesh_builds_the_files_constraints_and_forces_on_the_new_mesh() {
+    use fibfluid::geometry::{MeshFile, TriMesh};
+    let path = "fixtures/scenes/sphere.toml"; // [[fix]] y above 0.8, [[force]] vertex 3
+    let scene = sphere();
+    let fibfluid::Shape::Surface(file) = &scene.shape else { panic!("a surface") };
+    let same = MeshFile::from_mesh("arrays", file.mesh.clone()).expect("valid");
+    let again = Scene::load_with_mesh(path, same).expect("the same mesh");
+    assert_eq!(again.constraints.count(1), scene.constraints.count(1));
+    assert_eq!(again.forces, scene.forces);
+    // Shifted up by 0.1: `above = 0.8` now selects a larger cap, chosen on the new mesh.
+    let shifted: Vec<_> = file.mesh.positions().iter().map(|p| [p[0], p[1] + 0.1, p[2]]).collect();
+    let expected = shifted.iter().filter(|p| p[1] > 0.8).count();
+    let mesh = TriMesh::new(shifted, file.mesh.triangles().to_vec()).expect("mesh");
+    let moved =
+        Scene::load_with_mesh(path, MeshFile::from_mesh("arrays", mesh).expect("valid")).expect("scene");
+    assert_eq!(moved.constraints.count(1), expected);
+    assert!(expected > scene.constraints.count(1));
+    // A mesh with fewer vertices than the force's index: the file's key and line.
+    let small = fibfluid::geometry::icosphere(0, 1.0);
+    let small = MeshFile::from_mesh("arrays", small).expect("valid");
+    let few = small.mesh.n_vertices();
+    let scene_with_force_past_it = "fixtures/scenes/bunny-pull.toml"; // [[force]] vertex 177
+    let e = Scene::load_with_mesh(scene_with_force_past_it, small).expect_err("out of range").to_string();
+    assert!(e.contains("[[force]] #1.vertex: vertex 177 is out of range"), "{e} ({few} vertices)");
+    // A polygon has no mesh to replace.
+    let square = fibfluid::geometry::icosphere(0, 1.0);
+    let e = Scene::load_with_mesh(
+        "fixtures/scenes/rectangle.toml",
+        MeshFile::from_mesh("a", square).expect("valid"),
+    )
+    .expect_err("polygon")
+    .to_string();
+    assert!(e.contains("only a [mesh] can be replaced"), "{e}");
+}

@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use fibfluid_assembly::{Constraints, DEFAULT_PENALTY, Material, Selector, StiffnessLaw};
-use fibfluid_geometry::{Polygon, ReadOptions, load_mesh_with};
+use fibfluid_geometry::{MeshFile, Polygon, ReadOptions, load_mesh_with};
 use fibfluid_sim::contact::{Plate, PlateProblem, check_plates};
 use fibfluid_sim::guards::Guards;
 use fibfluid_sim::{
@@ -24,12 +24,30 @@ fn axis_index(s: &str, key: &str) -> Result<usize, Invalid> {
     }
 }
 
-/// The scene's values, built from its tables; `dir` resolves the mesh path.
-pub(crate) fn build(spec: SceneToml, dir: &Path, name: String) -> Result<Model, Invalid> {
+/// The scene's values, built from its tables; `dir` resolves the mesh path. `mesh`, when
+/// given, stands for the file's `[mesh]` (see `Scene::load_with_mesh`); it is taken as
+/// already in metres.
+pub(crate) fn build(
+    spec: SceneToml,
+    dir: &Path,
+    name: String,
+    mesh: Option<MeshFile>,
+) -> Result<Model, Invalid> {
     let unit =
         spec.mesh.as_ref().map(|m| choice("[mesh].unit", m.unit.clone(), LengthUnit::M)).transpose()?;
     let unit = unit.unwrap_or_default();
-    let shape = shape(spec.mesh, spec.polygon, dir, unit)?;
+    let shape = match mesh {
+        None => shape(spec.mesh, spec.polygon, dir, unit)?,
+        Some(_) if spec.polygon.is_some() => {
+            return Err(invalid(
+                "[polygon]",
+                SceneProblem::Conflict(
+                    "the body is a polygon: only a [mesh] can be replaced by another mesh",
+                ),
+            ));
+        }
+        Some(m) => Shape::Surface(Box::new(m)),
+    };
     let axes = if matches!(shape, Shape::Polygon(_)) { 2 } else { 3 };
     let solver = solver(spec.solver)?;
     let tissue = spec.tissue.map(tissue).transpose()?;

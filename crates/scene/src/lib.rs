@@ -85,7 +85,24 @@ impl Scene {
     /// Reads a scene file; paths inside are relative to it. Every problem is a
     /// [`SceneError`] naming the file, the key and, where it can be found, the line.
     pub fn load(path: impl AsRef<Path>) -> Result<Self> {
-        let path = path.as_ref();
+        Self::read(path.as_ref(), None)
+    }
+
+    /// Reads a scene file with its `[mesh]` replaced by `mesh` (a surface built in code,
+    /// for example from arrays): the file's `[mesh]` is not read, and `[mesh].scale` does
+    /// not apply (`mesh` is in the scene's units). Everything that depends on the vertices
+    /// is built again against `mesh` as the file's own mesh would be: the `[[fix]]`
+    /// selectors (above, below, top, bottom, box) select among its vertices, and vertex
+    /// indices (`[[fix]].vertices`, `[[force]].vertex`) are `mesh`'s file order, checked
+    /// against its vertex count; plates are checked against its rest shape. Errors name
+    /// the scene file, the line and the key, as [`load`](Self::load)'s do.
+    ///
+    /// A scene whose body is a `[polygon]` has no mesh to replace: that is an error.
+    pub fn load_with_mesh(path: impl AsRef<Path>, mesh: MeshFile) -> Result<Self> {
+        Self::read(path.as_ref(), Some(mesh))
+    }
+
+    fn read(path: &Path, mesh: Option<MeshFile>) -> Result<Self> {
         let at = |key: Option<String>, line: Option<usize>, problem: SceneProblem| {
             Error::Scene(Box::new(SceneError { path: path.to_path_buf(), line, key, problem }))
         };
@@ -112,7 +129,7 @@ impl Scene {
         };
         let chainmail = chainmail_section::parse(spec.chainmail.take()).map_err(located)?;
         let ffm_material = spec.material.is_some();
-        let mut model = build::build(spec, dir, name).map_err(located)?;
+        let mut model = build::build(spec, dir, name, mesh).map_err(located)?;
         model.source = Some(path.to_path_buf());
         Ok(Self { model, chainmail, ffm_material })
     }

@@ -1,0 +1,427 @@
+"""fibfluid from Python: soft tissue as fluid held by elastic fibers.
+
+Read a scene file, change its settings or its mesh, run it, and read the deformed surface
+and the report that the ``fibfluid run`` command writes; or build an interactive body and
+grab, push and release its vertices frame by frame::
+
+    import fibfluid
+    scene = fibfluid.Scene.load("fixtures/scenes/bunny-pull.toml")
+    scene.steps = 10
+    result = fibfluid.run(scene, progress=True)
+    print(result.report["max_displacement"], result.displacement.shape)
+
+    body = fibfluid.Body(scene, method="ffm")
+    body.grab(177, [0.0, 0.01, 0.0])
+    positions, reactions = body.step()
+
+Vertices are numbered, and arrays ordered, as in the mesh file (``deformed.obj`` and path
+files use the same order). Every error is :class:`fibfluid.Error`, a ``ValueError`` whose
+message is the line the command line prints after ``error:``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import warnings
+from dataclasses import dataclass, field
+from typing import Any, Callable, Dict, Iterator, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from . import _native
+from ._native import Error
+
+__version__: str = _native.__version__
+
+__all__ = ["Body", "Error", "Result", "Scene", "run", "set_threads", "__version__"]
+
+#: The methods a :class:`Body` can run.
+METHODS: Tuple[str, ...] = ("ffm", "tsve-chainmail", "generalized-chainmail")
+
+Vector = Union[Sequence[float], np.ndarray]
+Progress = Union[None, bool, Callable[[int, int], Any]]
+
+
+def _points(a: Any, what: str) -> np.ndarray:
+    try:
+        return np.ascontiguousarray(a, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise Error(f"{what} must be a float64 array of shape (N, 3): {e}") from None
+
+
+def _faces(a: Any) -> np.ndarray:
+    try:
+        f = np.asarray(a)
+    except (TypeError, ValueError) as e:
+        raise Error(f"faces must be an integer array of shape (F, 3): {e}") from None
+    if f.size == 0 and f.dtype.kind not in "iu":
+        f = f.astype(np.int64)
+    if f.dtype.kind not in "iu":
+        raise Error(f"faces must be an integer array of shape (F, 3), got dtype {f.dtype}")
+    if f.dtype.kind == "u" and f.size and int(f.max()) > np.iinfo(np.int64).max:
+        raise Error("faces: a vertex index is too large")
+    return np.ascontiguousarray(f, dtype=np.int64)
+
+
+class Scene:
+    """A scene: a body, its material, constraints, loads and solver choices.
+
+    Read one with :meth:`Scene.load`. Settings are attributes (``scene.steps``,
+    ``scene.young``, ``scene.backend``, ...) and also a dict (:attr:`settings`, and
+    :attr:`solver` for the solver's); each value is checked as the scene file's key is,
+    and an unknown name or a bad value raises :class:`Error` and changes nothing.
+
+    Settings: ``steps`` (int), ``tolerance`` (float in (0, 1) or None: adaptive steps),
+    ``gravity`` (3 floats), ``young`` (a float, or 3 floats per axis), ``surface_tension``,
+    ``density`` (fluid), ``stiffening`` (float or None), ``backend``, ``mode``,
+    ``stepping``, ``precision``, ``constraints`` (names as in scene files), ``penalty``.
+    """
+
+    __slots__ = ("_native",)
+
+    def __init__(self, native: "_native.NativeScene") -> None:
+        """Wraps a compiled scene; use :meth:`Scene.load` to read one."""
+        object.__setattr__(self, "_native", native)
+
+    @staticmethod
+    def load(path: Union[str, "os.PathLike[str]"]) -> "Scene":
+        """Reads a scene file (TOML); paths inside it are relative to it."""
+        return Scene(_native.NativeScene.load(os.fspath(path)))
+
+    def with_mesh(self, vertices: Any, faces: Any) -> "Scene":
+        """A new scene whose body is the surface of ``vertices`` ``(N, 3)`` and ``faces``
+        ``(F, 3)`` (integer vertex indices), checked as a mesh file is (finite, closed,
+        manifold, consistently oriented; an inward surface is flipped, with a note).
+
+        The scene file is read again for what depends on the vertices: its ``[[fix]]``
+        selectors (above, below, top, bottom, box) select among the new vertices, vertex
+        indices (``[[fix]].vertices``, ``[[force]].vertex``) are rows of ``vertices`` and are
+        checked against them, plates are checked against the new rest shape. This scene's
+        settings (as changed since it was read) carry over; ``[mesh].scale`` does not
+        apply. This scene is not changed.
+        """
+        return Scene(self._native.with_mesh(_points(vertices, "vertices"), _faces(faces)))
+
+    def copy(self) -> "Scene":
+        """An independent copy."""
+        return Scene(self._native.copy())
+
+    # -- settings -------------------------------------------------------------------
+
+    @property
+    def settings(self) -> Dict[str, Any]:
+        """Every setting as a dict (a copy); assigning a dict sets the names it has, all or
+        none."""
+        return {name: self._native.get(name) for name in _native.NativeScene.names()}
+
+    @settings.setter
+    def settings(self, values: Dict[str, Any]) -> None:
+        self.update(**values)
+
+    @property
+    def solver(self) -> Dict[str, Any]:
+        """The solver's settings: backend, mode, stepping, precision, constraints, penalty
+        (a copy); assigning a dict sets the names it has, all or none."""
+        return {name: self._native.get(name) for name in _native.NativeScene.solver_names()}
+
+    @solver.setter
+    def solver(self, values: Dict[str, Any]) -> None:
+        unknown = [k for k in values if k not in _native.NativeScene.solver_names()]
+        if unknown:
+            names = ", ".join(_native.NativeScene.solver_names())
+            raise Error(f"unknown solver setting `{unknown[0]}` (known: {names})")
+        self.update(**values)
+
+    def update(self, **values: Any) -> "Scene":
+        """Sets several settings, all or none; returns the scene."""
+        self._native.update(values)
+        return self
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        # Settings and the `settings` and `solver` dicts are properties with setters; any
+        # other name is a typo or a read-only value, which must not pass silently.
+        prop = getattr(type(self), name, None)
+        if isinstance(prop, property) and prop.fset is not None:
+            prop.fset(self, value)
+        elif name in _READ_ONLY:
+            raise Error(f"`{name}` is read only")
+        else:
+            raise Error(f"unknown setting `{name}` (known: {', '.join(_SETTINGS)})")
+
+    # -- the body -------------------------------------------------------------------
+
+    @property
+    def name(self) -> str:
+        """The scene's name (the file's stem)."""
+        return self._native.name
+
+    @property
+    def source(self) -> Optional[str]:
+        """The scene file."""
+        s = self._native.source
+        return None if s is None else os.fspath(s)
+
+    @property
+    def n_vertices(self) -> int:
+        """Number of vertices in the mesh file's order (used or not)."""
+        return self._native.n_vertices
+
+    @property
+    def vertices(self) -> np.ndarray:
+        """Rest positions ``(N, 3)`` float64, in the mesh file's order."""
+        return self._native.vertices()
+
+    @property
+    def faces(self) -> np.ndarray:
+        """Triangles ``(F, 3)`` int64 in file vertex indices, oriented outward."""
+        return self._native.faces()
+
+    @property
+    def fixed_vertices(self) -> np.ndarray:
+        """Vertices (file order) the scene fixes along at least one axis, ascending."""
+        return np.asarray(self._native.fixed_vertices(), dtype=np.int64)
+
+    @property
+    def notes(self) -> List[str]:
+        """Notes about the mesh (unreferenced vertices dropped, a surface flipped)."""
+        return list(self._native.notes())
+
+    def ineffective(self) -> List[str]:
+        """Settings that cannot act (the command line's ``warning:`` lines before a run)."""
+        return list(self._native.ineffective())
+
+    def __repr__(self) -> str:
+        return f"<fibfluid.Scene {self.name!r}: {self.n_vertices} vertices, {self.steps} steps>"
+
+
+_SETTINGS: Tuple[str, ...] = tuple(_native.NativeScene.names())
+
+#: What each setting is (the scene file's key in brackets).
+_SETTING_DOCS: Dict[str, str] = {
+    "steps": "Load steps, 1 to 1000000 ([load].steps).",
+    "tolerance": "Adaptive steps: the largest error estimate of a step, in (0, 1), or None ([load].tolerance).",
+    "gravity": "Final acceleration (x, y, z), reached over the steps ([gravity].acceleration).",
+    "young": "Young's modulus: a float, or (x, y, z) when it differs per axis ([material].young).",
+    "surface_tension": "Surface tension, >= 0 ([material].surface_tension).",
+    "density": "The fluid's density, >= 0 ([fluid].density).",
+    "stiffening": "Quadratic stiffening coefficient c >= 0, or None for linear fibers ([material].stiffening).",
+    "backend": "Linear backend: structured, faer-lu, nalgebra-lu ([solver].backend).",
+    "mode": "Stepping mode: paper, refresh, nonlinear ([solver].mode).",
+    "stepping": "Stepping scheme: euler, heun ([solver].stepping).",
+    "precision": "Factorization precision: f64, mixed ([solver].precision).",
+    "constraints": "How fixed vertices are imposed: eliminate, penalty ([solver].constraints).",
+    "penalty": "The penalty's diagonal value, > 0 ([solver].penalty).",
+}
+
+
+def _setting(name: str) -> property:
+    def get(self: Scene) -> Any:
+        return self._native.get(name)
+
+    def set(self: Scene, value: Any) -> None:
+        self._native.set(name, value)
+
+    return property(get, set, doc=_SETTING_DOCS.get(name, name))
+
+
+for _name in _SETTINGS:
+    setattr(Scene, _name, _setting(_name))
+del _name
+_READ_ONLY: Tuple[str, ...] = ("name", "source", "n_vertices", "vertices", "faces", "fixed_vertices", "notes")
+
+
+@dataclass(frozen=True)
+class Result:
+    """What :func:`run` gives back. Arrays are in the mesh file's vertex order, the order
+    of ``deformed.obj``."""
+
+    #: Final positions ``(N, 3)`` float64 (``deformed.obj``'s vertices).
+    positions: np.ndarray
+    #: Final minus rest positions ``(N, 3)`` float64.
+    displacement: np.ndarray
+    #: The fluid's pressure change at the end.
+    pressure: float
+    #: ``report.json`` as the command line writes it, as Python objects.
+    report: Dict[str, Any]
+    #: Guard warnings, one line each (the report's ``warnings`` as text).
+    warnings: List[str] = field(default_factory=list)
+
+
+def _progress_callback(progress: Progress) -> Tuple[Optional[Callable[[int, int], Any]], Callable[[], None]]:
+    """The callback to hand to the engine, and what to call when the run ends."""
+    if progress is None or progress is False:
+        return None, lambda: None
+    if progress is True:
+        try:
+            from tqdm.auto import tqdm
+        except ImportError:
+            warnings.warn("progress=True needs tqdm (pip install tqdm); running without a bar", stacklevel=3)
+            return None, lambda: None
+        bar: Dict[str, Any] = {}
+
+        def update(step: int, total: int) -> None:
+            if "bar" not in bar:
+                bar["bar"] = tqdm(total=total, unit="step", desc="fibfluid")
+            b = bar["bar"]
+            b.total = total
+            b.update(step - b.n)
+
+        return update, lambda: bar["bar"].close() if "bar" in bar else None
+    if callable(progress):
+        return progress, lambda: None
+    raise Error("progress must be None, True, False or a callable (step, total)")
+
+
+def run(scene: Scene, method: Optional[str] = None, progress: Progress = None,
+        max_memory: Optional[int] = None) -> Result:
+    """Runs a scene as ``fibfluid run`` does (the same stages, numbers and report, without
+    writing files) and returns a :class:`Result`.
+
+    ``method`` may be None or ``"ffm"`` (a batch run is the fiber-fluid method's; ChainMail
+    is interactive only, see :class:`Body`). ``progress`` is a callable ``(step, total)``
+    called after each load step, or True for a tqdm bar. The GIL is released during the
+    solve. ``max_memory`` (bytes) refuses a scene whose plan needs more, as
+    ``--max-memory``. The scene's settings that cannot act are issued as warnings.
+    """
+    if not isinstance(scene, Scene):
+        raise Error("run needs a fibfluid.Scene (Scene.load)")
+    if method is not None and method != "ffm":
+        known = ", ".join(METHODS)
+        if method in METHODS:
+            raise Error(f"{method} is interactive only (no batch run): use fibfluid.Body(scene, method={method!r})")
+        raise Error(f"unknown method `{method}` (expected one of: {known})")
+    for w in scene.ineffective():
+        warnings.warn(w, stacklevel=2)
+    callback, close = _progress_callback(progress)
+    try:
+        out = _native.run(scene._native, callback, max_memory)
+    finally:
+        close()
+    return Result(
+        positions=out.positions,
+        displacement=out.displacement,
+        pressure=out.pressure,
+        report=json.loads(out.report_json),
+        warnings=list(out.warnings),
+    )
+
+
+class Body:
+    """An interactive body: grab, push and release vertices, frame by frame.
+
+    ``method`` is ``"ffm"`` (the fiber-fluid method: a base solve of the scene's loads,
+    then the precomputed response; grabs and pushes, with reaction forces),
+    ``"tsve-chainmail"`` or ``"generalized-chainmail"`` (grabs only, no forces). Building
+    it releases the GIL. Vertices are file indices, as in path files; ``to`` is a
+    displacement from the rest position. Holds take effect at the next :meth:`step`.
+    """
+
+    __slots__ = ("_native",)
+
+    def __init__(self, scene: Scene, method: str = "ffm", max_memory: Optional[int] = None) -> None:
+        """Builds the body of ``scene`` for ``method``."""
+        if not isinstance(scene, Scene):
+            raise Error("Body needs a fibfluid.Scene (Scene.load)")
+        if not isinstance(method, str):
+            raise Error(f"method must be a string, one of: {', '.join(METHODS)}")
+        self._native = _native.NativeBody(scene._native, method, max_memory)
+
+    def grab(self, vertex: int, to: Vector) -> None:
+        """Holds ``vertex`` at its rest position plus ``to`` (3 floats) from the next step."""
+        self._native.grab(_index(vertex), _vector(to, "the displacement"))
+
+    def push(self, vertex: int, force: Vector) -> None:
+        """Pushes ``vertex`` with ``force`` (3 floats) from the next step (ffm only)."""
+        self._native.push(_index(vertex), _vector(force, "the force"))
+
+    def release(self, vertex: int) -> None:
+        """Drops the hold on ``vertex`` from the next step."""
+        self._native.release(_index(vertex))
+
+    def release_all(self) -> None:
+        """Drops every hold from the next step."""
+        self._native.release_all()
+
+    def step(self) -> Tuple[np.ndarray, np.ndarray]:
+        """Applies the holds and computes a frame (the GIL released). Returns the positions
+        ``(N, 3)`` and the reactions ``(k, 4)``: one row per held vertex, sorted, with the
+        vertex (as a float) and the force on the body there (x, y, z); empty without
+        forces (ChainMail)."""
+        return self._native.step()
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Current positions ``(N, 3)``."""
+        return self._native.positions()
+
+    @property
+    def displacement(self) -> np.ndarray:
+        """Current displacement from rest ``(N, 3)``."""
+        return self._native.displacement()
+
+    @property
+    def rest_positions(self) -> np.ndarray:
+        """Rest positions ``(N, 3)``."""
+        return self._native.rest_positions()
+
+    @property
+    def reactions(self) -> np.ndarray:
+        """The last frame's reactions ``(k, 4)`` (see :meth:`step`)."""
+        return self._native.reactions()
+
+    @property
+    def method(self) -> str:
+        """The method's name."""
+        return self._native.method
+
+    @property
+    def supports_forces(self) -> bool:
+        """Whether :meth:`push` and reactions are available."""
+        return self._native.supports_forces
+
+    @property
+    def n_vertices(self) -> int:
+        """Number of vertices (file order)."""
+        return self._native.n_vertices
+
+    @property
+    def frame(self) -> int:
+        """Frames computed so far."""
+        return self._native.frame
+
+    @property
+    def setup_seconds(self) -> float:
+        """Seconds the setup took."""
+        return self._native.setup_seconds
+
+    def is_fixed(self, vertex: int) -> bool:
+        """Whether the scene fixes ``vertex`` along any axis."""
+        return self._native.is_fixed(_index(vertex))
+
+    def __repr__(self) -> str:
+        return f"<fibfluid.Body {self.method}: {self.n_vertices} vertices, frame {self.frame}>"
+
+
+def _index(v: Any) -> int:
+    if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+        raise Error(f"a vertex must be an integer, got {type(v).__name__}")
+    return int(v)
+
+
+def _vector(v: Any, what: str) -> List[float]:
+    try:
+        a = np.asarray(v, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise Error(f"{what} must be three finite numbers [x, y, z]") from None
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise Error(f"{what} must be three finite numbers [x, y, z]")
+    return [float(a[0]), float(a[1]), float(a[2])]
+
+
+def set_threads(n: int) -> Optional[str]:
+    """Sets the number of threads the solvers use (the command line's ``--threads``);
+    returns a note when it was lowered. Call it before the first run."""
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
+        raise Error("threads must be a positive integer")
+    return _native.set_threads(int(n))

@@ -1,0 +1,209 @@
+//! `fibfluid.Body`'s compiled half: a scene's interactive body for one method, driven in
+//! the mesh file's vertex order (as path files are).
+
+use fibfluid_geometry::{MeshFile, Vec3};
+use fibfluid_interact::{InteractError, MethodBody, ProbeError, ProbeOptions};
+use fibfluid_sim::{Choice, Method, Shape};
+use numpy::IntoPyArray;
+use numpy::PyArray2;
+use numpy::ndarray::Array2;
+use pyo3::prelude::*;
+
+use crate::arrays::{points_array, vec3};
+use crate::scene::NativeScene;
+use crate::{error, guard, lib_error};
+
+/// A frame as `step` returns it: positions `(N, 3)` and reactions `(k, 4)`.
+type Frame<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>);
+
+/// An interactive body: grab, push, release, step.
+#[pyclass(module = "fibfluid._native", name = "NativeBody")]
+pub(crate) struct NativeBody {
+    body: MethodBody,
+    /// The mesh file: its vertex order is the one callers use.
+    file: MeshFile,
+    /// File index -> body (mesh) index.
+    file_to_mesh: Vec<Option<usize>>,
+    method: Method,
+    setup_seconds: f64,
+}
+
+impl NativeBody {
+    /// The body's index of file vertex `v`, checked.
+    fn vertex(&self, v: i64) -> PyResult<usize> {
+        let count = self.file_to_mesh.len();
+        let m = usize::try_from(v).ok().and_then(|i| self.file_to_mesh.get(i).copied());
+        match m {
+            None => {
+                Err(error(format!("vertex {v} is out of range (the mesh has {count} vertices, 0-based)")))
+            }
+            Some(None) => Err(error(format!("vertex {v} is not used by any face"))),
+            Some(Some(i)) => Ok(i),
+        }
+    }
+
+    /// The library's error for a body request, its vertex named in file order (as the
+    /// command line's probe names it).
+    fn body_error(&self, e: InteractError) -> PyErr {
+        let file = |v: usize| self.file.to_file.get(v).map(|&f| f as usize).unwrap_or(v);
+        let e = match e {
+            InteractError::FixedVertex { vertex, axis, action } => {
+                InteractError::FixedVertex { vertex: file(vertex), axis, action }
+            }
+            InteractError::NonFinite { vertex, what, value } => {
+                InteractError::NonFinite { vertex: file(vertex), what, value }
+            }
+            other => other,
+        };
+        lib_error(ProbeError::Body(e))
+    }
+
+    /// Positions (or any per-vertex vectors) of the body in file order.
+    fn in_file_order(&self, p: &[Vec3]) -> Vec<Vec3> {
+        self.file.positions_in_file_order(p)
+    }
+
+    /// Reactions as a `(k, 4)` array: file vertex, then the force, sorted by vertex.
+    fn reactions_array<'py>(&self, py: Python<'py>, r: &[(usize, Vec3)]) -> Bound<'py, PyArray2<f64>> {
+        let mut rows: Vec<(usize, Vec3)> =
+            r.iter().map(|&(v, f)| (self.file.to_file[v] as usize, f)).collect();
+        rows.sort_unstable_by_key(|r| r.0);
+        Array2::from_shape_fn(
+            (rows.len(), 4),
+            |(k, c)| if c == 0 { rows[k].0 as f64 } else { rows[k].1[c - 1] },
+        )
+        .into_pyarray(py)
+    }
+}
+
+#[pymethods]
+impl NativeBody {
+    /// Builds the body of `scene` for `method` (`ffm`, `tsve-chainmail`,
+    /// `generalized-chainmail`), with the GIL released: for the fiber–fluid method one full
+    /// solve of the scene's loads and the precomputed response, for ChainMail the lattice.
+    #[new]
+    #[pyo3(signature = (scene, method="ffm", max_memory=None))]
+    fn new(py: Python<'_>, scene: &NativeScene, method: &str, max_memory: Option<u64>) -> PyResult<Self> {
+        guard(|| {
+            let method = Method::parse_name(method).map_err(|e| error(e.to_string()))?;
+            let Shape::Surface(file) = &scene.scene.shape else {
+                return Err(error("an interactive body needs a surface mesh; this scene is a 2D polygon"));
+            };
+            let file = (**file).clone();
+            let opts = ProbeOptions { max_memory_bytes: max_memory, ..Default::default() };
+            let (model, chainmail) = (&scene.scene.model, &scene.scene.chainmail);
+            let body = py.detach(|| MethodBody::build(model, chainmail, method, &opts)).map_err(lib_error)?;
+            let setup_seconds = body.setup_seconds();
+            Ok(NativeBody { body, file_to_mesh: file.file_to_mesh(), file, method, setup_seconds })
+        })
+    }
+
+    /// Holds file vertex `v` at its rest position plus `to` (3 floats) from the next step.
+    fn grab(&mut self, v: i64, to: &Bound<'_, PyAny>) -> PyResult<()> {
+        guard(|| {
+            let m = self.vertex(v)?;
+            let d = vec3(to, "the displacement")?;
+            self.body.interactive().grab(m, d).map_err(|e| self.body_error(e))
+        })
+    }
+
+    /// Pushes file vertex `v` with `force` (3 floats) from the next step (the fiber–fluid
+    /// method only).
+    fn push(&mut self, v: i64, force: &Bound<'_, PyAny>) -> PyResult<()> {
+        guard(|| {
+            let m = self.vertex(v)?;
+            let f = vec3(force, "the force")?;
+            self.body.interactive().push(m, f).map_err(|e| self.body_error(e))
+        })
+    }
+
+    /// Drops the hold on file vertex `v` from the next step.
+    fn release(&mut self, v: i64) -> PyResult<()> {
+        guard(|| {
+            let m = self.vertex(v)?;
+            self.body.interactive().release(m).map_err(|e| self.body_error(e))
+        })
+    }
+
+    /// Drops every hold from the next step.
+    fn release_all(&mut self) -> PyResult<()> {
+        guard(|| {
+            self.body.interactive().release_all();
+            Ok(())
+        })
+    }
+
+    /// Applies the holds and computes the frame (the GIL released): returns the positions
+    /// `(N, 3)` in file order and the reactions `(k, 4)`: file vertex, force x, y, z.
+    fn step<'py>(&mut self, py: Python<'py>) -> PyResult<Frame<'py>> {
+        guard(|| {
+            let body = &mut self.body;
+            let reactions = py
+                .detach(|| body.interactive().update().map(<[_]>::to_vec))
+                .map_err(|e| self.body_error(e))?;
+            let positions = self.in_file_order(self.body.interactive_ref().positions());
+            Ok((points_array(py, &positions), self.reactions_array(py, &reactions)))
+        })
+    }
+
+    /// Current positions `(N, 3)`, file order.
+    fn positions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        points_array(py, &self.in_file_order(self.body.interactive_ref().positions()))
+    }
+
+    /// Current displacement from rest `(N, 3)`, file order (zero at unused file vertices).
+    fn displacement<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        let body = self.body.interactive_ref();
+        let mut d = vec![[0.0; 3]; self.file.file_vertex_count()];
+        for (m, &f) in self.file.to_file.iter().enumerate() {
+            d[f as usize] = body.field()[m];
+        }
+        points_array(py, &d)
+    }
+
+    /// Rest positions `(N, 3)`, file order.
+    fn rest_positions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        points_array(py, &self.in_file_order(self.body.interactive_ref().rest_positions()))
+    }
+
+    /// The current reactions `(k, 4)`.
+    fn reactions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        self.reactions_array(py, self.body.interactive_ref().reactions())
+    }
+
+    /// The method's name.
+    #[getter]
+    fn method(&self) -> &'static str {
+        self.method.name()
+    }
+
+    /// Whether the method takes forces (`push`) and gives reactions.
+    #[getter]
+    fn supports_forces(&self) -> bool {
+        self.body.interactive_ref().supports_forces()
+    }
+
+    /// Number of vertices in file order.
+    #[getter]
+    fn n_vertices(&self) -> usize {
+        self.file_to_mesh.len()
+    }
+
+    /// Frames computed so far.
+    #[getter]
+    fn frame(&self) -> u64 {
+        self.body.interactive_ref().frame()
+    }
+
+    /// Seconds the setup took (base solve and precompute, or the lattice).
+    #[getter]
+    fn setup_seconds(&self) -> f64 {
+        self.setup_seconds
+    }
+
+    /// Whether the scene fixes file vertex `v` along any axis.
+    fn is_fixed(&self, v: i64) -> PyResult<bool> {
+        let m = self.vertex(v)?;
+        Ok(self.body.interactive_ref().is_fixed(m))
+    }
+}

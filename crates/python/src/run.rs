@@ -1,0 +1,127 @@
+//! `fibfluid.run`'s compiled half: the command line's `run` without the files.
+
+use std::sync::{Arc, Mutex};
+
+use fibfluid_geometry::Vec3;
+use fibfluid_sim::stages::{StageRecord, names};
+use fibfluid_sim::{Report, RunOptions, SetupOptions, Shape, Simulation};
+use numpy::PyArray2;
+use pyo3::prelude::*;
+
+use crate::arrays::points_array;
+use crate::scene::NativeScene;
+use crate::{error, guard, lib_error};
+
+/// What a run gives back, in the body's file vertex order.
+#[pyclass(module = "fibfluid._native", name = "RunOutput", frozen)]
+pub(crate) struct RunOutput {
+    /// Final positions `(N, 3)`.
+    #[pyo3(get)]
+    positions: Py<PyArray2<f64>>,
+    /// Final minus rest positions `(N, 3)`.
+    #[pyo3(get)]
+    displacement: Py<PyArray2<f64>>,
+    /// The fluid's pressure change at the end.
+    #[pyo3(get)]
+    pressure: f64,
+    /// `report.json` as the command line writes it (JSON text).
+    #[pyo3(get)]
+    report_json: String,
+    /// Guard warnings, one line each (also in the report).
+    #[pyo3(get)]
+    warnings: Vec<String>,
+}
+
+/// What the detached part of a run returns.
+struct Done {
+    positions: Vec<Vec3>,
+    displacement: Vec<Vec3>,
+    pressure: f64,
+    report_json: String,
+    warnings: Vec<String>,
+}
+
+/// Runs a scene as `fibfluid run` does (the same stages and the same report, without the
+/// output files), with the GIL released. `progress(step, total)` is called after each
+/// step with the GIL held; an exception it raises is raised when the run ends (a run
+/// cannot be stopped half-way). `max_memory` is the command line's `--max-memory`.
+#[pyfunction]
+#[pyo3(signature = (scene, progress=None, max_memory=None))]
+pub(crate) fn run(
+    py: Python<'_>,
+    scene: &NativeScene,
+    progress: Option<Py<PyAny>>,
+    max_memory: Option<u64>,
+) -> PyResult<RunOutput> {
+    guard(|| {
+        let failed: Arc<Mutex<Option<PyErr>>> = Arc::new(Mutex::new(None));
+        let opts = RunOptions { progress: progress.map(|cb| callback(cb, failed.clone())) };
+        let setup = SetupOptions { max_memory, ..Default::default() };
+        let load =
+            StageRecord { name: names::LOAD_SCENE, parent: None, seconds: scene.load_seconds, count: 1 };
+        let model = scene.scene.clone();
+        let done = py.detach(move || solve(model, &setup, &opts, load)).map_err(lib_error)?;
+        if let Some(e) = failed.lock().map_err(|_| error("the progress callback failed"))?.take() {
+            return Err(e);
+        }
+        Ok(RunOutput {
+            positions: points_array(py, &done.positions).unbind(),
+            displacement: points_array(py, &done.displacement).unbind(),
+            pressure: done.pressure,
+            report_json: done.report_json,
+            warnings: done.warnings,
+        })
+    })
+}
+
+/// The progress callback as the engine takes it: the GIL is taken for the call; the first
+/// exception is kept and later calls are skipped. Ctrl-C (a pending signal) counts as one.
+fn callback(cb: Py<PyAny>, failed: Arc<Mutex<Option<PyErr>>>) -> Arc<dyn Fn(usize, usize) + Send + Sync> {
+    Arc::new(move |k, n| {
+        Python::attach(|py| {
+            let Ok(mut slot) = failed.lock() else { return };
+            if slot.is_some() {
+                return;
+            }
+            if let Err(e) = py.check_signals().and_then(|()| cb.call1(py, (k, n)).map(drop)) {
+                *slot = Some(e);
+            }
+        })
+    })
+}
+
+fn solve(
+    scene: fibfluid_scene::Scene,
+    setup: &SetupOptions,
+    opts: &RunOptions,
+    load: StageRecord,
+) -> Result<Done, fibfluid_scene::Error> {
+    let notes = match &scene.shape {
+        Shape::Surface(m) => m.notes.clone(),
+        Shape::Polygon(_) => vec![],
+    };
+    let mut sim = Simulation::with_options(scene, setup)?;
+    sim.run(opts)?;
+    let report = Report::of(&sim, std::slice::from_ref(&load), notes);
+    // The file order and the subtraction of `write_outputs` (`deformed.obj`, the VTK's
+    // displacement).
+    let (positions, rest) = match &sim.model().shape {
+        Shape::Surface(m) => {
+            (m.positions_in_file_order(sim.positions()), m.positions_in_file_order(sim.rest_positions()))
+        }
+        Shape::Polygon(_) => (sim.positions().to_vec(), sim.rest_positions().to_vec()),
+    };
+    let displacement =
+        positions.iter().zip(&rest).map(|(p, r)| [p[0] - r[0], p[1] - r[1], p[2] - r[2]]).collect();
+    let report_json = serde_json::to_string(&report).map_err(|e| fibfluid_scene::Error::Io {
+        path: "report.json".into(),
+        source: std::io::Error::other(e),
+    })?;
+    Ok(Done {
+        positions,
+        displacement,
+        pressure: sim.pressure(),
+        report_json,
+        warnings: sim.warnings().iter().map(|w| crate::one_line(&w.to_string())).collect(),
+    })
+}

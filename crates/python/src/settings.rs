@@ -1,0 +1,159 @@
+//! A scene's settings by name: read as Python values, written with the checks a scene
+//! file's keys get (the same ranges and the same choice parsers).
+
+use fibfluid_assembly::StiffnessLaw;
+use fibfluid_scene::Scene;
+use fibfluid_sim::{Backend, Choice, ConstraintKind, MAX_STEPS, Mode, Precision, Stepping};
+use pyo3::IntoPyObjectExt;
+use pyo3::prelude::*;
+use pyo3::types::PyBool;
+
+use crate::arrays::vec3;
+use crate::error;
+
+/// Every setting, in the order `Scene.settings` lists them.
+pub(crate) const NAMES: &[&str] = &[
+    "steps",
+    "tolerance",
+    "gravity",
+    "young",
+    "surface_tension",
+    "density",
+    "stiffening",
+    "backend",
+    "mode",
+    "stepping",
+    "precision",
+    "constraints",
+    "penalty",
+];
+
+/// The solver's settings (`Scene.solver`), a subset of [`NAMES`].
+pub(crate) const SOLVER: &[&str] = &["backend", "mode", "stepping", "precision", "constraints", "penalty"];
+
+fn unknown(name: &str) -> PyErr {
+    error(format!("unknown setting `{name}` (known: {})", NAMES.join(", ")))
+}
+
+/// The value of setting `name`.
+pub(crate) fn get(py: Python<'_>, scene: &Scene, name: &str) -> PyResult<Py<PyAny>> {
+    let m = &scene.material;
+    let s = &scene.solver;
+    match name {
+        "steps" => scene.steps.into_py_any(py),
+        "tolerance" => scene.tolerance.into_py_any(py),
+        "gravity" => (scene.gravity[0], scene.gravity[1], scene.gravity[2]).into_py_any(py),
+        "young" if m.young.iter().all(|&y| y == m.young[0]) => m.young[0].into_py_any(py),
+        "young" => (m.young[0], m.young[1], m.young[2]).into_py_any(py),
+        "surface_tension" => m.surface_tension.into_py_any(py),
+        "density" => m.density.into_py_any(py),
+        "stiffening" => match m.law {
+            StiffnessLaw::Linear => None::<f64>.into_py_any(py),
+            StiffnessLaw::Quadratic { c } => c.into_py_any(py),
+            // Not from a scene file: a law given in code has no number to show.
+            StiffnessLaw::Custom(_) => "custom".into_py_any(py),
+        },
+        "backend" => s.backend.name().into_py_any(py),
+        "mode" => s.mode.name().into_py_any(py),
+        "stepping" => s.stepping.name().into_py_any(py),
+        "precision" => s.precision.name().into_py_any(py),
+        "constraints" => s.constraints.name().into_py_any(py),
+        "penalty" => s.penalty.into_py_any(py),
+        _ => Err(unknown(name)),
+    }
+}
+
+/// A number (an int or a float, not a bool or a string).
+fn number(v: &Bound<'_, PyAny>, name: &str) -> PyResult<f64> {
+    if v.is_instance_of::<PyBool>() {
+        return Err(error(format!("{name}: expected a number, got a bool")));
+    }
+    v.extract::<f64>().map_err(|_| error(format!("{name}: expected a number, got {}", type_name(v))))
+}
+
+fn type_name(v: &Bound<'_, PyAny>) -> String {
+    v.get_type().name().map(|n| n.to_string()).unwrap_or_else(|_| "?".into())
+}
+
+/// Checks a number against a rule, as the scene file's ranges do.
+fn checked(name: &str, value: f64, rule: &'static str, ok: bool) -> PyResult<f64> {
+    if ok { Ok(value) } else { Err(error(format!("{name}: must be {rule}, got {value}"))) }
+}
+
+fn choice<T: Choice>(v: &Bound<'_, PyAny>, name: &str) -> PyResult<T> {
+    let s: String =
+        v.extract().map_err(|_| error(format!("{name}: expected a string, got {}", type_name(v))))?;
+    T::parse_name(&s).map_err(|e| error(format!("{name}: {e}")))
+}
+
+/// Sets `name` to `v` on `scene`, with the checks of the scene file's key; on error the
+/// scene is unchanged.
+pub(crate) fn set(scene: &mut Scene, name: &str, v: &Bound<'_, PyAny>) -> PyResult<()> {
+    let axes = if scene.is_surface() { 3 } else { 2 };
+    match name {
+        "steps" => {
+            let bad = || error(format!("steps: must be an integer between 1 and {MAX_STEPS}"));
+            if v.is_instance_of::<PyBool>() {
+                return Err(bad());
+            }
+            let n: i64 = v.extract().map_err(|_| bad())?;
+            if !(1..=MAX_STEPS as i64).contains(&n) {
+                return Err(error(format!("steps: must be between 1 and {MAX_STEPS}, got {n}")));
+            }
+            scene.steps = n as usize;
+        }
+        "tolerance" => {
+            scene.tolerance = if v.is_none() {
+                None
+            } else {
+                let t = number(v, name)?;
+                Some(checked(name, t, "between 0 and 1", t.is_finite() && t > 0.0 && t < 1.0)?)
+            };
+        }
+        "gravity" => scene.gravity = vec3(v, "gravity")?,
+        "young" => {
+            let young = match number(v, name) {
+                Ok(y) => [y; 3],
+                Err(_) => vec3(v, "young (a number or three numbers)")?,
+            };
+            for (c, y) in young.iter().enumerate().take(axes) {
+                if !(y.is_finite() && *y > 0.0) {
+                    let axis = fibfluid_geometry::AXES[c];
+                    return Err(error(format!("young: must be positive, got {y} along {axis}")));
+                }
+            }
+            scene.material.young = young;
+        }
+        "surface_tension" => {
+            let g = number(v, name)?;
+            scene.material.surface_tension = checked(name, g, ">= 0", g.is_finite() && g >= 0.0)?;
+        }
+        "density" => {
+            let d = number(v, name)?;
+            scene.material.density = checked(name, d, ">= 0", d.is_finite() && d >= 0.0)?;
+        }
+        "stiffening" => {
+            scene.material.law = if v.is_none() {
+                StiffnessLaw::Linear
+            } else {
+                let c = number(v, name)?;
+                StiffnessLaw::Quadratic { c: checked(name, c, ">= 0", c.is_finite() && c >= 0.0)? }
+            };
+        }
+        "backend" => {
+            let b: Backend = choice(v, name)?;
+            b.solver().map_err(|e| error(format!("backend: {e}")))?;
+            scene.solver.backend = b;
+        }
+        "mode" => scene.solver.mode = choice::<Mode>(v, name)?,
+        "stepping" => scene.solver.stepping = choice::<Stepping>(v, name)?,
+        "precision" => scene.solver.precision = choice::<Precision>(v, name)?,
+        "constraints" => scene.solver.constraints = choice::<ConstraintKind>(v, name)?,
+        "penalty" => {
+            let p = number(v, name)?;
+            scene.solver.penalty = checked(name, p, "positive", p.is_finite() && p > 0.0)?;
+        }
+        _ => return Err(unknown(name)),
+    }
+    Ok(())
+}
