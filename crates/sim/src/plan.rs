@@ -54,26 +54,7 @@ struct Size {
 impl Plan {
     /// Plans the run of `scene` with its solver options and load steps.
     pub fn from_scene(scene: &Model) -> Plan {
-        if scene.solver.method == Method::Fem {
-            return fem_plan(scene);
-        }
-        let size = match &scene.shape {
-            Shape::Surface(m) => Size {
-                n: m.mesh.n_vertices() as f64,
-                faces: m.mesh.n_faces() as f64,
-                axes: 3,
-                convex: m.mesh.is_convex(),
-                polygon: false,
-            },
-            Shape::Polygon(p) => Size {
-                n: p.n_vertices() as f64,
-                faces: p.n_vertices() as f64,
-                axes: 2,
-                convex: true,
-                polygon: true,
-            },
-        };
-        plan(scene, &size)
+        Self::planned(scene, |m| m.is_convex())
     }
 
     /// The plan from the model's counts alone: no geometric test (the body is taken as
@@ -81,6 +62,11 @@ impl Plan {
     /// whose convexity check would take minutes. A model this plan refuses is refused
     /// before anything else runs.
     pub fn from_counts(scene: &Model) -> Plan {
+        Self::planned(scene, |_| true)
+    }
+
+    /// The plan with the mesh's convexity decided by `convex`.
+    fn planned(scene: &Model, convex: impl Fn(&fibfluid_geometry::TriMesh) -> bool) -> Plan {
         if scene.solver.method == Method::Fem {
             return fem_plan(scene);
         }
@@ -89,7 +75,7 @@ impl Plan {
                 n: m.mesh.n_vertices() as f64,
                 faces: m.mesh.n_faces() as f64,
                 axes: 3,
-                convex: true,
+                convex: convex(&m.mesh),
                 polygon: false,
             },
             Shape::Polygon(p) => Size {
