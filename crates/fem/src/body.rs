@@ -9,10 +9,11 @@ use fibfluid_geometry::Vec3;
 use fibfluid_geometry::vec3::dist;
 use serde::Serialize;
 
-use crate::assemble::{FIXED, assemble_lower, cell_matrix, number_free_dofs, symmetric_mul};
+use crate::assemble::{FIXED, add_penalty, assemble_lower, cell_matrix, number_free_dofs, symmetric_mul};
+use crate::clamp::{Clamp, clamp_stiffness};
 use crate::error::{FemError, Result};
 use crate::factor::SparseCholesky;
-use crate::grid::{Element, Embedded, FemOptions, SparseGrid};
+use crate::grid::{Element, FemOptions, SparseGrid};
 use crate::tissue::Tissue;
 
 /// Largest accepted relative residual `|K u - f| / |f|` of a solve.
@@ -109,35 +110,6 @@ pub fn fixed_surface_samples(corners: [Vec3; 3], h: f64) -> Vec<Vec3> {
     out
 }
 
-/// The fixed dofs (`3 n + a`) of the rule in [`FemBody`]'s docs.
-fn fixed_dofs(grid: &SparseGrid, fixed: &[[bool; 3]]) -> Vec<bool> {
-    let mut fixed_dof = vec![false; 3 * grid.n_nodes()];
-    let mut mark = |e: &Embedded, axes: [bool; 3]| {
-        for b in 0..8 {
-            for a in 0..3 {
-                if axes[a] && e.weights[b] > 0.0 {
-                    fixed_dof[3 * e.nodes[b] + a] = true;
-                }
-            }
-        }
-    };
-    for (e, &axes) in grid.embedding().iter().zip(fixed) {
-        mark(e, axes);
-    }
-    let pos = grid.surface_positions();
-    for t in grid.surface_triangles() {
-        let axes: [bool; 3] = std::array::from_fn(|a| t.iter().all(|&v| fixed[v as usize][a]));
-        if axes.iter().any(|&f| f) {
-            for p in fixed_surface_samples(t.map(|v| pos[v as usize]), grid.cell_size()) {
-                if let Some(e) = grid.locate(p) {
-                    mark(&e, axes);
-                }
-            }
-        }
-    }
-    fixed_dof
-}
-
 impl FemBody {
     /// Voxelizes, assembles and factors in one call: [`SparseGrid::from_surface`] at
     /// `options.resolution`, then [`FemBody::with_element`].
@@ -177,14 +149,16 @@ impl FemBody {
                 found: fixed.len(),
             });
         }
-        let fixed_dof = fixed_dofs(&grid, fixed);
-        let (free, n_free) = number_free_dofs(&fixed_dof);
+        let clamp = Clamp::new(&grid, fixed);
+        let (free, n_free) = number_free_dofs(&clamp.eliminated);
         if n_free == 0 {
             return Err(FemError::NothingFree);
         }
         let start = Instant::now();
         let cell = cell_matrix(&grid, tissue, element);
-        let k_lower = assemble_lower(&grid, &cell, &free, n_free);
+        let mut k_lower = assemble_lower(&grid, &cell, &free, n_free);
+        let beta = clamp_stiffness(tissue, grid.cell_size());
+        add_penalty(&mut k_lower, &free, &clamp.points, |p| beta * p.area);
         let assembly_seconds = start.elapsed().as_secs_f64();
         let start = Instant::now();
         let factor = SparseCholesky::new(k_lower.as_ref())?;

@@ -41,6 +41,7 @@
 
 mod assemble;
 mod body;
+mod clamp;
 mod element;
 mod error;
 mod factor;
@@ -49,6 +50,7 @@ mod held;
 mod tissue;
 
 pub use body::{FemBody, FemSolution, FemStats, Loads, RESIDUAL_LIMIT, fixed_surface_samples};
+pub use clamp::CLAMP_PENALTY;
 pub use error::{FemError, Result};
 pub use grid::{
     DEFAULT_RESOLUTION, Element, Embedded, FemOptions, GridEstimate, MAX_CELLS, MAX_RESOLUTION, MIN_FILL,

@@ -30,6 +30,15 @@ const LIVER: Case = Case {
     },
 };
 
+const SPOT: Case = Case {
+    mesh: "spot.obj",
+    golden: "spot-standing.txt",
+    fixed: |pos| {
+        let bottom = pos.iter().map(|p| p[1]).fold(f64::MAX, f64::min);
+        pos.iter().map(|p| [p[1] <= bottom + 0.08; 3]).collect()
+    },
+};
+
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
@@ -38,7 +47,8 @@ fn root() -> PathBuf {
 fn error(case: &Case, resolution: usize) -> f64 {
     let file = load_mesh(root().join("../../fixtures/meshes").join(case.mesh)).unwrap();
     assert_eq!(file.file_vertex_count(), file.mesh.n_vertices(), "every file vertex is used");
-    let golden: Vec<V3> = std::fs::read_to_string(root().join("tests/golden").join(case.golden))
+    let dir = std::env::var("GOLDEN_DIR").map(PathBuf::from).unwrap_or_else(|_| root().join("tests/golden"));
+    let golden: Vec<V3> = std::fs::read_to_string(dir.join(case.golden))
         .unwrap()
         .lines()
         .filter(|l| !l.starts_with('#'))
@@ -58,7 +68,15 @@ fn error(case: &Case, resolution: usize) -> f64 {
     let ours: Vec<V3> = (0..pos.len()).map(|i| s.surface_displacements[i]).collect();
     let theirs: Vec<V3> = (0..pos.len()).map(|i| golden[file.from_file_index(i).unwrap()]).collect();
     let e = rel_l2(&ours, &theirs, |_| true);
-    eprintln!("{}: resolution {resolution}: relative L2 error {e:.4}, {:?}", case.mesh, body.stats());
+    let mean = |u: &[V3]| u.iter().map(|x| x[1]).sum::<f64>() / u.len() as f64;
+    let st = body.stats();
+    eprintln!(
+        "{}: resolution {resolution}: relative L2 error {e:.4}, mean u_y ratio {:.3}, dofs {} factor {:.2}s",
+        case.mesh,
+        mean(&ours) / mean(&theirs),
+        st.dofs,
+        st.factor_seconds
+    );
     e
 }
 
@@ -66,8 +84,17 @@ fn error(case: &Case, resolution: usize) -> f64 {
 #[test]
 #[ignore]
 fn measure_errors_against_reference() {
-    for case in [&SPHERE, &LIVER] {
-        for r in [8, 12, 16, 20, 24, 32] {
+    let res: Vec<usize> = std::env::var("FEM_RES")
+        .unwrap_or_else(|_| "8,12,16,20,24,32".into())
+        .split(',')
+        .map(|x| x.parse().unwrap())
+        .collect();
+    let which = std::env::var("FEM_CASES").unwrap_or_else(|_| "sphere,liver".into());
+    for case in [&SPHERE, &LIVER, &SPOT] {
+        if !which.contains(case.golden.split('-').next().unwrap()) {
+            continue;
+        }
+        for &r in &res {
             error(case, r);
         }
     }
