@@ -300,6 +300,11 @@ impl SparseGrid {
         &self.cell_coords
     }
 
+    /// Grid coordinates `(i, j, k)` of every node (node `(0, 0, 0)` at [`SparseGrid::origin`]).
+    pub fn node_coords(&self) -> &[[usize; 3]] {
+        &self.node_coords
+    }
+
     /// The eight node indices of every active cell (corner order as in [`Embedded`]).
     pub fn cell_nodes(&self) -> &[[usize; 8]] {
         &self.cell_nodes

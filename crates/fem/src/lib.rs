@@ -47,6 +47,7 @@ mod error;
 mod factor;
 mod grid;
 mod held;
+mod ordering;
 mod tissue;
 
 pub use body::{FemBody, FemSolution, FemStats, Loads, RESIDUAL_LIMIT, fixed_surface_samples};
@@ -57,4 +58,5 @@ pub use grid::{
     SNAP, SUBSAMPLES, SparseGrid,
 };
 pub use held::HeldResponse;
+pub use ordering::{ND_LEAF, Ordering};
 pub use tissue::Tissue;

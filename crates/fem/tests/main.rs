@@ -5,4 +5,5 @@ mod common;
 mod errors;
 mod golden;
 mod held;
+mod ordering;
 mod patch;
