@@ -64,18 +64,19 @@ pub struct FemStats {
     pub solve_seconds: f64,
 }
 
-/// A sparse-grid body with fixed degrees of freedom eliminated and K factored once.
+/// A sparse-grid body with its clamp imposed and K factored once.
 ///
-/// Fixed vertices: a surface vertex fixed along axis `a` fixes axis `a` of every node of its
-/// cell whose trilinear weight for that vertex is nonzero (after snapping to the cell's
-/// faces within [`crate::SNAP`]); those node dofs are removed from the system (zero
-/// displacement). A vertex on a cell face or edge therefore fixes only the nodes of that
-/// face or edge; a vertex strictly inside a cell fixes all eight. The same rule applies to
-/// the points of every surface triangle whose three vertices are all fixed along `a`
-/// (sampled at spacing at most `h / 2`, see [`fixed_surface_samples`]): a fixed patch of
-/// the surface clamps every cell it passes through, however coarse the surface mesh is
-/// against the grid. Without this, a grid finer than the surface mesh would hold the body at
-/// isolated nodes (point supports, whose displacement grows without bound as `h -> 0`).
+/// The clamp acts on the fixed part of the *surface*, not on whole cells: every surface
+/// triangle whose three vertices are fixed along axis `a` is sampled at most `h / 2` apart
+/// ([`fixed_surface_samples`]), and each sample `p`, at trilinear weights `w` in its cell,
+/// adds the penalty `beta * area_p * w w^T` on axis `a` of the cell's nodes, with
+/// `beta = CLAMP_PENALTY * E / h` per unit area and `area_p` the sample's share of the
+/// triangle's area ([`crate::CLAMP_PENALTY`] states the slip bound). A fixed vertex outside any
+/// fully fixed triangle is one such point standing for a third of its triangles' area. A
+/// point that sits on a grid node (weight 1 after snapping within [`crate::SNAP`]) fixes that
+/// node's axis exactly (the dof is eliminated, see [`FemBody::is_fixed`]). Nodes outside the
+/// body or a cell inside the clamp are therefore no longer held: only the embedded surface
+/// is, to within the penalty's slip.
 pub struct FemBody {
     pub(crate) grid: SparseGrid,
     pub(crate) tissue: Tissue,

@@ -17,9 +17,10 @@ use crate::body::fixed_surface_samples;
 use crate::grid::{Embedded, SNAP, SparseGrid};
 use crate::tissue::Tissue;
 
-/// The clamp's penalty, in units of `E / h` per unit area of fixed surface. A patch of
-/// area `h^2` adds `CLAMP_PENALTY * E * h` to K's diagonal, about `CLAMP_PENALTY / 4` times
-/// an interior node's diagonal entry at nu = 0.45 (`~ 4 E h`... see `docs/fem.md`).
+/// The clamp's penalty, in units of `E / h` per unit area of fixed surface. A fixed patch of
+/// area `h^2` adds `CLAMP_PENALTY * E * h` (spread by its points' weights `w w^T`) to K,
+/// whose diagonal entries are themselves `E h` times a factor of order one: the penalty is
+/// scaled to K's diagonal at every resolution and for every tissue.
 ///
 /// Error bound (the clamp's slip): the penalty forces balance the load, so the
 /// area-weighted mean displacement of the fixed surface along a fixed axis is exactly
