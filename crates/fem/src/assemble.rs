@@ -121,3 +121,34 @@ pub(crate) fn symmetric_mul(k_lower: &SparseColMat<usize, f64>, x: &[f64]) -> Ve
     }
     y
 }
+
+/// Adds `coef(point) * w w^T` on the point's axis for every clamp point (lower triangle).
+/// The pattern already holds every pair of nodes of a cell.
+pub(crate) fn add_penalty(
+    k_lower: &mut SparseColMat<usize, f64>,
+    free: &[usize],
+    points: &[crate::clamp::ClampPoint],
+    coef: impl Fn(&crate::clamp::ClampPoint) -> f64,
+) {
+    let (symbolic, values) = k_lower.parts_mut();
+    let (col_ptr, row_idx) = (symbolic.col_ptr(), symbolic.row_idx());
+    for p in points {
+        let beta = coef(p);
+        for c in 0..8 {
+            let gc = free[3 * p.nodes[c] + p.axis];
+            if gc == FIXED || p.weights[c] == 0.0 {
+                continue;
+            }
+            let col = &row_idx[col_ptr[gc]..col_ptr[gc + 1]];
+            for r in 0..8 {
+                let gr = free[3 * p.nodes[r] + p.axis];
+                if gr == FIXED || gr < gc || p.weights[r] == 0.0 {
+                    continue;
+                }
+                if let Ok(pos) = col.binary_search(&gr) {
+                    values[col_ptr[gc] + pos] += beta * p.weights[r] * p.weights[c];
+                }
+            }
+        }
+    }
+}

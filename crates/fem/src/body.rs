@@ -9,10 +9,12 @@ use fibfluid_geometry::Vec3;
 use fibfluid_geometry::vec3::dist;
 use serde::Serialize;
 
-use crate::assemble::{FIXED, assemble_lower, cell_matrix, number_free_dofs, symmetric_mul};
+use crate::assemble::{FIXED, add_penalty, assemble_lower, cell_matrix, number_free_dofs, symmetric_mul};
+use crate::clamp::{Clamp, clamp_stiffness};
 use crate::error::{FemError, Result};
 use crate::factor::SparseCholesky;
-use crate::grid::{Element, Embedded, FemOptions, SparseGrid};
+use crate::grid::{Element, FemOptions, SparseGrid};
+use crate::ordering::{Ordering, dof_permutation, nested_dissection};
 use crate::tissue::Tissue;
 
 /// Largest accepted relative residual `|K u - f| / |f|` of a solve.
@@ -56,24 +58,25 @@ pub struct FemStats {
     pub factor_nonzeros: usize,
     /// Seconds to build the grid's stiffness (pattern and values).
     pub assembly_seconds: f64,
-    /// Seconds of the sparse Cholesky (symbolic and numeric).
+    /// Seconds of the sparse Cholesky (ordering, symbolic and numeric).
     pub factor_seconds: f64,
     /// Seconds of the last [`FemBody::solve`] (0 before the first).
     pub solve_seconds: f64,
 }
 
-/// A sparse-grid body with fixed degrees of freedom eliminated and K factored once.
+/// A sparse-grid body with its clamp imposed and K factored once.
 ///
-/// Fixed vertices: a surface vertex fixed along axis `a` fixes axis `a` of every node of its
-/// cell whose trilinear weight for that vertex is nonzero (after snapping to the cell's
-/// faces within [`crate::SNAP`]); those node dofs are removed from the system (zero
-/// displacement). A vertex on a cell face or edge therefore fixes only the nodes of that
-/// face or edge; a vertex strictly inside a cell fixes all eight. The same rule applies to
-/// the points of every surface triangle whose three vertices are all fixed along `a`
-/// (sampled at spacing at most `h / 2`, see [`fixed_surface_samples`]): a fixed patch of
-/// the surface clamps every cell it passes through, however coarse the surface mesh is
-/// against the grid. Without this, a grid finer than the surface mesh would hold the body at
-/// isolated nodes (point supports, whose displacement grows without bound as `h -> 0`).
+/// The clamp acts on the fixed part of the *surface*, not on whole cells: every surface
+/// triangle whose three vertices are fixed along axis `a` is sampled at most `h / 2` apart
+/// ([`fixed_surface_samples`]), and each sample `p`, at trilinear weights `w` in its cell,
+/// adds the penalty `beta * area_p * w w^T` on axis `a` of the cell's nodes, with
+/// `beta = CLAMP_PENALTY * E / h` per unit area and `area_p` the sample's share of the
+/// triangle's area ([`crate::CLAMP_PENALTY`] states the slip bound). A fixed vertex outside any
+/// fully fixed triangle is one such point standing for a third of its triangles' area. A
+/// point that sits on a grid node (weight 1 after snapping within [`crate::SNAP`]) fixes that
+/// node's axis exactly (the dof is eliminated, see [`FemBody::is_fixed`]). Nodes outside the
+/// body or a cell inside the clamp are therefore no longer held: only the embedded surface
+/// is, to within the penalty's slip.
 pub struct FemBody {
     pub(crate) grid: SparseGrid,
     pub(crate) tissue: Tissue,
@@ -109,35 +112,6 @@ pub fn fixed_surface_samples(corners: [Vec3; 3], h: f64) -> Vec<Vec3> {
     out
 }
 
-/// The fixed dofs (`3 n + a`) of the rule in [`FemBody`]'s docs.
-fn fixed_dofs(grid: &SparseGrid, fixed: &[[bool; 3]]) -> Vec<bool> {
-    let mut fixed_dof = vec![false; 3 * grid.n_nodes()];
-    let mut mark = |e: &Embedded, axes: [bool; 3]| {
-        for b in 0..8 {
-            for a in 0..3 {
-                if axes[a] && e.weights[b] > 0.0 {
-                    fixed_dof[3 * e.nodes[b] + a] = true;
-                }
-            }
-        }
-    };
-    for (e, &axes) in grid.embedding().iter().zip(fixed) {
-        mark(e, axes);
-    }
-    let pos = grid.surface_positions();
-    for t in grid.surface_triangles() {
-        let axes: [bool; 3] = std::array::from_fn(|a| t.iter().all(|&v| fixed[v as usize][a]));
-        if axes.iter().any(|&f| f) {
-            for p in fixed_surface_samples(t.map(|v| pos[v as usize]), grid.cell_size()) {
-                if let Some(e) = grid.locate(p) {
-                    mark(&e, axes);
-                }
-            }
-        }
-    }
-    fixed_dof
-}
-
 impl FemBody {
     /// Voxelizes, assembles and factors in one call: [`SparseGrid::from_surface`] at
     /// `options.resolution`, then [`FemBody::with_element`].
@@ -169,6 +143,18 @@ impl FemBody {
         fixed: &[[bool; 3]],
         element: Element,
     ) -> Result<Self> {
+        Self::with_ordering(grid, tissue, fixed, element, Ordering::default())
+    }
+
+    /// [`FemBody::with_element`] with the fill-reducing ordering of the factorization
+    /// chosen (the result is the same to rounding; only fill and time differ).
+    pub fn with_ordering(
+        grid: SparseGrid,
+        tissue: &Tissue,
+        fixed: &[[bool; 3]],
+        element: Element,
+        ordering: Ordering,
+    ) -> Result<Self> {
         tissue.validate()?;
         if fixed.len() != grid.n_vertices() {
             return Err(FemError::LengthMismatch {
@@ -177,17 +163,26 @@ impl FemBody {
                 found: fixed.len(),
             });
         }
-        let fixed_dof = fixed_dofs(&grid, fixed);
-        let (free, n_free) = number_free_dofs(&fixed_dof);
+        let clamp = Clamp::new(&grid, fixed);
+        let (free, n_free) = number_free_dofs(&clamp.eliminated);
         if n_free == 0 {
             return Err(FemError::NothingFree);
         }
         let start = Instant::now();
         let cell = cell_matrix(&grid, tissue, element);
-        let k_lower = assemble_lower(&grid, &cell, &free, n_free);
+        let mut k_lower = assemble_lower(&grid, &cell, &free, n_free);
+        let beta = clamp_stiffness(tissue, grid.cell_size());
+        add_penalty(&mut k_lower, &free, &clamp.points, |p| beta * p.area);
         let assembly_seconds = start.elapsed().as_secs_f64();
         let start = Instant::now();
-        let factor = SparseCholesky::new(k_lower.as_ref())?;
+        let factor = match ordering {
+            Ordering::Amd => SparseCholesky::new(k_lower.as_ref(), None)?,
+            Ordering::NestedDissection => {
+                let nodes = nested_dissection(grid.node_coords());
+                let (fwd, inv) = dof_permutation(&nodes, &free, n_free);
+                SparseCholesky::new(k_lower.as_ref(), Some((&fwd, &inv)))?
+            }
+        };
         let factor_seconds = start.elapsed().as_secs_f64();
         let stats = FemStats {
             resolution: grid.resolution(),

@@ -1,10 +1,13 @@
-//! The kept sparse Cholesky factor of K (faer's supernodal/simplicial LL^T with an AMD
-//! fill-reducing ordering, chosen by faer from the symbolic structure).
+//! The kept sparse Cholesky factor of K (faer's supernodal/simplicial LL^T, chosen by faer
+//! from the symbolic structure) with a given fill-reducing ordering or faer's AMD.
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::perm::PermRef;
 use faer::sparse::SparseColMatRef;
-use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, factorize_symbolic_cholesky};
+use faer::sparse::linalg::cholesky::{
+    LltRef, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
+};
 use faer::{Conj, MatMut, Side, get_global_parallelism};
 
 use crate::error::{FemError, Result};
@@ -21,14 +24,19 @@ fn generic(e: impl std::fmt::Display) -> FemError {
 
 impl SparseCholesky {
     /// Factors `k_lower` (the lower triangle, diagonal included, of an SPD matrix).
-    pub(crate) fn new(k_lower: SparseColMatRef<'_, usize, f64>) -> Result<Self> {
-        let symbolic = factorize_symbolic_cholesky(
-            k_lower.symbolic(),
-            Side::Lower,
-            Default::default(),
-            Default::default(),
-        )
-        .map_err(generic)?;
+    /// `permutation`: `(fwd, inv)` with `fwd[k]` the column eliminated `k`-th, or `None` for
+    /// faer's AMD.
+    pub(crate) fn new(
+        k_lower: SparseColMatRef<'_, usize, f64>,
+        permutation: Option<(&[usize], &[usize])>,
+    ) -> Result<Self> {
+        let ordering = match permutation {
+            Some((fwd, inv)) => SymmetricOrdering::Custom(PermRef::new_checked(fwd, inv, fwd.len())),
+            None => SymmetricOrdering::Amd,
+        };
+        let symbolic =
+            factorize_symbolic_cholesky(k_lower.symbolic(), Side::Lower, ordering, Default::default())
+                .map_err(generic)?;
         let mut values = Vec::new();
         values.try_reserve_exact(symbolic.len_val()).map_err(generic)?;
         values.resize(symbolic.len_val(), 0.0);

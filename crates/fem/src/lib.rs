@@ -24,14 +24,16 @@
 //! - The surface is embedded: vertex `v` in cell `c` moves with the trilinear interpolation
 //!   `u(v) = sum_b w_b u_b` of the cell's 8 nodes; a point force `F` on `v` puts `w_b F` on
 //!   node `b` (virtual work). Gravity puts `phi rho g h^3 / 8` on each node of each cell.
-//! - Fixed vertices: a surface vertex fixed along axis `a` fixes axis `a` of every node of
-//!   its cell with nonzero weight for it, and so does every point of a surface triangle
-//!   whose three vertices are fixed along `a` (see [`FemBody`]); those dofs are eliminated.
+//! - Fixed vertices: the fixed part of the surface (triangles whose three vertices are fixed,
+//!   and isolated fixed vertices) is held by an area-weighted penalty on its embedded points,
+//!   `beta = CLAMP_PENALTY * E / h` per unit area (see [`FemBody`], [`CLAMP_PENALTY`]); a
+//!   point on a grid node fixes that node exactly.
 //!
 //! # Linear algebra
 //! K (symmetric positive definite once rigid motions are fixed) is stored as its lower
-//! triangle in compressed columns and factored once by faer's sparse Cholesky (AMD ordering,
-//! supernodal when it pays). [`FemBody::solve_many`] solves several loads in one pass over
+//! triangle in compressed columns and factored once by faer's sparse Cholesky (supernodal
+//! when it pays), ordered by nested dissection along grid planes ([`Ordering`]; faer's AMD
+//! on request, [`FemBody::with_ordering`]). [`FemBody::solve_many`] solves several loads in one pass over
 //! the factor; [`FemBody::respond_held`] holds surface vertices at given displacements by a
 //! capacitance update of the same factor, with compliance columns cached per held vertex.
 //!
@@ -41,18 +43,22 @@
 
 mod assemble;
 mod body;
+mod clamp;
 mod element;
 mod error;
 mod factor;
 mod grid;
 mod held;
+mod ordering;
 mod tissue;
 
 pub use body::{FemBody, FemSolution, FemStats, Loads, RESIDUAL_LIMIT, fixed_surface_samples};
+pub use clamp::CLAMP_PENALTY;
 pub use error::{FemError, Result};
 pub use grid::{
     DEFAULT_RESOLUTION, Element, Embedded, FemOptions, GridEstimate, MAX_CELLS, MAX_RESOLUTION, MIN_FILL,
     SNAP, SUBSAMPLES, SparseGrid,
 };
 pub use held::HeldResponse;
+pub use ordering::{ND_LEAF, Ordering};
 pub use tissue::Tissue;

@@ -1,8 +1,11 @@
 //! The integration tests of this package, in one binary (one link instead of one per file).
 
 mod beam;
+mod clamp;
 mod common;
 mod errors;
 mod golden;
 mod held;
+mod ordering;
 mod patch;
+mod point_force;
