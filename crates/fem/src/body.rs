@@ -6,7 +6,6 @@ use std::time::Instant;
 use faer::Mat;
 use faer::sparse::SparseColMat;
 use fibfluid_geometry::Vec3;
-use fibfluid_geometry::vec3::dist;
 use serde::Serialize;
 
 use crate::assemble::{FIXED, add_penalty, assemble_lower, cell_matrix, number_free_dofs, symmetric_mul};
@@ -93,23 +92,6 @@ impl std::fmt::Debug for FemBody {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("FemBody").field("tissue", &self.tissue).field("stats", &self.stats).finish()
     }
-}
-
-/// Points of a triangle at barycentric spacing `1/k` with `k = ceil(2 * longest edge / h)`:
-/// samples at most `h / 2` apart, the corners included.
-pub fn fixed_surface_samples(corners: [Vec3; 3], h: f64) -> Vec<Vec3> {
-    let edge = (0..3).map(|i| dist(corners[i], corners[(i + 1) % 3])).fold(0.0, f64::max);
-    let k = ((2.0 * edge / h).ceil() as usize).clamp(1, 1 << 12);
-    let mut out = Vec::with_capacity((k + 1) * (k + 2) / 2);
-    for i in 0..=k {
-        for j in 0..=k - i {
-            let (s, t) = (i as f64 / k as f64, j as f64 / k as f64);
-            out.push(std::array::from_fn(|a| {
-                corners[0][a] + s * (corners[1][a] - corners[0][a]) + t * (corners[2][a] - corners[0][a])
-            }));
-        }
-    }
-    out
 }
 
 impl FemBody {
