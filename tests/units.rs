@@ -90,9 +90,11 @@ fn the_fem_holds_its_clamps_and_sags_under_gravity() {
     // Every vertex moves down or not at all (gravity along -y, clamped on top).
     let mean_y = u.iter().map(|d| d[1]).sum::<f64>() / u.len() as f64;
     assert!(mean_y < 0.0);
-    // Fixed vertices whose cell's nodes are all clamped stay exactly at rest.
+    // The clamp is a surface penalty (docs/fem.md): fixed vertices slip by a small share
+    // of the sag, `F h / (CLAMP_PENALTY E A)` on average, falling with the cell size; on this
+    // small cap (a tenth of the radius) at the default resolution, about a tenth.
     let worst_fixed = fixed.iter().map(|&v| largest(&[u[v]])).fold(0.0, f64::max);
-    assert!(worst_fixed <= 0.05 * sag, "a fixed vertex moved {worst_fixed} m of a {sag} m sag");
+    assert!(worst_fixed <= 0.2 * sag, "a fixed vertex moved {worst_fixed} m of a {sag} m sag");
     assert!(run.residual < 1e-10, "residual {}", run.residual);
 }
 
