@@ -5,8 +5,8 @@
 use std::path::Path;
 
 use fibfluid::geometry::{icosphere, write_obj};
-use fibfluid::sim::fem_run::FemRun;
 use fibfluid::sim::Error as SimError;
+use fibfluid::sim::fem_run::FemRun;
 use fibfluid::{RunOptions, Scene, Simulation};
 
 /// Agreement of the same physical problem declared in two units, relative to the largest
@@ -69,7 +69,10 @@ fn a_body_in_millimetres_and_in_metres_gives_the_same_physical_answer() {
         let scale = largest(&runs[0]);
         assert!(scale > 0.0, "{method}: nothing moved");
         let d = difference(&runs[0], &runs[1]);
-        assert!(d <= SAME_PHYSICS * scale, "{method}: mm and m differ by {d:e} m (largest displacement {scale:e} m)");
+        assert!(
+            d <= SAME_PHYSICS * scale,
+            "{method}: mm and m differ by {d:e} m (largest displacement {scale:e} m)"
+        );
     }
 }
 

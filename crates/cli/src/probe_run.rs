@@ -245,7 +245,7 @@ pub fn run_probe_with(
             "{}: force at the probed vertices ({} path, {method}, {})",
             scene.name,
             path.kind.name(),
-            opts.storage
+            report.precision
         );
         probe_chart(&title, replay.frames, &replay.rows)?
     } else {
@@ -293,7 +293,7 @@ impl MethodDetails {
         };
         match mb {
             MethodBody::Ffm(pb) => Self {
-                precision: opts.storage,
+                precision: pb.body.compliance().storage(),
                 constraints: Some(scene.solver.constraints),
                 base_seconds: pb.base_seconds,
                 precompute_seconds: pb.precompute_seconds,

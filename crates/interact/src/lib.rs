@@ -90,7 +90,7 @@ mod method_body;
 pub mod replay;
 
 pub use body::FfmBody;
-pub use compliance::{Compliance, ComplianceOptions, MemoryEstimate, Storage};
+pub use compliance::{Compliance, ComplianceOptions, MemoryEstimate, Precompute, Storage};
 pub use error::{InteractError, Result};
 pub use fibfluid_linalg::memory_budget;
 pub use fibfluid_sim::Method;
