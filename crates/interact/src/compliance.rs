@@ -559,6 +559,13 @@ impl VertexResponse for Compliance {
     fn epsilon(&self) -> f64 {
         self.storage.epsilon()
     }
+
+    fn add_field_axes(&self, forces: &[(usize, Vec3)], pressure: f64, u: &mut [f64]) {
+        match &self.blocks {
+            Blocks::Lazy { columns, .. } => columns.add_field_axes(forces, pressure, u),
+            _ => fibfluid_linalg::add_field_by_columns(self, forces, pressure, u),
+        }
+    }
 }
 
 /// A stored entry type.

@@ -11,7 +11,8 @@
 
 use std::time::Instant;
 
-use fibfluid_interact::{Interactive, Storage};
+use fibfluid_interact::{Interactive, Precompute, ProbeOptions, Storage, build_body, linearized};
+use fibfluid_sim::{Simulation, Stage};
 
 use crate::common::{Client, scene_body, serve};
 
@@ -71,6 +72,80 @@ fn frame_rate_while_dragging() {
         12 * n / 1024,
         pct(&mut round_trip_us, 0.5),
         pct(&mut round_trip_us, 0.99),
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The time to first touch, as `fibfluid view` sees it: from the start (scene file read)
+/// through the body's build, the server, a client's connection and one grab, to that grab's
+/// frame; against the assembly and factorization of the same scene (a `Simulation` made
+/// afterwards in this process, as `fibfluid run` times them). Ignored by default; reports,
+/// never asserts:
+///
+/// ```text
+/// FIBFLUID_VIEWER_SCENE=/tmp/s5.toml cargo test -p fibfluid-viewer --test main -- --ignored first_touch --nocapture
+/// ```
+///
+/// Without `FIBFLUID_VIEWER_SCENE` the scene is the paper's sphere on the icosphere of
+/// `FIBFLUID_VIEWER_LEVEL` (default 5); `FIBFLUID_VIEWER_PRECOMPUTE=full` times the full
+/// precompute instead of the lazy columns.
+#[test]
+#[ignore = "builds an N = 10,242 body; reports the time to the first frame after a grab"]
+fn first_touch_after_start() {
+    let dir = std::env::temp_dir().join(format!("fibfluid-viewer-touch-{}", std::process::id()));
+    let path = match std::env::var("FIBFLUID_VIEWER_SCENE") {
+        Ok(p) => std::path::PathBuf::from(p),
+        Err(_) => {
+            let level = env_or("FIBFLUID_VIEWER_LEVEL", 5) as u32;
+            std::fs::create_dir_all(&dir).unwrap();
+            let mesh = fibfluid_geometry::icosphere(level, 1.0);
+            fibfluid_geometry::write_obj(dir.join("sphere.obj"), mesh.positions(), mesh.triangles()).unwrap();
+            let scene_text = std::fs::read_to_string(crate::common::sphere_path())
+                .unwrap()
+                .replace("../meshes/icosphere-2.obj", "sphere.obj");
+            std::fs::write(dir.join("sphere.toml"), scene_text).unwrap();
+            dir.join("sphere.toml")
+        }
+    };
+    let precompute: Precompute = std::env::var("FIBFLUID_VIEWER_PRECOMPUTE")
+        .map_or(Precompute::Lazy, |v| v.parse().expect("full or lazy"));
+    let start = Instant::now();
+    let scene = fibfluid_scene::Scene::load(&path).expect("the scene loads");
+    let opts = ProbeOptions { precompute, ..Default::default() };
+    let pb = build_body(&scene, &opts).expect("the body builds");
+    let built = start.elapsed().as_secs_f64();
+    let body = pb.body;
+    let n = body.n_vertices();
+    let server = serve(&scene, &body, 2);
+    let rest = body.rest_positions().to_vec();
+    let v = (0..n).filter(|&i| !body.is_fixed(i)).min_by(|&a, &b| rest[a][1].total_cmp(&rest[b][1])).unwrap();
+    let mut c = Client::connect(server.local_addr(), "");
+    let grab_sent = start.elapsed().as_secs_f64();
+    c.grab(v, [rest[v][0] + 0.05, rest[v][1] - 0.1, rest[v][2]]);
+    let f = c.frame();
+    let first = start.elapsed().as_secs_f64();
+    assert_eq!(f.reactions.len(), 1);
+    c.grab(v, [rest[v][0] + 0.06, rest[v][1] - 0.1, rest[v][2]]);
+    let second = c.frame().latency_us;
+    drop(c);
+    drop(server);
+    drop(body);
+    let sim = Simulation::new(linearized(&scene)).expect("the scene assembles");
+    let stage =
+        |name: Stage| sim.log().records().iter().filter(|r| r.name == name).map(|r| r.seconds).sum::<f64>();
+    let (assembly, factorization) = (stage(Stage::Assembly), stage(Stage::Factorization));
+    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+    println!(
+        "first touch ({precompute}): N = {n}: start -> body built {built:.2} s (base solve {:.2} s, precompute {:.3} s) -> grab sent {grab_sent:.2} s -> its frame {first:.2} s (server latency of that frame {:.1} ms; the next frame {:.0} us); assembly + factorization of the same scene {:.2} s + {:.2} s = {:.2} s; ratio {:.2}; load average {}",
+        pb.base_seconds,
+        pb.precompute_seconds,
+        f.latency_us / 1e3,
+        second,
+        assembly,
+        factorization,
+        assembly + factorization,
+        first / (assembly + factorization),
+        load.split_whitespace().take(3).collect::<Vec<_>>().join(" ")
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
