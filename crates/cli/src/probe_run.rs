@@ -216,7 +216,7 @@ pub fn run_probe_with(
     probed.dedup();
     let body = mb.interactive_ref();
     let forces = body.supports_forces();
-    let d = MethodDetails::of(&mb, scene, opts);
+    let d = MethodDetails::of(&mb, scene);
     let mut report = ProbeReport {
         scene: scene.name.clone(),
         path: path.source.display().to_string(),
@@ -281,7 +281,7 @@ struct MethodDetails {
 }
 
 impl MethodDetails {
-    fn of(mb: &MethodBody, scene: &Scene, opts: &ProbeOptions) -> Self {
+    fn of(mb: &MethodBody, scene: &Scene) -> Self {
         let none = Self {
             precision: Storage::F64,
             constraints: None,

@@ -389,12 +389,14 @@ impl Compliance {
     }
 
     /// Bytes held: the blocks plus the border vectors; for the lazy response, the kept
-    /// factorization, the cached columns and the border vectors.
+    /// factorization and the stiffness blocks it factors (kept for its residual checks),
+    /// the cached columns and the border vectors.
     pub fn memory_bytes(&self) -> usize {
         let border = 2 * self.axes * self.n * 8;
         match &self.blocks {
             Blocks::Lazy { factorization, columns } => {
-                factorization.cost().bytes + columns.memory_bytes() + border
+                let blocks = columns.n_blocks() * self.n * self.n * 8;
+                factorization.cost().bytes + blocks + columns.memory_bytes() + border
             }
             _ => self.n_blocks() * self.n * self.n * self.storage.word_bytes() + border,
         }

@@ -88,7 +88,9 @@ fn frame_rate_while_dragging() {
 ///
 /// Without `FIBFLUID_VIEWER_SCENE` the scene is the paper's sphere on the icosphere of
 /// `FIBFLUID_VIEWER_LEVEL` (default 5); `FIBFLUID_VIEWER_PRECOMPUTE=full` times the full
-/// precompute instead of the lazy columns.
+/// precompute instead of the lazy columns. With `FIBFLUID_BIN` (a built `fibfluid`) the
+/// server is that binary's `fibfluid view SCENE --port P --precompute ...` in a child
+/// process, timed from its spawn to the frame received (the process's start included).
 #[test]
 #[ignore = "builds an N = 10,242 body; reports the time to the first frame after a grab"]
 fn first_touch_after_start() {
@@ -109,6 +111,9 @@ fn first_touch_after_start() {
     };
     let precompute: Precompute = std::env::var("FIBFLUID_VIEWER_PRECOMPUTE")
         .map_or(Precompute::Lazy, |v| v.parse().expect("full or lazy"));
+    if let Ok(bin) = std::env::var("FIBFLUID_BIN") {
+        return spawned_first_touch(&bin, &path, precompute);
+    }
     let start = Instant::now();
     let scene = fibfluid_scene::Scene::load(&path).expect("the scene loads");
     let opts = ProbeOptions { precompute, ..Default::default() };
@@ -148,4 +153,53 @@ fn first_touch_after_start() {
         load.split_whitespace().take(3).collect::<Vec<_>>().join(" ")
     );
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// [`first_touch_after_start`] against a `fibfluid view` child process.
+fn spawned_first_touch(bin: &str, path: &std::path::Path, precompute: Precompute) {
+    let scene = fibfluid_scene::Scene::load(path).expect("the scene loads");
+    let rest = scene.rest_positions();
+    let n = rest.len();
+    let fixed = |v: usize| (0..3).any(|c| scene.constraints.get(v, c).is_some());
+    let v = (0..n).filter(|&i| !fixed(i)).min_by(|&a, &b| rest[a][1].total_cmp(&rest[b][1])).unwrap();
+    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let start = Instant::now();
+    let mut child = std::process::Command::new(bin)
+        .args([
+            "view",
+            path.to_str().unwrap(),
+            "--port",
+            &port.to_string(),
+            "--precompute",
+            &precompute.to_string(),
+        ])
+        .stdout(std::process::Stdio::null())
+        .spawn()
+        .expect("fibfluid view starts");
+    let addr: std::net::SocketAddr = ([127, 0, 0, 1], port).into();
+    // The server binds before it builds the body; the handshake completes once it serves.
+    while std::net::TcpStream::connect(addr).is_err() {
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let mut c = Client::connect(addr, "");
+    let connected = start.elapsed().as_secs_f64();
+    c.grab(v, [rest[v][0] + 0.05, rest[v][1] - 0.1, rest[v][2]]);
+    let f = c.frame();
+    let first = start.elapsed().as_secs_f64();
+    c.grab(v, [rest[v][0] + 0.06, rest[v][1] - 0.1, rest[v][2]]);
+    let second = c.frame().latency_us;
+    let _ = child.kill();
+    let _ = child.wait();
+    let sim = Simulation::new(linearized(&scene)).expect("the scene assembles");
+    let stage =
+        |name: Stage| sim.log().records().iter().filter(|r| r.name == name).map(|r| r.seconds).sum::<f64>();
+    let (assembly, factorization) = (stage(Stage::Assembly), stage(Stage::Factorization));
+    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+    println!(
+        "first touch ({precompute}, `fibfluid view` child): N = {n}: spawn -> handshake done {connected:.2} s -> first grab's frame {first:.2} s (server latency {:.1} ms; the next frame {second:.0} us); assembly + factorization here {assembly:.2} s + {factorization:.2} s = {:.2} s; ratio {:.2}; load average {}",
+        f.latency_us / 1e3,
+        assembly + factorization,
+        first / (assembly + factorization),
+        load.split_whitespace().take(3).collect::<Vec<_>>().join(" ")
+    );
 }
