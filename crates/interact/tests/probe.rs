@@ -112,6 +112,7 @@ fn a_pushed_force_is_the_full_solve_with_that_force() {
         assert_eq!(reactions.len(), 2, "pushed forces are reported as the forces on the body");
         let reference = full_solve(&scene, &pushes);
         let d = relative_difference(b.positions(), &reference, b.rest_positions());
+        println!("{method:?}, {precompute}: two pushes vs the full solve {d:e}");
         assert!(d <= PUSH_TOLERANCE, "{method:?}, {precompute}: probe vs full solve {d:e}");
         // Without any hold the frame is the base state, which is the full solve of the
         // scene's own loads.
@@ -143,6 +144,7 @@ fn a_grabbed_vertex_stays_put_and_its_reaction_reproduces_the_surface() {
         }
         let reference = full_solve(&scene, &r);
         let diff = relative_difference(b.positions(), &reference, b.rest_positions());
+        println!("{method:?}, {precompute}: one grab vs the full solve with its reaction {diff:e}");
         assert!(
             diff <= GRAB_TOLERANCE,
             "{method:?}, {precompute}: grab vs full solve with its reaction {diff:e}"
@@ -175,6 +177,7 @@ fn three_grabbed_vertices_and_a_push_reproduce_the_full_solve() {
         }
         let reference = full_solve(&scene, &forces);
         let diff = relative_difference(b.positions(), &reference, b.rest_positions());
+        println!("{method:?}, {precompute}: three grabs and a push vs the full solve {diff:e}");
         assert!(diff <= GRAB_TOLERANCE, "{method:?}, {precompute}: {diff:e}");
         // The reaction-only query gives the same reactions without touching the field.
         let field = b.field().to_vec();
