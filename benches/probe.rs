@@ -89,7 +89,8 @@ fn build(level: u32, storage: Storage) -> FfmBody {
     let factor = (8 * n * n) as f64;
     let hwm = status_bytes("VmHWM:").unwrap_or(0) as f64;
     println!(
-        "probe N = {n} ({precompute}, {storage}): base solve {:.3} s, precompute {:.3} s, {:.1} MiB held, built in {:.3} s; VmHWM {:.1} MiB = {:.2} x the factor ({:.1} MiB)",
+        "probe N = {n} ({precompute}, {}): base solve {:.3} s, precompute {:.3} s, {:.1} MiB held, built in {:.3} s; VmHWM {:.1} MiB = {:.2} x the factor ({:.1} MiB)",
+        pb.body.compliance().storage(),
         pb.base_seconds,
         pb.precompute_seconds,
         pb.body.memory_bytes() as f64 / 1048576.0,

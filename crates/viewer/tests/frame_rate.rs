@@ -1,6 +1,7 @@
 //! Frames per second delivered to one client while it drags, at N = 10,242 (icosphere
-//! level 5). Ignored by default (the precompute takes about a minute); it reports, never
-//! asserts, time:
+//! level 5), and the time to the first touch after the viewer starts. Ignored by default
+//! (each builds an N = 10,242 body: seconds for the base solve); they report, never
+//! assert, time:
 //!
 //! ```text
 //! cargo test -p fibfluid-viewer --test main -- --ignored frame_rate --nocapture
@@ -21,7 +22,7 @@ fn env_or(name: &str, default: usize) -> usize {
 }
 
 #[test]
-#[ignore = "builds an N = 10,242 body (about a minute); reports the frame rate"]
+#[ignore = "builds an N = 10,242 body (seconds); reports the frame rate"]
 fn frame_rate_while_dragging() {
     let level = env_or("FIBFLUID_VIEWER_LEVEL", 5) as u32;
     let frames = env_or("FIBFLUID_VIEWER_FRAMES", 600);
