@@ -22,6 +22,13 @@
 //! max over 2,000 consecutive frames timed one by one (`Instant`), the latency a haptic loop
 //! sees.
 //!
+//! The response is lazy by default (the base solve's factorization kept, a vertex's
+//! compliance columns computed when it is first touched: `first touch` is printed, and the
+//! frames timed are those after it); `FIBFLUID_PROBE_PRECOMPUTE=full` times the full
+//! precompute instead (f64 at N = 2,562, f32 at N = 10,242). After each build the process's
+//! peak resident memory (`VmHWM` of /proc/self/status) is printed next to the bytes of the
+//! factorization.
+//!
 //! Run: `cargo bench --bench probe -- --measurement-time 3 --warm-up-time 1`.
 
 use std::hint::black_box;
@@ -29,7 +36,7 @@ use std::time::Instant;
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use fibfluid::geometry::Vec3;
-use fibfluid::interact::{FfmBody, Interactive, Storage};
+use fibfluid::interact::{FfmBody, Interactive, Precompute, Storage};
 use fibfluid::interact::{Latency, ProbeOptions, build_body, linearized};
 use fibfluid::linalg::FactorizationExt;
 use fibfluid::linalg::threads::pin_threads;
@@ -59,17 +66,38 @@ fn target(body: &FfmBody, v: usize, t: usize) -> Vec3 {
     [b[0] + s, b[1] - 0.5 * s, b[2]]
 }
 
+/// The precompute of this run (`FIBFLUID_PROBE_PRECOMPUTE`, default lazy).
+fn precompute() -> Precompute {
+    std::env::var("FIBFLUID_PROBE_PRECOMPUTE").map_or(Precompute::Lazy, |v| v.parse().expect("full or lazy"))
+}
+
+/// A line of /proc/self/status in bytes (`VmHWM`: the peak resident set), when readable.
+fn status_bytes(key: &str) -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with(key))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
 fn build(level: u32, storage: Storage) -> FfmBody {
     let scene = scene(level);
     let n = scene.n_vertices();
+    let precompute = precompute();
     let start = Instant::now();
-    let pb = build_body(&scene, &ProbeOptions { storage, max_memory_bytes: None }).expect("probe body");
+    let opts = ProbeOptions { storage, precompute, max_memory_bytes: None };
+    let pb = build_body(&scene, &opts).expect("probe body");
+    let factor = (8 * n * n) as f64;
+    let hwm = status_bytes("VmHWM:").unwrap_or(0) as f64;
     println!(
-        "probe N = {n} ({storage}): base solve {:.3} s, precompute {:.3} s, {:.1} MiB held, built in {:.3} s",
+        "probe N = {n} ({precompute}, {}): base solve {:.3} s, precompute {:.3} s, {:.1} MiB held, built in {:.3} s; VmHWM {:.1} MiB = {:.2} x the factor ({:.1} MiB)",
+        pb.body.compliance().storage(),
         pb.base_seconds,
         pb.precompute_seconds,
         pb.body.memory_bytes() as f64 / 1048576.0,
-        start.elapsed().as_secs_f64()
+        start.elapsed().as_secs_f64(),
+        hwm / 1048576.0,
+        hwm / factor,
+        factor / 1048576.0
     );
     pb.body
 }
@@ -96,6 +124,17 @@ fn latency(body: &mut FfmBody, vertices: &[usize], frames: usize, reactions_only
 fn drag(c: &mut Criterion, group: &str, body: &mut FfmBody, n: usize, k: usize, reactions_only: bool) {
     let vertices = tool_vertices(body, k);
     body.release_all();
+    // The first frame with these vertices (lazy: their columns are computed now).
+    for &v in &vertices {
+        let d = target(body, v, 0);
+        body.grab(v, d).expect("grab");
+    }
+    let start = Instant::now();
+    body.update().expect("first frame");
+    println!(
+        "probe/{group}/{n}/{k}: first frame with these vertices {:.1} ms",
+        start.elapsed().as_secs_f64() * 1e3
+    );
     let mut t = 0;
     c.benchmark_group(format!("probe/{group}/{n}")).bench_function(BenchmarkId::from_parameter(k), |b| {
         b.iter(|| {
@@ -127,6 +166,7 @@ fn probe(c: &mut Criterion) {
     let mut body = build(4, Storage::F64);
     let n = body.n_vertices();
     drag(c, "frame", &mut body, n, 1, false);
+    drag(c, "frame", &mut body, n, 10, false);
     {
         let pair = tool_vertices(&body, 2);
         let mut t = 0;

@@ -2,16 +2,22 @@
 
 use std::path::PathBuf;
 
-use fibfluid::interact::{Method, ProbeOptions, Storage};
+use fibfluid::interact::{Method, Precompute, ProbeOptions, Storage};
 use fibfluid::{Scene, load_tool_path};
 use fibfluid_cli::probe_run::{PROBE_FILES, run_probe_with};
 
 /// The flags of the precomputed response, shared by `probe`, `compare` and `view`.
 #[derive(clap::Args)]
 pub struct ResponseFlags {
-    /// Storage of FFM's precomputed response (f64, f32).
+    /// Storage of FFM's full precomputed response (f64, f32; the lazy response is f64).
     #[arg(long, default_value = "f64")]
     pub precision: Storage,
+    /// FFM's response: `lazy` computes a vertex's compliance columns when it is first
+    /// touched, with the base solve's factorization (the first frame comes right after the
+    /// base solve); `full` inverts the stiffness first (N^3 flops, N^2 words: every vertex
+    /// ready at once, for haptic devices).
+    #[arg(long, default_value = "lazy")]
+    pub precompute: Precompute,
     /// Memory budget in bytes (default: half the available memory).
     #[arg(long, value_name = "BYTES")]
     pub max_memory: Option<u64>,
@@ -20,7 +26,11 @@ pub struct ResponseFlags {
 impl ResponseFlags {
     /// The probe options these flags set.
     pub fn options(&self) -> ProbeOptions {
-        ProbeOptions { storage: self.precision, max_memory_bytes: self.max_memory }
+        ProbeOptions {
+            storage: self.precision,
+            precompute: self.precompute,
+            max_memory_bytes: self.max_memory,
+        }
     }
 }
 

@@ -218,7 +218,7 @@ pub fn run_probe_with(
     probed.dedup();
     let body = mb.interactive_ref();
     let forces = body.supports_forces();
-    let d = MethodDetails::of(&mb, scene, opts);
+    let d = MethodDetails::of(&mb, scene);
     let mut report = ProbeReport {
         scene: scene.name.clone(),
         path: path.source.display().to_string(),
@@ -247,7 +247,7 @@ pub fn run_probe_with(
             "{}: force at the probed vertices ({} path, {method}, {})",
             scene.name,
             path.kind.name(),
-            opts.storage
+            report.precision
         );
         probe_chart(&title, replay.frames, &replay.rows)?
     } else {
@@ -283,7 +283,7 @@ struct MethodDetails {
 }
 
 impl MethodDetails {
-    fn of(mb: &MethodBody, scene: &Scene, opts: &ProbeOptions) -> Self {
+    fn of(mb: &MethodBody, scene: &Scene) -> Self {
         let none = Self {
             precision: Storage::F64,
             constraints: None,
@@ -295,7 +295,7 @@ impl MethodDetails {
         };
         match mb {
             MethodBody::Ffm(pb) => Self {
-                precision: opts.storage,
+                precision: pb.body.compliance().storage(),
                 constraints: Some(scene.solver.constraints),
                 base_seconds: pb.base_seconds,
                 precompute_seconds: pb.precompute_seconds,

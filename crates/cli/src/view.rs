@@ -29,7 +29,8 @@ pub struct ViewArgs {
     method: Method,
     #[command(flatten)]
     response: crate::probe::ResponseFlags,
-    /// Most clients at once (each has its own body; the precompute is shared).
+    /// Most clients at once (each has its own body; the factorization or the full
+    /// precompute is shared).
     #[arg(long, default_value_t = 8)]
     max_clients: usize,
 }
@@ -65,10 +66,17 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
         tell!("{warning}");
     }
     let opts = args.response.options();
-    // The FFM precompute is built once and shared by every client (each gets a clone:
-    // its own holds and frame); ChainMail bodies are cheap and built per client.
+    // The FFM body is built once and shared by every client (each gets a clone: its own
+    // holds and frame); ChainMail bodies are cheap and built per client. With the lazy
+    // response (the default) the first frame follows the base solve: a vertex's columns are
+    // computed with the kept factorization when a client first touches it.
     let ffm = if args.method == Method::Ffm {
-        tell!("building the ffm body of {} ({} vertices)...", scene.name, scene.n_vertices());
+        tell!(
+            "building the ffm body of {} ({} vertices, {} response)...",
+            scene.name,
+            scene.n_vertices(),
+            opts.precompute
+        );
         let pb = build_body(&scene, &opts)?;
         tell!(
             "  base solve {:.2} s, precompute {:.2} s, {:.1} MiB",

@@ -455,11 +455,17 @@ fn every_bad_probe_path_gives_one_clean_error_and_writes_nothing() {
         problems.extend(check_untouched(name, parent.path(), &out));
     }
     // A precompute over the memory budget is refused with the bytes it needs; a bad
-    // --precision or --method names the flag.
+    // --precision, --precompute or --method names the flag.
     let good = fixtures_dir().join("paths/sphere-poke.csv");
     for (flag, value, name, fragment) in [
         ("--max-memory", "1000", "sphere.toml", "bytes (0.00 GiB) at its peak, but only 1000 bytes"),
         ("--precision", "f16", "--precision", "`f16` is not a storage precision (expected one of: f64, f32)"),
+        (
+            "--precompute",
+            "eager",
+            "--precompute",
+            "`eager` is not a precompute (expected one of: full, lazy)",
+        ),
         (
             "--method",
             "gibson",

@@ -393,8 +393,10 @@ fn probe_replays_the_poke_path_in_both_precisions() {
         .zip(&rest)
         .map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).abs()).fold(0.0, f64::max))
         .fold(0.0, f64::max);
-    for (precision, tol) in [("f64", 1e-9), ("f32", 8.0 * f32::EPSILON as f64)] {
-        let out = tmp.path().join(precision);
+    // The lazy response (the default) is f64; `--precision` sets the full precompute's storage.
+    let runs = [("f64", "lazy", 1e-9), ("f64", "full", 1e-9), ("f32", "full", 8.0 * f32::EPSILON as f64)];
+    for (precision, precompute, tol) in runs {
+        let out = tmp.path().join(format!("{precision}-{precompute}"));
         let o = bin()
             .arg("probe")
             .arg(&scene)
@@ -402,7 +404,7 @@ fn probe_replays_the_poke_path_in_both_precisions() {
             .arg(&path)
             .arg("--out")
             .arg(&out)
-            .args(["--precision", precision])
+            .args(["--precision", precision, "--precompute", precompute])
             .output()
             .unwrap();
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));

@@ -3,28 +3,17 @@
 
 use std::collections::BTreeMap;
 
-use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::linalg::cholesky::llt::factor::{cholesky_in_place, cholesky_in_place_scratch};
-use faer::linalg::cholesky::llt::solve::{solve_in_place, solve_in_place_scratch};
-use faer::{Mat, Par};
 use fibfluid_assembly::AXES;
 use fibfluid_geometry::Vec3;
+use fibfluid_linalg::HeldCapacitance;
 
 use fibfluid_sim::Method;
 
+use crate::compliance::linalg_error;
 use crate::{Compliance, Hold, InteractError, Interactive, Result};
 
 /// Point forces by vertex.
 type Forces = Vec<(usize, Vec3)>;
-
-/// Factored capacitance matrix of one grabbed set.
-#[derive(Clone, Debug)]
-struct Capacitance {
-    /// Grabbed vertices, ascending.
-    grabbed: Vec<usize>,
-    /// Lower Cholesky factor of G (`axes * k` square).
-    l: Mat<f64>,
-}
 
 /// A fiber–fluid body about its rest shape, driven by a tool.
 ///
@@ -42,6 +31,12 @@ struct Capacitance {
 /// are grabbed, so it is built and factored (`O(k^2)` lookups, `k^3` flops) when the
 /// grabbed set changes and reused while the tool drags them. A frame then costs `O(k^2)` for
 /// the reactions and `O(N (k + m))` for the field (k grabbed, m pushed vertices).
+///
+/// The capacitance and the field are [`fibfluid_linalg::HeldCapacitance`] and
+/// [`fibfluid_linalg::VertexResponse`], the same code that holds vertices in
+/// `Simulation::respond_held`. With the lazy response ([`Precompute::Lazy`](crate::Precompute))
+/// a vertex grabbed or pushed for the first time first gets its compliance columns from the
+/// kept factorization (cached for later frames and copied into clones made afterwards).
 #[derive(Clone, Debug)]
 pub struct FfmBody {
     compliance: Compliance,
@@ -57,16 +52,12 @@ pub struct FfmBody {
     positions: Vec<Vec3>,
     pressure: f64,
     reactions: Vec<(usize, Vec3)>,
-    capacitance: Option<Capacitance>,
+    capacitance: Option<HeldCapacitance>,
     /// Scratch: the forces of the current frame (pushes then reactions).
     forces: Vec<(usize, Vec3)>,
     frame: u64,
     field_current: bool,
 }
-
-/// Pivots of the capacitance matrix at most this times `dim * eps(storage)` times their
-/// diagonal entry mean a singular grabbed set.
-const CAPACITANCE_PIVOT_FACTOR: f64 = 16.0;
 
 impl FfmBody {
     /// A body at rest (no base load) with this precomputed response.
@@ -172,61 +163,12 @@ impl FfmBody {
         (0..self.compliance.axes()).find(|&c| self.compliance.is_constrained(vertex, c))
     }
 
-    /// Builds and factors G for a grabbed set.
-    fn capacitance(&self, grabbed: &[usize]) -> Result<Capacitance> {
-        let c = &self.compliance;
-        let (d, k) = (c.axes(), grabbed.len());
-        let dim = d * k;
-        let s = c.schur();
-        let mut g = Mat::<f64>::zeros(dim, dim);
-        for (jl, &wv) in grabbed.iter().enumerate() {
-            for (jr, &vv) in grabbed.iter().enumerate().skip(jl) {
-                for a in 0..d {
-                    let caa = c.entry(a, vv, wv);
-                    for b in 0..d {
-                        let mut e = -c.w(a)[vv] * c.w(b)[wv] / s;
-                        if a == b {
-                            e += caa;
-                        }
-                        g[(jr * d + a, jl * d + b)] = e;
-                        g[(jl * d + b, jr * d + a)] = e;
-                    }
-                }
-            }
-        }
-        let diag: Vec<f64> = (0..dim).map(|i| g[(i, i)]).collect();
-        let singular = |index: usize| InteractError::Singular {
-            what: format!(
-                "the {k} grabbed vertices over-determine the body (capacitance pivot {index}, vertex {} along {}); release some",
-                grabbed[index / d],
-                AXES[index % d]
-            ),
-        };
-        let mut mem = MemBuffer::new(cholesky_in_place_scratch::<f64>(dim, Par::Seq, Default::default()));
-        cholesky_in_place(
-            g.as_mut(),
-            Default::default(),
-            Par::Seq,
-            MemStack::new(&mut mem),
-            Default::default(),
-        )
-        .map_err(|e| match e {
-            faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index } => singular(index),
-        })?;
-        let tol = CAPACITANCE_PIVOT_FACTOR * dim as f64 * c.storage().epsilon();
-        for (i, gii) in diag.iter().enumerate() {
-            let lii = g[(i, i)];
-            if !(lii * lii > tol * gii.abs()) {
-                return Err(singular(i));
-            }
-        }
-        Ok(Capacitance { grabbed: grabbed.to_vec(), l: g })
-    }
-
     /// Computes the reactions of the pending holds and the force list of the frame
     /// (`self.forces`: pushes, then the grabbed vertices' reactions). Returns the new
     /// capacitance if the grabbed set changed. Leaves the current frame untouched on error.
-    fn solve_reactions(&mut self) -> Result<(Option<Capacitance>, Forces)> {
+    fn solve_reactions(&mut self) -> Result<(Option<HeldCapacitance>, Forces)> {
+        let touched: Vec<usize> = self.pending.keys().copied().collect();
+        self.compliance.touch(&touched)?;
         let c = &self.compliance;
         let d = c.axes();
         let mut forces: Vec<(usize, Vec3)> = Vec::with_capacity(self.pending.len());
@@ -247,31 +189,27 @@ impl FfmBody {
             return Ok((None, reactions));
         }
         let fresh = match &self.capacitance {
-            Some(cap) if cap.grabbed == grabbed => None,
-            _ => Some(self.capacitance(&grabbed)?),
+            Some(cap) if cap.vertices() == grabbed => None,
+            _ => Some(HeldCapacitance::new(&self.compliance, &grabbed).map_err(linalg_error)?),
         };
         let cap = fresh.as_ref().or(self.capacitance.as_ref()).expect("a capacitance for the grabbed set");
         let c = &self.compliance;
         let p_push = c.pressure_of(&forces);
-        let mut rhs = Mat::<f64>::zeros(d * grabbed.len(), 1);
-        for (j, (&v, t)) in grabbed.iter().zip(&targets).enumerate() {
+        let mut gap = Vec::with_capacity(d * grabbed.len());
+        for (&v, t) in grabbed.iter().zip(&targets) {
             let u_push = c.displacement_at(v, &forces, p_push);
-            for a in 0..d {
-                rhs[(j * d + a, 0)] = t[a] - self.base[v][a] - u_push[a];
-            }
+            gap.extend((0..d).map(|a| t[a] - self.base[v][a] - u_push[a]));
         }
-        let mut mem = MemBuffer::new(solve_in_place_scratch::<f64>(d * grabbed.len(), 1, Par::Seq));
-        solve_in_place(cap.l.as_ref(), rhs.as_mut(), Par::Seq, MemStack::new(&mut mem));
-        for (j, &v) in grabbed.iter().enumerate() {
-            let mut r = [0.0; 3];
-            for a in 0..d {
-                r[a] = rhs[(j * d + a, 0)];
+        let held = cap.reactions(&gap).map_err(|e| match e {
+            fibfluid_linalg::LinalgError::NonFiniteSolution { index } => {
+                let v = grabbed[index / d];
+                InteractError::NonFinite { vertex: v, what: "reaction", value: f64::NAN }
             }
-            if let Some(&value) = r.iter().find(|x| !x.is_finite()) {
-                return Err(InteractError::NonFinite { vertex: v, what: "reaction", value });
-            }
-            forces.push((v, r));
-            reactions.push((v, r));
+            other => linalg_error(other),
+        })?;
+        for r in held {
+            forces.push(r);
+            reactions.push(r);
         }
         reactions.sort_by_key(|&(v, _)| v);
         self.forces = forces;
@@ -399,7 +337,7 @@ impl Interactive for FfmBody {
 
     fn memory_bytes(&self) -> usize {
         let n = self.rest.len();
-        let cap = self.capacitance.as_ref().map(|c| c.l.nrows() * c.l.ncols() * 8).unwrap_or(0);
+        let cap = self.capacitance.as_ref().map(|c| c.memory_bytes()).unwrap_or(0);
         self.compliance.memory_bytes() + 4 * n * std::mem::size_of::<Vec3>() + cap
     }
 }

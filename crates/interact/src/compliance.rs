@@ -1,6 +1,7 @@
 //! The precomputed response of a factored fiber–fluid body: the compliance `C_c = K_c^-1`
 //! of each distinct stiffness block and the border terms.
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use faer::Mat;
@@ -9,7 +10,7 @@ use faer::linalg::cholesky::llt::factor::{LltError, cholesky_in_place, cholesky_
 use faer::linalg::triangular_solve::{solve_lower_triangular_in_place, solve_upper_triangular_in_place};
 use fibfluid_assembly::{AXES, ConstraintMethod, System};
 use fibfluid_geometry::Vec3;
-use fibfluid_linalg::memory_budget;
+use fibfluid_linalg::{Factorization, LinalgError, VertexColumns, VertexResponse, memory_budget};
 
 use crate::{InteractError, Result};
 
@@ -55,6 +56,35 @@ impl Storage {
     }
 }
 
+/// How much of the response is computed before the first frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Precompute {
+    /// Every column at once: the inverse of each distinct stiffness block (`N^3` flops and
+    /// `N^2` words per block, about 2 minutes at N = 10,242), with a factorization of its
+    /// own. Any vertex can then be touched at no extra cost (haptic devices that need every
+    /// vertex at once).
+    Full,
+    /// The columns of a vertex when it is first grabbed or pushed: one bordered solve per
+    /// distinct block with the base solve's own factorization (kept, not redone), then
+    /// cached. The first frame comes right after the base solve; a frame touching a new
+    /// vertex pays two triangular solves (`2 N^2` flops per block), later frames are as
+    /// fast as with the full precompute.
+    #[default]
+    Lazy,
+}
+
+impl fibfluid_linalg::Choice for Precompute {
+    const WHAT: &'static str = "precompute";
+    const ALL: &'static [Self] = &[Precompute::Full, Precompute::Lazy];
+    fn name(self) -> &'static str {
+        match self {
+            Precompute::Full => "full",
+            Precompute::Lazy => "lazy",
+        }
+    }
+}
+fibfluid_linalg::impl_choice!(Precompute);
+
 /// Options of [`Compliance::from_system`].
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ComplianceOptions {
@@ -79,11 +109,64 @@ pub struct MemoryEstimate {
 const INVERSE_BLOCK: usize = 256;
 
 /// The stored blocks, shared by clones (they are never modified after the precompute, so
-/// several bodies, e.g. one per viewer client, can use one precompute).
-#[derive(Clone, Debug)]
+/// several bodies, e.g. one per viewer client, can use one precompute), or the kept
+/// factorization and the columns of the vertices touched so far.
+#[derive(Clone)]
 enum Blocks {
-    F64(std::sync::Arc<[Mat<f64>]>),
-    F32(std::sync::Arc<[Mat<f32>]>),
+    F64(Arc<[Mat<f64>]>),
+    F32(Arc<[Mat<f32>]>),
+    Lazy { factorization: Arc<dyn Factorization>, columns: VertexColumns },
+}
+
+impl std::fmt::Debug for Blocks {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Blocks::F64(b) => f.debug_tuple("F64").field(&b.len()).finish(),
+            Blocks::F32(b) => f.debug_tuple("F32").field(&b.len()).finish(),
+            Blocks::Lazy { factorization, columns } => f
+                .debug_struct("Lazy")
+                .field("backend", &factorization.backend())
+                .field("cached", &columns.cached())
+                .finish(),
+        }
+    }
+}
+
+/// The physical border and the constraint flags of an assembled system.
+type SceneTerms = (Vec<Vec<f64>>, Vec<[bool; 3]>, Vec<[bool; 3]>);
+
+fn scene_terms(system: &System) -> SceneTerms {
+    let a = &system.matrix;
+    let (n, axes) = (a.n_vertices(), a.axes());
+    let scale = a.pressure_scale();
+    let border: Vec<Vec<f64>> = (0..axes).map(|c| a.border(c).iter().map(|b| b / scale).collect()).collect();
+    let constraints = system.constraints();
+    let eliminate = system.method() == ConstraintMethod::Eliminate;
+    let mut constrained = vec![[false; 3]; n];
+    let mut loaded = vec![[false; 3]; n];
+    for i in 0..n {
+        for c in 0..axes {
+            constrained[i][c] = constraints.get(i, c).is_some();
+            loaded[i][c] = !(eliminate && constrained[i][c]);
+        }
+    }
+    (border, constrained, loaded)
+}
+
+/// A linear-algebra failure of the lazy response, in the probe's terms.
+pub(crate) fn linalg_error(e: LinalgError) -> InteractError {
+    match e {
+        LinalgError::SingularHold { held, vertex, axis } => InteractError::Singular {
+            what: format!(
+                "the {held} grabbed vertices over-determine the body (capacitance pivot at vertex {vertex} along {}); release some",
+                AXES[axis % 3]
+            ),
+        },
+        LinalgError::DependentConstraints { .. } => InteractError::Singular {
+            what: "the volume row's Schur complement S' K^-1 S is not positive".into(),
+        },
+        other => InteractError::Invalid(format!("a solve with the kept factorization failed: {other}")),
+    }
 }
 
 /// The precomputed linear response of a body about its rest shape (paper mode).
@@ -163,19 +246,7 @@ impl Compliance {
             return Err(InteractError::OutOfMemory { bytes: est.peak, available: budget });
         }
         a.check_finite().map_err(|e| InteractError::Invalid(format!("the assembled system: {e}")))?;
-        let scale = a.pressure_scale();
-        let border: Vec<Vec<f64>> =
-            (0..axes).map(|c| a.border(c).iter().map(|b| b / scale).collect()).collect();
-        let constraints = system.constraints();
-        let eliminate = system.method() == ConstraintMethod::Eliminate;
-        let mut constrained = vec![[false; 3]; n];
-        let mut loaded = vec![[false; 3]; n];
-        for i in 0..n {
-            for c in 0..axes {
-                constrained[i][c] = constraints.get(i, c).is_some();
-                loaded[i][c] = !(eliminate && constrained[i][c]);
-            }
-        }
+        let (border, constrained, loaded) = scene_terms(system);
         let nblocks = if a.is_shared() { 1 } else { axes };
         let mut w = vec![vec![0.0; n]; axes];
         let mut stored64 = Vec::new();
@@ -235,6 +306,59 @@ impl Compliance {
         })
     }
 
+    /// The lazy response of an assembled system from its kept factorization (the base
+    /// solve's, not a second one): `w` and `s` from one bordered solve now, the columns of
+    /// a vertex when [`touch`](Self::touch) first asks for them (one bordered solve per
+    /// distinct block, two triangular solves each). Nothing of size `N^2` is allocated.
+    ///
+    /// Refuses with [`InteractError::Singular`] when the Schur complement `s` is not
+    /// positive.
+    pub fn lazy(system: &System, factorization: Arc<dyn Factorization>) -> Result<Self> {
+        let start = Instant::now();
+        let a = &system.matrix;
+        let (n, axes) = (a.n_vertices(), a.axes());
+        let (border, constrained, loaded) = scene_terms(system);
+        let columns = VertexColumns::new(factorization.as_ref()).map_err(linalg_error)?;
+        let w = (0..axes).map(|c| columns.w(c).to_vec()).collect();
+        let schur = columns.schur();
+        Ok(Self {
+            n,
+            axes,
+            blocks: Blocks::Lazy { factorization, columns },
+            border,
+            w,
+            schur,
+            constrained,
+            loaded,
+            storage: Storage::F64,
+            seconds: start.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// How the response was computed.
+    pub fn precompute(&self) -> Precompute {
+        match self.blocks {
+            Blocks::Lazy { .. } => Precompute::Lazy,
+            _ => Precompute::Full,
+        }
+    }
+
+    /// Makes the columns of `vertices` available: with the lazy response, computes those
+    /// not cached yet (one bordered solve per distinct block and new vertex, all in one
+    /// pass over the factor) and returns how many vertices were new; with the full
+    /// precompute, nothing to do (0).
+    ///
+    /// # Panics
+    /// If a vertex is out of range.
+    pub fn touch(&mut self, vertices: &[usize]) -> Result<usize> {
+        match &mut self.blocks {
+            Blocks::Lazy { factorization, columns } => {
+                columns.touch(factorization.as_ref(), vertices).map_err(linalg_error)
+            }
+            _ => Ok(0),
+        }
+    }
+
     /// Number of vertices N.
     pub fn n_vertices(&self) -> usize {
         self.n
@@ -245,27 +369,37 @@ impl Compliance {
         self.axes
     }
 
-    /// How the blocks are stored.
+    /// How the blocks are stored (f64 for the lazy response).
     pub fn storage(&self) -> Storage {
         self.storage
     }
 
-    /// Number of stored N x N blocks (1 when shared by every axis).
+    /// Number of distinct N x N blocks (1 when shared by every axis).
     pub fn n_blocks(&self) -> usize {
         match &self.blocks {
             Blocks::F64(b) => b.len(),
             Blocks::F32(b) => b.len(),
+            Blocks::Lazy { columns, .. } => columns.n_blocks(),
         }
     }
 
-    /// Seconds the precompute took.
+    /// Seconds the precompute took (the lazy response: its one solve for `w` and `s`).
     pub fn seconds(&self) -> f64 {
         self.seconds
     }
 
-    /// Bytes held: the blocks plus the border vectors.
+    /// Bytes held: the blocks plus the border vectors; for the lazy response, the kept
+    /// factorization and the stiffness blocks it factors (kept for its residual checks),
+    /// the cached columns and the border vectors.
     pub fn memory_bytes(&self) -> usize {
-        self.n_blocks() * self.n * self.n * self.storage.word_bytes() + 2 * self.axes * self.n * 8
+        let border = 2 * self.axes * self.n * 8;
+        match &self.blocks {
+            Blocks::Lazy { factorization, columns } => {
+                let blocks = columns.n_blocks() * self.n * self.n * 8;
+                factorization.cost().bytes + blocks + columns.memory_bytes() + border
+            }
+            _ => self.n_blocks() * self.n * self.n * self.storage.word_bytes() + border,
+        }
     }
 
     /// `s = sum_c S_c . K_c^-1 S_c`, the Schur complement of the volume row (physical S).
@@ -300,39 +434,27 @@ impl Compliance {
         g
     }
 
-    /// `C_axis[i, j]`.
+    /// `C_axis[i, j]` (with the lazy response, column j must be
+    /// [touched](Self::touch)).
     #[inline]
     pub fn entry(&self, axis: usize, i: usize, j: usize) -> f64 {
         match &self.blocks {
             Blocks::F64(b) => b[if b.len() == 1 { 0 } else { axis }][(i, j)],
             Blocks::F32(b) => b[if b.len() == 1 { 0 } else { axis }][(i, j)] as f64,
+            Blocks::Lazy { columns, .. } => columns.entry(axis, i, j),
         }
     }
 
     /// The pressure change `P = sum_c w_c . f_c / s` caused by point forces (already
     /// [effective](Self::effective_force)).
     pub fn pressure_of(&self, forces: &[(usize, Vec3)]) -> f64 {
-        let mut p = 0.0;
-        for &(v, f) in forces {
-            for c in 0..self.axes {
-                p += self.w[c][v] * f[c];
-            }
-        }
-        p / self.schur
+        VertexResponse::pressure_of(self, forces)
     }
 
     /// The displacement at one vertex caused by point forces (already effective) whose
     /// pressure change is `pressure`: `O(forces)`.
     pub fn displacement_at(&self, vertex: usize, forces: &[(usize, Vec3)], pressure: f64) -> Vec3 {
-        let mut u = [0.0; 3];
-        for c in 0..self.axes {
-            let mut acc = -self.w[c][vertex] * pressure;
-            for &(v, f) in forces {
-                acc += self.entry(c, vertex, v) * f[c];
-            }
-            u[c] = acc;
-        }
-        u
+        VertexResponse::displacement_at(self, vertex, forces, pressure)
     }
 
     /// Adds the field of point forces (already effective) whose pressure change is
@@ -341,25 +463,11 @@ impl Compliance {
     /// `C` per force and axis, `O(N)` per force.
     ///
     /// # Panics
-    /// If `u` does not have `axes * N` entries or a vertex is out of range (programming
-    /// errors).
+    /// If `u` does not have `axes * N` entries or a vertex is out of range (or, with the
+    /// lazy response, not [touched](Self::touch)): programming errors.
     #[track_caller]
     pub fn add_field_axes(&self, forces: &[(usize, Vec3)], pressure: f64, u: &mut [f64]) {
-        let n = self.n;
-        assert_eq!(u.len(), self.axes * n, "field length");
-        for (c, uc) in u.chunks_exact_mut(n).enumerate() {
-            for (ui, wi) in uc.iter_mut().zip(&self.w[c]) {
-                *ui -= wi * pressure;
-            }
-            for &(v, f) in forces {
-                if f[c] != 0.0 {
-                    match &self.blocks {
-                        Blocks::F64(b) => axpy(uc, b[if b.len() == 1 { 0 } else { c }].col_as_slice(v), f[c]),
-                        Blocks::F32(b) => axpy(uc, b[if b.len() == 1 { 0 } else { c }].col_as_slice(v), f[c]),
-                    }
-                }
-            }
-        }
+        VertexResponse::add_field_axes(self, forces, pressure, u)
     }
 
     /// [`add_field_axes`](Self::add_field_axes) on a field stored vertex by vertex.
@@ -390,6 +498,12 @@ impl Compliance {
     pub fn solve_rhs(&self, system: &System, rhs: &[f64]) -> (Vec<Vec3>, f64) {
         let (n, d) = (self.n, self.axes);
         assert_eq!(rhs.len(), d * n + 1, "rhs length");
+        if let Blocks::Lazy { factorization, .. } = &self.blocks {
+            // The kept factorization solves it directly (unrefined, as the inverse would).
+            let mut x = rhs.to_vec();
+            factorization.solve_unrefined(&mut x);
+            return system.split_solution(&x);
+        }
         let t = rhs[d * n] / system.matrix.pressure_scale();
         let mut y = vec![[0.0; 3]; n];
         for c in 0..d {
@@ -410,6 +524,49 @@ impl Compliance {
             }
         }
         (y, p)
+    }
+}
+
+impl VertexResponse for Compliance {
+    fn n_vertices(&self) -> usize {
+        self.n
+    }
+
+    fn axes(&self) -> usize {
+        self.axes
+    }
+
+    fn w(&self, axis: usize) -> &[f64] {
+        &self.w[axis]
+    }
+
+    fn schur(&self) -> f64 {
+        self.schur
+    }
+
+    #[inline]
+    fn entry(&self, axis: usize, i: usize, j: usize) -> f64 {
+        Compliance::entry(self, axis, i, j)
+    }
+
+    #[inline]
+    fn add_column(&self, axis: usize, j: usize, a: f64, y: &mut [f64]) {
+        match &self.blocks {
+            Blocks::F64(b) => axpy(y, b[if b.len() == 1 { 0 } else { axis }].col_as_slice(j), a),
+            Blocks::F32(b) => axpy(y, b[if b.len() == 1 { 0 } else { axis }].col_as_slice(j), a),
+            Blocks::Lazy { columns, .. } => columns.add_column(axis, j, a, y),
+        }
+    }
+
+    fn epsilon(&self) -> f64 {
+        self.storage.epsilon()
+    }
+
+    fn add_field_axes(&self, forces: &[(usize, Vec3)], pressure: f64, u: &mut [f64]) {
+        match &self.blocks {
+            Blocks::Lazy { columns, .. } => columns.add_field_axes(forces, pressure, u),
+            _ => fibfluid_linalg::add_field_by_columns(self, forces, pressure, u),
+        }
     }
 }
 

@@ -5,8 +5,10 @@
 //!   update, positions, field, reactions) that a viewer or a path replay drives. The
 //!   fiber–fluid method implements it here ([`FfmBody`]); other methods (ChainMail) may
 //!   implement it without forces.
-//! - [`Compliance`]: the fiber–fluid method's precomputed linear response about the rest
-//!   shape (paper mode), from the assembled bordered system of REFERENCE §3.
+//! - [`Compliance`]: the fiber–fluid method's linear response about the rest shape (paper
+//!   mode), from the assembled bordered system of REFERENCE §3: the columns of touched
+//!   vertices computed lazily with the base solve's kept factorization
+//!   ([`Precompute::Lazy`], the default), or the full inverse ([`Precompute::Full`]).
 //! - [`ChainmailBody`](chainmail_body::ChainmailBody): a ChainMail lattice (TSVE or
 //!   Generalized) embedding the surface, with its [`chainmail_settings`].
 //! - [`MethodBody`]: a model's body for any [`Method`]; [`replay`] drives one along a
@@ -59,11 +61,13 @@
 //!
 //! | operation | flops / memory traffic |
 //! |---|---|
-//! | precompute, per distinct block | `N^3 / 3` (Cholesky) `+ 2 N^3 / 3` (inverse, in place) `+ 2 N^2` per axis (`w`) |
+//! | full precompute, per distinct block | `N^3 / 3` (Cholesky) `+ 2 N^3 / 3` (inverse, in place) `+ 2 N^2` per axis (`w`) |
+//! | lazy: `w` and `s`, once | one bordered solve with the kept factorization (`2 N^2` per block) |
+//! | lazy: a vertex touched first | one bordered solve per distinct block (`2 N^2` each), cached |
 //! | grabbed set changes | `O(k^2)` lookups in `C` `+ (3k)^3 / 3` (Cholesky of `G`) |
 //! | frame (full field) | `O((3k)^2)` (reactions) `+ O(N (k + m))` (field: one column of `C` per held vertex) |
 //! | reaction-only query | `O((3k)^2 + k m)` |
-//! | memory | `N^2` words per distinct block (f64 or f32, [`Storage`]) |
+//! | memory | full: `N^2` words per distinct block (f64 or f32, [`Storage`]); lazy: the kept system and factor plus `N` f64 per touched vertex and block |
 //!
 //! (k grabbed, m pushed vertices.) Overall a frame is `O(k^3 + N k)` and a reaction query
 //! `O(k^3 + k^2)` in the worst case (a new grabbed set every frame); while a tool drags the
@@ -76,8 +80,11 @@
 //! route keeps the factored response and solves a 3k x 3k system instead: `(3k)^3 / 3 +
 //! O(k^2)` flops (9,000 for k = 10) for the reactions plus `6 N k` for the field (6.1e5 at
 //! N = 10,242, k = 10) — about five orders of magnitude fewer, which is what makes the
-//! haptic rate (1 kHz) reachable. The price is the precompute (`N^3` flops) and `N^2` words
-//! per block, paid once per body.
+//! haptic rate (1 kHz) reachable. The price is the columns of the touched vertices: all of
+//! them at once with the full precompute (`N^3` flops and `N^2` words per block, paid once per
+//! body), or two triangular solves per vertex when it is first touched with the lazy
+//! response. The capacitance and the field are `fibfluid_linalg::HeldCapacitance` and
+//! `fibfluid_linalg::VertexResponse`, shared with `Simulation::respond_held`.
 
 mod body;
 pub mod chainmail_body;
@@ -90,7 +97,7 @@ mod method_body;
 pub mod replay;
 
 pub use body::FfmBody;
-pub use compliance::{Compliance, ComplianceOptions, MemoryEstimate, Storage};
+pub use compliance::{Compliance, ComplianceOptions, MemoryEstimate, Precompute, Storage};
 pub use error::{InteractError, Result};
 pub use fibfluid_linalg::memory_budget;
 pub use fibfluid_sim::Method;

@@ -1,6 +1,7 @@
 //! A model's interactive body for each [`Method`]: the fiber–fluid method's precomputed
 //! response on top of a base solve, or a ChainMail lattice.
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use fibfluid_geometry::Vec3;
@@ -11,13 +12,18 @@ use crate::chainmail_body::ChainmailBody;
 use crate::chainmail_settings::{ChainmailSettings, Variant};
 use crate::fem_body::FemInteractive;
 use crate::replay::ProbeError;
-use crate::{Compliance, ComplianceOptions, FfmBody, InteractError, Interactive, Storage, memory_budget};
+use crate::{
+    Compliance, ComplianceOptions, FfmBody, InteractError, Interactive, Precompute, Storage, memory_budget,
+};
 
 /// Options of [`build_body`].
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ProbeOptions {
-    /// Storage of the precomputed response.
+    /// Storage of the full precomputed response (the lazy response is f64).
     pub storage: Storage,
+    /// The full precompute, or the lazy columns on the base solve's factorization (the
+    /// default).
+    pub precompute: Precompute,
     /// Memory budget (see [`fibfluid_interact::memory_budget`]).
     pub max_memory_bytes: Option<u64>,
 }
@@ -29,7 +35,8 @@ pub struct ProbeBody {
     pub body: FfmBody,
     /// Seconds of the base solve (assembly, factorization and one solve).
     pub base_seconds: f64,
-    /// Seconds of the precompute of the response.
+    /// Seconds of the precompute of the response (lazy: the one solve for the border terms;
+    /// each vertex's columns are computed when it is first touched).
     pub precompute_seconds: f64,
 }
 
@@ -45,20 +52,24 @@ pub fn linearized(scene: &Model) -> Model {
 }
 
 /// Builds the interactive body of a scene: one full solve of the scene's loads (the base
-/// state) and the precomputed response of the same assembled system.
+/// state) and the response of the same assembled system, precomputed in full (a second
+/// factorization and the inverse) or lazily (the base solve's factorization kept, each
+/// vertex's columns computed when it is first touched), as `opts.precompute` says.
 ///
-/// Refuses before assembling anything when the assembled system, its factorization and the
-/// precompute's peak would exceed the memory budget, naming the bytes.
+/// Refuses before assembling anything when the assembled system, its factorization and
+/// (full) the precompute's peak would exceed the memory budget, naming the bytes.
 pub fn build_body(scene: &Model, opts: &ProbeOptions) -> Result<ProbeBody, ProbeError> {
     if !matches!(scene.shape, Shape::Surface(_)) {
         return Err(ProbeError::NotASurface { scene: scene.display_name() });
     }
     let n = scene.n_vertices();
     let nblocks = if scene.material.is_isotropic() && scene.constraints.is_uniform(3) { 1 } else { 3 };
-    let est = Compliance::estimate_for(n, nblocks, opts.storage);
-    // The assembled blocks and their factorization stay alive during the precompute.
+    // The assembled blocks and their factorization stay alive (lazy: for good).
     let system_bytes = 2 * (nblocks * n * n * 8) as u64;
-    let need = est.peak + system_bytes;
+    let need = match opts.precompute {
+        Precompute::Full => Compliance::estimate_for(n, nblocks, opts.storage).peak + system_bytes,
+        Precompute::Lazy => system_bytes,
+    };
     let budget = memory_budget(opts.max_memory_bytes);
     let scene_name = scene.display_name();
     let build = |source: InteractError| ProbeError::Build { scene: scene_name.clone(), source };
@@ -76,11 +87,19 @@ pub fn build_body(scene: &Model, opts: &ProbeOptions) -> Result<ProbeBody, Probe
         .collect();
     let base_pressure = sim.pressure();
     let base_seconds = start.elapsed().as_secs_f64();
-    let copts = ComplianceOptions { storage: opts.storage, max_memory_bytes: Some(budget - system_bytes) };
-    let compliance = Compliance::from_system(sim.system(), &copts).map_err(build)?;
-    let precompute_seconds = compliance.seconds();
     let rest = sim.rest_positions().to_vec();
-    drop(sim);
+    let compliance = match opts.precompute {
+        Precompute::Full => {
+            let copts =
+                ComplianceOptions { storage: opts.storage, max_memory_bytes: Some(budget - system_bytes) };
+            Compliance::from_system(sim.system(), &copts).map_err(build)?
+        }
+        Precompute::Lazy => {
+            let (system, factorization) = sim.into_factored();
+            Compliance::lazy(&system, Arc::from(factorization)).map_err(build)?
+        }
+    };
+    let precompute_seconds = compliance.seconds();
     let mut body = FfmBody::new(compliance, rest).map_err(build)?;
     body.set_base(base, base_pressure).map_err(build)?;
     Ok(ProbeBody { body, base_seconds, precompute_seconds })

@@ -11,8 +11,8 @@
 use fibfluid_assembly::{Material, Selector};
 use fibfluid_geometry::{Vec3, load_mesh};
 use fibfluid_interact::{
-    Compliance, ComplianceOptions, FfmBody, Hold, InteractError, Interactive, ProbeOptions, Storage,
-    build_body, linearized,
+    Compliance, ComplianceOptions, FfmBody, Hold, InteractError, Interactive, Precompute, ProbeOptions,
+    Storage, build_body, linearized,
 };
 use fibfluid_linalg::{Backend, Choice};
 use fibfluid_sim::ConstraintKind as ConstraintMethod;
@@ -52,6 +52,11 @@ fn methods() -> [ConstraintMethod; 2] {
     [ConstraintMethod::Penalty, ConstraintMethod::Eliminate]
 }
 
+/// Every constraint method with every precompute: the exactness tests run on each pair.
+fn cases() -> Vec<(ConstraintMethod, Precompute)> {
+    methods().into_iter().flat_map(|m| Precompute::ALL.iter().map(move |&p| (m, p))).collect()
+}
+
 /// Mesh index of a vertex of the mesh file.
 fn mesh_index(scene: &Model, file_vertex: usize) -> usize {
     match &scene.shape {
@@ -82,14 +87,21 @@ fn relative_difference(a: &[Vec3], b: &[Vec3], rest: &[Vec3]) -> f64 {
 }
 
 fn body(scene: &Model, storage: Storage) -> FfmBody {
-    build_body(scene, &ProbeOptions { storage, max_memory_bytes: None }).expect("the probe body builds").body
+    body_with(scene, storage, Precompute::Full)
+}
+
+fn body_with(scene: &Model, storage: Storage, precompute: Precompute) -> FfmBody {
+    let opts = ProbeOptions { storage, precompute, max_memory_bytes: None };
+    let b = build_body(scene, &opts).expect("the probe body builds").body;
+    assert_eq!(b.compliance().precompute(), precompute);
+    b
 }
 
 #[test]
 fn a_pushed_force_is_the_full_solve_with_that_force() {
-    for method in methods() {
+    for (method, precompute) in cases() {
         let scene = sphere(method);
-        let mut b = body(&scene, Storage::F64);
+        let mut b = body_with(&scene, Storage::F64, precompute);
         let v = mesh_index(&scene, 36);
         let w = mesh_index(&scene, 100);
         let pushes = [(v, [40.0, 150.0, -30.0]), (w, [-60.0, 20.0, 90.0])];
@@ -100,21 +112,22 @@ fn a_pushed_force_is_the_full_solve_with_that_force() {
         assert_eq!(reactions.len(), 2, "pushed forces are reported as the forces on the body");
         let reference = full_solve(&scene, &pushes);
         let d = relative_difference(b.positions(), &reference, b.rest_positions());
-        assert!(d <= PUSH_TOLERANCE, "{method:?}: probe vs full solve {d:e}");
+        println!("{method:?}, {precompute}: two pushes vs the full solve {d:e}");
+        assert!(d <= PUSH_TOLERANCE, "{method:?}, {precompute}: probe vs full solve {d:e}");
         // Without any hold the frame is the base state, which is the full solve of the
         // scene's own loads.
         b.release_all();
         b.update().unwrap();
         let d = relative_difference(b.positions(), &full_solve(&scene, &[]), b.rest_positions());
-        assert!(d <= PUSH_TOLERANCE, "{method:?}: base state vs full solve {d:e}");
+        assert!(d <= PUSH_TOLERANCE, "{method:?}, {precompute}: base state vs full solve {d:e}");
     }
 }
 
 #[test]
 fn a_grabbed_vertex_stays_put_and_its_reaction_reproduces_the_surface() {
-    for method in methods() {
+    for (method, precompute) in cases() {
         let scene = sphere(method);
-        let mut b = body(&scene, Storage::F64);
+        let mut b = body_with(&scene, Storage::F64, precompute);
         let v = mesh_index(&scene, 36);
         let d = [0.1, -0.9, 0.05];
         b.grab(v, d).unwrap();
@@ -124,19 +137,26 @@ fn a_grabbed_vertex_stays_put_and_its_reaction_reproduces_the_surface() {
         let p = b.positions()[v];
         let rest = b.rest_positions()[v];
         for c in 0..3 {
-            assert!((p[c] - (rest[c] + d[c])).abs() <= 1e-12, "{method:?}: grabbed vertex at {p:?}");
+            assert!(
+                (p[c] - (rest[c] + d[c])).abs() <= 1e-12,
+                "{method:?}, {precompute}: grabbed vertex at {p:?}"
+            );
         }
         let reference = full_solve(&scene, &r);
         let diff = relative_difference(b.positions(), &reference, b.rest_positions());
-        assert!(diff <= GRAB_TOLERANCE, "{method:?}: grab vs full solve with its reaction {diff:e}");
+        println!("{method:?}, {precompute}: one grab vs the full solve with its reaction {diff:e}");
+        assert!(
+            diff <= GRAB_TOLERANCE,
+            "{method:?}, {precompute}: grab vs full solve with its reaction {diff:e}"
+        );
     }
 }
 
 #[test]
 fn three_grabbed_vertices_and_a_push_reproduce_the_full_solve() {
-    for method in methods() {
+    for (method, precompute) in cases() {
         let scene = sphere(method);
-        let mut b = body(&scene, Storage::F64);
+        let mut b = body_with(&scene, Storage::F64, precompute);
         let grabs = [(36, [0.05, -0.95, 0.0]), (122, [0.0, -0.8, 0.1]), (9, [-0.02, -0.3, 0.03])];
         let push = (mesh_index(&scene, 100), [10.0, -50.0, 25.0]);
         for &(fv, d) in &grabs {
@@ -149,12 +169,16 @@ fn three_grabbed_vertices_and_a_push_reproduce_the_full_solve() {
             let v = mesh_index(&scene, fv);
             let (p, r) = (b.positions()[v], b.rest_positions()[v]);
             for c in 0..3 {
-                assert!((p[c] - r[c] - d[c]).abs() <= 1e-12, "{method:?}: vertex {fv} at {p:?}");
+                assert!(
+                    (p[c] - r[c] - d[c]).abs() <= 1e-12,
+                    "{method:?}, {precompute}: vertex {fv} at {p:?}"
+                );
             }
         }
         let reference = full_solve(&scene, &forces);
         let diff = relative_difference(b.positions(), &reference, b.rest_positions());
-        assert!(diff <= GRAB_TOLERANCE, "{method:?}: {diff:e}");
+        println!("{method:?}, {precompute}: three grabs and a push vs the full solve {diff:e}");
+        assert!(diff <= GRAB_TOLERANCE, "{method:?}, {precompute}: {diff:e}");
         // The reaction-only query gives the same reactions without touching the field.
         let field = b.field().to_vec();
         let quick = b.update_reactions().unwrap().to_vec();
@@ -221,8 +245,14 @@ fn bad_requests_are_typed_errors_and_change_nothing() {
 fn grabbing_every_free_vertex_is_singular_and_keeps_the_last_frame() {
     // With elimination S vanishes on the fixed cap, so holding every free vertex leaves the
     // volume row nothing to move: the capacitance matrix is singular (its null vector is S).
+    for precompute in Precompute::ALL.iter().copied() {
+        grabbing_every_free_vertex_is_singular_with(precompute);
+    }
+}
+
+fn grabbing_every_free_vertex_is_singular_with(precompute: Precompute) {
     let scene = sphere(ConstraintMethod::Eliminate);
-    let mut b = body(&scene, Storage::F64);
+    let mut b = body_with(&scene, Storage::F64, precompute);
     let v = mesh_index(&scene, 36);
     b.grab(v, [0.0, -0.9, 0.0]).unwrap();
     b.update().unwrap();
@@ -244,9 +274,9 @@ fn grabbing_every_free_vertex_is_singular_and_keeps_the_last_frame() {
 #[test]
 fn memory_is_refused_before_allocating_with_the_bytes() {
     let scene = sphere(ConstraintMethod::Eliminate);
-    let err = build_body(&scene, &ProbeOptions { storage: Storage::F64, max_memory_bytes: Some(100_000) })
-        .unwrap_err()
-        .to_string();
+    let full =
+        ProbeOptions { precompute: Precompute::Full, max_memory_bytes: Some(100_000), ..Default::default() };
+    let err = build_body(&scene, &full).unwrap_err().to_string();
     // N = 162, one shared block: the compliance (8 N^2 = 209,952 bytes, plus one working
     // column block) and the system with its factor (2 x 209,952) exceed 100 kB.
     assert!(err.contains("bytes") && err.contains("100000"), "{err}");
@@ -269,4 +299,41 @@ fn storage_names_round_trip() {
         assert_eq!(s.to_string(), s.name());
     }
     assert!("f16".parse::<Storage>().is_err());
+    for &p in Precompute::ALL {
+        assert_eq!(p.name().parse::<Precompute>(), Ok(p));
+    }
+    assert_eq!(Precompute::default(), Precompute::Lazy);
+    assert!("eager".parse::<Precompute>().is_err());
+}
+
+/// The lazy response keeps the base solve's factorization (no second one) and computes the
+/// columns of a vertex once, when it is first touched: a drag of the same vertices adds
+/// none, and a frame equals the full precompute's frame.
+#[test]
+fn lazy_columns_are_computed_once_per_touched_vertex() {
+    let scene = sphere(ConstraintMethod::Eliminate);
+    let mut lazy = body_with(&scene, Storage::F64, Precompute::Lazy);
+    let mut full = body_with(&scene, Storage::F64, Precompute::Full);
+    let (v, w) = (mesh_index(&scene, 36), mesh_index(&scene, 122));
+    let mem0 = lazy.memory_bytes();
+    for t in 0..5 {
+        let d = [0.01 * t as f64, -0.5, 0.0];
+        for b in [&mut lazy, &mut full] {
+            b.grab(v, d).unwrap();
+            b.push(w, [0.0, 10.0, 0.0]).unwrap();
+            b.update().unwrap();
+        }
+        let diff = relative_difference(lazy.positions(), full.positions(), lazy.rest_positions());
+        assert!(diff <= 1e-10, "frame {t}: lazy vs full {diff:e}");
+    }
+    // Two vertices touched: two columns of N values (one shared block) and nothing else.
+    let n = lazy.n_vertices();
+    assert_eq!(lazy.memory_bytes() - mem0, 2 * n * 8 + 9 * 8, "two cached columns and G (3 x 3)");
+    // A clone carries the cache: touching the same vertices computes nothing new.
+    let mut c = lazy.clone();
+    let before = c.memory_bytes();
+    c.release_all();
+    c.grab(v, [0.0, -0.4, 0.0]).unwrap();
+    c.update().unwrap();
+    assert_eq!(c.memory_bytes(), before);
 }

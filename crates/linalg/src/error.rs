@@ -106,6 +106,20 @@ pub enum LinalgError {
         /// How many unknowns were held.
         held: usize,
     },
+    /// The held vertices over-determine the body: the capacitance matrix of the held set
+    /// has a (numerically) non-positive pivot at this vertex and axis.
+    #[error(
+        "the {held} held vertices over-determine the body (capacitance pivot at vertex {vertex} along {}); release some",
+        ["x", "y", "z"][*axis % 3]
+    )]
+    SingularHold {
+        /// How many vertices were held.
+        held: usize,
+        /// The vertex of the failing pivot.
+        vertex: usize,
+        /// Its axis (0 = x).
+        axis: usize,
+    },
     /// A LAPACK routine reported a failure.
     #[error("LAPACK failed: {0}")]
     Lapack(String),

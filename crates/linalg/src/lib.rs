@@ -30,6 +30,7 @@
 mod choice;
 mod dense;
 mod error;
+mod held;
 mod matrix;
 mod memory;
 mod prescribed;
@@ -47,6 +48,10 @@ mod openblas_lu;
 
 pub use choice::{Choice, ParseChoiceError};
 pub use error::{LinalgError, Result};
+pub use held::{
+    CAPACITANCE_PIVOT_FACTOR, HeldCapacitance, VertexColumns, VertexForce, VertexResponse,
+    add_field_by_columns,
+};
 pub use matrix::{Blocks, BorderedMatrix};
 pub use memory::{
     DENSE_MEMORY_FRACTION, available_memory_bytes, check_dense_memory, memory_budget, total_memory_bytes,

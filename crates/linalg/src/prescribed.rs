@@ -22,6 +22,16 @@
 //! - each solve afterwards: one solve plus `O(k dN)` for the correction;
 //! - a refactorization instead costs `N^3 / 3` per stiffness block (structured) or
 //!   `(2/3)(dN+1)^3` (dense LU), so the update wins while `k` is well below `N`.
+//!
+//! **Holding vertices is not done here** but by [`crate::HeldCapacitance`] over
+//! [`crate::VertexResponse`] (`held.rs`), the one code path the interactive body and
+//! `Simulation::respond_held` share. A held vertex is the special row `e_(c,v)` on every
+//! axis, whose `W` column is fully described by one compliance column per distinct block
+//! (N values) plus the shared `w` and `s`; this set keeps a dense `dN + 1` column per
+//! constraint instead. What stays on it are the plate contacts: a contact row is not a hold
+//! but a plate normal spread over a vertex's free axes (`n . u_v = g`), whose column could
+//! be assembled from vertex columns (`W = sum_c n_c W_(c,v)`) but is not yet. Both are the
+//! same Sherman–Morrison–Woodbury update.
 
 use faer::linalg::solvers::Solve;
 use faer::{Mat, Side};

@@ -14,7 +14,10 @@ use fibfluid_assembly::{
 };
 use fibfluid_geometry::vec3::{add, dot, norm, scale, sub};
 use fibfluid_geometry::{Boundary, FiberSet, Vec3, VisibilityOptions, cull_fibers};
-use fibfluid_linalg::{FactorOptions, Factorization, FactorizationExt, LinearSolver, PrescribedSet};
+use fibfluid_linalg::{
+    FactorOptions, Factorization, FactorizationExt, HeldCapacitance, LinearSolver, PrescribedSet,
+    VertexColumns, VertexResponse,
+};
 use serde::Serialize;
 
 use crate::choices::{ForceTiming, Method, Mode, Stepping};
@@ -160,9 +163,17 @@ struct Factored {
     options: FactorOptions,
     border_areas: Vec<Vec3>,
     /// Vertices held by [`Simulation::respond_held`], on this factorization.
-    held: PrescribedSet,
+    held: Holds,
     /// Contact constraints, on this factorization.
     contact: PrescribedSet,
+}
+
+/// Vertices held by [`Simulation::respond_held`]: the compliance columns of the vertices
+/// held so far and the capacitance of the last held set, on the kept factorization.
+#[derive(Default)]
+struct Holds {
+    columns: Option<VertexColumns>,
+    capacitance: Option<HeldCapacitance>,
 }
 
 /// The static response of a factored body to forces and held vertices.
@@ -268,7 +279,7 @@ impl Simulation {
             solver,
             options: factor_options,
             border_areas: areas,
-            held: PrescribedSet::new(),
+            held: Holds::default(),
             contact: PrescribedSet::new(),
         };
         let counters = Counters { factorizations: 1, ..Default::default() };
@@ -353,6 +364,14 @@ impl Simulation {
     /// The current factorization.
     pub fn factorization(&self) -> &dyn Factorization {
         self.factored.factorization.as_ref()
+    }
+
+    /// Ends the simulation and keeps its assembled system and factorization, for a caller
+    /// that solves on with them (the interactive body's compliance columns are computed
+    /// with the factorization of the base solve, not a second one). Everything else (the
+    /// state, the fibers, the held and contact sets) is dropped.
+    pub fn into_factored(self) -> (System, Box<dyn Factorization>) {
+        (self.factored.system, self.factored.factorization)
     }
 
     /// What the solves cost so far.
@@ -816,11 +835,15 @@ impl Simulation {
 
     /// The static response of the current factorization to point forces with vertices
     /// held at given displacements (no stepping, no position update): a tool grabbing the
-    /// body. The held set is a change of the constraints on the kept factorization: a
-    /// vertex held for the first time costs one solve per axis, releasing one costs a
-    /// k x k refactor, and each call one solve plus `O(k N)` (see
-    /// [`PrescribedSet`](fibfluid_linalg::PrescribedSet)), where refactoring with the
-    /// vertices eliminated would cost `N^3 / 3` per stiffness block.
+    /// body. The held set is a change of the constraints on the kept factorization, imposed
+    /// by the capacitance of the held vertices over their compliance columns, the same code
+    /// as the interactive body ([`fibfluid_linalg::HeldCapacitance`] over
+    /// [`fibfluid_linalg::VertexColumns`]): a vertex held for the first time costs one
+    /// bordered solve per distinct stiffness block (its columns are then cached until the
+    /// operator changes), a new held set a `(dk)^3 / 3` Cholesky, and each call one checked
+    /// solve plus `O(k N)`, where refactoring with the vertices eliminated would cost
+    /// `N^3 / 3` per stiffness block. A vertex listed twice is held once (at its first
+    /// displacement).
     pub fn respond_held(&mut self, forces: &[(usize, Vec3)], held: &[(usize, Vec3)]) -> Result<Response> {
         let n = self.state.positions.len();
         let axes = self.axes();
@@ -832,39 +855,47 @@ impl Simulation {
         {
             return Err(Error::HeldFixedVertex { vertex: v });
         }
-        let wanted: Vec<usize> = held.iter().flat_map(|&(v, _)| (0..axes).map(move |c| c * n + v)).collect();
+        let mut targets: Vec<(usize, Vec3)> = Vec::with_capacity(held.len());
+        for &(v, d) in held {
+            if !targets.iter().any(|t| t.0 == v) {
+                targets.push((v, d));
+            }
+        }
+        let vertices: Vec<usize> = targets.iter().map(|t| t.0).collect();
         let f = &mut self.factored;
-        for &key in f.held.keys().to_vec().iter().filter(|&&k| !wanted.contains(&(k as usize))) {
-            f.held.remove_key(key)?;
-        }
-        for &i in &wanted {
-            f.held.add(f.factorization.as_ref(), i)?;
-        }
-        let value_of =
-            |i: usize| held.iter().find(|(v, _)| *v == i % n).map(|(_, d)| d[i / n]).unwrap_or(0.0);
-        let values: Vec<f64> = f.held.keys().iter().map(|&i| value_of(i as usize)).collect();
         let loads = Loads { forces, ..Default::default() };
         let b = load_vector(axes, &self.state.positions, &f.border_areas, &loads)?;
         let rhs = f.system.rhs(&b, 0.0, &f.border_areas, 1.0);
         let start = Instant::now();
-        let sol = f.held.solve(f.factorization.as_ref(), &rhs, &values)?;
+        let sol = f.factorization.solve(&rhs)?;
+        let mut x = sol.x;
+        let mut reactions = vec![];
+        if !vertices.is_empty() {
+            let columns = match &mut f.held.columns {
+                Some(c) => c,
+                None => f.held.columns.insert(VertexColumns::new(f.factorization.as_ref())?),
+            };
+            columns.touch(f.factorization.as_ref(), &vertices)?;
+            if f.held.capacitance.as_ref().is_none_or(|c| c.vertices() != vertices) {
+                f.held.capacitance = Some(HeldCapacitance::new(&*columns, &vertices)?);
+            }
+            let cap = f.held.capacitance.as_ref().expect("built above");
+            let gap: Vec<f64> = targets
+                .iter()
+                .flat_map(|&(v, d)| (0..axes).map(move |c| (v, c, d[c])))
+                .map(|(v, c, d)| d - x[c * n + v])
+                .collect();
+            reactions = cap.reactions(&gap)?;
+            let p = columns.pressure_of(&reactions);
+            columns.add_field_axes(&reactions, p, &mut x[..axes * n]);
+            x[axes * n] += p / f.system.matrix.pressure_scale();
+        }
         self.log.add(names::SOLVE, start.elapsed().as_secs_f64());
         self.counters.solves += 1;
-        let (displacements, pressure) = self.factored.system.split_solution(&sol.x);
-        let keys = self.factored.held.keys();
+        let (displacements, pressure) = self.factored.system.split_solution(&x);
         let reactions = held
             .iter()
-            .map(|&(v, _)| {
-                let mut r = [0.0; 3];
-                for (c, rc) in r.iter_mut().enumerate().take(axes) {
-                    let k = keys
-                        .iter()
-                        .position(|&i| i as usize == c * n + v)
-                        .expect("every held unknown is in the set");
-                    *rc = -sol.multipliers[k];
-                }
-                (v, r)
-            })
+            .map(|&(v, _)| *reactions.iter().find(|r| r.0 == v).expect("every held vertex has a reaction"))
             .collect();
         Ok(Response { displacements, pressure, reactions })
     }
@@ -877,7 +908,7 @@ impl Simulation {
             return Ok(0.0);
         }
         // The held and contact sets were built on the operator about to change.
-        self.factored.held = PrescribedSet::new();
+        self.factored.held = Holds::default();
         self.factored.contact = PrescribedSet::new();
         let areas = self.log.time(names::AREAS, || self.body.boundary.vertex_area_vectors(s));
         match mode {

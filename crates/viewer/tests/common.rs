@@ -23,7 +23,7 @@ pub fn sphere_path() -> &'static str {
 /// A scene and its FFM body.
 pub fn scene_body(path: &str, storage: Storage) -> (Scene, FfmBody) {
     let scene = Scene::load(path).expect("the scene loads");
-    let opts = ProbeOptions { storage, max_memory_bytes: None };
+    let opts = ProbeOptions { storage, max_memory_bytes: None, ..Default::default() };
     let body = build_body(&scene, &opts).expect("the body builds").body;
     (scene, body)
 }

@@ -1,0 +1,415 @@
+//! Vertices held on a kept factorization of the bordered system: the one mechanism behind
+//! the interactive fiber–fluid body and `Simulation::respond_held`.
+//!
+//! With `C_c = K_c^-1` (one N x N block per distinct stiffness block), the physical border
+//! `S_c`, `w_c = C_c S_c` and `s = sum_c S_c . w_c`, point forces `f` at vertices give
+//!
+//! ```text
+//! P   = (sum_c w_c . f_c) / s          (pressure change)
+//! u_c = C_c f_c - w_c P                (displacement)
+//! ```
+//!
+//! Holding k vertices `g` at displacements `d` (all axes) adds unknown reactions `r`:
+//!
+//! ```text
+//! G r = d - y(g),    G[(v,a),(u,b)] = C_a[v,u] delta_ab - w_a[v] w_b[u] / s
+//! ```
+//!
+//! where `y` is the field without the reactions. `G` (dk x dk) is the restriction of the
+//! projected compliance `C - w w' / s` (the response at the held degrees of freedom to unit
+//! forces there, pressure included), symmetric positive definite unless the held degrees of
+//! freedom decide the volume alone. It is the capacitance matrix of the
+//! Sherman–Morrison–Woodbury update that imposes the holds on a kept factorization instead
+//! of refactoring.
+//!
+//! Everything above reads only the compliance columns of the touched vertices, `w` and `s`
+//! ([`VertexResponse`]). Two sources provide them:
+//!
+//! - [`VertexColumns`]: the columns of touched vertices, computed when a vertex is first
+//!   touched with the kept factorization (one bordered solve per distinct block, all new
+//!   vertices of a call in one pass over the factor) and cached; `w` and `s` from one
+//!   bordered solve. Works with every backend (it only solves the bordered system).
+//! - the full inverse (`fibfluid_interact::Compliance` with the full precompute), every
+//!   column at once, for haptic devices that need any vertex without a first-touch cost.
+//!
+//! [`HeldCapacitance`] factors `G` for a held set; the field of the reactions is then an
+//! ordinary point-force field ([`VertexResponse::add_field_axes`]).
+
+use std::sync::Arc;
+
+use faer::Mat;
+use faer::Par;
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::llt::factor::{LltError, cholesky_in_place, cholesky_in_place_scratch};
+use faer::linalg::cholesky::llt::solve::{solve_in_place, solve_in_place_scratch};
+
+use crate::{Factorization, FactorizationExt, LinalgError, Result};
+
+/// A point force (or a reaction) at a vertex: (vertex, components; unused axes zero).
+pub type VertexForce = (usize, [f64; 3]);
+
+/// The linear response of a factored bordered system to point forces at vertices, read
+/// through compliance columns (see the module docs).
+pub trait VertexResponse {
+    /// Number of vertices N.
+    fn n_vertices(&self) -> usize;
+    /// Number of axes (2 or 3).
+    fn axes(&self) -> usize;
+    /// `w_c = C_c S_c` (physical border).
+    fn w(&self, axis: usize) -> &[f64];
+    /// `s = sum_c S_c . w_c` (physical border).
+    fn schur(&self) -> f64;
+    /// `C_axis[i, j]`. Column `j` must be available (touched, for a lazy source).
+    fn entry(&self, axis: usize, i: usize, j: usize) -> f64;
+    /// `y += a C_axis[:, j]` (`y` has N entries). Column `j` must be available.
+    fn add_column(&self, axis: usize, j: usize, a: f64, y: &mut [f64]);
+    /// Unit roundoff of the stored entries (for the capacitance's pivot check).
+    fn epsilon(&self) -> f64;
+
+    /// The pressure change `P = sum_c w_c . f_c / s` caused by point forces.
+    fn pressure_of(&self, forces: &[VertexForce]) -> f64 {
+        let mut p = 0.0;
+        for &(v, f) in forces {
+            for c in 0..self.axes() {
+                p += self.w(c)[v] * f[c];
+            }
+        }
+        p / self.schur()
+    }
+
+    /// The displacement at one vertex caused by point forces whose pressure change is
+    /// `pressure`: `O(forces)`.
+    fn displacement_at(&self, vertex: usize, forces: &[VertexForce], pressure: f64) -> [f64; 3] {
+        let mut u = [0.0; 3];
+        for c in 0..self.axes() {
+            let mut acc = -self.w(c)[vertex] * pressure;
+            for &(v, f) in forces {
+                acc += self.entry(c, vertex, v) * f[c];
+            }
+            u[c] = acc;
+        }
+        u
+    }
+
+    /// Adds the field of point forces whose pressure change is `pressure` to `u`, stored
+    /// axis by axis as the system's unknowns are (`u[c * N + i]`, `axes * N` entries):
+    /// `u_c += sum_v C_c[:, v] f_v,c - w_c P`. One column per force and axis, `O(N)` each.
+    ///
+    /// # Panics
+    /// If `u` does not have `axes * N` entries (a programming error).
+    #[track_caller]
+    fn add_field_axes(&self, forces: &[VertexForce], pressure: f64, u: &mut [f64]) {
+        add_field_by_columns(self, forces, pressure, u)
+    }
+}
+
+/// [`VertexResponse::add_field_axes`] through [`VertexResponse::add_column`]: one pass over
+/// `u_c` per force and axis.
+#[track_caller]
+pub fn add_field_by_columns<R: VertexResponse + ?Sized>(
+    r: &R,
+    forces: &[VertexForce],
+    pressure: f64,
+    u: &mut [f64],
+) {
+    let n = r.n_vertices();
+    assert_eq!(u.len(), r.axes() * n, "field length");
+    for (c, uc) in u.chunks_exact_mut(n).enumerate() {
+        for (ui, wi) in uc.iter_mut().zip(r.w(c)) {
+            *ui -= wi * pressure;
+        }
+        for &(v, f) in forces {
+            if f[c] != 0.0 {
+                r.add_column(c, v, f[c], uc);
+            }
+        }
+    }
+}
+
+/// Rows per pass of the blocked field sum: the axes' slices of `u` (3 x 4 KiB) stay in the
+/// first-level cache while each column's slice streams through once for every axis.
+const FIELD_CHUNK: usize = 512;
+
+/// Pivots of the capacitance matrix at most this times `dim * epsilon` times their diagonal
+/// entry mean a singular held set.
+pub const CAPACITANCE_PIVOT_FACTOR: f64 = 16.0;
+
+/// The factored capacitance `G` of one held vertex set (see the module docs): built from
+/// `O(k^2)` compliance entries and factored by Cholesky (`(dk)^3 / 3` flops) when the held
+/// set changes, reused while the holds only move.
+#[derive(Clone, Debug)]
+pub struct HeldCapacitance {
+    vertices: Vec<usize>,
+    axes: usize,
+    /// Lower Cholesky factor of G (`axes * k` square).
+    l: Mat<f64>,
+}
+
+impl HeldCapacitance {
+    /// Builds and factors `G` for `vertices` (held along every axis), whose columns must be
+    /// available in `r`. A pivot at most [`CAPACITANCE_PIVOT_FACTOR`] `* dim * epsilon`
+    /// times its diagonal entry is [`LinalgError::SingularHold`] (the held set
+    /// over-determines the body).
+    pub fn new<R: VertexResponse + ?Sized>(r: &R, vertices: &[usize]) -> Result<Self> {
+        let (d, k) = (r.axes(), vertices.len());
+        let dim = d * k;
+        let s = r.schur();
+        let mut g = Mat::<f64>::zeros(dim, dim);
+        for (jl, &wv) in vertices.iter().enumerate() {
+            for (jr, &vv) in vertices.iter().enumerate().skip(jl) {
+                for a in 0..d {
+                    let caa = r.entry(a, vv, wv);
+                    for b in 0..d {
+                        let mut e = -r.w(a)[vv] * r.w(b)[wv] / s;
+                        if a == b {
+                            e += caa;
+                        }
+                        g[(jr * d + a, jl * d + b)] = e;
+                        g[(jl * d + b, jr * d + a)] = e;
+                    }
+                }
+            }
+        }
+        let diag: Vec<f64> = (0..dim).map(|i| g[(i, i)]).collect();
+        let singular = |index: usize| LinalgError::SingularHold {
+            held: k,
+            vertex: vertices[index / d],
+            axis: index % d,
+        };
+        let mut mem = MemBuffer::new(cholesky_in_place_scratch::<f64>(dim, Par::Seq, Default::default()));
+        cholesky_in_place(
+            g.as_mut(),
+            Default::default(),
+            Par::Seq,
+            MemStack::new(&mut mem),
+            Default::default(),
+        )
+        .map_err(|LltError::NonPositivePivot { index }| singular(index))?;
+        let tol = CAPACITANCE_PIVOT_FACTOR * dim as f64 * r.epsilon();
+        for (i, gii) in diag.iter().enumerate() {
+            let lii = g[(i, i)];
+            if !(lii * lii > tol * gii.abs()) {
+                return Err(singular(i));
+            }
+        }
+        Ok(Self { vertices: vertices.to_vec(), axes: d, l: g })
+    }
+
+    /// The held vertices, in the order of the reactions.
+    pub fn vertices(&self) -> &[usize] {
+        &self.vertices
+    }
+
+    /// Bytes of the factor.
+    pub fn memory_bytes(&self) -> usize {
+        self.l.nrows() * self.l.ncols() * 8
+    }
+
+    /// The reactions that close `gap` (`d - y(g)`, `axes` values per held vertex in the
+    /// order of [`vertices`](Self::vertices)): solves `G r = gap`. A non-finite reaction is
+    /// [`LinalgError::NonFiniteSolution`] with its index in `gap`.
+    ///
+    /// # Panics
+    /// If `gap` does not have `axes * k` entries.
+    #[track_caller]
+    pub fn reactions(&self, gap: &[f64]) -> Result<Vec<VertexForce>> {
+        let (d, k) = (self.axes, self.vertices.len());
+        assert_eq!(gap.len(), d * k, "one gap per held degree of freedom");
+        let mut rhs = Mat::<f64>::from_fn(d * k, 1, |i, _| gap[i]);
+        let mut mem = MemBuffer::new(solve_in_place_scratch::<f64>(d * k, 1, Par::Seq));
+        solve_in_place(self.l.as_ref(), rhs.as_mut(), Par::Seq, MemStack::new(&mut mem));
+        let mut out = Vec::with_capacity(k);
+        for (j, &v) in self.vertices.iter().enumerate() {
+            let mut f = [0.0; 3];
+            for a in 0..d {
+                f[a] = rhs[(j * d + a, 0)];
+                if !f[a].is_finite() {
+                    return Err(LinalgError::NonFiniteSolution { index: j * d + a });
+                }
+            }
+            out.push((v, f));
+        }
+        Ok(out)
+    }
+}
+
+/// The compliance columns of touched vertices, computed with a kept factorization of the
+/// bordered system and cached (see the module docs); `w` and `s` from one bordered solve.
+///
+/// For a vertex v and a distinct block b, the bordered solve with the unit right-hand side
+/// at unknown `(b, v)` gives `u_c = C_b[:, v] delta_cb - w_c P` with `P = w_b[v] / s`, so
+/// `C_b[:, v] = u_b + w_b P`; the bordered solve with the unit volume target gives
+/// `u = w / (lambda s)` and the pressure unknown `-1 / (lambda^2 s)` (`lambda` the pressure
+/// scale). Each solve is checked and refined as [`FactorizationExt::solve_many`] does.
+///
+/// Clones share the columns computed so far (each column is an `Arc`).
+#[derive(Clone, Debug)]
+pub struct VertexColumns {
+    n: usize,
+    axes: usize,
+    nblocks: usize,
+    w: Vec<Vec<f64>>,
+    schur: f64,
+    /// Per vertex: `nblocks * N` values (`C_b[:, v]` block after block), once touched.
+    columns: Vec<Option<Arc<[f64]>>>,
+    cached: usize,
+}
+
+impl VertexColumns {
+    /// The border terms `w` and `s` of factorization `f` (one bordered solve); no column
+    /// yet. [`LinalgError::SingularHold`] is not possible here; a Schur complement that is
+    /// not positive is [`LinalgError::DependentConstraints`] with `held = 0`.
+    pub fn new(f: &dyn Factorization) -> Result<Self> {
+        let a = f.matrix();
+        let (n, axes) = (a.n_vertices(), a.axes());
+        let dim = a.dim();
+        let mut e = vec![0.0; dim];
+        e[dim - 1] = 1.0;
+        let x = f.solve(&e)?.x;
+        let lambda = a.pressure_scale();
+        let q = x[dim - 1];
+        let schur = -1.0 / (lambda * lambda * q);
+        if !(schur > 0.0) || !schur.is_finite() {
+            return Err(LinalgError::DependentConstraints { held: 0 });
+        }
+        let w =
+            (0..axes).map(|c| x[c * n..(c + 1) * n].iter().map(|u| u * lambda * schur).collect()).collect();
+        let nblocks = if a.is_shared() { 1 } else { axes };
+        Ok(Self { n, axes, nblocks, w, schur, columns: vec![None; n], cached: 0 })
+    }
+
+    /// Computes the columns of the vertices of `vertices` not cached yet with `f` (the
+    /// factorization this was made from): one [`solve_many`](FactorizationExt::solve_many)
+    /// of `blocks * new` right-hand sides. Returns how many vertices were new.
+    ///
+    /// # Panics
+    /// If a vertex is out of range (a programming error).
+    #[track_caller]
+    pub fn touch(&mut self, f: &dyn Factorization, vertices: &[usize]) -> Result<usize> {
+        let mut new: Vec<usize> = vertices.iter().copied().filter(|&v| self.columns[v].is_none()).collect();
+        new.sort_unstable();
+        new.dedup();
+        if new.is_empty() {
+            return Ok(0);
+        }
+        let (n, nb) = (self.n, self.nblocks);
+        let dim = f.matrix().dim();
+        let lambda = f.matrix().pressure_scale();
+        let mut e = vec![0.0; dim * nb * new.len()];
+        for (j, &v) in new.iter().enumerate() {
+            for b in 0..nb {
+                e[(j * nb + b) * dim + b * n + v] = 1.0;
+            }
+        }
+        let solutions = f.solve_many(&e, nb * new.len())?;
+        for (j, &v) in new.iter().enumerate() {
+            let mut col = vec![0.0; nb * n];
+            for b in 0..nb {
+                let x = &solutions[j * nb + b].x;
+                let p = x[dim - 1] * lambda;
+                for ((ci, ui), wi) in
+                    col[b * n..(b + 1) * n].iter_mut().zip(&x[b * n..(b + 1) * n]).zip(&self.w[b])
+                {
+                    *ci = ui + wi * p;
+                }
+            }
+            self.columns[v] = Some(col.into());
+        }
+        self.cached += new.len();
+        Ok(new.len())
+    }
+
+    /// Whether the columns of `vertex` are cached.
+    pub fn is_cached(&self, vertex: usize) -> bool {
+        self.columns.get(vertex).is_some_and(|c| c.is_some())
+    }
+
+    /// Number of vertices whose columns are cached.
+    pub fn cached(&self) -> usize {
+        self.cached
+    }
+
+    /// Number of distinct blocks (1 when every axis shares one).
+    pub fn n_blocks(&self) -> usize {
+        self.nblocks
+    }
+
+    /// Bytes held: the cached columns and the border terms.
+    pub fn memory_bytes(&self) -> usize {
+        (self.cached * self.nblocks * self.n + self.axes * self.n) * 8
+            + self.n * std::mem::size_of::<Option<Arc<[f64]>>>()
+    }
+
+    #[inline]
+    #[track_caller]
+    fn column(&self, axis: usize, j: usize) -> &[f64] {
+        let b = if self.nblocks == 1 { 0 } else { axis };
+        let col = self.columns[j].as_deref().expect("the vertex's columns are touched before use");
+        &col[b * self.n..(b + 1) * self.n]
+    }
+}
+
+impl VertexResponse for VertexColumns {
+    fn n_vertices(&self) -> usize {
+        self.n
+    }
+
+    fn axes(&self) -> usize {
+        self.axes
+    }
+
+    fn w(&self, axis: usize) -> &[f64] {
+        &self.w[axis]
+    }
+
+    fn schur(&self) -> f64 {
+        self.schur
+    }
+
+    #[inline]
+    fn entry(&self, axis: usize, i: usize, j: usize) -> f64 {
+        self.column(axis, j)[i]
+    }
+
+    #[inline]
+    fn add_column(&self, axis: usize, j: usize, a: f64, y: &mut [f64]) {
+        for (yi, ci) in y.iter_mut().zip(self.column(axis, j)) {
+            *yi += ci * a;
+        }
+    }
+
+    fn epsilon(&self) -> f64 {
+        f64::EPSILON
+    }
+
+    /// With one block shared by every axis, each column is read once for all axes (rows in
+    /// chunks of [`FIELD_CHUNK`]); otherwise as [`add_field_by_columns`].
+    #[track_caller]
+    fn add_field_axes(&self, forces: &[VertexForce], pressure: f64, u: &mut [f64]) {
+        let (n, d) = (self.n, self.axes);
+        if self.nblocks != 1 {
+            return add_field_by_columns(self, forces, pressure, u);
+        }
+        assert_eq!(u.len(), d * n, "field length");
+        let cols: Vec<(&[f64], [f64; 3])> = forces.iter().map(|&(v, f)| (self.column(0, v), f)).collect();
+        let mut axes: Vec<&mut [f64]> = u.chunks_exact_mut(n).collect();
+        let mut i0 = 0;
+        while i0 < n {
+            let i1 = (i0 + FIELD_CHUNK).min(n);
+            for (c, uc) in axes.iter_mut().enumerate() {
+                let uc = &mut uc[i0..i1];
+                for (ui, wi) in uc.iter_mut().zip(&self.w[c][i0..i1]) {
+                    *ui -= wi * pressure;
+                }
+                for &(col, f) in &cols {
+                    if f[c] != 0.0 {
+                        for (ui, ci) in uc.iter_mut().zip(&col[i0..i1]) {
+                            *ui += ci * f[c];
+                        }
+                    }
+                }
+            }
+            i0 = i1;
+        }
+    }
+}
