@@ -68,7 +68,7 @@ const EXPECTED: &[(&str, &str)] = &[
     ),
     (
         "scene-fem-thin-body.toml",
-        "scene-fem-thin-body.toml: fem: the body is 2e-2 thick along z, thinner than a cell (6.25e-2)",
+        "scene-fem-thin-body.toml: fem: the body is 2.000e-2 m thick along z, thinner than a cell (4.167e-2 m)",
     ),
     (
         "scene-fem-young-zero.toml",

@@ -25,7 +25,7 @@ pub enum FemError {
     },
     /// The body's extent along an axis is below one cell.
     #[error(
-        "the body is {thickness:e} thick along {axis}, thinner than a cell ({cell:e}); raise the resolution"
+        "the body is {thickness:.3e} m thick along {axis}, thinner than a cell ({cell:.3e} m); raise the resolution"
     )]
     ThinnerThanCell {
         /// The axis (`x`, `y` or `z`).
