@@ -32,7 +32,7 @@ fn bad_grids_are_refused() {
     match GridEstimate::of(&pos, 4) {
         Err(e @ FemError::ThinnerThanCell { axis: 'z', .. }) => {
             let text = e.to_string();
-            assert!(text.contains("2.5e-1") && text.contains("5e-1"), "{text}");
+            assert!(text.contains("2.500e-1 m") && text.contains("(5.000e-1 m)"), "{text}");
         }
         other => panic!("{other:?}"),
     }
