@@ -286,6 +286,8 @@ def run(scene: Scene, method: Optional[str] = None, progress: Progress = None,
     """
     if not isinstance(scene, Scene):
         raise Error("run needs a fibfluid.Scene (Scene.load)")
+    if method == "fem":
+        raise Error("method fem has no batch run in the Python package yet: use `fibfluid run --method fem` or fibfluid.Body(scene, method='fem')")
     if method is not None and method != "ffm":
         known = ", ".join(METHODS)
         if method in METHODS:
