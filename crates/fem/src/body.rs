@@ -86,6 +86,9 @@ pub struct FemBody {
     pub(crate) stats: FemStats,
     /// `K^-1 C^T` columns of held vertices, computed on first hold: per vertex, 3 columns.
     pub(crate) compliance: HashMap<usize, [Vec<f64>; 3]>,
+    /// The last loads `respond_held` solved and their response `K^-1 f`: a frame that
+    /// changes only the holds reuses it instead of solving again.
+    pub(crate) unheld: Option<(Loads, Mat<f64>)>,
 }
 
 impl std::fmt::Debug for FemBody {
@@ -177,7 +180,17 @@ impl FemBody {
             factor_seconds,
             solve_seconds: 0.0,
         };
-        Ok(Self { grid, tissue: *tissue, free, n_free, k_lower, factor, stats, compliance: HashMap::new() })
+        Ok(Self {
+            grid,
+            tissue: *tissue,
+            free,
+            n_free,
+            k_lower,
+            factor,
+            stats,
+            compliance: HashMap::new(),
+            unheld: None,
+        })
     }
 
     /// The grid.
