@@ -33,10 +33,58 @@ pub struct HeldResponse {
     pub reactions: Vec<Vec3>,
 }
 
-/// One constraint row: a held vertex's axis as a combination of free dofs.
+/// How a vertex is held.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum FemHold {
+    /// Moved exactly to this displacement (every axis).
+    At(Vec3),
+    /// Frictionless contact: the displacement along the unit `normal` is `along`; the
+    /// vertex is free across the normal and its reaction is along it.
+    Along {
+        /// Unit direction.
+        normal: Vec3,
+        /// Displacement along `normal`.
+        along: f64,
+    },
+}
+
+impl FemHold {
+    /// The rows of the hold: (direction, target).
+    fn rows(&self) -> Vec<(Vec3, f64)> {
+        match *self {
+            FemHold::At(d) => (0..3)
+                .map(|a| {
+                    let mut e = [0.0; 3];
+                    e[a] = 1.0;
+                    (e, d[a])
+                })
+                .collect(),
+            FemHold::Along { normal, along } => vec![(normal, along)],
+        }
+    }
+
+    fn values(&self) -> Vec<f64> {
+        match *self {
+            FemHold::At(d) => d.to_vec(),
+            FemHold::Along { normal, along } => vec![normal[0], normal[1], normal[2], along],
+        }
+    }
+}
+
+/// Relative ridge added to a capacitance matrix that is singular because more vertices of
+/// one cell are held than its nodes can satisfy independently (consistent targets, such as
+/// a patch moved rigidly, are still met: the constraint residual is checked after).
+const DEPENDENT_RIDGE: f64 = 1e-12;
+
+/// Largest constraint residual (relative to the largest target, at least 1) accepted after
+/// the ridge: above it the holds contradict each other.
+const CONSTRAINT_TOLERANCE: f64 = 1e-9;
+
+/// One constraint row: a held vertex's displacement along a direction as a combination of
+/// free dofs.
 struct Row {
     vertex: usize,
-    axis: usize,
+    direction: Vec3,
     target: f64,
     entries: Vec<(usize, f64)>,
 }
@@ -51,55 +99,100 @@ impl FemBody {
     /// nonzero target on an axis carried only by fixed nodes ([`FemError::HeldOnFixed`]),
     /// and those of [`FemBody::solve`].
     pub fn respond_held(&mut self, loads: &Loads, held: &[(usize, Vec3)]) -> Result<HeldResponse> {
-        let rows = self.constraint_rows(held)?;
-        self.cache_compliance(held)?;
+        let holds: Vec<(usize, FemHold)> = held.iter().map(|&(v, d)| (v, FemHold::At(d))).collect();
+        self.respond_holds(loads, &holds)
+    }
+
+    /// The response to `loads` with each vertex held as its [`FemHold`] says: moved exactly
+    /// to a displacement, or in frictionless contact along a normal. The reactions are in
+    /// the order given; a contact's is along its normal. Errors as
+    /// [`respond_held`](Self::respond_held).
+    pub fn respond_holds(&mut self, loads: &Loads, holds: &[(usize, FemHold)]) -> Result<HeldResponse> {
+        let rows = self.constraint_rows(holds)?;
+        let vertices: Vec<usize> = holds.iter().map(|h| h.0).collect();
+        self.cache_compliance(&vertices)?;
         let f = self.load_vector(loads)?;
-        let u0 = match &self.unheld {
-            Some((last, u0)) if last == loads => u0.clone(),
-            _ => {
-                let mut u0 = Mat::<f64>::from_fn(self.n_free, 1, |i, _| f[i]);
-                self.factor.solve_in_place(u0.as_mut());
-                self.unheld = Some((loads.clone(), u0.clone()));
-                u0
-            }
-        };
-        let m = rows.len();
-        let column = |r: &Row| &self.compliance[&r.vertex][r.axis];
-        let capacitance = Mat::<f64>::from_fn(m, m, |i, j| {
-            rows[i].entries.iter().map(|&(d, w)| w * column(&rows[j])[d]).sum()
-        });
-        let gap = Mat::<f64>::from_fn(m, 1, |i, _| {
-            rows[i].target - rows[i].entries.iter().map(|&(d, w)| w * u0[(d, 0)]).sum::<f64>()
-        });
-        let lambda = if m == 0 {
-            gap
-        } else {
-            let llt = capacitance
-                .llt(Side::Lower)
-                .map_err(|_| FemError::DependentHolds { vertex: rows[0].vertex })?;
-            use faer::linalg::solvers::Solve;
-            llt.solve(&gap)
-        };
-        let mut u: Vec<f64> = (0..self.n_free).map(|i| u0[(i, 0)]).collect();
-        let mut reactions = vec![[0.0; 3]; held.len()];
-        for (r, row) in rows.iter().enumerate() {
-            let z = column(row);
-            for (ui, zi) in u.iter_mut().zip(z) {
-                *ui += lambda[(r, 0)] * zi;
-            }
-            let k = held.iter().position(|h| h.0 == row.vertex).unwrap_or(0);
-            reactions[k][row.axis] = lambda[(r, 0)];
-        }
+        let u0 = self.unheld_solution(loads, &f);
+        let columns: Vec<Vec<f64>> = rows.iter().map(|r| self.row_column(r)).collect();
+        let lambda = Self::row_multipliers(&rows, &columns, &u0)?;
+        let mut u = u0;
+        let mut reactions = vec![[0.0; 3]; holds.len()];
         let mut applied = f;
-        for (row, r) in rows.iter().zip(0..) {
+        for ((row, z), l) in rows.iter().zip(&columns).zip(&lambda) {
+            for (ui, zi) in u.iter_mut().zip(z) {
+                *ui += l * zi;
+            }
+            let k = holds.iter().position(|h| h.0 == row.vertex).unwrap_or(0);
+            for a in 0..3 {
+                reactions[k][a] += l * row.direction[a];
+            }
             for &(d, w) in &row.entries {
-                applied[d] += w * lambda[(r, 0)];
+                applied[d] += w * l;
             }
         }
         self.residual(&u, &applied)?;
         let node_displacements = self.node_values(&u);
         let surface_displacements = self.grid.interpolate(&node_displacements);
         Ok(HeldResponse { node_displacements, surface_displacements, reactions })
+    }
+
+    /// `K^-1 f` for the loads, reused while the loads do not change.
+    fn unheld_solution(&mut self, loads: &Loads, f: &[f64]) -> Vec<f64> {
+        if let Some((last, u0)) = &self.unheld
+            && last == loads
+        {
+            return (0..self.n_free).map(|i| u0[(i, 0)]).collect();
+        }
+        let mut u0 = Mat::<f64>::from_fn(self.n_free, 1, |i, _| f[i]);
+        self.factor.solve_in_place(u0.as_mut());
+        let out = (0..self.n_free).map(|i| u0[(i, 0)]).collect();
+        self.unheld = Some((loads.clone(), u0));
+        out
+    }
+
+    /// `K^-1 C_row^T` from the cached axis columns of the row's vertex.
+    fn row_column(&self, row: &Row) -> Vec<f64> {
+        let cols = &self.compliance[&row.vertex];
+        let mut z = vec![0.0; self.n_free];
+        for (a, col) in cols.iter().enumerate() {
+            let n = row.direction[a];
+            if n != 0.0 {
+                for (zi, ci) in z.iter_mut().zip(col) {
+                    *zi += n * ci;
+                }
+            }
+        }
+        z
+    }
+
+    /// Solves `(C Z) lambda = d - C u0`; a singular `C Z` (dependent rows) is retried with a
+    /// tiny ridge and accepted only if the constraints are then met.
+    fn row_multipliers(rows: &[Row], columns: &[Vec<f64>], u0: &[f64]) -> Result<Vec<f64>> {
+        use faer::linalg::solvers::Solve;
+        let m = rows.len();
+        if m == 0 {
+            return Ok(Vec::new());
+        }
+        let dot = |r: &Row, x: &[f64]| r.entries.iter().map(|&(d, w)| w * x[d]).sum::<f64>();
+        let capacitance = Mat::<f64>::from_fn(m, m, |i, j| dot(&rows[i], &columns[j]));
+        let gap = Mat::<f64>::from_fn(m, 1, |i, _| rows[i].target - dot(&rows[i], u0));
+        let dependent = FemError::DependentHolds { vertex: rows[0].vertex };
+        if let Ok(llt) = capacitance.llt(Side::Lower) {
+            let x = llt.solve(&gap);
+            return Ok((0..m).map(|i| x[(i, 0)]).collect());
+        }
+        let ridge = DEPENDENT_RIDGE * (0..m).map(|i| capacitance[(i, i)]).fold(0.0, f64::max);
+        let shifted =
+            Mat::<f64>::from_fn(m, m, |i, j| capacitance[(i, j)] + if i == j { ridge } else { 0.0 });
+        let x = shifted.llt(Side::Lower).map_err(|_| dependent.clone())?.solve(&gap);
+        let scale = rows.iter().map(|r| r.target.abs()).fold(1.0, f64::max);
+        for i in 0..m {
+            let achieved: f64 = (0..m).map(|j| capacitance[(i, j)] * x[(j, 0)]).sum();
+            if (achieved - gap[(i, 0)]).abs() > CONSTRAINT_TOLERANCE * scale {
+                return Err(FemError::DependentHolds { vertex: rows[i].vertex });
+            }
+        }
+        Ok((0..m).map(|i| x[(i, 0)]).collect())
     }
 
     /// Drops the cached compliance columns of every held vertex.
@@ -112,44 +205,49 @@ impl FemBody {
         self.compliance.len()
     }
 
-    /// The constraint rows of `held`, skipping axes carried only by fixed nodes (whose
+    /// The constraint rows of `holds`, skipping rows carried only by fixed nodes (whose
     /// target must then be 0).
-    fn constraint_rows(&self, held: &[(usize, Vec3)]) -> Result<Vec<Row>> {
-        let scale = held.iter().flat_map(|h| h.1).fold(0.0_f64, |a, b| a.max(b.abs()));
+    fn constraint_rows(&self, holds: &[(usize, FemHold)]) -> Result<Vec<Row>> {
+        let scale = holds.iter().flat_map(|h| h.1.values()).fold(0.0_f64, |a, b| a.max(b.abs()));
         let mut rows = Vec::new();
-        for (k, &(v, d)) in held.iter().enumerate() {
+        for (k, &(v, hold)) in holds.iter().enumerate() {
             let e = self
                 .grid
                 .embedding()
                 .get(v)
                 .ok_or(FemError::VertexOutOfRange { vertex: v, vertices: self.grid.n_vertices() })?;
-            if d.iter().any(|x| !x.is_finite()) {
+            if hold.values().iter().any(|x| !x.is_finite()) {
                 return Err(FemError::NonFinite { what: "held displacement" });
             }
-            if held[..k].iter().any(|h| h.0 == v) {
+            if holds[..k].iter().any(|h| h.0 == v) {
                 return Err(FemError::DependentHolds { vertex: v });
             }
-            for a in 0..3 {
-                let entries: Vec<(usize, f64)> = (0..8)
-                    .filter(|&b| e.weights[b] > 0.0)
-                    .map(|b| (self.free[3 * e.nodes[b] + a], e.weights[b]))
-                    .filter(|&(dof, _)| dof != FIXED)
-                    .collect();
+            for (direction, target) in hold.rows() {
+                let mut entries: Vec<(usize, f64)> = Vec::new();
+                for b in (0..8).filter(|&b| e.weights[b] > 0.0) {
+                    for a in (0..3).filter(|&a| direction[a] != 0.0) {
+                        let dof = self.free[3 * e.nodes[b] + a];
+                        if dof != FIXED {
+                            entries.push((dof, e.weights[b] * direction[a]));
+                        }
+                    }
+                }
                 if entries.is_empty() {
-                    if d[a].abs() > ZERO_TARGET * scale.max(1.0) {
-                        return Err(FemError::HeldOnFixed { vertex: v, axis: a });
+                    if target.abs() > ZERO_TARGET * scale.max(1.0) {
+                        let axis = (0..3).max_by(|&a, &b| direction[a].abs().total_cmp(&direction[b].abs()));
+                        return Err(FemError::HeldOnFixed { vertex: v, axis: axis.unwrap_or(0) });
                     }
                     continue;
                 }
-                rows.push(Row { vertex: v, axis: a, target: d[a], entries });
+                rows.push(Row { vertex: v, direction, target, entries });
             }
         }
         Ok(rows)
     }
 
     /// Computes `K^-1 C_v^T` for every held vertex not cached yet, in one solve pass.
-    fn cache_compliance(&mut self, held: &[(usize, Vec3)]) -> Result<()> {
-        let new: Vec<usize> = held.iter().map(|h| h.0).filter(|v| !self.compliance.contains_key(v)).collect();
+    fn cache_compliance(&mut self, held: &[usize]) -> Result<()> {
+        let new: Vec<usize> = held.iter().copied().filter(|v| !self.compliance.contains_key(v)).collect();
         if new.is_empty() {
             return Ok(());
         }

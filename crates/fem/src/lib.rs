@@ -60,6 +60,6 @@ pub use grid::{
     DEFAULT_RESOLUTION, Element, Embedded, FemOptions, GridEstimate, MAX_CELLS, MAX_RESOLUTION, MIN_FILL,
     SNAP, SUBSAMPLES, SparseGrid,
 };
-pub use held::HeldResponse;
+pub use held::{FemHold, HeldResponse};
 pub use ordering::{ND_LEAF, Ordering};
 pub use tissue::Tissue;

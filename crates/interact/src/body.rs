@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 
 use fibfluid_assembly::AXES;
 use fibfluid_geometry::Vec3;
-use fibfluid_linalg::HeldCapacitance;
+use fibfluid_linalg::{HeldCapacitance, HeldRow};
 
 use fibfluid_sim::Method;
 
@@ -172,38 +172,51 @@ impl FfmBody {
         let c = &self.compliance;
         let d = c.axes();
         let mut forces: Vec<(usize, Vec3)> = Vec::with_capacity(self.pending.len());
-        let mut grabbed = Vec::new();
-        let mut targets = Vec::new();
+        let mut rows: Vec<HeldRow> = Vec::new();
+        let mut targets: Vec<f64> = Vec::new();
         for (&v, hold) in &self.pending {
             match *hold {
                 Hold::Push { force } => forces.push((v, c.effective_force(v, force))),
                 Hold::Grab { displacement } => {
-                    grabbed.push(v);
-                    targets.push(displacement);
+                    rows.extend(HeldRow::all_axes(v, d));
+                    targets.extend(&displacement[..d]);
+                }
+                Hold::Contact { normal, along } => {
+                    rows.push(HeldRow { vertex: v, direction: normal });
+                    targets.push(along);
                 }
             }
         }
         let mut reactions: Vec<(usize, Vec3)> = forces.clone();
-        if grabbed.is_empty() {
+        if rows.is_empty() {
             self.forces = forces;
             return Ok((None, reactions));
         }
         let fresh = match &self.capacitance {
-            Some(cap) if cap.vertices() == grabbed => None,
-            _ => Some(HeldCapacitance::new(&self.compliance, &grabbed).map_err(linalg_error)?),
+            Some(cap) if cap.rows() == rows.as_slice() => None,
+            _ => Some(HeldCapacitance::from_rows(&self.compliance, &rows).map_err(linalg_error)?),
         };
-        let cap = fresh.as_ref().or(self.capacitance.as_ref()).expect("a capacitance for the grabbed set");
+        let cap = fresh.as_ref().or(self.capacitance.as_ref()).expect("a capacitance for the held set");
         let c = &self.compliance;
         let p_push = c.pressure_of(&forces);
-        let mut gap = Vec::with_capacity(d * grabbed.len());
-        for (&v, t) in grabbed.iter().zip(&targets) {
-            let u_push = c.displacement_at(v, &forces, p_push);
-            gap.extend((0..d).map(|a| t[a] - self.base[v][a] - u_push[a]));
+        let mut gap = Vec::with_capacity(rows.len());
+        let mut last: Option<(usize, Vec3)> = None;
+        for (row, t) in rows.iter().zip(&targets) {
+            let v = row.vertex;
+            let y = match last {
+                Some((lv, y)) if lv == v => y,
+                _ => {
+                    let u_push = c.displacement_at(v, &forces, p_push);
+                    let y = [0, 1, 2].map(|a| self.base[v][a] + u_push[a]);
+                    last = Some((v, y));
+                    y
+                }
+            };
+            gap.push(t - (0..d).map(|a| row.direction[a] * y[a]).sum::<f64>());
         }
         let held = cap.reactions(&gap).map_err(|e| match e {
             fibfluid_linalg::LinalgError::NonFiniteSolution { index } => {
-                let v = grabbed[index / d];
-                InteractError::NonFinite { vertex: v, what: "reaction", value: f64::NAN }
+                InteractError::NonFinite { vertex: rows[index].vertex, what: "reaction", value: f64::NAN }
             }
             other => linalg_error(other),
         })?;
@@ -266,6 +279,16 @@ impl Interactive for FfmBody {
         let mut force = force;
         force[d..].iter_mut().for_each(|x| *x = 0.0);
         self.pending.insert(vertex, Hold::Push { force });
+        Ok(())
+    }
+
+    fn contact(&mut self, vertex: usize, normal: Vec3, along: f64) -> Result<()> {
+        self.check_vertex(vertex)?;
+        if let Some(axis) = self.first_fixed_axis(vertex) {
+            return Err(InteractError::FixedVertex { vertex, axis: AXES[axis], action: "touched" });
+        }
+        crate::interactive::check_normal(vertex, normal, along)?;
+        self.pending.insert(vertex, Hold::Contact { normal, along });
         Ok(())
     }
 

@@ -59,6 +59,44 @@ pub enum InteractError {
         /// What is singular and where.
         what: String,
     },
+    /// A tool radius that is not positive and finite.
+    #[error("the tool's radius {radius} must be positive and finite")]
+    BadRadius {
+        /// The radius given (metres).
+        radius: f64,
+    },
+    /// A tool at least as large as the body (the diagonal of its bounding box).
+    #[error("a tool of radius {radius} m is larger than the body (its bounding-box diagonal is {size} m)")]
+    ToolTooLarge {
+        /// The radius given (metres).
+        radius: f64,
+        /// The body's size (metres).
+        size: f64,
+    },
+    /// A grasp patch that holds vertices the scene fixes.
+    #[error(
+        "the grasp of radius {radius} m around vertex {vertex} holds {count} vertices the scene fixes (vertex {fixed} first); a tool cannot move them"
+    )]
+    PatchHoldsFixed {
+        /// The picked vertex.
+        vertex: usize,
+        /// The radius (metres).
+        radius: f64,
+        /// The first fixed vertex of the patch.
+        fixed: usize,
+        /// How many patch vertices are fixed.
+        count: usize,
+    },
+    /// A press whose contact set did not settle.
+    #[error(
+        "the tip's contact set did not settle in {iterations} iterations ({inside} vertices still inside the tip)"
+    )]
+    PressUnsettled {
+        /// Iterations made.
+        iterations: usize,
+        /// Vertices still inside.
+        inside: usize,
+    },
     /// Inputs of inconsistent sizes (rest positions, base state) or non-finite system data.
     #[error("{0}")]
     Invalid(String),

@@ -8,7 +8,7 @@
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-use fibfluid_fem::{FemBody, FemStats, Loads};
+use fibfluid_fem::{FemBody, FemHold, FemStats, Loads};
 use fibfluid_geometry::Vec3;
 use fibfluid_sim::fem_run::{build_body, full_loads};
 use fibfluid_sim::{Method, Model, StageLog, memory_budget};
@@ -129,6 +129,16 @@ impl Interactive for FemInteractive {
         Ok(())
     }
 
+    fn contact(&mut self, vertex: usize, normal: Vec3, along: f64) -> Result<()> {
+        self.check(vertex, normal, "contact")?;
+        if let Some(axis) = self.fixed[vertex] {
+            return Err(InteractError::FixedVertex { vertex, axis, action: "touched" });
+        }
+        crate::interactive::check_normal(vertex, normal, along)?;
+        self.pending.insert(vertex, Hold::Contact { normal, along });
+        Ok(())
+    }
+
     fn release(&mut self, vertex: usize) -> Result<()> {
         self.check(vertex, [0.0; 3], "displacement")?;
         self.pending.remove(&vertex);
@@ -148,27 +158,24 @@ impl Interactive for FemInteractive {
         let mut held = Vec::new();
         for (&v, h) in &self.pending {
             match *h {
-                Hold::Grab { displacement } => held.push((v, displacement)),
+                Hold::Grab { displacement } => held.push((v, FemHold::At(displacement))),
+                Hold::Contact { normal, along } => held.push((v, FemHold::Along { normal, along })),
                 Hold::Push { force } => loads.point_forces.push((v, force)),
             }
         }
         let response = self
             .body
-            .respond_held(&loads, &held)
+            .respond_holds(&loads, &held)
             .map_err(|e| InteractError::Singular { what: e.to_string() })?;
         self.field = response.surface_displacements;
         self.positions = self.rest.iter().zip(&self.field).map(|(p, u)| add(*p, *u)).collect();
-        self.reactions = self
-            .pending
-            .iter()
-            .map(|(&v, h)| match *h {
-                Hold::Grab { .. } => {
-                    let k = held.iter().position(|g| g.0 == v).unwrap_or(0);
-                    (v, response.reactions[k])
-                }
-                Hold::Push { force } => (v, force),
-            })
-            .collect();
+        let mut reactions = held.iter().map(|h| h.0).zip(response.reactions).collect::<Vec<_>>();
+        reactions.extend(self.pending.iter().filter_map(|(&v, h)| match *h {
+            Hold::Push { force } => Some((v, force)),
+            _ => None,
+        }));
+        reactions.sort_by_key(|r| r.0);
+        self.reactions = reactions;
         self.frame += 1;
         Ok(&self.reactions)
     }

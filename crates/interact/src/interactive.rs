@@ -18,6 +18,14 @@ pub enum Hold {
         /// The force applied to the body.
         force: Vec3,
     },
+    /// Frictionless contact: the tool holds the vertex's displacement along `normal` (unit)
+    /// at `along` and leaves it free across the normal; the reaction is along the normal.
+    Contact {
+        /// The contact normal (unit length), pointing from the tool into the body.
+        normal: Vec3,
+        /// The displacement from the rest position along `normal`.
+        along: f64,
+    },
 }
 
 /// A body that a tool (a mouse, a haptic device, a scripted path) can grab, push and release,
@@ -68,6 +76,25 @@ pub trait Interactive {
     /// method without forces.
     fn push(&mut self, vertex: usize, force: Vec3) -> Result<()>;
 
+    /// Holds `vertex` in frictionless contact from the next [`update`](Self::update) on:
+    /// its displacement along the unit `normal` is `along`, its motion across the normal
+    /// free, its reaction along the normal ([`Hold::Contact`]). A method that cannot leave
+    /// the vertex free across the normal (the default, used by ChainMail) moves it along the
+    /// normal from its current position onto the contact plane and holds it there.
+    ///
+    /// Errors: as [`grab`](Self::grab), plus [`InteractError::Invalid`] for a normal that is
+    /// not of unit length (within 1e-9).
+    fn contact(&mut self, vertex: usize, normal: Vec3, along: f64) -> Result<()> {
+        check_normal(vertex, normal, along)?;
+        let u = *self
+            .field()
+            .get(vertex)
+            .ok_or(crate::InteractError::UnknownVertex { vertex, vertices: self.n_vertices() })?;
+        let un: f64 = (0..3).map(|a| u[a] * normal[a]).sum();
+        let d = along - un;
+        self.grab(vertex, [u[0] + d * normal[0], u[1] + d * normal[1], u[2] + d * normal[2]])
+    }
+
     /// Drops the hold on `vertex` (nothing happens if it has none) from the next update on.
     ///
     /// Errors: [`UnknownVertex`](crate::InteractError::UnknownVertex).
@@ -112,4 +139,21 @@ pub trait Interactive {
     /// Bytes held by the body's precomputed data (the dominant term; small vectors may be
     /// left out).
     fn memory_bytes(&self) -> usize;
+}
+
+/// Tolerance on the length of a contact normal.
+pub const NORMAL_TOLERANCE: f64 = 1e-9;
+
+/// Checks a contact's normal (unit length, finite) and displacement (finite).
+pub(crate) fn check_normal(vertex: usize, normal: Vec3, along: f64) -> Result<()> {
+    if let Some(&value) = normal.iter().chain([&along]).find(|c| !c.is_finite()) {
+        return Err(crate::InteractError::NonFinite { vertex, what: "contact", value });
+    }
+    let len = normal.iter().map(|c| c * c).sum::<f64>().sqrt();
+    if (len - 1.0).abs() > NORMAL_TOLERANCE {
+        return Err(crate::InteractError::Invalid(format!(
+            "vertex {vertex}: the contact normal has length {len}, not 1"
+        )));
+    }
+    Ok(())
 }

@@ -11,6 +11,8 @@
 //!   ([`Precompute::Lazy`], the default), or the full inverse ([`Precompute::Full`]).
 //! - [`ChainmailBody`](chainmail_body::ChainmailBody): a ChainMail lattice (TSVE or
 //!   Generalized) embedding the surface, with its [`chainmail_settings`].
+//! - [`tools`]: tools with a size on any body: a [`Grasp`] holds a patch rigidly, a
+//!   [`Press`] is a spherical tip in frictionless contact.
 //! - [`MethodBody`]: a model's body for any [`Method`]; [`replay`] drives one along a
 //!   checked [`ToolPath`].
 //! - [`FfmBody`]: a base state (the scene's own loads, from one full solve) plus the
@@ -95,15 +97,17 @@ pub mod fem_body;
 mod interactive;
 mod method_body;
 pub mod replay;
+pub mod tools;
 
 pub use body::FfmBody;
 pub use compliance::{Compliance, ComplianceOptions, MemoryEstimate, Precompute, Storage};
 pub use error::{InteractError, Result};
 pub use fibfluid_linalg::memory_budget;
 pub use fibfluid_sim::Method;
-pub use interactive::{Hold, Interactive};
+pub use interactive::{Hold, Interactive, NORMAL_TOLERANCE};
 pub use method_body::{MethodBody, ProbeBody, ProbeOptions, build_body, linearized};
 pub use replay::{
     CheckedPath, FrameRow, Latency, MAX_FRAME, MAX_REACH, PathHold, PathKind, PathProblem, PathRow,
     ProbeError, Replay, ToolPath, check_method, check_path, replay, replay_observed,
 };
+pub use tools::{Grasp, Press, PressReport, RigidMotion, Wrench};

@@ -29,6 +29,9 @@ const GRAB_TOLERANCE: f64 = 1e-7;
 /// (measured on this case: 5.8e-9).
 const F32_TOLERANCE: f64 = 8.0 * f32::EPSILON as f64;
 
+#[path = "probe/tools.rs"]
+mod tools;
+
 /// fixtures/scenes/sphere.toml, in code.
 fn sphere(method: ConstraintMethod) -> Model {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/meshes/icosphere-2.obj");

@@ -134,47 +134,92 @@ const FIELD_CHUNK: usize = 512;
 /// entry mean a singular held set.
 pub const CAPACITANCE_PIVOT_FACTOR: f64 = 16.0;
 
-/// The factored capacitance `G` of one held vertex set (see the module docs): built from
-/// `O(k^2)` compliance entries and factored by Cholesky (`(dk)^3 / 3` flops) when the held
-/// set changes, reused while the holds only move.
+/// One held degree of freedom: the displacement of `vertex` along `direction` (a unit
+/// vector; an axis for a full hold, a contact normal for a hold that leaves the vertex free
+/// across it).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HeldRow {
+    /// The vertex.
+    pub vertex: usize,
+    /// The direction of the held displacement (unit length).
+    pub direction: [f64; 3],
+}
+
+impl HeldRow {
+    /// The rows of `vertex` held along each of the first `axes` axes.
+    pub fn all_axes(vertex: usize, axes: usize) -> impl Iterator<Item = HeldRow> {
+        (0..axes).map(move |a| {
+            let mut direction = [0.0; 3];
+            direction[a] = 1.0;
+            HeldRow { vertex, direction }
+        })
+    }
+
+    /// The axis of the largest component of the direction (for error messages).
+    fn main_axis(&self) -> usize {
+        let d = self.direction.map(f64::abs);
+        if d[0] >= d[1] && d[0] >= d[2] {
+            0
+        } else if d[1] >= d[2] {
+            1
+        } else {
+            2
+        }
+    }
+}
+
+/// The factored capacitance `G` of one held set (see the module docs): built from `O(m^2)`
+/// compliance entries for `m` held rows and factored by Cholesky (`m^3 / 3` flops) when the
+/// held set changes, reused while the holds only move. A row is a vertex's displacement
+/// along a direction ([`HeldRow`]): a full hold is one row per axis, a frictionless
+/// contact one row along its normal. For rows `i`, `j` at vertices `v`, `u` with directions
+/// `n`, `m`: `G[i,j] = sum_a n_a m_a C_a[v,u] - (n . w[v]) (m . w[u]) / s`.
 #[derive(Clone, Debug)]
 pub struct HeldCapacitance {
+    rows: Vec<HeldRow>,
     vertices: Vec<usize>,
-    axes: usize,
-    /// Lower Cholesky factor of G (`axes * k` square).
+    /// Lower Cholesky factor of G (`m` square).
     l: Mat<f64>,
 }
 
 impl HeldCapacitance {
-    /// Builds and factors `G` for `vertices` (held along every axis), whose columns must be
+    /// Builds and factors `G` for `vertices` held along every axis, whose columns must be
     /// available in `r`. A pivot at most [`CAPACITANCE_PIVOT_FACTOR`] `* dim * epsilon`
     /// times its diagonal entry is [`LinalgError::SingularHold`] (the held set
     /// over-determines the body).
     pub fn new<R: VertexResponse + ?Sized>(r: &R, vertices: &[usize]) -> Result<Self> {
-        let (d, k) = (r.axes(), vertices.len());
-        let dim = d * k;
+        let rows: Vec<HeldRow> = vertices.iter().flat_map(|&v| HeldRow::all_axes(v, r.axes())).collect();
+        Self::from_rows(r, &rows)
+    }
+
+    /// Builds and factors `G` for arbitrary held rows (directions with components only on
+    /// the body's axes); errors as [`new`](Self::new).
+    pub fn from_rows<R: VertexResponse + ?Sized>(r: &R, rows: &[HeldRow]) -> Result<Self> {
+        let (d, dim) = (r.axes(), rows.len());
         let s = r.schur();
+        let nw = |row: &HeldRow| (0..d).map(|a| row.direction[a] * r.w(a)[row.vertex]).sum::<f64>();
+        let rw: Vec<f64> = rows.iter().map(nw).collect();
         let mut g = Mat::<f64>::zeros(dim, dim);
-        for (jl, &wv) in vertices.iter().enumerate() {
-            for (jr, &vv) in vertices.iter().enumerate().skip(jl) {
+        for (j, rj) in rows.iter().enumerate() {
+            for (i, ri) in rows.iter().enumerate().skip(j) {
+                let mut e = -rw[i] * rw[j] / s;
                 for a in 0..d {
-                    let caa = r.entry(a, vv, wv);
-                    for b in 0..d {
-                        let mut e = -r.w(a)[vv] * r.w(b)[wv] / s;
-                        if a == b {
-                            e += caa;
-                        }
-                        g[(jr * d + a, jl * d + b)] = e;
-                        g[(jl * d + b, jr * d + a)] = e;
+                    let nn = ri.direction[a] * rj.direction[a];
+                    if nn != 0.0 {
+                        e += nn * r.entry(a, ri.vertex, rj.vertex);
                     }
                 }
+                g[(i, j)] = e;
+                g[(j, i)] = e;
             }
         }
+        let mut vertices: Vec<usize> = rows.iter().map(|row| row.vertex).collect();
+        vertices.dedup();
         let diag: Vec<f64> = (0..dim).map(|i| g[(i, i)]).collect();
-        let singular = |index: usize| LinalgError::SingularHold {
-            held: k,
-            vertex: vertices[index / d],
-            axis: index % d,
+        let singular = |i: usize| LinalgError::SingularHold {
+            held: vertices.len(),
+            vertex: rows[i].vertex,
+            axis: rows[i].main_axis(),
         };
         let mut mem = MemBuffer::new(cholesky_in_place_scratch::<f64>(dim, Par::Seq, Default::default()));
         cholesky_in_place(
@@ -192,12 +237,18 @@ impl HeldCapacitance {
                 return Err(singular(i));
             }
         }
-        Ok(Self { vertices: vertices.to_vec(), axes: d, l: g })
+        Ok(Self { rows: rows.to_vec(), vertices, l: g })
     }
 
-    /// The held vertices, in the order of the reactions.
+    /// The held vertices, in the order of the reactions (a vertex with several consecutive
+    /// rows once).
     pub fn vertices(&self) -> &[usize] {
         &self.vertices
+    }
+
+    /// The held rows, in the order of the gaps.
+    pub fn rows(&self) -> &[HeldRow] {
+        &self.rows
     }
 
     /// Bytes of the factor.
@@ -205,29 +256,46 @@ impl HeldCapacitance {
         self.l.nrows() * self.l.ncols() * 8
     }
 
-    /// The reactions that close `gap` (`d - y(g)`, `axes` values per held vertex in the
-    /// order of [`vertices`](Self::vertices)): solves `G r = gap`. A non-finite reaction is
-    /// [`LinalgError::NonFiniteSolution`] with its index in `gap`.
+    /// The reaction multipliers that close `gap` (one value per row, in the order of
+    /// [`rows`](Self::rows): the target of the row minus the displacement along it without
+    /// the reactions): solves `G lambda = gap`. A non-finite value is
+    /// [`LinalgError::NonFiniteSolution`] with its row.
     ///
     /// # Panics
-    /// If `gap` does not have `axes * k` entries.
+    /// If `gap` does not have one entry per row.
+    #[track_caller]
+    pub fn multipliers(&self, gap: &[f64]) -> Result<Vec<f64>> {
+        let m = self.rows.len();
+        assert_eq!(gap.len(), m, "one gap per held row");
+        let mut rhs = Mat::<f64>::from_fn(m, 1, |i, _| gap[i]);
+        let mut mem = MemBuffer::new(solve_in_place_scratch::<f64>(m, 1, Par::Seq));
+        solve_in_place(self.l.as_ref(), rhs.as_mut(), Par::Seq, MemStack::new(&mut mem));
+        (0..m)
+            .map(|i| {
+                let x = rhs[(i, 0)];
+                if x.is_finite() { Ok(x) } else { Err(LinalgError::NonFiniteSolution { index: i }) }
+            })
+            .collect()
+    }
+
+    /// The reactions that close `gap` (see [`multipliers`](Self::multipliers)) as forces,
+    /// one per held vertex in the order of [`vertices`](Self::vertices): the sum of its rows'
+    /// multipliers times their directions.
+    ///
+    /// # Panics
+    /// If `gap` does not have one entry per row.
     #[track_caller]
     pub fn reactions(&self, gap: &[f64]) -> Result<Vec<VertexForce>> {
-        let (d, k) = (self.axes, self.vertices.len());
-        assert_eq!(gap.len(), d * k, "one gap per held degree of freedom");
-        let mut rhs = Mat::<f64>::from_fn(d * k, 1, |i, _| gap[i]);
-        let mut mem = MemBuffer::new(solve_in_place_scratch::<f64>(d * k, 1, Par::Seq));
-        solve_in_place(self.l.as_ref(), rhs.as_mut(), Par::Seq, MemStack::new(&mut mem));
-        let mut out = Vec::with_capacity(k);
-        for (j, &v) in self.vertices.iter().enumerate() {
-            let mut f = [0.0; 3];
-            for a in 0..d {
-                f[a] = rhs[(j * d + a, 0)];
-                if !f[a].is_finite() {
-                    return Err(LinalgError::NonFiniteSolution { index: j * d + a });
-                }
+        let lambda = self.multipliers(gap)?;
+        let mut out: Vec<VertexForce> = Vec::with_capacity(self.vertices.len());
+        for (row, l) in self.rows.iter().zip(lambda) {
+            if out.last().is_none_or(|last| last.0 != row.vertex) {
+                out.push((row.vertex, [0.0; 3]));
             }
-            out.push((v, f));
+            let f = &mut out.last_mut().expect("pushed above").1;
+            for a in 0..3 {
+                f[a] += l * row.direction[a];
+            }
         }
         Ok(out)
     }

@@ -49,7 +49,7 @@ mod openblas_lu;
 pub use choice::{Choice, ParseChoiceError};
 pub use error::{LinalgError, Result};
 pub use held::{
-    CAPACITANCE_PIVOT_FACTOR, HeldCapacitance, VertexColumns, VertexForce, VertexResponse,
+    CAPACITANCE_PIVOT_FACTOR, HeldCapacitance, HeldRow, VertexColumns, VertexForce, VertexResponse,
     add_field_by_columns,
 };
 pub use matrix::{Blocks, BorderedMatrix};

@@ -1,0 +1,348 @@
+//! Tools with a size, for every [`Interactive`] body: a [`Grasp`] holds a patch of the
+//! surface and moves it rigidly; a [`Press`] is a rigid spherical tip in frictionless,
+//! unilateral contact with the surface.
+//!
+//! - **Grasp.** The patch is every surface vertex whose *rest* position lies within the
+//!   radius of the picked vertex's rest position (Euclidean distance, not geodesic: a fold
+//!   of the surface closer than the radius is held too). Each patch vertex is grabbed at
+//!   `c + t + R (p - c)` (`p` its rest position, `c` the picked vertex's, `t` and `R` the
+//!   tool's [`RigidMotion`]), so a grasp of `k` vertices costs what `k` grabbed vertices
+//!   cost. The reaction is the [`Wrench`]: the total force the tool applies to the patch and
+//!   its moment about the tool's centre `c + t`.
+//! - **Press.** A sphere of radius `r` centred at `x_c`. The active set is found per frame
+//!   by the contact holds of the body ([`Interactive::contact`], a capacitance update of the
+//!   kept factorization, like a plate's contact): each active vertex is held on the plane
+//!   tangent to the sphere at the point nearest it (normal `n = (x - x_c) / |x - x_c|`), free
+//!   across it; vertices found inside the sphere join the set, vertices whose contact force
+//!   pulls (`lambda < 0` along `n`) leave it, and normals follow the vertices, until nothing
+//!   changes. A vertex on a tangent plane is never inside the sphere. The reaction is the
+//!   sum of the contact forces (all along their normals: frictionless). A method without
+//!   forces (ChainMail) moves each vertex found inside onto the tangent plane.
+
+use std::collections::BTreeMap;
+
+use fibfluid_geometry::Vec3;
+use fibfluid_geometry::vec3::{add, cross, dist, dot, norm, scale, sub};
+
+use crate::{InteractError, Interactive, Result};
+
+/// Active-set iterations of one [`Press::place`] before it gives up.
+pub const MAX_PRESS_ITERATIONS: usize = 60;
+
+/// A vertex counts as inside the tip when it is closer to the centre than `radius * (1 -
+/// INSIDE_TOLERANCE)`.
+pub const INSIDE_TOLERANCE: f64 = 1e-10;
+
+/// A contact whose normal force is below `-PULL_TOLERANCE` times the largest contact force
+/// pulls and is released.
+pub const PULL_TOLERANCE: f64 = 1e-9;
+
+/// The active set has settled when no contact normal turns by more than this (radians)
+/// between two iterations.
+pub const NORMAL_SETTLED: f64 = 1e-7;
+
+/// A rigid motion of a tool: rotation `R` about the tool's centre, then translation `t`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RigidMotion {
+    /// Translation of the centre, metres.
+    pub translation: Vec3,
+    /// Rotation matrix (row-major, orthonormal).
+    pub rotation: [[f64; 3]; 3],
+}
+
+impl RigidMotion {
+    /// A pure translation.
+    pub fn translation(t: Vec3) -> Self {
+        Self { translation: t, rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]] }
+    }
+
+    /// A translation and a rotation given as a rotation vector (axis times angle in radians,
+    /// Rodrigues' formula).
+    pub fn with_rotation_vector(t: Vec3, rotation: Vec3) -> Self {
+        let angle = norm(rotation);
+        let mut m = Self::translation(t);
+        if angle == 0.0 {
+            return m;
+        }
+        let k = scale(rotation, 1.0 / angle);
+        let (s, c) = angle.sin_cos();
+        for (i, row) in m.rotation.iter_mut().enumerate() {
+            for (j, e) in row.iter_mut().enumerate() {
+                let kx = [[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]][i][j];
+                let delta = if i == j { 1.0 } else { 0.0 };
+                *e = c * delta + s * kx + (1.0 - c) * k[i] * k[j];
+            }
+        }
+        m
+    }
+
+    /// Where the point `p` goes when the tool centred at `centre` moves.
+    pub fn apply(&self, centre: Vec3, p: Vec3) -> Vec3 {
+        let r = sub(p, centre);
+        let rotated = self.rotation.map(|row| dot(row, r));
+        add(add(centre, self.translation), rotated)
+    }
+}
+
+/// The load a tool applies to the body: total force (N) and moment (N m) about the tool's
+/// centre.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Wrench {
+    /// Total force on the body.
+    pub force: Vec3,
+    /// Moment about the tool's centre.
+    pub moment: Vec3,
+}
+
+/// The bounding-box diagonal of a body's rest shape (the size a tool is checked against).
+fn body_size(body: &dyn Interactive) -> f64 {
+    let (lo, hi) = fibfluid_geometry::bounding_box(body.rest_positions());
+    dist(lo, hi)
+}
+
+fn check_radius(body: &dyn Interactive, radius: f64) -> Result<f64> {
+    if !(radius > 0.0 && radius.is_finite()) {
+        return Err(InteractError::BadRadius { radius });
+    }
+    let size = body_size(body);
+    if radius >= size {
+        return Err(InteractError::ToolTooLarge { radius, size });
+    }
+    Ok(size)
+}
+
+/// A grasp: a patch of the surface held rigidly by the tool (see the module docs).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Grasp {
+    vertex: usize,
+    centre: Vec3,
+    radius: f64,
+    patch: Vec<usize>,
+}
+
+impl Grasp {
+    /// The patch of radius `radius` (metres) around `vertex`. Errors: an unknown vertex, a
+    /// radius that is not positive and finite ([`InteractError::BadRadius`]), one at least
+    /// the body's size ([`InteractError::ToolTooLarge`]), a patch that holds a vertex the
+    /// scene fixes ([`InteractError::PatchHoldsFixed`]).
+    pub fn new(body: &dyn Interactive, vertex: usize, radius: f64) -> Result<Self> {
+        let rest = body.rest_positions();
+        let Some(&centre) = rest.get(vertex) else {
+            return Err(InteractError::UnknownVertex { vertex, vertices: rest.len() });
+        };
+        check_radius(body, radius)?;
+        let patch: Vec<usize> = (0..rest.len()).filter(|&v| dist(rest[v], centre) <= radius).collect();
+        let fixed: Vec<usize> = patch.iter().copied().filter(|&v| body.is_fixed(v)).collect();
+        if let Some(&first) = fixed.first() {
+            return Err(InteractError::PatchHoldsFixed { vertex, radius, fixed: first, count: fixed.len() });
+        }
+        Ok(Self { vertex, centre, radius, patch })
+    }
+
+    /// The picked vertex.
+    pub fn vertex(&self) -> usize {
+        self.vertex
+    }
+
+    /// The radius, metres.
+    pub fn radius(&self) -> f64 {
+        self.radius
+    }
+
+    /// The held vertices, ascending.
+    pub fn patch(&self) -> &[usize] {
+        &self.patch
+    }
+
+    /// Grabs every patch vertex where `motion` takes it (from the next update on).
+    pub fn hold(&self, body: &mut dyn Interactive, motion: &RigidMotion) -> Result<()> {
+        for &v in &self.patch {
+            let p = body.rest_positions()[v];
+            let target = motion.apply(self.centre, p);
+            body.grab(v, sub(target, p))?;
+        }
+        Ok(())
+    }
+
+    /// Releases every patch vertex.
+    pub fn release(&self, body: &mut dyn Interactive) -> Result<()> {
+        self.patch.iter().try_for_each(|&v| body.release(v))
+    }
+
+    /// The tool's load on the body after an update: the patch's reactions summed, their
+    /// moment about the tool's centre moved by `motion`. Zero for a method without forces.
+    pub fn wrench(&self, body: &dyn Interactive, motion: &RigidMotion) -> Wrench {
+        let centre = add(self.centre, motion.translation);
+        let positions = body.positions();
+        let mut w = Wrench::default();
+        for &(v, f) in body.reactions() {
+            if self.patch.binary_search(&v).is_ok() {
+                w.force = add(w.force, f);
+                w.moment = add(w.moment, cross(sub(positions[v], centre), f));
+            }
+        }
+        w
+    }
+}
+
+/// What one placement of a [`Press`] found.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PressReport {
+    /// Total force of the tip on the body (N; zero for a method without forces).
+    pub force: Vec3,
+    /// The vertices in contact, ascending.
+    pub contacts: Vec<usize>,
+    /// Active-set iterations (body updates) it took.
+    pub iterations: usize,
+}
+
+/// A rigid spherical tip pressing the surface (see the module docs). Keeps its active set
+/// from one placement to the next.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Press {
+    radius: f64,
+    /// Active contacts and their normals.
+    active: BTreeMap<usize, Vec3>,
+    /// The vertices whose contact holds the body has (released when they leave the set).
+    applied: Vec<usize>,
+}
+
+impl Press {
+    /// A tip of radius `radius` (metres). Errors: [`InteractError::BadRadius`],
+    /// [`InteractError::ToolTooLarge`] (at least the body's size).
+    pub fn new(body: &dyn Interactive, radius: f64) -> Result<Self> {
+        check_radius(body, radius)?;
+        Ok(Self { radius, active: BTreeMap::new(), applied: Vec::new() })
+    }
+
+    /// The radius, metres.
+    pub fn radius(&self) -> f64 {
+        self.radius
+    }
+
+    /// The vertices in contact after the last placement.
+    pub fn contacts(&self) -> Vec<usize> {
+        self.active.keys().copied().collect()
+    }
+
+    /// Releases the tip's contacts (from the next update on).
+    pub fn lift(&mut self, body: &mut dyn Interactive) -> Result<()> {
+        for &v in &self.applied {
+            body.release(v)?;
+        }
+        self.active.clear();
+        self.applied.clear();
+        Ok(())
+    }
+
+    /// Moves the tip's centre to `centre` (metres, absolute) and updates the body until the
+    /// contact set settles. Errors: a non-finite centre, a body that refuses a frame, and
+    /// [`InteractError::PressUnsettled`] when vertices are still inside the tip after
+    /// [`MAX_PRESS_ITERATIONS`].
+    pub fn place(&mut self, body: &mut dyn Interactive, centre: Vec3) -> Result<PressReport> {
+        if let Some(&value) = centre.iter().find(|c| !c.is_finite()) {
+            return Err(InteractError::Invalid(format!(
+                "the tip's centre has a non-finite component ({value})"
+            )));
+        }
+        let forces = body.supports_forces();
+        if !forces {
+            // Without forces nothing pulls a held vertex back: start from a free surface.
+            self.lift(body)?;
+            body.update()?;
+        }
+        let mut iterations = 0;
+        loop {
+            let changed = self.refresh(body, centre, forces);
+            if !changed && iterations > 0 {
+                break;
+            }
+            if iterations == MAX_PRESS_ITERATIONS {
+                let inside = self.inside(body, centre).len();
+                if inside > 0 {
+                    return Err(InteractError::PressUnsettled { iterations, inside });
+                }
+                break;
+            }
+            self.apply(body, centre)?;
+            body.update()?;
+            iterations += 1;
+        }
+        let mut force = [0.0; 3];
+        for &(v, f) in body.reactions() {
+            if self.active.contains_key(&v) {
+                force = add(force, f);
+            }
+        }
+        Ok(PressReport { force, contacts: self.contacts(), iterations })
+    }
+
+    /// Vertices closer to `centre` than the tip's radius allows, with their outward normals.
+    fn inside(&self, body: &dyn Interactive, centre: Vec3) -> Vec<(usize, Vec3)> {
+        let limit = self.radius * (1.0 - INSIDE_TOLERANCE);
+        body.positions()
+            .iter()
+            .enumerate()
+            .filter(|(v, x)| !self.active.contains_key(v) && dist(**x, centre) < limit && !body.is_fixed(*v))
+            .map(|(v, x)| (v, outward(*x, centre, body.rest_positions()[v])))
+            .collect()
+    }
+
+    /// Updates the active set from the last frame: releases pulling contacts, turns normals
+    /// toward the vertices, adds vertices inside. Returns whether anything changed.
+    fn refresh(&mut self, body: &dyn Interactive, centre: Vec3, forces: bool) -> bool {
+        let mut changed = false;
+        if forces {
+            let reactions: BTreeMap<usize, Vec3> = body.reactions().iter().copied().collect();
+            let along = |v: &usize, n: &Vec3| reactions.get(v).map(|f| dot(*f, *n)).unwrap_or(0.0);
+            let largest = self.active.iter().map(|(v, n)| along(v, n).abs()).fold(0.0, f64::max);
+            let pulling: Vec<usize> = self
+                .active
+                .iter()
+                .filter(|(v, n)| reactions.contains_key(v) && along(v, n) < -PULL_TOLERANCE * largest)
+                .map(|(v, _)| *v)
+                .collect();
+            changed |= !pulling.is_empty();
+            for v in pulling {
+                self.active.remove(&v);
+            }
+            for (&v, n) in self.active.iter_mut() {
+                let fresh = outward(body.positions()[v], centre, body.rest_positions()[v]);
+                if dot(fresh, *n).clamp(-1.0, 1.0).acos() > NORMAL_SETTLED {
+                    *n = fresh;
+                    changed = true;
+                }
+            }
+        }
+        let inside = self.inside(body, centre);
+        changed |= !inside.is_empty();
+        self.active.extend(inside);
+        changed
+    }
+
+    /// Holds each active vertex on the plane tangent to the tip along its normal.
+    fn apply(&mut self, body: &mut dyn Interactive, centre: Vec3) -> Result<()> {
+        for &v in self.applied.iter().filter(|v| !self.active.contains_key(v)) {
+            body.release(v)?;
+        }
+        self.applied = self.active.keys().copied().collect();
+        for (&v, &n) in &self.active {
+            let p = body.rest_positions()[v];
+            // n . (p + u) = n . centre + radius
+            body.contact(v, n, dot(n, sub(centre, p)) + self.radius)?;
+        }
+        Ok(())
+    }
+}
+
+/// The unit direction from the tip's centre to a vertex at `x` (from its rest position `p`,
+/// then straight up, when `x` is the centre).
+fn outward(x: Vec3, centre: Vec3, p: Vec3) -> Vec3 {
+    for d in [sub(x, centre), sub(p, centre), [0.0, 1.0, 0.0]] {
+        let l = norm(d);
+        if l > 0.0 {
+            return scale(d, 1.0 / l);
+        }
+    }
+    unreachable!("the last candidate has unit length")
+}
