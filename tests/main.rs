@@ -8,5 +8,6 @@ mod memory_guard;
 mod plates;
 mod scenes;
 mod stepping;
+mod tools;
 mod units;
 mod volume_properties;

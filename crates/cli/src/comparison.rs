@@ -233,16 +233,21 @@ fn replay_method(
     Ok(Run { metrics, shown: std::mem::take(&mut tally.shown) })
 }
 
-/// The path with every grab taken from the method's own base state: the tool moves a
-/// vertex by the path's displacement from where the scene's loads left it, so a method that
-/// carries gravity and one that does not (ChainMail) are pulled by the same tool.
+/// The path with every grab and grasp taken from the method's own base state: the tool
+/// moves a vertex by the path's displacement from where the scene's loads left it, so a
+/// method that carries gravity and one that does not (ChainMail) are pulled by the same
+/// tool. A press's tip is placed in absolute coordinates.
 fn from_own_base(checked: &CheckedPath, base: &[Vec3], rest: &[Vec3]) -> CheckedPath {
     let mut shifted = checked.clone();
-    if checked.kind == PathKind::Grab {
-        for h in shifted.frames.iter_mut().flatten() {
-            let u = sub(base[h.vertex], rest[h.vertex]);
-            h.value = [h.value[0] + u[0], h.value[1] + u[1], h.value[2] + u[2]];
+    match checked.kind {
+        PathKind::Grab => {
+            for h in shifted.frames.iter_mut().flatten() {
+                let u = sub(base[h.vertex], rest[h.vertex]);
+                h.value = [h.value[0] + u[0], h.value[1] + u[1], h.value[2] + u[2]];
+            }
         }
+        PathKind::Grasp => shifted.origin = Some(base.iter().zip(rest).map(|(p, r)| sub(*p, *r)).collect()),
+        PathKind::Force | PathKind::Press => {}
     }
     shifted
 }

@@ -184,7 +184,7 @@ enum Command {
         #[command(flatten)]
         grid: accuracy::GridFlags,
     },
-    /// Replay a tool path (grabs or forces per frame) on the scene's precomputed response;
+    /// Replay a tool path (grabs, forces, grasps or a pressing tip per frame) on the scene's precomputed response;
     /// write frames.csv, final.obj, report.json and probe.png.
     Probe(probe::ProbeArgs),
     /// Serve a live viewer: drag the scene's surface in a browser (or over a WebSocket).

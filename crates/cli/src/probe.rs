@@ -41,7 +41,7 @@ pub struct ProbeArgs {
     scene: PathBuf,
     #[command(flatten)]
     response: ResponseFlags,
-    /// Tool path CSV: `frame,vertex,ux,uy,uz` (grab) or `frame,vertex,fx,fy,fz` (force).
+    /// Tool path CSV: `frame,vertex,ux,uy,uz` (grab), `frame,vertex,fx,fy,fz` (force), `frame,vertex,ux,uy,uz,radius` (grasp a patch) or `frame,x,y,z,radius` (press a spherical tip); lengths in the mesh unit.
     #[arg(long)]
     path: PathBuf,
     /// Output directory (frames.csv, final.obj, report.json, probe.png).

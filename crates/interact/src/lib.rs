@@ -108,6 +108,6 @@ pub use interactive::{Hold, Interactive, NORMAL_TOLERANCE};
 pub use method_body::{MethodBody, ProbeBody, ProbeOptions, build_body, linearized};
 pub use replay::{
     CheckedPath, FrameRow, Latency, MAX_FRAME, MAX_REACH, PathHold, PathKind, PathProblem, PathRow,
-    ProbeError, Replay, ToolPath, check_method, check_path, replay, replay_observed,
+    ProbeError, Replay, TipHold, ToolPath, check_method, check_path, replay, replay_observed,
 };
 pub use tools::{Grasp, Press, PressReport, RigidMotion, Wrench};

@@ -13,7 +13,7 @@ use fibfluid_sim::{Method, Model, Shape};
 use serde::Serialize;
 
 use crate::chainmail_body::ChainmailBodyError;
-use crate::{InteractError, Interactive};
+use crate::{Grasp, InteractError, Interactive, Press, RigidMotion};
 
 /// The largest frame number a path may use.
 pub const MAX_FRAME: usize = 10_000_000;
@@ -28,10 +28,28 @@ pub const MAX_REACH: f64 = 1e3;
 pub struct CheckedPath {
     /// The path file (for messages).
     pub source: PathBuf,
-    /// Grab or force.
+    /// Grab, force, grasp or press.
     pub kind: PathKind,
-    /// The holds of each frame, `0..frames`.
+    /// The holds of each frame, `0..frames` (grab, force and grasp paths).
     pub frames: Vec<Vec<PathHold>>,
+    /// The tip of each frame, `0..frames` (press paths; `None`: the tip is lifted).
+    pub tips: Vec<Option<TipHold>>,
+    /// Mesh vertex -> file vertex.
+    pub file_vertex: Vec<usize>,
+    /// Displacements from rest the grasps start from (`None`: rest), for instance each
+    /// method's own base state in `compare`.
+    pub origin: Option<Vec<Vec3>>,
+}
+
+/// The spherical tip of one frame of a press path, in metres.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TipHold {
+    /// Line in the path file.
+    pub line: usize,
+    /// Centre (absolute).
+    pub centre: Vec3,
+    /// Radius.
+    pub radius: f64,
 }
 
 /// What can go wrong while probing: a bad tool path (file and line), a refused body.
@@ -148,19 +166,37 @@ pub enum ProbeError {
 /// What is wrong with one line of a path file.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum PathProblem {
-    /// The first line is not one of the two headers.
+    /// The first line is not one of the four headers.
     #[error(
-        "bad header `{found}`: expected `frame,vertex,ux,uy,uz` (grab) or `frame,vertex,fx,fy,fz` (force)"
+        "bad header `{found}`: expected `frame,vertex,ux,uy,uz` (grab), `frame,vertex,fx,fy,fz` (force), `frame,vertex,ux,uy,uz,radius` (grasp) or `frame,x,y,z,radius` (press)"
     )]
     Header {
         /// The line found.
         found: String,
     },
-    /// A row without five fields.
-    #[error("expected 5 comma-separated fields, found {found}")]
+    /// A row with the wrong number of fields.
+    #[error("expected {expected} comma-separated fields, found {found}")]
     FieldCount {
+        /// Fields expected.
+        expected: usize,
         /// Fields found.
         found: usize,
+    },
+    /// A tool radius that is not positive.
+    #[error("radius: {value} must be positive")]
+    BadRadius {
+        /// The value.
+        value: f64,
+    },
+    /// Two tips in one frame of a press path.
+    #[error(
+        "a second tip in frame {frame} (the first is on line {first}); a press path has one tip per frame"
+    )]
+    TwoTips {
+        /// The frame.
+        frame: usize,
+        /// Line of the first tip.
+        first: usize,
     },
     /// A frame field that is not a non-negative integer.
     #[error("frame: `{value}` is not a frame number (0, 1, 2, ...)")]
@@ -259,20 +295,40 @@ pub enum PathProblem {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum PathKind {
-    /// `ux,uy,uz`: displacements from rest (grabs).
+    /// `frame,vertex,ux,uy,uz`: displacements from rest (grabs).
     Grab,
-    /// `fx,fy,fz`: applied forces (pushes).
+    /// `frame,vertex,fx,fy,fz`: applied forces (pushes).
     Force,
+    /// `frame,vertex,ux,uy,uz,radius`: the patch of that radius around the vertex, moved by
+    /// the displacement ([`crate::Grasp`]).
+    Grasp,
+    /// `frame,x,y,z,radius`: a spherical tip of that radius centred there ([`crate::Press`]).
+    Press,
 }
 
 impl PathKind {
-    /// `grab` or `force`.
+    /// `grab`, `force`, `grasp` or `press`.
     pub fn name(self) -> &'static str {
         match self {
             PathKind::Grab => "grab",
             PathKind::Force => "force",
+            PathKind::Grasp => "grasp",
+            PathKind::Press => "press",
         }
     }
+
+    /// The header line of a path of this kind.
+    pub fn header(self) -> &'static str {
+        match self {
+            PathKind::Grab => "frame,vertex,ux,uy,uz",
+            PathKind::Force => "frame,vertex,fx,fy,fz",
+            PathKind::Grasp => "frame,vertex,ux,uy,uz,radius",
+            PathKind::Press => "frame,x,y,z,radius",
+        }
+    }
+
+    /// Every kind.
+    pub const ALL: [PathKind; 4] = [PathKind::Grab, PathKind::Force, PathKind::Grasp, PathKind::Press];
 }
 
 /// One row of a path.
@@ -282,10 +338,12 @@ pub struct PathRow {
     pub line: usize,
     /// Frame number.
     pub frame: usize,
-    /// Vertex in the mesh file's order; `None` declares an empty frame.
+    /// Vertex in the mesh file's order; `None` declares an empty frame, or is a press row.
     pub vertex: Option<usize>,
-    /// Displacement or force.
+    /// Displacement, force or tip centre.
     pub value: Vec3,
+    /// The tool's radius (grasp and press rows); `None` in an empty frame.
+    pub radius: Option<f64>,
 }
 
 /// A parsed tool path.
@@ -317,56 +375,99 @@ pub struct PathHold {
     pub file_vertex: usize,
     /// Displacement or force.
     pub value: Vec3,
+    /// The grasp's radius in metres (0 for a grab or a push).
+    pub radius: f64,
 }
 
 /// Checks a path against a model (vertices exist, are used, are not fixed, appear once per
-/// frame, grabs stay within [`MAX_REACH`] of the body's size) and groups its rows by frame.
+/// frame, grabs stay within [`MAX_REACH`] of the body's size, one tip per frame) and groups
+/// its rows by frame. Lengths (displacements, centres, radii) are in the mesh's unit in the
+/// file and in metres in the result.
 pub fn check_path(path: &ToolPath, scene: &Model) -> std::result::Result<CheckedPath, ProbeError> {
     let Shape::Surface(file) = &scene.shape else {
         return Err(ProbeError::NotASurface { scene: scene.display_name() });
     };
-    let to_mesh = file.file_to_mesh();
-    let count = file.file_vertex_count();
+    let mut file_vertex = vec![0; file.mesh.n_vertices()];
+    for (fv, v) in file.file_to_mesh().iter().enumerate() {
+        if let Some(v) = v {
+            file_vertex[*v] = fv;
+        }
+    }
+    let mut checked = CheckedPath {
+        source: path.source.clone(),
+        kind: path.kind,
+        frames: vec![Vec::new(); path.frames()],
+        tips: vec![None; path.frames()],
+        file_vertex,
+        origin: None,
+    };
+    let metres = scene.unit.metres();
     let (lo, hi) = fibfluid_geometry::bounding_box(file.mesh.positions());
     let size = fibfluid_geometry::vec3::dist(lo, hi);
-    let err =
-        |line: usize, problem: PathProblem| ProbeError::Path { path: path.source.clone(), line, problem };
-    let mut frames: Vec<Vec<PathHold>> = vec![Vec::new(); path.frames()];
     for row in &path.rows {
-        let Some(fv) = row.vertex else { continue };
-        if fv >= count {
-            return Err(err(row.line, PathProblem::UnknownVertex { vertex: fv, count }));
+        if path.kind == PathKind::Press {
+            let Some(radius) = row.radius else { continue };
+            let tip =
+                TipHold { line: row.line, centre: row.value.map(|c| c * metres), radius: radius * metres };
+            match &checked.tips[row.frame] {
+                Some(first) => {
+                    let problem = PathProblem::TwoTips { frame: row.frame, first: first.line };
+                    return Err(ProbeError::Path { path: path.source.clone(), line: row.line, problem });
+                }
+                None => checked.tips[row.frame] = Some(tip),
+            }
+        } else if let Some(hold) = check_row(path, row, scene, size)? {
+            let frame = &mut checked.frames[row.frame];
+            if let Some(first) = frame.iter().find(|h| h.vertex == hold.vertex) {
+                let problem =
+                    PathProblem::Duplicate { vertex: hold.file_vertex, frame: row.frame, first: first.line };
+                return Err(ProbeError::Path { path: path.source.clone(), line: row.line, problem });
+            }
+            frame.push(hold);
         }
-        let v = to_mesh[fv].ok_or_else(|| err(row.line, PathProblem::UnusedVertex { vertex: fv }))?;
-        let fixed: Vec<usize> = (0..3).filter(|&c| scene.constraints.get(v, c).is_some()).collect();
-        let refused = match path.kind {
-            PathKind::Grab => !fixed.is_empty(),
-            PathKind::Force => fixed.len() == 3,
-        };
-        if refused {
-            let action = if path.kind == PathKind::Grab { "grabbed" } else { "pushed" };
-            let axis = fibfluid_geometry::AXES[fixed[0]];
-            return Err(err(row.line, PathProblem::FixedVertex { vertex: fv, axis, action }));
-        }
-        // Displacements are written in the mesh's unit, like the mesh; forces in newtons.
-        let value = match path.kind {
-            PathKind::Grab => row.value.map(|c| c * scene.unit.metres()),
-            PathKind::Force => row.value,
-        };
-        let distance = fibfluid_geometry::vec3::norm(value);
-        if path.kind == PathKind::Grab && !(distance <= MAX_REACH * size) {
-            return Err(err(row.line, PathProblem::TooFar { vertex: fv, distance, size }));
-        }
-        let frame = &mut frames[row.frame];
-        if let Some(first) = frame.iter().find(|h| h.vertex == v) {
-            return Err(err(
-                row.line,
-                PathProblem::Duplicate { vertex: fv, frame: row.frame, first: first.line },
-            ));
-        }
-        frame.push(PathHold { line: row.line, vertex: v, file_vertex: fv, value });
     }
-    Ok(CheckedPath { source: path.source.clone(), kind: path.kind, frames })
+    Ok(checked)
+}
+
+/// One row of a grab, force or grasp path as a hold (`None` for an empty frame).
+/// `size` is the diagonal of the body's bounding box.
+fn check_row(
+    path: &ToolPath,
+    row: &PathRow,
+    scene: &Model,
+    size: f64,
+) -> std::result::Result<Option<PathHold>, ProbeError> {
+    let Shape::Surface(file) = &scene.shape else {
+        return Err(ProbeError::NotASurface { scene: scene.display_name() });
+    };
+    let err = |problem: PathProblem| ProbeError::Path { path: path.source.clone(), line: row.line, problem };
+    let Some(fv) = row.vertex else { return Ok(None) };
+    let count = file.file_vertex_count();
+    if fv >= count {
+        return Err(err(PathProblem::UnknownVertex { vertex: fv, count }));
+    }
+    let v = file.file_to_mesh()[fv].ok_or_else(|| err(PathProblem::UnusedVertex { vertex: fv }))?;
+    let fixed: Vec<usize> = (0..3).filter(|&c| scene.constraints.get(v, c).is_some()).collect();
+    let moved = path.kind != PathKind::Force;
+    if (moved && !fixed.is_empty()) || fixed.len() == 3 {
+        let action = if moved { "grabbed" } else { "pushed" };
+        let axis = fibfluid_geometry::AXES[fixed[0]];
+        return Err(err(PathProblem::FixedVertex { vertex: fv, axis, action }));
+    }
+    // Displacements are written in the mesh's unit, like the mesh; forces in newtons.
+    let metres = scene.unit.metres();
+    let value = if moved { row.value.map(|c| c * metres) } else { row.value };
+    let distance = fibfluid_geometry::vec3::norm(value);
+    if moved && !(distance <= MAX_REACH * size) {
+        return Err(err(PathProblem::TooFar { vertex: fv, distance, size }));
+    }
+    Ok(Some(PathHold {
+        line: row.line,
+        vertex: v,
+        file_vertex: fv,
+        value,
+        radius: row.radius.unwrap_or(0.0) * metres,
+    }))
 }
 
 /// One probed vertex in one frame (a row of `frames.csv`).
@@ -408,36 +509,157 @@ pub fn replay_observed(
     mut observe: impl FnMut(usize, &dyn Interactive),
 ) -> std::result::Result<Replay, ProbeError> {
     let mut rows = Vec::new();
-    let mut latency_us = Vec::with_capacity(path.frames.len());
-    let at = |frame: usize, line: usize| {
-        move |source: InteractError| ProbeError::Frame { path: path.source.clone(), line, frame, source }
-    };
-    for (k, holds) in path.frames.iter().enumerate() {
+    let frames = path.frames.len().max(path.tips.len());
+    let mut latency_us = Vec::with_capacity(frames);
+    let mut tools = ToolCache::default();
+    for k in 0..frames {
         let start = Instant::now();
-        body.release_all();
-        for h in holds {
-            match path.kind {
-                PathKind::Grab => body.grab(h.vertex, h.value),
-                PathKind::Force => body.push(h.vertex, h.value),
-            }
-            .map_err(at(k, h.line))?;
+        let line = match path.kind {
+            PathKind::Press => path.tips[k].map(|t| t.line),
+            _ => path.frames[k].first().map(|h| h.line),
+        };
+        let at = |source: InteractError| ProbeError::Frame {
+            path: path.source.clone(),
+            line: line.unwrap_or(0),
+            frame: k,
+            source,
+        };
+        match path.kind {
+            PathKind::Grab | PathKind::Force => vertex_frame(body, path, k, &mut rows)?,
+            PathKind::Grasp => grasp_frame(body, path, k, &mut tools, &mut rows)?,
+            PathKind::Press => press_frame(body, path, k, &mut tools, &mut rows).map_err(at)?,
         }
-        let line = holds.first().map(|h| h.line).unwrap_or(0);
-        body.update().map_err(at(k, line))?;
         latency_us.push(start.elapsed().as_secs_f64() * 1e6);
-        let reactions = body.reactions();
-        for h in holds {
-            let force = reactions.iter().find(|(v, _)| *v == h.vertex).map(|(_, f)| *f).unwrap_or([0.0; 3]);
-            rows.push(FrameRow {
-                frame: k,
-                file_vertex: h.file_vertex,
-                force,
-                displacement: body.field()[h.vertex],
-            });
-        }
         observe(k, &*body);
     }
-    Ok(Replay { rows, latency_us, frames: path.frames.len() })
+    Ok(Replay { rows, latency_us, frames })
+}
+
+/// The tools of a replay, kept from frame to frame.
+#[derive(Default)]
+struct ToolCache {
+    /// Grasp patches by (vertex, radius bits).
+    grasps: std::collections::HashMap<(usize, u64), Grasp>,
+    /// The tip and its radius.
+    press: Option<Press>,
+}
+
+fn frame_error(path: &CheckedPath, frame: usize, line: usize) -> impl Fn(InteractError) -> ProbeError + '_ {
+    move |source| ProbeError::Frame { path: path.source.clone(), line, frame, source }
+}
+
+/// A frame of grabs or pushes: one row per held vertex.
+fn vertex_frame(
+    body: &mut dyn Interactive,
+    path: &CheckedPath,
+    k: usize,
+    rows: &mut Vec<FrameRow>,
+) -> std::result::Result<(), ProbeError> {
+    let holds = &path.frames[k];
+    body.release_all();
+    for h in holds {
+        match path.kind {
+            PathKind::Force => body.push(h.vertex, h.value),
+            _ => body.grab(h.vertex, h.value),
+        }
+        .map_err(frame_error(path, k, h.line))?;
+    }
+    let line = holds.first().map(|h| h.line).unwrap_or(0);
+    body.update().map_err(frame_error(path, k, line))?;
+    let reactions = body.reactions();
+    for h in holds {
+        let force = reactions.iter().find(|(v, _)| *v == h.vertex).map(|(_, f)| *f).unwrap_or([0.0; 3]);
+        rows.push(FrameRow {
+            frame: k,
+            file_vertex: h.file_vertex,
+            force,
+            displacement: body.field()[h.vertex],
+        });
+    }
+    Ok(())
+}
+
+/// A frame of grasps: one row per grasp, with the total force on its patch.
+fn grasp_frame(
+    body: &mut dyn Interactive,
+    path: &CheckedPath,
+    k: usize,
+    tools: &mut ToolCache,
+    rows: &mut Vec<FrameRow>,
+) -> std::result::Result<(), ProbeError> {
+    let holds = &path.frames[k];
+    body.release_all();
+    let mut grasps = Vec::with_capacity(holds.len());
+    for h in holds {
+        let err = frame_error(path, k, h.line);
+        let key = (h.vertex, h.radius.to_bits());
+        let grasp = match tools.grasps.get(&key) {
+            Some(g) => g.clone(),
+            None => Grasp::new(&*body, h.vertex, h.radius).map_err(&err)?,
+        };
+        tools.grasps.entry(key).or_insert_with(|| grasp.clone());
+        let motion = RigidMotion::translation(h.value);
+        match &path.origin {
+            Some(origin) => grasp.hold_from(body, &motion, origin),
+            None => grasp.hold(body, &motion),
+        }
+        .map_err(&err)?;
+        grasps.push((grasp, motion));
+    }
+    let line = holds.first().map(|h| h.line).unwrap_or(0);
+    body.update().map_err(frame_error(path, k, line))?;
+    for ((g, motion), h) in grasps.iter().zip(holds) {
+        let force = g.wrench(&*body, motion).force;
+        rows.push(FrameRow {
+            frame: k,
+            file_vertex: h.file_vertex,
+            force,
+            displacement: body.field()[h.vertex],
+        });
+    }
+    Ok(())
+}
+
+/// A frame of a press path: the tip placed (or lifted), one row with the total force and
+/// the vertex nearest the tip's centre.
+fn press_frame(
+    body: &mut dyn Interactive,
+    path: &CheckedPath,
+    k: usize,
+    tools: &mut ToolCache,
+    rows: &mut Vec<FrameRow>,
+) -> crate::Result<()> {
+    let Some(tip) = path.tips[k] else {
+        if let Some(mut press) = tools.press.take() {
+            press.lift(body)?;
+        }
+        body.update()?;
+        return Ok(());
+    };
+    if tools.press.as_ref().is_some_and(|p| p.radius() != tip.radius) {
+        tools.press.take().map(|mut p| p.lift(body)).transpose()?;
+    }
+    let press = match &mut tools.press {
+        Some(p) => p,
+        None => tools.press.insert(Press::new(&*body, tip.radius)?),
+    };
+    let report = press.place(body, tip.centre)?;
+    let positions = body.positions();
+    let near = |v: &usize| fibfluid_geometry::vec3::dist(positions[*v], tip.centre);
+    let nearest = report
+        .contacts
+        .iter()
+        .copied()
+        .min_by(|a, b| near(a).total_cmp(&near(b)))
+        .or_else(|| (0..positions.len()).min_by(|a, b| near(a).total_cmp(&near(b))))
+        .unwrap_or(0);
+    rows.push(FrameRow {
+        frame: k,
+        file_vertex: path.file_vertex[nearest],
+        force: report.force,
+        displacement: body.field()[nearest],
+    });
+    Ok(())
 }
 
 /// Frame latency percentiles, microseconds.
@@ -464,7 +686,7 @@ impl Latency {
     }
 }
 
-/// Checks that `method` can replay a path of this kind (ChainMail needs grabs).
+/// Checks that `method` can replay a path of this kind (forces need the fiber–fluid method).
 pub fn check_method(path: &ToolPath, method: Method) -> std::result::Result<(), ProbeError> {
     if path.kind == PathKind::Force && method != Method::Ffm {
         return Err(ProbeError::ForcePath { path: path.source.clone(), method });

@@ -29,6 +29,12 @@ use crate::{InteractError, Interactive, Result};
 /// Active-set iterations of one [`Press::place`] before it gives up.
 pub const MAX_PRESS_ITERATIONS: usize = 60;
 
+/// Iterations of one [`Press::place`] on a method without forces (ChainMail), which moves
+/// the vertices found inside onto the tip and stops here with what is left reported as
+/// [`PressReport::penetration`]: a ChainMail grab moves whole lattice cells, so vertices
+/// sharing a cell cannot all land exactly where the tip puts them.
+pub const MAX_SHAPE_ITERATIONS: usize = 8;
+
 /// A vertex counts as inside the tip when it is closer to the centre than `radius * (1 -
 /// INSIDE_TOLERANCE)`.
 pub const INSIDE_TOLERANCE: f64 = 1e-10;
@@ -154,12 +160,25 @@ impl Grasp {
         &self.patch
     }
 
-    /// Grabs every patch vertex where `motion` takes it (from the next update on).
+    /// Grabs every patch vertex where `motion` takes it from rest (from the next update
+    /// on).
     pub fn hold(&self, body: &mut dyn Interactive, motion: &RigidMotion) -> Result<()> {
         for &v in &self.patch {
             let p = body.rest_positions()[v];
             let target = motion.apply(self.centre, p);
             body.grab(v, sub(target, p))?;
+        }
+        Ok(())
+    }
+
+    /// As [`hold`](Self::hold), each vertex moved from `origin[v]` (a displacement from
+    /// rest, for instance the body's state under its own loads) instead of from rest.
+    pub fn hold_from(&self, body: &mut dyn Interactive, motion: &RigidMotion, origin: &[Vec3]) -> Result<()> {
+        for &v in &self.patch {
+            let p = body.rest_positions()[v];
+            let moved = sub(motion.apply(self.centre, p), p);
+            let o = origin.get(v).copied().unwrap_or([0.0; 3]);
+            body.grab(v, add(o, moved))?;
         }
         Ok(())
     }
@@ -194,6 +213,10 @@ pub struct PressReport {
     pub contacts: Vec<usize>,
     /// Active-set iterations (body updates) it took.
     pub iterations: usize,
+    /// The deepest a vertex is left inside the tip (m): 0 for a method with forces (within
+    /// [`INSIDE_TOLERANCE`] of the radius); what a method without forces could not remove
+    /// in [`MAX_SHAPE_ITERATIONS`].
+    pub penetration: f64,
 }
 
 /// A rigid spherical tip pressing the surface (see the module docs). Keeps its active set
@@ -252,21 +275,20 @@ impl Press {
             body.update()?;
         }
         let mut iterations = 0;
+        let limit = if forces { MAX_PRESS_ITERATIONS } else { MAX_SHAPE_ITERATIONS };
         loop {
             let changed = self.refresh(body, centre, forces);
-            if !changed && iterations > 0 {
-                break;
-            }
-            if iterations == MAX_PRESS_ITERATIONS {
-                let inside = self.inside(body, centre).len();
-                if inside > 0 {
-                    return Err(InteractError::PressUnsettled { iterations, inside });
-                }
+            if (!changed && iterations > 0) || iterations == limit {
                 break;
             }
             self.apply(body, centre)?;
             body.update()?;
             iterations += 1;
+        }
+        let penetration = body.positions().iter().map(|x| self.radius - dist(*x, centre)).fold(0.0, f64::max);
+        if forces && penetration > INSIDE_TOLERANCE * self.radius {
+            let inside = self.inside(body, centre).len();
+            return Err(InteractError::PressUnsettled { iterations, inside });
         }
         let mut force = [0.0; 3];
         for &(v, f) in body.reactions() {
@@ -274,16 +296,18 @@ impl Press {
                 force = add(force, f);
             }
         }
-        Ok(PressReport { force, contacts: self.contacts(), iterations })
+        Ok(PressReport { force, contacts: self.contacts(), iterations, penetration })
     }
 
-    /// Vertices closer to `centre` than the tip's radius allows, with their outward normals.
+    /// Vertices closer to `centre` than the tip's radius allows, with their outward normals
+    /// (active ones too: a method without forces may leave a held vertex short of its
+    /// target).
     fn inside(&self, body: &dyn Interactive, centre: Vec3) -> Vec<(usize, Vec3)> {
         let limit = self.radius * (1.0 - INSIDE_TOLERANCE);
         body.positions()
             .iter()
             .enumerate()
-            .filter(|(v, x)| !self.active.contains_key(v) && dist(**x, centre) < limit && !body.is_fixed(*v))
+            .filter(|(v, x)| dist(**x, centre) < limit && !body.is_fixed(*v))
             .map(|(v, x)| (v, outward(*x, centre, body.rest_positions()[v])))
             .collect()
     }

@@ -11,6 +11,14 @@
 //! 2,,,,                        (a frame with nothing applied)
 //! ```
 //!
+//! Tools with a size:
+//!
+//! ```text
+//! frame,vertex,ux,uy,uz,radius (grasp: the patch within `radius` of the vertex, moved by u)
+//! frame,x,y,z,radius           (press: a spherical tip of that radius centred at x, y, z)
+//! ```
+//!
+//! Lengths (displacements, centres, radii) are in the mesh's unit, forces in newtons.
 //! Vertices are 0-based indices in the mesh file's order (as in a scene's `[[force]]`).
 //! Frames run from 0 to the largest frame number; rows of the same frame apply together; a
 //! vertex absent from a frame is released; frame numbers must not decrease. Blank lines and
@@ -62,22 +70,21 @@ pub fn parse_tool_path(source: impl Into<PathBuf>, text: &str) -> Result<ToolPat
         return Err(ProbeError::EmptyPath { path: source });
     };
     let names: Vec<String> = header.split(',').map(|f| f.trim().to_ascii_lowercase()).collect();
-    let kind = match names.iter().map(String::as_str).collect::<Vec<_>>().as_slice() {
-        ["frame", "vertex", "ux", "uy", "uz"] => PathKind::Grab,
-        ["frame", "vertex", "fx", "fy", "fz"] => PathKind::Force,
-        _ => return Err(err(hline, PathProblem::Header { found: excerpt(header) })),
-    };
-    let columns: [&'static str; 3] = match kind {
-        PathKind::Grab => ["ux", "uy", "uz"],
-        PathKind::Force => ["fx", "fy", "fz"],
-    };
+    let kind = PathKind::ALL
+        .into_iter()
+        .find(|k| names.join(",") == k.header())
+        .ok_or_else(|| err(hline, PathProblem::Header { found: excerpt(header) }))?;
+    let columns: Vec<&'static str> = kind.header().split(',').collect();
     let mut rows: Vec<PathRow> = Vec::new();
     for (line, text) in lines {
         let fields: Vec<&str> = text.split(',').map(str::trim).collect();
         // `12` alone declares an empty frame as `12,,,,` does.
-        let fields: Vec<&str> = if fields.len() == 1 { vec![fields[0], "", "", "", ""] } else { fields };
-        if fields.len() != 5 {
-            return Err(err(line, PathProblem::FieldCount { found: fields.len() }));
+        let mut fields = fields;
+        if fields.len() == 1 {
+            fields.resize(columns.len(), "");
+        }
+        if fields.len() != columns.len() {
+            return Err(err(line, PathProblem::FieldCount { expected: columns.len(), found: fields.len() }));
         }
         let frame: usize = fields[0]
             .parse()
@@ -90,32 +97,12 @@ pub fn parse_tool_path(source: impl Into<PathBuf>, text: &str) -> Result<ToolPat
         {
             return Err(err(line, PathProblem::DecreasingFrame { frame, previous: prev.frame }));
         }
-        let vertex = if fields[1].is_empty() {
-            if fields[2..].iter().any(|f| !f.is_empty()) {
-                return Err(err(line, PathProblem::ValuesWithoutVertex));
-            }
-            None
-        } else {
-            Some(
-                fields[1]
-                    .parse::<usize>()
-                    .map_err(|_| err(line, PathProblem::BadVertex { value: fields[1].to_string() }))?,
-            )
-        };
-        let mut value = [0.0; 3];
-        if vertex.is_some() {
-            for c in 0..3 {
-                let f = fields[2 + c];
-                let v: f64 = f.parse().map_err(|_| {
-                    err(line, PathProblem::NotANumber { column: columns[c], value: f.to_string() })
-                })?;
-                if !v.is_finite() {
-                    return Err(err(line, PathProblem::NonFinite { column: columns[c], value: v }));
-                }
-                value[c] = v;
-            }
+        if fields[1..].iter().all(|f| f.is_empty()) {
+            rows.push(PathRow { line, frame, vertex: None, value: [0.0; 3], radius: None });
+            continue;
         }
-        rows.push(PathRow { line, frame, vertex, value });
+        let row = parse_row(kind, &columns, &fields, line, frame).map_err(|p| err(line, p))?;
+        rows.push(row);
     }
     if rows.is_empty() {
         return Err(ProbeError::EmptyPath { path: source });
@@ -123,21 +110,47 @@ pub fn parse_tool_path(source: impl Into<PathBuf>, text: &str) -> Result<ToolPat
     Ok(ToolPath { source, kind, rows })
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn path_rows_group_and_empty_frames() {
-        let p = parse_tool_path("p.csv", "frame,vertex,ux,uy,uz\n0,1,0,0,0.1\n0,2,0,0,0\n3,,,,\n").unwrap();
-        assert_eq!(p.kind, PathKind::Grab);
-        assert_eq!(p.frames(), 4);
-        assert_eq!(p.rows[2].vertex, None);
-        let e = parse_tool_path("p.csv", "frame,vertex,ux,uy,uz\n2,1,0,0,0\n1,1,0,0,0\n").unwrap_err();
-        assert_eq!(e.to_string(), "p.csv:3: frame 1 comes after frame 2: frame numbers must not decrease");
-        let e = parse_tool_path("p.csv", "frame,vertex,ux,uy,uz\n0,1,0,NaN,0\n").unwrap_err();
-        assert_eq!(e.to_string(), "p.csv:2: uy: NaN is not finite");
-        let e = parse_tool_path("p.csv", "frame,vertex,ux,uy,uz\n").unwrap_err();
-        assert!(matches!(e, ProbeError::EmptyPath { .. }));
-    }
+/// A row with values: the vertex (grab, force, grasp), three numbers and the radius
+/// (grasp, press).
+fn parse_row(
+    kind: PathKind,
+    columns: &[&'static str],
+    fields: &[&str],
+    line: usize,
+    frame: usize,
+) -> Result<PathRow, PathProblem> {
+    let number = |i: usize| -> Result<f64, PathProblem> {
+        let f = fields[i];
+        let v: f64 =
+            f.parse().map_err(|_| PathProblem::NotANumber { column: columns[i], value: f.to_string() })?;
+        if !v.is_finite() {
+            return Err(PathProblem::NonFinite { column: columns[i], value: v });
+        }
+        Ok(v)
+    };
+    let has_vertex = kind != PathKind::Press;
+    let vertex = if !has_vertex {
+        None
+    } else if fields[1].is_empty() {
+        return Err(PathProblem::ValuesWithoutVertex);
+    } else {
+        Some(
+            fields[1]
+                .parse::<usize>()
+                .map_err(|_| PathProblem::BadVertex { value: fields[1].to_string() })?,
+        )
+    };
+    let first = if has_vertex { 2 } else { 1 };
+    let value = [number(first)?, number(first + 1)?, number(first + 2)?];
+    let radius = match kind {
+        PathKind::Grasp | PathKind::Press => {
+            let r = number(first + 3)?;
+            if r <= 0.0 {
+                return Err(PathProblem::BadRadius { value: r });
+            }
+            Some(r)
+        }
+        PathKind::Grab | PathKind::Force => None,
+    };
+    Ok(PathRow { line, frame, vertex, value, radius })
 }
