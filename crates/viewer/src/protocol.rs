@@ -18,7 +18,28 @@ pub enum ClientMessage {
         /// Vertex in the file's order.
         vertex: usize,
     },
-    /// `{"reset": true}`: drop every hold.
+    /// `{"grasp": V, "radius": r, "to": [x, y, z]}`: hold the patch of every vertex within
+    /// `r` (rest positions, Euclidean) of file vertex `V`, moved rigidly so that `V` is at
+    /// `to`. `{"release": V}` drops it.
+    Grasp {
+        /// The picked vertex in the file's order.
+        vertex: usize,
+        /// The patch radius (the mesh's coordinates).
+        radius: f64,
+        /// Target position of the picked vertex.
+        to: Vec3,
+    },
+    /// `{"press": [x, y, z], "radius": r}`: the spherical tip of radius `r` centred at
+    /// `[x, y, z]` (one tip per connection; a later press moves it).
+    Press {
+        /// Centre of the tip.
+        centre: Vec3,
+        /// Radius of the tip.
+        radius: f64,
+    },
+    /// `{"lift": true}`: take the tip away.
+    Lift,
+    /// `{"reset": true}`: drop every hold, grasp and the tip.
     Reset,
 }
 
@@ -71,12 +92,52 @@ fn malformed(problem: impl Into<String>) -> MessageError {
     MessageError::Malformed { problem: problem.into() }
 }
 
-const EXPECTED: &str = r#"expected {"grab": V, "to": [x, y, z]}, {"release": V} or {"reset": true}"#;
+const EXPECTED: &str = r#"expected {"grab": V, "to": [x, y, z]}, {"grasp": V, "radius": r, "to": [x, y, z]}, {"press": [x, y, z], "radius": r}, {"release": V}, {"lift": true} or {"reset": true}"#;
 
 fn vertex_of(v: &Value, key: &str) -> Result<usize, MessageError> {
     match v.as_u64() {
         Some(i) => usize::try_from(i).map_err(|_| malformed(format!("`{key}`: vertex {i} is too large"))),
         None => Err(malformed(format!("`{key}` must be a vertex index (0, 1, 2, ...), found {v}"))),
+    }
+}
+
+fn sorted<'a>(keys: &[&'a str]) -> Vec<&'a str> {
+    let mut k = keys.to_vec();
+    k.sort_unstable();
+    k
+}
+
+/// A point `[x, y, z]` of finite numbers (`vertex` names it in the error).
+fn point_of(v: &Value, key: &str, vertex: usize) -> Result<Vec3, MessageError> {
+    let Some(arr) = v.as_array().filter(|a| a.len() == 3) else {
+        return Err(malformed(format!("`{key}` must be [x, y, z], found {v}")));
+    };
+    let mut to = [0.0; 3];
+    for (c, x) in arr.iter().enumerate() {
+        to[c] = match x {
+            Value::Number(n) => {
+                n.as_f64().ok_or_else(|| malformed(format!("`{key}`: {n} is not a number")))?
+            }
+            // JavaScript's JSON.stringify writes NaN and infinities as null.
+            Value::Null => f64::NAN,
+            Value::String(s) => match s.trim().to_ascii_lowercase().as_str() {
+                "nan" | "inf" | "+inf" | "-inf" | "infinity" | "+infinity" | "-infinity" => f64::NAN,
+                _ => return Err(malformed(format!("`{key}`: \"{s}\" is not a number"))),
+            },
+            other => return Err(malformed(format!("`{key}`: {other} is not a number"))),
+        };
+        if !to[c].is_finite() {
+            return Err(MessageError::NonFinite { vertex, value: x.to_string() });
+        }
+    }
+    Ok(to)
+}
+
+/// A tool radius: a positive finite number.
+fn radius_of(v: &Value) -> Result<f64, MessageError> {
+    match v.as_f64() {
+        Some(r) if r > 0.0 && r.is_finite() => Ok(r),
+        _ => Err(malformed(format!("`radius` must be a positive number, found {v}"))),
     }
 }
 
@@ -90,29 +151,22 @@ pub fn parse_message(text: &str) -> Result<ClientMessage, MessageError> {
     match keys.as_slice() {
         ["grab", "to"] | ["to", "grab"] => {
             let vertex = vertex_of(&obj["grab"], "grab")?;
-            let Some(arr) = obj["to"].as_array().filter(|a| a.len() == 3) else {
-                return Err(malformed(format!("`to` must be [x, y, z], found {}", obj["to"])));
-            };
-            let mut to = [0.0; 3];
-            for (c, x) in arr.iter().enumerate() {
-                to[c] = match x {
-                    Value::Number(n) => {
-                        n.as_f64().ok_or_else(|| malformed(format!("`to`: {n} is not a number")))?
-                    }
-                    // JavaScript's JSON.stringify writes NaN and infinities as null.
-                    Value::Null => f64::NAN,
-                    Value::String(s) => match s.trim().to_ascii_lowercase().as_str() {
-                        "nan" | "inf" | "+inf" | "-inf" | "infinity" | "+infinity" | "-infinity" => f64::NAN,
-                        _ => return Err(malformed(format!("`to`: \"{s}\" is not a number"))),
-                    },
-                    other => return Err(malformed(format!("`to`: {other} is not a number"))),
-                };
-                if !to[c].is_finite() {
-                    return Err(MessageError::NonFinite { vertex, value: x.to_string() });
-                }
-            }
+            let to = point_of(&obj["to"], "to", vertex)?;
             Ok(ClientMessage::Grab { vertex, to })
         }
+        _ if sorted(&keys) == ["grasp", "radius", "to"] => {
+            let vertex = vertex_of(&obj["grasp"], "grasp")?;
+            let to = point_of(&obj["to"], "to", vertex)?;
+            Ok(ClientMessage::Grasp { vertex, radius: radius_of(&obj["radius"])?, to })
+        }
+        _ if sorted(&keys) == ["press", "radius"] => {
+            let centre = point_of(&obj["press"], "press", 0)?;
+            Ok(ClientMessage::Press { centre, radius: radius_of(&obj["radius"])? })
+        }
+        ["lift"] => match obj["lift"] {
+            Value::Bool(true) => Ok(ClientMessage::Lift),
+            ref other => Err(malformed(format!("`lift` must be true, found {other}"))),
+        },
         ["release"] => Ok(ClientMessage::Release { vertex: vertex_of(&obj["release"], "release")? }),
         ["reset"] => match obj["reset"] {
             Value::Bool(true) => Ok(ClientMessage::Reset),
@@ -123,10 +177,58 @@ pub fn parse_message(text: &str) -> Result<ClientMessage, MessageError> {
 }
 
 /// The text message of a frame: `{"frame": k, "reactions": [[V, fx, fy, fz], ...],
-/// "latency_us": t}` (reactions by file vertex, ascending).
-pub fn frame_json(frame: u64, reactions: &[(usize, Vec3)], latency_us: f64) -> String {
+/// "latency_us": t}` (reactions by file vertex, ascending), plus `"tools": [...]` when a
+/// grasp or the tip is active (see [`ToolLoad`]).
+pub fn frame_json(frame: u64, reactions: &[(usize, Vec3)], latency_us: f64, tools: &[ToolLoad]) -> String {
     let r: Vec<Value> = reactions.iter().map(|&(v, f)| serde_json::json!([v, f[0], f[1], f[2]])).collect();
-    serde_json::json!({ "frame": frame, "reactions": r, "latency_us": latency_us }).to_string()
+    let mut msg = serde_json::json!({ "frame": frame, "reactions": r, "latency_us": latency_us });
+    if !tools.is_empty() {
+        msg["tools"] = tools.iter().map(ToolLoad::json).collect();
+    }
+    msg.to_string()
+}
+
+/// The load of one tool in a frame.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ToolLoad {
+    /// `{"grasp": V, "vertices": k, "force": [..], "moment": [..]}`: a grasp's patch size and
+    /// total force and moment (about the picked vertex's target) on the body.
+    Grasp {
+        /// Picked vertex (file order).
+        vertex: usize,
+        /// Patch vertices.
+        vertices: usize,
+        /// Total force on the body (N).
+        force: Vec3,
+        /// Moment about the tool's centre (N m).
+        moment: Vec3,
+    },
+    /// `{"press": [x, y, z], "radius": r, "contacts": k, "force": [..], "penetration": p}`.
+    Press {
+        /// Tip centre.
+        centre: Vec3,
+        /// Tip radius.
+        radius: f64,
+        /// Vertices in contact.
+        contacts: usize,
+        /// Total force on the body (N).
+        force: Vec3,
+        /// Deepest vertex left inside (0 for a method with forces).
+        penetration: f64,
+    },
+}
+
+impl ToolLoad {
+    fn json(&self) -> Value {
+        match self {
+            ToolLoad::Grasp { vertex, vertices, force, moment } => {
+                serde_json::json!({ "grasp": vertex, "vertices": vertices, "force": force, "moment": moment })
+            }
+            ToolLoad::Press { centre, radius, contacts, force, penetration } => serde_json::json!({
+                "press": centre, "radius": radius, "contacts": contacts, "force": force, "penetration": penetration
+            }),
+        }
+    }
 }
 
 /// The binary message of a frame: `3 N` little-endian `f32` positions (`x0 y0 z0 x1 ...`).

@@ -14,6 +14,7 @@ use tungstenite::protocol::{CloseFrame, Role};
 use tungstenite::{Message, WebSocket};
 
 use crate::protocol::{ClientMessage, MessageError, frame_json, parse_message, positions_le_f32};
+use crate::tools::SessionTools;
 use crate::{INDEX_HTML, Result, ViewMesh, ViewerError, http};
 
 /// Builds a new body for a client for one of the server's [`ServerOptions::methods`]; a
@@ -436,6 +437,7 @@ fn refuse(mut ws: WebSocket<TcpStream>, text: &str, code: CloseCode) {
 struct Session<'a> {
     mesh: &'a ViewMesh,
     body: Box<dyn Interactive + Send>,
+    tools: SessionTools,
     positions: Vec<Vec3>,
     bytes: Vec<u8>,
 }
@@ -464,15 +466,31 @@ impl Session<'_> {
                 let rest = self.mesh.positions[vertex];
                 self.body.grab(b, [to[0] - rest[0], to[1] - rest[1], to[2] - rest[2]])?;
             }
-            ClientMessage::Release { vertex } => self.body.release(body_vertex(vertex)?)?,
-            ClientMessage::Reset => self.body.release_all(),
+            ClientMessage::Grasp { vertex, radius, to } => {
+                let b = body_vertex(vertex)?;
+                self.tools.grasp(self.body.as_mut(), b, radius, to)?;
+            }
+            ClientMessage::Press { centre, radius } => {
+                self.tools.press(self.body.as_mut(), centre, radius)?
+            }
+            ClientMessage::Lift => self.tools.lift(self.body.as_mut())?,
+            ClientMessage::Release { vertex } => {
+                let b = body_vertex(vertex)?;
+                if !self.tools.release(self.body.as_mut(), b)? {
+                    self.body.release(b)?;
+                }
+            }
+            ClientMessage::Reset => {
+                self.tools.clear();
+                self.body.release_all();
+            }
         }
         Ok(true)
     }
 
     /// Computes the frame; returns its text message (the binary one is in `self.bytes`).
     fn frame(&mut self, start: Instant) -> std::result::Result<String, MessageError> {
-        self.body.update()?;
+        let tools = self.tools.frame(self.body.as_mut(), &self.mesh.to_file)?;
         for (b, p) in self.body.positions().iter().enumerate() {
             self.positions[self.mesh.to_file[b] as usize] = *p;
         }
@@ -481,7 +499,7 @@ impl Session<'_> {
             self.body.reactions().iter().map(|&(b, f)| (self.mesh.to_file[b] as usize, f)).collect();
         reactions.sort_by_key(|r| r.0);
         let latency_us = start.elapsed().as_secs_f64() * 1e6;
-        Ok(frame_json(self.body.frame(), &reactions, (latency_us * 10.0).round() / 10.0))
+        Ok(frame_json(self.body.frame(), &reactions, (latency_us * 10.0).round() / 10.0, &tools))
     }
 }
 
@@ -607,8 +625,13 @@ fn serve_client(mut ws: WebSocket<TcpStream>, shared: &Shared, method: &str) {
             return;
         }
     };
-    let mut session =
-        Session { mesh: &shared.mesh, body, positions: shared.mesh.positions.clone(), bytes: Vec::new() };
+    let mut session = Session {
+        mesh: &shared.mesh,
+        body,
+        tools: SessionTools::default(),
+        positions: shared.mesh.positions.clone(),
+        bytes: Vec::new(),
+    };
     loop {
         let batch = read_batch(&mut ws, &mut session);
         // Errors of the messages read before a failure are still answered.

@@ -84,6 +84,8 @@ pub struct Frame {
     pub reactions: Vec<(usize, Vec3)>,
     pub latency_us: f64,
     pub positions: Vec<Vec3>,
+    /// The frame's `tools` (empty without a grasp or a tip).
+    pub tools: Vec<serde_json::Value>,
 }
 
 /// What the server sent next: a frame or an error text.
@@ -148,6 +150,7 @@ impl Client {
             reactions,
             latency_us: v["latency_us"].as_f64().expect("latency_us"),
             positions,
+            tools: v["tools"].as_array().cloned().unwrap_or_default(),
         })
     }
 

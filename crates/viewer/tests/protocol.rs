@@ -7,7 +7,7 @@
 //! The mesh is checked against the OBJ file read independently and the scene's fixing rule.
 
 use fibfluid_geometry::{Vec3, load_mesh};
-use fibfluid_interact::{Interactive, Storage};
+use fibfluid_interact::{Grasp, Interactive, Press, RigidMotion, Storage};
 
 use crate::common::{Client, Reply, http_get, max_dist, scene_body, serve, sphere_path};
 
@@ -322,4 +322,65 @@ fn vertices_are_in_the_file_order_with_an_unused_vertex() {
     assert_eq!(f.reactions[0].0, FREE + 1);
     // The reference is a different scene file (same body); its reaction agrees to rounding.
     assert!(rel(f.reactions[0].1, direct.reactions()[0].1) <= 1e-9);
+}
+
+fn vec3(v: &serde_json::Value) -> Vec3 {
+    let a = v.as_array().expect("[x, y, z]");
+    [0, 1, 2].map(|i| a[i].as_f64().expect("a number"))
+}
+
+#[test]
+fn grasp_and_press_match_the_tools_driven_directly() {
+    let (scene, body) = scene_body(sphere_path(), Storage::F64);
+    let server = serve(&scene, &body, 4);
+    let mut direct = body.clone();
+    let rest = direct.rest_positions().to_vec();
+    let mut c = Client::connect(server.local_addr(), "");
+    c.send(r#"{"reset": true}"#);
+    c.frame();
+
+    // A grasp: the patch moves with the picked vertex; the tool's force is the patch total.
+    let to = [rest[FREE][0] + 0.05, rest[FREE][1] - 0.1, rest[FREE][2]];
+    c.send(&format!(r#"{{"grasp": {FREE}, "radius": 0.45, "to": [{:e}, {:e}, {:e}]}}"#, to[0], to[1], to[2]));
+    let f = c.frame();
+    let g = Grasp::new(&direct, FREE, 0.45).unwrap();
+    let m = RigidMotion::translation([0.05, -0.1, 0.0]);
+    g.hold(&mut direct, &m).unwrap();
+    direct.update().unwrap();
+    assert!(max_dist(&f.positions, direct.positions()) <= F32_POSITION_TOLERANCE);
+    assert_eq!(f.tools.len(), 1, "{:?}", f.tools);
+    assert_eq!(f.tools[0]["vertices"].as_u64(), Some(g.patch().len() as u64));
+    assert!(rel(vec3(&f.tools[0]["force"]), g.wrench(&direct, &m).force) <= REACTION_TOLERANCE);
+    c.send(&format!(r#"{{"release": {FREE}}}"#));
+    assert!(c.frame().tools.is_empty());
+    g.release(&mut direct).unwrap();
+    direct.update().unwrap();
+
+    // A press from below: the same contacts and force as the tip driven directly.
+    let base = direct.positions()[FREE];
+    let centre = [base[0], base[1] - 0.5 + 0.1, base[2]];
+    c.send(&format!(r#"{{"press": [{:e}, {:e}, {:e}], "radius": 0.5}}"#, centre[0], centre[1], centre[2]));
+    let f = c.frame();
+    let mut tip = Press::new(&direct, 0.5).unwrap();
+    let r = tip.place(&mut direct, centre).unwrap();
+    assert!(max_dist(&f.positions, direct.positions()) <= F32_POSITION_TOLERANCE);
+    assert_eq!(f.tools[0]["contacts"].as_u64(), Some(r.contacts.len() as u64));
+    assert!(rel(vec3(&f.tools[0]["force"]), r.force) <= REACTION_TOLERANCE && r.force[1] > 0.0);
+    c.send(r#"{"lift": true}"#);
+    assert!(c.frame().tools.is_empty());
+
+    // Bad tools: an error each, the connection stays open.
+    for bad in [
+        r#"{"grasp": 3, "radius": -1, "to": [0, 0, 0]}"#.to_string(),
+        r#"{"press": [0, 0, 0], "radius": 0}"#.to_string(),
+        format!(r#"{{"grasp": {FREE}, "radius": 50, "to": [0, 0, 0]}}"#),
+    ] {
+        c.send(&bad);
+        match c.reply() {
+            Reply::Error(e) => assert!(e.contains("radius"), "{bad}: {e}"),
+            other => panic!("{bad}: {other:?}"),
+        }
+    }
+    c.send(r#"{"reset": true}"#);
+    assert!(c.frame().tools.is_empty());
 }
