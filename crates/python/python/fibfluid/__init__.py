@@ -337,12 +337,38 @@ class Body:
         """Pushes ``vertex`` with ``force`` (3 floats) from the next step (ffm only)."""
         self._native.push(_index(vertex), _vector(force, "the force"))
 
+    def grasp(self, vertex: int, radius: float, to: Vector, rotation: Optional[Vector] = None) -> None:
+        """Grasps the patch of every vertex whose rest position is within ``radius`` (metres,
+        Euclidean) of ``vertex``'s and moves it rigidly from the next step: translated by
+        ``to`` (a displacement from rest, 3 floats) and turned by the rotation vector
+        ``rotation`` (axis times angle in radians) about ``vertex``'s rest position. A
+        later grasp of the same vertex moves it; :meth:`release` drops it."""
+        rot = None if rotation is None else _vector(rotation, "the rotation")
+        self._native.grasp(_index(vertex), _radius(radius), _vector(to, "the displacement"), rot)
+
+    def press(self, centre: Vector, radius: float) -> None:
+        """Places a rigid spherical tip of ``radius`` (metres) centred at ``centre``
+        (absolute, metres): frictionless, unilateral contact, its contacts found at the next
+        step. A later press moves it; :meth:`lift` takes it away."""
+        self._native.press(_vector(centre, "the centre"), _radius(radius))
+
+    def lift(self) -> None:
+        """Takes the tip away from the next step."""
+        self._native.lift()
+
+    def tools(self) -> List[dict]:
+        """The tools' loads after the last step: for each grasp ``{"grasp": vertex,
+        "vertices": k, "force": [..], "moment": [..]}`` (total force on the patch in N, its
+        moment in N m about the tool's centre) and for the tip ``{"press": centre,
+        "radius": r, "contacts": k, "force": [..], "penetration": p}``."""
+        return json.loads(self._native.tools_json())
+
     def release(self, vertex: int) -> None:
-        """Drops the hold on ``vertex`` from the next step."""
+        """Drops the hold (or the grasp picked) on ``vertex`` from the next step."""
         self._native.release(_index(vertex))
 
     def release_all(self) -> None:
-        """Drops every hold from the next step."""
+        """Drops every hold, grasp and the tip from the next step."""
         self._native.release_all()
 
     def step(self) -> Tuple[np.ndarray, np.ndarray]:
@@ -403,6 +429,14 @@ class Body:
 
     def __repr__(self) -> str:
         return f"<fibfluid.Body {self.method}: {self.n_vertices} vertices, frame {self.frame}>"
+
+
+def _radius(r: Any) -> float:
+    if isinstance(r, bool) or not isinstance(r, (int, float, np.integer, np.floating)):
+        raise Error(f"a radius must be a number, got {type(r).__name__}")
+    if not (float(r) > 0.0 and np.isfinite(r)):
+        raise Error(f"the tool's radius {r} must be positive and finite")
+    return float(r)
 
 
 def _index(v: Any) -> int:
