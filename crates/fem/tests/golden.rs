@@ -67,20 +67,40 @@ fn error(case: &Case, resolution: usize) -> f64 {
     // Our vertex i is file vertex from_file_index(i).
     let ours: Vec<V3> = (0..pos.len()).map(|i| s.surface_displacements[i]).collect();
     let theirs: Vec<V3> = (0..pos.len()).map(|i| golden[file.from_file_index(i).unwrap()]).collect();
+    if let Ok(dir) = std::env::var("FEM_DUMP") {
+        // Ours in the golden's layout (file order), for comparing fields outside the test.
+        let by_file = file.file_to_mesh().into_iter().map(|m| ours[m.unwrap()]);
+        let text: String = by_file.map(|u| format!("{:.12e} {:.12e} {:.12e}\n", u[0], u[1], u[2])).collect();
+        std::fs::write(PathBuf::from(dir).join(format!("{}-{resolution}.txt", case.mesh)), text).unwrap();
+    }
     let e = rel_l2(&ours, &theirs, |_| true);
     let mean = |u: &[V3]| u.iter().map(|x| x[1]).sum::<f64>() / u.len() as f64;
     let st = body.stats();
+    let tris = file.mesh.triangles();
+    let volume: f64 = tris
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| pos[v as usize]);
+            let cross = [b[1] * c[2] - b[2] * c[1], b[2] * c[0] - b[0] * c[2], b[0] * c[1] - b[1] * c[0]];
+            (a[0] * cross[0] + a[1] * cross[1] + a[2] * cross[2]) / 6.0
+        })
+        .sum();
     eprintln!(
-        "{}: resolution {resolution}: relative L2 error {e:.4}, mean u_y ratio {:.3}, dofs {} factor {:.2}s",
+        "{}: resolution {resolution}: relative L2 error {e:.4}, mean u_y ratio {:.3}, dofs {} factor {:.2}s, \
+         filled / enclosed volume {:.4}",
         case.mesh,
         mean(&ours) / mean(&theirs),
         st.dofs,
-        st.factor_seconds
+        st.factor_seconds,
+        body.grid().filled_volume() / volume.abs()
     );
     e
 }
 
 /// The measurements behind `docs/fem.md` (slow: run with `--ignored --nocapture`).
+/// `FEM_CASES` and `FEM_RES` choose bodies and resolutions, `GOLDEN_DIR` other reference
+/// files, and `FEM_DUMP=DIR` writes our surface displacements there (`MESH-RES.txt`, one
+/// `ux uy uz` line per file vertex).
 #[test]
 #[ignore]
 fn measure_errors_against_reference() {
@@ -109,7 +129,7 @@ fn sphere_error_falls_with_resolution() {
 }
 
 /// The acceptance target: at the default resolution every body is within 15 % of the
-/// independent P2 reference (measured: sphere 0.033, liver 0.017, spot 0.068).
+/// independent P2 reference (measured: sphere 0.033, liver 0.041, spot 0.068).
 #[test]
 fn default_resolution_meets_the_target() {
     assert_eq!(DEFAULT_RESOLUTION, 24);
@@ -119,17 +139,16 @@ fn default_resolution_meets_the_target() {
     }
 }
 
-/// Doubling the default resolution is no worse: the cow 0.068 -> 0.018 (asserted here, ~3 s).
-/// The liver is NOT monotone against its reference: 0.017 -> 0.047 (its sag grows to 1.045 of
-/// the reference at 48, while the reference's own sag still grew 1.2 % between its last two
-/// refinements, converging from below at the clamp's edge); both stay within the target,
-/// which is what is asserted for it.
+/// Doubling the default resolution is no worse, for the liver (0.041 -> 0.012) and the cow
+/// (0.068 -> 0.018), ~5 s. Against the reference whose mesh was refined only in the volume
+/// the liver got worse (0.017 -> 0.047): that reference was too stiff at the clamp's edge
+/// (see `tests/golden/README.md`). The sphere is `sphere_doubling_is_no_worse`.
 #[test]
 fn doubling_the_default_resolution_is_no_worse() {
-    let spot = [error(&SPOT, DEFAULT_RESOLUTION), error(&SPOT, 2 * DEFAULT_RESOLUTION)];
-    assert!(spot[1] <= spot[0], "spot {spot:?}");
-    let liver = error(&LIVER, 2 * DEFAULT_RESOLUTION);
-    assert!(liver < 0.15, "liver at {}: {liver}", 2 * DEFAULT_RESOLUTION);
+    for case in [&LIVER, &SPOT] {
+        let e = [error(case, DEFAULT_RESOLUTION), error(case, 2 * DEFAULT_RESOLUTION)];
+        assert!(e[1] <= e[0], "{}: {e:?}", case.mesh);
+    }
 }
 
 /// The sphere at twice the default resolution (48: 200k unknowns, ~20 s to factor; run

@@ -17,8 +17,22 @@ order): `ux uy uz`, with a header of `#` lines recording the inputs.
 
 Mesh: TetGen switches `pq<minratio>Y` (quality bound, surface kept: no Steiner point on it)
 plus `a<maxvolume>` when given; `--minratio 1.2 --maxvolume V` refines the interior.
+`--subdivide N` splits every surface triangle 1-to-4 at its edge midpoints N times before
+TetGen (same surface, flat pieces; the original vertices keep their indices and are the
+only ones reported), so the tets at the surface, and at the clamp's edge, can get finer than
+the input triangles; `--refine-clamp LEVELS RADIUS` then splits, LEVELS more times, the
+triangles within RADIUS (halved at each level) of a fixed vertex (the displacement is
+singular at the clamp's edge; red-green refinement, so the surface stays conforming). The
+clamped surface stays the same set: a new surface node is clamped iff it lies on an input
+triangle whose three vertices are fixed, and a boundary facet is clamped iff it is a piece
+of such a triangle.
 
-Needs: pip install scikit-fem tetgen meshio (numpy, scipy come with them).
+Solver: conjugate gradients to a relative residual of 1e-10, preconditioned by Jacobi, or
+(`--solver amg`) by a smoothed-aggregation algebraic multigrid V-cycle built on the six
+rigid-body modes (pyamg), or SuperLU (`--solver direct`).
+
+Needs: pip install scikit-fem tetgen meshio (numpy, scipy come with them); pyamg for
+`--solver amg`.
 """
 import argparse
 import sys
@@ -52,6 +66,92 @@ def read_obj(path):
     return verts[used], remap[faces]
 
 
+def subdivide(pos, tris, parent):
+    """1-to-4 midpoint split of every triangle; new vertices are appended, so the input
+    vertices keep their indices. `parent[t]` is the input triangle piece `t` came from."""
+    pos = list(map(tuple, pos))
+    mid = {}
+
+    def midpoint(a, b):
+        key = (min(a, b), max(a, b))
+        if key not in mid:
+            mid[key] = len(pos)
+            pos.append(tuple((np.array(pos[a]) + np.array(pos[b])) / 2))
+        return mid[key]
+
+    out, out_parent = [], []
+    for (a, b, c), p in zip(tris, parent):
+        ab, bc, ca = midpoint(a, b), midpoint(b, c), midpoint(c, a)
+        out += [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]
+        out_parent += [p] * 4
+    return np.array(pos), np.array(out), np.array(out_parent)
+
+
+def refine_near(pos, tris, parent, centres, radius):
+    """Red-green refinement: every triangle whose centroid is within `radius` of a point of
+    `centres` is split 1-to-4 at its edge midpoints, so is every triangle with two or more
+    split edges, and a triangle with one split edge is split in two at its midpoint (the
+    surface stays conforming). New vertices are appended; `parent` follows the pieces."""
+    from scipy.spatial import cKDTree
+
+    d, _ = cKDTree(centres).query(pos[tris].mean(axis=1))
+    red = d < radius
+    edge_key = lambda a, b: (min(a, b), max(a, b))
+    while True:
+        split = {edge_key(*e) for t in tris[red] for e in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0]))}
+        count = np.array([sum(edge_key(*e) in split for e in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0])))
+                          for t in tris])
+        grow = (count >= 2) & ~red
+        if not grow.any():
+            break
+        red |= grow
+    pos = list(map(tuple, pos))
+    mid = {}
+    for a, b in sorted(split):
+        mid[(a, b)] = len(pos)
+        pos.append(tuple((np.array(pos[a]) + np.array(pos[b])) / 2))
+    out, out_parent = [], []
+    for t, p, r in zip(tris.tolist(), parent, red):
+        a, b, c = t
+        if r:
+            ab, bc, ca = mid[edge_key(a, b)], mid[edge_key(b, c)], mid[edge_key(c, a)]
+            pieces = [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]
+        elif edge_key(a, b) in mid:
+            m = mid[edge_key(a, b)]
+            pieces = [[a, m, c], [m, b, c]]
+        elif edge_key(b, c) in mid:
+            m = mid[edge_key(b, c)]
+            pieces = [[a, b, m], [a, m, c]]
+        elif edge_key(c, a) in mid:
+            m = mid[edge_key(c, a)]
+            pieces = [[a, b, m], [m, b, c]]
+        else:
+            pieces = [t]
+        out += pieces
+        out_parent += [p] * len(pieces)
+    return np.array(pos), np.array(out), np.array(out_parent)
+
+
+def rigid_modes(basis):
+    """The six rigid-body displacements at every dof of a vector basis, (N, 6)."""
+    comp = np.empty(basis.N, dtype=int)
+    x = basis.doflocs  # (3, N): where each dof sits
+    for c in range(3):
+        comp[basis.nodal_dofs[c]] = c
+        comp[basis.edge_dofs[c]] = c
+    assert len(basis.nodal_dofs[0]) + len(basis.edge_dofs[0]) == basis.N // 3
+    B = np.zeros((basis.N, 6))
+    for c in range(3):
+        B[comp == c, c] = 1.0
+    # rotation about axis k: u = e_k x (x - x0)
+    x0 = x.mean(axis=1)
+    for k, (i, j) in enumerate([(1, 2), (2, 0), (0, 1)]):
+        # (e_k x r)_i = -r_j, (e_k x r)_j = r_i
+        B[comp == i, 3 + k] = -(x[j, comp == i] - x0[j])
+        B[comp == j, 3 + k] = x[i, comp == j] - x0[i]
+    return B
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("mesh")
@@ -64,20 +164,18 @@ def main():
     ap.add_argument("--fix-top", nargs=2, metavar=("AXIS", "DEPTH"))
     ap.add_argument("--fix-bottom", nargs=2, metavar=("AXIS", "DEPTH"))
     ap.add_argument("--maxvolume", type=float, default=0.0, help="TetGen volume bound (0: none)")
-    ap.add_argument("--direct", action="store_true", help="SuperLU instead of CG")
+    ap.add_argument("--solver", choices=["jacobi", "amg", "direct"], default="jacobi",
+                    help="CG preconditioner (jacobi, amg) or SuperLU (direct)")
+    ap.add_argument("--subdivide", type=int, default=0,
+                    help="split the surface triangles 1-to-4 this many times before TetGen")
+    ap.add_argument("--refine-clamp", nargs=2, metavar=("LEVELS", "RADIUS"),
+                    help="after --subdivide, LEVELS more splits of the triangles within RADIUS "
+                         "(halved at each level) of a fixed vertex (red-green, conforming)")
     ap.add_argument("--minratio", type=float, default=1.5, help="TetGen radius-edge bound (-q)")
     args = ap.parse_args()
 
     pos, tris = read_obj(args.mesh)
     n_surface = len(pos)
-    tg = tetgen.TetGen(pos, tris)
-    switches = "pq%gY" % args.minratio
-    if args.maxvolume > 0:
-        switches += "a%g" % args.maxvolume
-    nodes, elems = tg.tetrahedralize(switches=switches + "Q")[:2]
-    assert np.allclose(nodes[:n_surface], pos), "TetGen must keep the surface vertices first"
-    mesh = MeshTet(np.ascontiguousarray(nodes.T), np.ascontiguousarray(elems.T))
-
     axis = {"x": 0, "y": 1, "z": 2}
     if args.fix_above:
         a, v = axis[args.fix_above[0]], float(args.fix_above[1])
@@ -91,18 +189,51 @@ def main():
     else:
         sys.exit("give --fix-above, --fix-top or --fix-bottom")
 
-    def solver(A, b):
-        if args.direct:
-            return spsolve(A, b)
-        # Conjugate gradients, Jacobi-preconditioned, to a relative residual of 1e-10
-        # (SuperLU's fill on fine 3D meshes is too large for this machine).
-        d = 1.0 / A.diagonal()
-        x, info = cg(A, b, rtol=1e-10, maxiter=100000, M=LinearOperator(A.shape, lambda r: d * r))
-        assert info == 0, "CG did not converge"
-        print("CG residual %.1e" % (np.linalg.norm(A @ x - b) / np.linalg.norm(b)))
-        return x
+    fine_pos, fine_tris, parent = pos, tris, np.arange(len(tris))
+    for _ in range(args.subdivide):
+        fine_pos, fine_tris, parent = subdivide(fine_pos, fine_tris, parent)
+    if args.refine_clamp:
+        # Around the clamp (the displacement is singular at its edge).
+        levels, radius = int(args.refine_clamp[0]), float(args.refine_clamp[1])
+        for k in range(levels):
+            fine_pos, fine_tris, parent = refine_near(fine_pos, fine_tris, parent, pos[fixed], radius / 2**k)
+    print("surface: %d triangles, %d vertices" % (len(fine_tris), len(fine_pos)))
+    tg = tetgen.TetGen(fine_pos, fine_tris)
+    switches = "pq%gY" % args.minratio
+    if args.maxvolume > 0:
+        switches += "a%g" % args.maxvolume
+    t0 = time.time()
+    nodes, elems = tg.tetrahedralize(switches=switches + "Q")[:2]
+    print("TetGen: %d tets in %.1f s" % (len(elems), time.time() - t0))
+    assert np.allclose(nodes[: len(fine_pos)], fine_pos), "TetGen must keep the surface vertices first"
+    mesh = MeshTet(np.ascontiguousarray(nodes.T), np.ascontiguousarray(elems.T))
 
     basis = Basis(mesh, ElementVector(ElementTetP2()), intorder=4)
+    modes = rigid_modes(basis)
+
+    def solver(A, b, I):
+        if args.solver == "direct":
+            return spsolve(A, b)
+        # Conjugate gradients to a relative residual of 1e-10 (SuperLU's fill on fine 3D
+        # meshes is too large for this machine).
+        if args.solver == "amg":
+            import pyamg
+
+            ml = pyamg.smoothed_aggregation_solver(A.tocsr(), B=modes[I], symmetry="hermitian")
+            M = ml.aspreconditioner(cycle="V")
+        else:
+            d = 1.0 / A.diagonal()
+            M = LinearOperator(A.shape, lambda r: d * r)
+        its = [0]
+
+        def count(_):
+            its[0] += 1
+
+        x, info = cg(A, b, rtol=1e-10, maxiter=100000, M=M, callback=count)
+        assert info == 0, "CG did not converge"
+        print("CG: %d iterations, residual %.1e" % (its[0], np.linalg.norm(A @ x - b) / np.linalg.norm(b)))
+        return x
+
     lam, mu = lame_parameters(args.young, args.poisson)
     K = asm(linear_elasticity(lam, mu), basis)
     rho_g = args.density * np.array(args.gravity)
@@ -113,14 +244,21 @@ def main():
 
     f = asm(weight, basis)
     bfacets = mesh.boundary_facets()
-    fixed_node = np.zeros(mesh.nvertices, dtype=bool)
-    fixed_node[:n_surface] = fixed
-    clamp_facets = bfacets[np.all(fixed_node[mesh.facets[:, bfacets]], axis=0)]
+    # Clamped: the boundary facets that are (pieces of) input triangles with three fixed
+    # vertices, and every fixed input vertex.
+    clamped_tri = np.all(fixed[tris], axis=1)
+    clamped_piece = {tuple(sorted(t)) for t, p in zip(fine_tris.tolist(), parent) if clamped_tri[p]}
+    is_clamped = np.array([tuple(sorted(t)) in clamped_piece for t in mesh.facets[:, bfacets].T.tolist()],
+                          dtype=bool)
+    clamp_facets = bfacets[is_clamped]
+    assert len(clamp_facets) == len(clamped_piece), "every clamped piece is a boundary facet"
+    lone = np.setdiff1d(np.flatnonzero(fixed), np.unique(tris[clamped_tri]))
     dofs = set(basis.get_dofs(facets=clamp_facets).all().tolist())
-    dofs |= set(basis.nodal_dofs[:, np.flatnonzero(fixed_node)].ravel().tolist())
+    dofs |= set(basis.nodal_dofs[:, np.flatnonzero(fixed)].ravel().tolist())
     D = np.array(sorted(dofs), dtype=int)
+    I = basis.complement_dofs(D)
     t0 = time.time()
-    u = solve(*condense(K, f, D=D), solver=solver)
+    u = solve(*condense(K, f, D=D), solver=lambda A, b: solver(A, b, I))
     print("solved %d dofs in %.1f s" % (basis.N, time.time() - t0))
     disp = u[basis.nodal_dofs[:, :n_surface]].T
 
@@ -129,7 +267,8 @@ def main():
                   % (mesh.nvertices, mesh.nelements, basis.N))
         out.write("# %s\n" % " ".join(sys.argv[1:]))
         out.write("# TetGen switches: %s\n" % switches)
-        out.write("# fixed surface vertices: %d; clamped facets: %d\n" % (fixed.sum(), len(clamp_facets)))
+        out.write("# fixed surface vertices: %d (%d in no clamped triangle); clamped input triangles: %d,"
+                  " clamped facets: %d\n" % (fixed.sum(), len(lone), clamped_tri.sum(), len(clamp_facets)))
         for d in disp:
             out.write("%.12e %.12e %.12e\n" % tuple(d))
     print("max |u| = %.6e, tets %d" % (np.linalg.norm(disp, axis=1).max(), mesh.nelements))
