@@ -99,7 +99,7 @@ fn bad_tool_paths_name_the_line_and_frame() {
     let scene = sphere();
     let top = {
         let rest = scene.rest_positions();
-        let v = (0..rest.len()).filter(|&u| rest[u][1] < 0.8 && rest[u][1] > 0.6).next().unwrap();
+        let v = (0..rest.len()).find(|&u| rest[u][1] < 0.8 && rest[u][1] > 0.6).unwrap();
         match &scene.shape {
             fibfluid::sim::Shape::Surface(f) => {
                 (0..f.file_vertex_count()).find(|&fv| f.from_file_index(fv) == Some(v)).unwrap()
