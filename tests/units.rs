@@ -111,3 +111,113 @@ fn the_fem_is_refused_from_counts_when_it_cannot_fit() {
         other => panic!("expected a refusal, got {:?}", other.map(|r| r.stats)),
     }
 }
+
+/// A closed cube surface `[0, side]^3` with `n x n` squares per face, two triangles each.
+fn cube_obj(side: f64, n: usize) -> String {
+    let mut index = std::collections::HashMap::new();
+    let mut out = String::new();
+    let mut vertex = |p: [usize; 3], out: &mut String| -> usize {
+        let next = index.len() + 1;
+        *index.entry(p).or_insert_with(|| {
+            let h = side / n as f64;
+            out.push_str(&format!("v {} {} {}\n", p[0] as f64 * h, p[1] as f64 * h, p[2] as f64 * h));
+            next
+        })
+    };
+    let mut faces = String::new();
+    for axis in 0..3 {
+        for &at in &[0, n] {
+            let (a, b) = ((axis + 1) % 3, (axis + 2) % 3);
+            for i in 0..n {
+                for j in 0..n {
+                    let corner = |di: usize, dj: usize| {
+                        let mut p = [0; 3];
+                        p[axis] = at;
+                        p[a] = i + di;
+                        p[b] = j + dj;
+                        p
+                    };
+                    let q: Vec<usize> = [(0, 0), (1, 0), (1, 1), (0, 1)]
+                        .iter()
+                        .map(|&(di, dj)| vertex(corner(di, dj), &mut out))
+                        .collect();
+                    // Outward: counter-clockwise seen from outside (flipped on the low face).
+                    let (t1, t2) = if at == n {
+                        ([q[0], q[1], q[2]], [q[0], q[2], q[3]])
+                    } else {
+                        ([q[0], q[2], q[1]], [q[0], q[3], q[2]])
+                    };
+                    faces.push_str(&format!(
+                        "f {} {} {}\nf {} {} {}\n",
+                        t1[0], t1[1], t1[2], t2[0], t2[1], t2[2]
+                    ));
+                }
+            }
+        }
+    }
+    out + &faces
+}
+
+/// Analytic: a cube of side L clamped on its bottom face and pressed by a frictionless plate
+/// by `d` on its top face; with Poisson's ratio 0 the exact field is uniaxial (`u_y = -d y /
+/// L`, which trilinear elements reproduce) and the plate's force is `E A d / L`.
+#[test]
+fn a_fem_plate_compressing_a_cube_pushes_with_e_a_d_over_l() {
+    let dir = tempfile::tempdir().unwrap();
+    let (side, d, young) = (0.1, 0.002, 1.0e4);
+    std::fs::write(dir.path().join("cube.obj"), cube_obj(side, 8)).unwrap();
+    let toml = format!(
+        "[mesh]\npath = \"cube.obj\"\n\n[material]\nyoung = 3000.0\nsurface_tension = 0.0\n\n\
+         [tissue]\nyoung = {young}\npoisson = 0.0\ndensity = 1000.0\n\n[fem]\nresolution = 8\n\n\
+         [[fix]]\naxis = \"y\"\nbottom = 0.001\n\n\
+         [[plate]]\npoint = [0.0, {side}, 0.0]\nnormal = [0.0, -1.0, 0.0]\ntravel = {d}\n\n\
+         [solver]\nmethod = \"fem\"\n"
+    );
+    std::fs::write(dir.path().join("cube.toml"), toml).unwrap();
+    let scene = Scene::load(dir.path().join("cube.toml")).unwrap();
+    let run = FemRun::new(scene, None).unwrap();
+    let expected = young * side * side * d / side;
+    let plate = &run.plates[0];
+    println!(
+        "plate force {} N (analytic {expected} N), {} contacts, {} iterations",
+        plate.force, plate.contact_vertices, plate.active_set_iterations
+    );
+    assert!((plate.force - expected).abs() <= 1e-6 * expected, "{} vs {expected}", plate.force);
+    assert_eq!(plate.contact_vertices, 81, "every vertex of the top face");
+    // No vertex passes the plate; the top face sits on it.
+    let top = side - d;
+    for (p, r) in run.positions.iter().zip(&run.rest) {
+        assert!(p[1] <= top + 1e-12, "{p:?}");
+        if (r[1] - side).abs() < 1e-12 {
+            assert!((p[1] - top).abs() <= 1e-9 * side, "{p:?}");
+        }
+    }
+}
+
+/// A hanging sphere (radius 2 cm, cap fixed) pushed up by a floor plate: no vertex ends
+/// below the plate, only some vertices touch it, and a plate that travels farther pushes
+/// harder.
+#[test]
+fn a_fem_floor_plate_is_unilateral_and_pushes_harder_when_it_travels_farther() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = scene_in(dir.path(), "m", 1.0, "fem");
+    let sag = {
+        let run = FemRun::new(base.clone(), None).unwrap();
+        run.positions.iter().map(|p| p[1]).fold(f64::MAX, f64::min)
+    };
+    let mut forces = Vec::new();
+    for travel in [0.002, 0.004, 0.008] {
+        let mut scene = base.clone();
+        let plate = fibfluid::contact::Plate::new([0.0, sag, 0.0], [0.0, 1.0, 0.0], travel).unwrap();
+        scene.plates = vec![plate];
+        let run = FemRun::new(scene, None).unwrap();
+        let floor = sag + travel;
+        let lowest = run.positions.iter().map(|p| p[1]).fold(f64::MAX, f64::min);
+        assert!(lowest >= floor - 1e-9 * 0.04, "a vertex {:e} m through the plate", floor - lowest);
+        let p = &run.plates[0];
+        assert!(p.contact_vertices > 0 && p.contact_vertices < run.rest.len() / 2, "{p:?}");
+        forces.push(p.force);
+    }
+    println!("floor plate forces {forces:?} N");
+    assert!(forces[0] > 0.0 && forces[1] > forces[0] && forces[2] > forces[1], "{forces:?}");
+}

@@ -31,6 +31,8 @@ pub struct HeldResponse {
     /// a point force in [`FemBody::solve`], it reproduces the same displacement). An axis
     /// carried only by fixed nodes reports 0 (its reaction goes to the supports).
     pub reactions: Vec<Vec3>,
+    /// The solve's measured relative residual `|K u - f - C^T lambda| / |f + C^T lambda|`.
+    pub residual: f64,
 }
 
 /// How a vertex is held.
@@ -130,10 +132,10 @@ impl FemBody {
                 applied[d] += w * l;
             }
         }
-        self.residual(&u, &applied)?;
+        let residual = self.residual(&u, &applied)?;
         let node_displacements = self.node_values(&u);
         let surface_displacements = self.grid.interpolate(&node_displacements);
-        Ok(HeldResponse { node_displacements, surface_displacements, reactions })
+        Ok(HeldResponse { node_displacements, surface_displacements, reactions, residual })
     }
 
     /// `K^-1 f` for the loads, reused while the loads do not change.

@@ -40,6 +40,7 @@ impl FemInteractive {
     /// the memory budget) and solves its own loads as the base state.
     pub fn new(model: &Model, max_memory: Option<u64>) -> fibfluid_sim::Result<Self> {
         let start = Instant::now();
+        fibfluid_sim::fem_run::refuse_plates(model)?;
         let mut log = StageLog::default();
         let mut body = build_body(model, memory_budget(max_memory), &mut log)?;
         let base_loads = full_loads(model);

@@ -5,12 +5,16 @@
 //! The model's `[tissue]` (Young's modulus in Pa, Poisson's ratio, density in kg/m^3) is the
 //! material; positions are in metres (the scene converts the mesh's declared unit). A
 //! vertex fixed along an axis holds the grid nodes that carry it (`fibfluid_fem::FemBody`
-//! states the rule); a prescribed non-zero displacement and plates are not carried yet and
-//! are refused by name.
+//! states the rule); a prescribed non-zero displacement is not carried yet and is refused by
+//! name. Plates are rigid, frictionless and unilateral at their final position (load factor
+//! 1): a surface vertex that would pass through a plate is held on its plane along its
+//! normal and free across it ([`FemHold::Along`], a capacitance update of the kept factor),
+//! a contact whose force pulls is released, until the contact set settles (see
+//! [`solve_with_plates`]).
 
 use std::time::Instant;
 
-use fibfluid_fem::{FemBody, FemOptions, FemStats, GridEstimate, Loads, Tissue};
+use fibfluid_fem::{FemBody, FemHold, FemOptions, FemStats, GridEstimate, Loads, Tissue};
 use fibfluid_geometry::Vec3;
 use serde::Serialize;
 
@@ -78,11 +82,8 @@ pub fn full_loads(model: &Model) -> Loads {
 }
 
 /// Builds the model's finite-element body (voxelized, assembled, factored), refusing from
-/// counts first.
+/// counts first. Plates are the caller's ([`FemRun`] carries them).
 pub fn build_body(model: &Model, limit: u64, log: &mut StageLog) -> Result<FemBody> {
-    if !model.plates.is_empty() {
-        return Err(needs(model, "does not carry [[plate]] contact yet (use --method ffm)"));
-    }
     let tissue = tissue_of(model)?;
     estimate(model, limit)?;
     let fixed = fixed_axes(model)?;
@@ -114,6 +115,8 @@ pub struct FemRun {
     pub stats: FemStats,
     /// The solve's measured relative residual.
     pub residual: f64,
+    /// Each plate's contact (empty without plates).
+    pub plates: Vec<FemPlate>,
     /// Stage times.
     pub log: StageLog,
     /// Wall-clock seconds.
@@ -128,17 +131,21 @@ impl FemRun {
         let limit = fibfluid_linalg::memory_budget(max_memory);
         let mut log = StageLog::default();
         let mut body = build_body(&model, limit, &mut log)?;
-        let solution = log.time(names::SOLVE, || body.solve(&full_loads(&model))).map_err(failed(&model))?;
         let rest = model.rest_positions();
-        let positions = rest
-            .iter()
-            .zip(&solution.surface_displacements)
-            .map(|(p, u)| [p[0] + u[0], p[1] + u[1], p[2] + u[2]])
-            .collect();
+        let loads = full_loads(&model);
+        let (displacements, residual, plates) = if model.plates.is_empty() {
+            let s = log.time(names::SOLVE, || body.solve(&loads)).map_err(failed(&model))?;
+            (s.surface_displacements, s.residual, Vec::new())
+        } else {
+            log.time(names::SOLVE, || solve_with_plates(&model, &mut body, &loads, &rest))?
+        };
+        let positions =
+            rest.iter().zip(&displacements).map(|(p, u)| [p[0] + u[0], p[1] + u[1], p[2] + u[2]]).collect();
         Ok(Self {
             tissue: *body.tissue(),
             stats: body.stats(),
-            residual: solution.residual,
+            residual,
+            plates,
             rest,
             positions,
             log,
@@ -146,6 +153,109 @@ impl FemRun {
             model,
         })
     }
+}
+
+/// Refuses a model with plates for an interactive finite-element body (its base state is
+/// one solve without contact).
+pub fn refuse_plates(model: &Model) -> Result<()> {
+    if model.plates.is_empty() {
+        return Ok(());
+    }
+    Err(needs(model, "does not carry [[plate]] contact in an interactive body (use `run --method fem`)"))
+}
+
+/// One plate's contact in a finite-element run (at its final position).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FemPlate {
+    /// Total contact force on the body along the plate's normal (N).
+    pub force: f64,
+    /// Vertices in contact.
+    pub contact_vertices: usize,
+    /// Active-set iterations (shared by all plates).
+    pub active_set_iterations: usize,
+}
+
+/// A vertex counts as through a plate when its gap is below `-PLATE_GAP_TOLERANCE` times the
+/// body's size.
+pub const PLATE_GAP_TOLERANCE: f64 = 1e-10;
+
+/// A contact whose force along the normal is below `-PLATE_PULL_TOLERANCE` times the
+/// largest contact force pulls and is released.
+pub const PLATE_PULL_TOLERANCE: f64 = 1e-9;
+
+/// Solves the model's loads with its plates as frictionless unilateral contacts at load
+/// factor 1: the active set starts empty, each iteration holds the active vertices on their
+/// plate's plane along its normal (free across it), releases contacts that pull, adds the
+/// vertices that passed through a plate (each to the plate it is deepest through), until
+/// nothing changes ([`crate::contact::MAX_ACTIVE_SET_ITERATIONS`] at most). Returns the
+/// surface displacements, the residual and each plate's contact.
+pub fn solve_with_plates(
+    model: &Model,
+    body: &mut FemBody,
+    loads: &Loads,
+    rest: &[Vec3],
+) -> Result<(Vec<Vec3>, f64, Vec<FemPlate>)> {
+    use std::collections::BTreeMap;
+    let (lo, hi) = fibfluid_geometry::bounding_box(rest);
+    let tol = PLATE_GAP_TOLERANCE * fibfluid_geometry::vec3::dist(lo, hi);
+    let plates = &model.plates;
+    let mut active: BTreeMap<usize, usize> = BTreeMap::new();
+    for iteration in 1..=crate::contact::MAX_ACTIVE_SET_ITERATIONS {
+        let holds: Vec<(usize, FemHold)> = active
+            .iter()
+            .map(|(&v, &k)| {
+                let p = &plates[k];
+                let along = fibfluid_geometry::vec3::dot(
+                    p.normal,
+                    fibfluid_geometry::vec3::sub(p.point_at(1.0), rest[v]),
+                );
+                (v, FemHold::Along { normal: p.normal, along })
+            })
+            .collect();
+        let r = body.respond_holds(loads, &holds).map_err(failed(model))?;
+        let along: Vec<f64> = holds
+            .iter()
+            .zip(&r.reactions)
+            .map(|((_, h), f)| match h {
+                FemHold::Along { normal, .. } => fibfluid_geometry::vec3::dot(*normal, *f),
+                FemHold::At(_) => 0.0,
+            })
+            .collect();
+        let largest = along.iter().fold(0.0_f64, |a, b| a.max(b.abs()));
+        let mut changed = false;
+        for ((v, _), f) in holds.iter().zip(&along) {
+            if *f < -PLATE_PULL_TOLERANCE * largest {
+                active.remove(v);
+                changed = true;
+            }
+        }
+        for (v, (p, u)) in rest.iter().zip(&r.surface_displacements).enumerate() {
+            let x = [p[0] + u[0], p[1] + u[1], p[2] + u[2]];
+            let deepest = (0..plates.len())
+                .map(|k| (k, plates[k].gap(x, 1.0)))
+                .filter(|&(_, g)| g < -tol)
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            if let Some((k, _)) = deepest
+                && !active.contains_key(&v)
+                && (0..3).all(|a| model.constraints.get(v, a).is_none())
+            {
+                active.insert(v, k);
+                changed = true;
+            }
+        }
+        if !changed {
+            let mut out: Vec<FemPlate> = (0..plates.len())
+                .map(|_| FemPlate { force: 0.0, contact_vertices: 0, active_set_iterations: iteration })
+                .collect();
+            for ((v, _), f) in holds.iter().zip(&along) {
+                let k = active[v];
+                out[k].force += f;
+                out[k].contact_vertices += 1;
+            }
+            return Ok((r.surface_displacements, r.residual, out));
+        }
+    }
+    Err(needs(model, "plate contact did not settle (the active set kept changing)"))
 }
 
 /// The units every number of a report is in.
@@ -195,6 +305,9 @@ pub struct FemReport {
     pub volume_final: f64,
     /// The solve's measured relative residual `|K u - f| / |f|`.
     pub residual: f64,
+    /// Each plate's contact at its final position (omitted without plates).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub plates: Vec<FemPlate>,
     /// Stages with their seconds.
     pub stages: Vec<StageRecord>,
     /// Notes (mesh warnings, etc.).
@@ -230,6 +343,7 @@ impl FemReport {
             volume_initial,
             volume_final,
             residual: run.residual,
+            plates: run.plates.clone(),
             stages,
             notes,
             seconds_total: run.seconds + extra_stages.iter().map(|s| s.seconds).sum::<f64>(),
