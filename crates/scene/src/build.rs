@@ -7,8 +7,8 @@ use fibfluid_geometry::{MeshFile, Polygon, ReadOptions, load_mesh_with};
 use fibfluid_sim::contact::{Plate, PlateProblem, check_plates};
 use fibfluid_sim::guards::Guards;
 use fibfluid_sim::{
-    FemSettings, ForceTiming, LengthUnit, MAX_STEPS, Method, Model, PLATE_REST_TOLERANCE, PointForce, Shape,
-    SolverOptions, Tissue,
+    FemSettings, FfmSettings, FiberModel, ForceTiming, LengthUnit, MAX_STEPS, Method, Model,
+    PLATE_REST_TOLERANCE, PointForce, Shape, SolverOptions, Tissue,
 };
 
 use crate::error::SceneProblem;
@@ -52,19 +52,8 @@ pub(crate) fn build(
     let solver = solver(spec.solver)?;
     let tissue = spec.tissue.map(tissue).transpose()?;
     let fem = fem_settings(spec.fem)?;
-    let material = match (spec.material, solver.method) {
-        (Some(m), _) => material(m, spec.fluid, axes)?,
-        // Unused by the FEM; no density or surface tension, so no FFM setting looks ineffective.
-        (None, Method::Fem) if tissue.is_some() => {
-            Material { density: 0.0, surface_tension: 0.0, ..Material::default() }
-        }
-        (None, Method::Fem) => {
-            return Err(unkeyed(SceneProblem::Conflict(
-                "method fem needs a [tissue] table (young in Pa, poisson, density in kg/m^3)",
-            )));
-        }
-        (None, _) => return Err(unkeyed(SceneProblem::Conflict("missing [material] table"))),
-    };
+    let (material, ffm) =
+        ffm_material(spec.material, spec.ffm, spec.fluid, tissue.as_ref(), solver.method, axes)?;
     let (steps, tolerance) = load(spec.load)?;
     let guards = guards(spec.guards)?;
     let gravity = spec.gravity.map(|g| g.acceleration).unwrap_or([0.0; 3]);
@@ -94,6 +83,7 @@ pub(crate) fn build(
     model.solver = solver;
     model.tissue = tissue;
     model.fem = fem;
+    model.ffm = ffm;
     model.unit = unit;
     Ok(model)
 }
@@ -161,6 +151,66 @@ fn shape(
             Err(unkeyed(SceneProblem::Conflict("give either [mesh] or [polygon], not both")))
         }
         (None, None) => Err(unkeyed(SceneProblem::Conflict("missing [mesh] (or [polygon]) table"))),
+    }
+}
+
+/// FFM's material and fiber settings from `[material]` (the older name) or `[ffm]`, and
+/// `[fluid]`. A scene with only `[tissue]` gets the tissue's modulus as a placeholder to be
+/// calibrated against the FEM before an FFM run (its density too when `[fluid]` is absent).
+fn ffm_material(
+    old: Option<MaterialToml>,
+    ffm: Option<FfmToml>,
+    fluid: Option<FluidToml>,
+    tissue: Option<&Tissue>,
+    method: Method,
+    axes: usize,
+) -> Result<(Material, FfmSettings), Invalid> {
+    let fibers = choice("[ffm].fibers", ffm.as_ref().and_then(|f| f.fibers.clone()), FiberModel::Paper)?;
+    let mut settings = FfmSettings { fibers, calibrate: false };
+    let new = ffm.and_then(|f| {
+        f.young.map(|young| MaterialToml {
+            young,
+            surface_tension: f.surface_tension.unwrap_or(0.0),
+            stiffening: f.stiffening,
+        })
+    });
+    let given = match (old, new) {
+        (Some(_), Some(_)) => {
+            return Err(invalid(
+                "[ffm].young",
+                SceneProblem::Conflict(
+                    "give the fiber parameters in [ffm] or in the older [material], not both",
+                ),
+            ));
+        }
+        (a, b) => a.or(b),
+    };
+    if let Some(m) = given {
+        return Ok((material(m, fluid, axes)?, settings));
+    }
+    match (tissue, method) {
+        (Some(t), _) => {
+            // No fiber parameters: FFM's are calibrated on the body against the FEM; the
+            // FEM itself does not use them.
+            settings.calibrate = method != Method::Fem;
+            let density = match &fluid {
+                Some(f) => f.density,
+                None => t.density,
+            };
+            let placeholder =
+                MaterialToml { young: Young::One(t.young), surface_tension: 0.0, stiffening: None };
+            let mut m = material(placeholder, Some(FluidToml { density }), axes)?;
+            if method == Method::Fem {
+                m = Material { density: 0.0, surface_tension: 0.0, ..Material::default() };
+            }
+            Ok((m, settings))
+        }
+        (None, Method::Fem) => Err(unkeyed(SceneProblem::Conflict(
+            "method fem needs a [tissue] table (young in Pa, poisson, density in kg/m^3)",
+        ))),
+        (None, _) => Err(unkeyed(SceneProblem::Conflict(
+            "missing fiber parameters: give [ffm] (young, surface_tension) or a [tissue] table to calibrate them from",
+        ))),
     }
 }
 

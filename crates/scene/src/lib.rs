@@ -45,8 +45,9 @@ pub struct Scene {
     pub model: Model,
     /// How the ChainMail methods voxelize and deform the body (`[chainmail]`).
     pub chainmail: ChainmailSettings,
-    /// Whether the scene gives FFM's fiber material (`[material]`); a scene with only
-    /// `[tissue]` runs the finite-element method.
+    /// Whether FFM can run the scene: its fibers are given (`[ffm]` or the older
+    /// `[material]`), or calibrated from `[tissue]` against the FEM
+    /// (`model.ffm.calibrate`).
     pub ffm_material: bool,
 }
 
@@ -128,7 +129,9 @@ impl Scene {
             at(key, line, problem)
         };
         let chainmail = chainmail_section::parse(spec.chainmail.take()).map_err(located)?;
-        let ffm_material = spec.material.is_some();
+        let ffm_material = spec.material.is_some()
+            || spec.ffm.as_ref().is_some_and(|f| f.young.is_some())
+            || spec.tissue.is_some();
         let mut model = build::build(spec, dir, name, mesh).map_err(located)?;
         model.source = Some(path.to_path_buf());
         Ok(Self { model, chainmail, ffm_material })

@@ -9,6 +9,7 @@ pub(crate) struct SceneToml {
     pub(crate) mesh: Option<MeshToml>,
     pub(crate) polygon: Option<PolygonToml>,
     pub(crate) material: Option<MaterialToml>,
+    pub(crate) ffm: Option<FfmToml>,
     pub(crate) tissue: Option<TissueToml>,
     pub(crate) fem: Option<FemToml>,
     pub(crate) fluid: Option<FluidToml>,
@@ -77,6 +78,17 @@ pub(crate) struct MaterialToml {
     pub(crate) surface_tension: f64,
     /// Quadratic stiffening coefficient c: Y (1 + c strain^2).
     pub(crate) stiffening: Option<f64>,
+}
+
+/// `[ffm]`: the fiber–fluid method's fibers (the newer name of `[material]`'s keys, plus
+/// the fiber model).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct FfmToml {
+    pub(crate) young: Option<Young>,
+    pub(crate) surface_tension: Option<f64>,
+    pub(crate) stiffening: Option<f64>,
+    pub(crate) fibers: Option<String>,
 }
 
 #[derive(Deserialize)]

@@ -70,6 +70,31 @@ impl Choice for Mode {
 }
 impl_choice!(Mode);
 
+/// How a fiber resists a displacement of its ends (`[ffm] fibers`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum FiberModel {
+    /// The paper: fiber `ij` pulls with `k (u_j - u_i)` on each axis alike (a graph
+    /// Laplacian per axis). Rotating the body costs energy. The structured solver's
+    /// per-axis blocks.
+    #[default]
+    Paper,
+    /// The spring acts along the fiber: `k d d^T (u_j - u_i)` with `d` the fiber's rest
+    /// direction. Rigid motions cost nothing; the axes couple (one 3N x 3N system).
+    Projected,
+}
+
+impl Choice for FiberModel {
+    const WHAT: &'static str = "fiber model";
+    const ALL: &'static [Self] = &[FiberModel::Paper, FiberModel::Projected];
+    fn name(self) -> &'static str {
+        match self {
+            FiberModel::Paper => "paper",
+            FiberModel::Projected => "projected",
+        }
+    }
+}
+impl_choice!(FiberModel);
+
 /// The load-stepping scheme.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Stepping {

@@ -19,6 +19,7 @@
 //!   plates through capacitance rows on the kept factorization.
 //! - [`Report`]: the data of `report.json` (stages, counters, warnings, plates).
 
+pub mod calibration;
 mod choices;
 pub mod contact;
 mod effects;
@@ -32,11 +33,11 @@ pub mod samples;
 mod simulate;
 pub mod stages;
 
-pub use choices::{ForceTiming, LengthUnit, Method, Mode, Stepping};
+pub use choices::{FiberModel, ForceTiming, LengthUnit, Method, Mode, Stepping};
 pub use effects::{Ineffective, ineffective};
 pub use error::{Error, Result};
 pub use model::{
-    FemSettings, MAX_STEPS, Model, PLATE_REST_TOLERANCE, PointForce, Shape, SolverOptions,
+    FemSettings, FfmSettings, MAX_STEPS, Model, PLATE_REST_TOLERANCE, PointForce, Shape, SolverOptions,
     VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE,
 };
 pub use plan::{Plan, PlannedStage};

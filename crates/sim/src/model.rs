@@ -106,8 +106,21 @@ pub struct Model {
     pub tissue: Option<fibfluid_fem::Tissue>,
     /// The finite-element method's settings (`[fem]`).
     pub fem: FemSettings,
+    /// The fiber–fluid method's fiber settings (`[ffm]`).
+    pub ffm: FfmSettings,
     /// The length unit of the mesh file: positions inside are in metres.
     pub unit: LengthUnit,
+}
+
+/// The fiber–fluid method's fiber settings (`[ffm]`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FfmSettings {
+    /// How a fiber resists (`fibers`).
+    pub fibers: crate::choices::FiberModel,
+    /// Whether the fiber modulus is to be calibrated on the body against the
+    /// finite-element method before a run (a scene that gives only `[tissue]`; the
+    /// material's `young` is then the tissue's Young's modulus until calibrated).
+    pub calibrate: bool,
 }
 
 /// The finite-element method's settings (`[fem]`).
@@ -151,6 +164,7 @@ impl Model {
             solver: SolverOptions::default(),
             tissue: None,
             fem: FemSettings::default(),
+            ffm: FfmSettings::default(),
             unit: LengthUnit::M,
         }
     }

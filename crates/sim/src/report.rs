@@ -68,6 +68,10 @@ pub struct Report {
     /// without plates).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub plates: Vec<crate::contact::PlateRecord>,
+    /// The fiber modulus calibrated against the FEM (a scene with only `[tissue]`;
+    /// omitted otherwise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<crate::calibration::Calibration>,
     /// Volume before.
     pub volume_initial: f64,
     /// Volume after.
@@ -151,6 +155,7 @@ impl Report {
             warnings: sim.warnings().to_vec(),
             inverted_faces: crate::guards::inverted_faces(&sim.body().boundary, rest, sim.positions()),
             plates: sim.plate_records().to_vec(),
+            calibration: sim.calibration().copied(),
             volume_initial: v0,
             volume_final: v1,
             volume_drift: (v1 / v0 - 1.0).abs(),

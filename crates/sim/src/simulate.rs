@@ -202,6 +202,7 @@ pub struct Simulation {
     contact_active: Vec<(usize, usize)>,
     contact_values: Vec<f64>,
     plate_records: Vec<PlateRecord>,
+    calibration: Option<crate::calibration::Calibration>,
     log: StageLog,
     started: Instant,
 }
@@ -224,11 +225,29 @@ impl Simulation {
                 problem: "is not run by the fiber-fluid Simulation (fem: `fem_run::FemRun`; ChainMail: interactive bodies)",
             });
         }
+        if scene.ffm.fibers == crate::choices::FiberModel::Projected {
+            return Err(Error::MethodNeeds {
+                scene: scene.display_name(),
+                method: Method::Ffm,
+                problem: "with fibers = \"projected\" is not built yet (use fibers = \"paper\")",
+            });
+        }
         let started = Instant::now();
         let limit = fibfluid_linalg::memory_budget(opts.max_memory);
         // From counts first: a body too large is refused before its convexity check.
         Plan::from_counts(&scene).check_memory(&scene.name, limit, scene.solver.backend)?;
         let mut log = StageLog::default();
+        let mut scene = scene;
+        let calibration = if scene.ffm.calibrate {
+            let c =
+                log.time(names::CALIBRATION, || crate::calibration::calibrate(&scene, opts.max_memory))?;
+            scene.material.young = [c.fiber_modulus; 3];
+            scene.material.surface_tension = c.surface_tension;
+            scene.ffm.calibrate = false;
+            Some(c)
+        } else {
+            None
+        };
         let plan = match scene.shape {
             Shape::Surface(_) => log.time(names::CONVEXITY, || Plan::from_scene(&scene)),
             Shape::Polygon(_) => Plan::from_scene(&scene),
@@ -296,9 +315,16 @@ impl Simulation {
             contact_active: vec![],
             contact_values: vec![],
             plate_records: vec![PlateRecord::default(); plates],
+            calibration,
             log,
             started,
         })
+    }
+
+    /// The calibration of the fiber modulus against the FEM, when the scene asked for one
+    /// (it gave only `[tissue]`).
+    pub fn calibration(&self) -> Option<&crate::calibration::Calibration> {
+        self.calibration.as_ref()
     }
 
     /// The model being simulated.

@@ -97,6 +97,8 @@ impl StageLog {
 pub enum Stage {
     /// Reading the scene and its mesh.
     LoadScene,
+    /// Calibrating FFM's fiber modulus against the FEM (a scene with only `[tissue]`).
+    Calibration,
     /// Convexity check of the mesh.
     Convexity,
     /// Exit and crossing tests of the fibers.
@@ -137,6 +139,7 @@ impl Choice for Stage {
     const WHAT: &'static str = "stage";
     const ALL: &'static [Self] = &[
         Stage::LoadScene,
+        Stage::Calibration,
         Stage::Convexity,
         Stage::Visibility,
         Stage::Voxelization,
@@ -158,6 +161,7 @@ impl Choice for Stage {
     fn name(self) -> &'static str {
         match self {
             Stage::LoadScene => "load scene and mesh",
+            Stage::Calibration => "calibration against the FEM",
             Stage::Convexity => "convexity check",
             Stage::Visibility => "fiber visibility tests",
             Stage::Voxelization => "voxelization",
@@ -185,6 +189,8 @@ pub mod names {
     use super::Stage;
     /// Reading the scene and its mesh.
     pub const LOAD_SCENE: Stage = Stage::LoadScene;
+    /// Calibrating FFM's fiber modulus against the FEM.
+    pub const CALIBRATION: Stage = Stage::Calibration;
     /// Convexity check of the mesh.
     pub const CONVEXITY: Stage = Stage::Convexity;
     /// Exit and crossing tests of the fibers.
