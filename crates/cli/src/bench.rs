@@ -88,3 +88,136 @@ fn median(v: &mut [f64]) -> f64 {
     let m = v.len() / 2;
     if v.len() % 2 == 1 { v[m] } else { 0.5 * (v[m - 1] + v[m]) }
 }
+
+/// This machine's limits, measured in the same run as the stages they judge.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct MachineRates {
+    /// Streaming read bandwidth of one thread over a buffer larger than the caches (bytes
+    /// per second, the fastest of 5 passes).
+    pub read_bytes_per_second: f64,
+    /// Dense matrix product rate with every thread (flops per second, the fastest of 3
+    /// products of 1024 x 1024 matrices): the rate a blocked factorization can reach.
+    pub gemm_flops_per_second: f64,
+}
+
+/// One stage of a scene beside its limit on this machine.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct StageBench {
+    /// The stage.
+    pub stage: &'static str,
+    /// Measured seconds.
+    pub seconds: f64,
+    /// What the limit is.
+    pub limit: String,
+    /// Seconds at the limit.
+    pub limit_seconds: f64,
+    /// `seconds / limit_seconds`.
+    pub ratio: f64,
+}
+
+/// Measures [`MachineRates`]; the read buffer is at least `bytes` (and 64 MiB, beyond the caches) long.
+pub fn measure_machine(bytes: usize) -> MachineRates {
+    let len = bytes.max(64 << 20) / 8;
+    let buffer: Vec<f64> = (0..len).map(|i| (i % 7) as f64).collect();
+    let mut read = f64::INFINITY;
+    for _ in 0..5 {
+        let start = std::time::Instant::now();
+        // Eight independent sums, so the loop is bound by memory, not by the adds' latency.
+        let mut lanes = [0.0f64; 8];
+        for chunk in std::hint::black_box(&buffer).chunks_exact(8) {
+            for (l, x) in lanes.iter_mut().zip(chunk) {
+                *l += x;
+            }
+        }
+        std::hint::black_box(lanes);
+        read = read.min(start.elapsed().as_secs_f64());
+    }
+    drop(buffer);
+    let n = 1024;
+    let a = faer::Mat::<f64>::from_fn(n, n, |i, j| ((i * 31 + j * 17) % 13) as f64 - 6.0);
+    let mut c = faer::Mat::<f64>::zeros(n, n);
+    let mut gemm = f64::INFINITY;
+    for _ in 0..3 {
+        let start = std::time::Instant::now();
+        faer::linalg::matmul::matmul(
+            c.as_mut(),
+            faer::Accum::Replace,
+            a.as_ref(),
+            a.as_ref(),
+            1.0,
+            faer::Par::rayon(0),
+        );
+        std::hint::black_box(&c);
+        gemm = gemm.min(start.elapsed().as_secs_f64());
+    }
+    MachineRates {
+        read_bytes_per_second: (len * 8) as f64 / read,
+        gemm_flops_per_second: 2.0 * (n as f64).powi(3) / gemm,
+    }
+}
+
+/// Seconds to compute the dense matrix of every pairwise distance of `points` in one thread
+/// (what SciPy's `cdist` does): the work the assembly's fiber pairs cannot go below.
+pub fn distance_matrix_seconds(points: &[fibfluid::geometry::Vec3]) -> f64 {
+    let n = points.len();
+    let mut d = vec![0.0f64; n * n];
+    let start = std::time::Instant::now();
+    for (row, p) in d.chunks_exact_mut(n).zip(points) {
+        for (out, q) in row.iter_mut().zip(points) {
+            let (x, y, z) = (p[0] - q[0], p[1] - q[1], p[2] - q[2]);
+            *out = (x * x + y * y + z * z).sqrt();
+        }
+    }
+    std::hint::black_box(&d);
+    start.elapsed().as_secs_f64()
+}
+
+/// `fibfluid bench --stages SCENE`: the scene's assembly, factorization and one checked
+/// solve (the median of `repeats`) beside their limits on this machine, measured in the
+/// same run: every pairwise distance computed once in one thread (assembly), the
+/// factorization's model flops at the matrix-product rate, and the factor streamed twice
+/// (a forward and a backward substitution) at the read bandwidth.
+pub fn bench_stages(scene: fibfluid::sim::Model, repeats: usize) -> Result<(MachineRates, Vec<StageBench>)> {
+    use fibfluid::stages::names;
+    let n = scene.n_vertices();
+    let rest = scene.rest_positions();
+    let sim = fibfluid::Simulation::new(scene)?;
+    let seconds_of =
+        |stage| sim.log().records().iter().filter(|r| r.name == stage).map(|r| r.seconds).sum::<f64>();
+    let (assembly, factorization) = (seconds_of(names::ASSEMBLY), seconds_of(names::FACTORIZATION));
+    let (system, factor) = sim.into_factored();
+    let cost = factor.cost();
+    let rhs: Vec<f64> = (0..system.matrix.dim()).map(|i| ((i * 7919) % 1000) as f64 / 1000.0 - 0.5).collect();
+    let mut solves = Vec::with_capacity(repeats.max(1));
+    for _ in 0..repeats.max(1) {
+        let start = std::time::Instant::now();
+        factor.solve(&rhs)?;
+        solves.push(start.elapsed().as_secs_f64());
+    }
+    let solve = median(&mut solves);
+    let rates = measure_machine(cost.bytes);
+    let distances = distance_matrix_seconds(&rest);
+    let row = |stage, seconds: f64, limit: String, limit_seconds: f64| StageBench {
+        stage,
+        seconds,
+        limit,
+        limit_seconds,
+        ratio: seconds / limit_seconds.max(1e-300),
+    };
+    let stages = vec![
+        row("assembly", assembly, format!("the {n} x {n} distances, one thread (SciPy's cdist)"), distances),
+        row(
+            "factorization",
+            factorization,
+            format!("{:.2e} model flops at the GEMM rate", cost.flops),
+            cost.flops / rates.gemm_flops_per_second,
+        ),
+        row(
+            "checked solve",
+            solve,
+            format!("the factor streamed twice ({:.0} MiB)", 2.0 * cost.bytes as f64 / 1048576.0),
+            2.0 * cost.bytes as f64 / rates.read_bytes_per_second,
+        ),
+    ];
+    Ok((rates, stages))
+}

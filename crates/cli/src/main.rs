@@ -173,6 +173,11 @@ enum Command {
         /// Print a JSON array.
         #[arg(long)]
         json: bool,
+        /// Instead of the backends: this scene's assembly, factorization and checked solve
+        /// beside their limits on this machine (bandwidth and matrix-product rate measured
+        /// in the same run).
+        #[arg(long, value_name = "SCENE")]
+        stages: Option<PathBuf>,
     },
     /// Accuracy versus time over modes, stepping, steps, precision and backends.
     Accuracy {
@@ -407,7 +412,8 @@ fn run(command: Command) -> Result<(), CliError> {
         Command::Plan { scene, over, json } => plan(&scene, &over, json),
         Command::Run { scene, out, over } => run_scene(&scene, &out, &over),
         Command::Roundtrip { scene, over, json } => roundtrip(&scene, &over, json),
-        Command::Bench { sizes, repeats, json } => bench(&sizes, repeats, json),
+        Command::Bench { stages: Some(scene), repeats, json, .. } => bench_stages(&scene, repeats, json),
+        Command::Bench { sizes, repeats, json, stages: None } => bench(&sizes, repeats, json),
         Command::Accuracy { scene, out, grid } => accuracy::run(&scene, &out, grid),
         Command::Probe(args) => probe::run(&args),
         Command::View(args) => view::run(&args),
@@ -653,6 +659,35 @@ fn roundtrip(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> 
             rt.volume_drift,
             rt.seconds
         );
+    }
+    Ok(())
+}
+
+/// `fibfluid bench --stages SCENE`.
+fn bench_stages(path: &Path, repeats: usize, json: bool) -> Result<(), CliError> {
+    if !(1..=1000).contains(&repeats) {
+        return Err(CliError::Flag {
+            flag: "repeats",
+            value: repeats.to_string(),
+            problem: "must be between 1 and 1000",
+        });
+    }
+    let (scene, _) = load_scene(path, &Overrides::default())?;
+    let name = scene.name.clone();
+    let n = scene.n_vertices();
+    let (rates, stages) = fibfluid_cli::bench::bench_stages(scene.model, repeats)?;
+    if json {
+        say!("{}", serde_json::json!({ "scene": name, "vertices": n, "machine": rates, "stages": stages }));
+        return Ok(());
+    }
+    say!(
+        "{name}: {n} vertices; this machine: read {:.1} GB/s (one thread), matrix product {:.1} GFLOP/s",
+        rates.read_bytes_per_second / 1e9,
+        rates.gemm_flops_per_second / 1e9
+    );
+    say!("{:<14} {:>10} {:>10} {:>7}  limit", "stage", "seconds", "limit s", "ratio");
+    for s in &stages {
+        say!("{:<14} {:>10.4} {:>10.4} {:>7.2}  {}", s.stage, s.seconds, s.limit_seconds, s.ratio, s.limit);
     }
     Ok(())
 }

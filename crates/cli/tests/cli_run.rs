@@ -639,3 +639,20 @@ fn run_with_the_fem_writes_its_report_and_mesh_in_the_file_unit() {
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(stdout.contains(" cm,") && stdout.contains("Pa"), "{stdout}");
 }
+
+/// `bench --stages`: every stage beside a positive, finite limit measured in the same run.
+#[test]
+fn bench_stages_json() {
+    let scene = root().join("fixtures/scenes/sphere.toml");
+    let out = bin().args(["bench", "--repeats", "1", "--json", "--stages"]).arg(&scene).output().unwrap();
+    let v = json_of(&out);
+    assert_eq!(v["vertices"], 162);
+    let stages: Vec<&str> =
+        v["stages"].as_array().unwrap().iter().map(|s| s["stage"].as_str().unwrap()).collect();
+    assert_eq!(stages, ["assembly", "factorization", "checked solve"]);
+    for s in v["stages"].as_array().unwrap() {
+        let (t, l) = (s["seconds"].as_f64().unwrap(), s["limit_seconds"].as_f64().unwrap());
+        assert!(t > 0.0 && l > 0.0 && l.is_finite(), "{s}");
+    }
+    assert!(v["machine"]["read_bytes_per_second"].as_f64().unwrap() > 1e8);
+}
