@@ -101,12 +101,17 @@ pub fn run(scene_path: &Path, out: &Path, flags: GridFlags) -> Result<(), CliErr
         Precision::F64,
         Backend::Structured,
     )?;
-    let files = [
+    let mut files = vec![
         ("accuracy.csv", csv.into_bytes()),
         ("accuracy.md", md.into_bytes()),
         ("accuracy.png", png),
         ("accuracy-reference.png", png_ref),
     ];
+    if let Some(png_fem) =
+        fibfluid_cli::study::physical_chart(&study, &format!("{title}: difference from the FEM vs time"))?
+    {
+        files.push(("accuracy-fem.png", png_fem));
+    }
     fibfluid_cli::write_files_atomically(out, &files)?;
     for (name, _) in &files {
         say!("wrote {}", out.join(name).display());

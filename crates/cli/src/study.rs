@@ -56,6 +56,11 @@ pub struct Point {
     pub factorizations: Option<usize>,
     /// Wall-clock seconds of the round trip (setup and both ways).
     pub seconds: Option<f64>,
+    /// Wall-clock seconds of the setup and the compression alone (a plain run).
+    pub run_seconds: Option<f64>,
+    /// Relative L2 difference of the compressed surface's displacement from the FEM
+    /// reference's, no scaling (the physical axis; `None` without `[tissue]`).
+    pub error_vs_fem: Option<f64>,
     /// Why the run failed, if it did.
     pub error: Option<String>,
 }
@@ -98,9 +103,42 @@ impl Default for Grid {
     }
 }
 
+/// The FEM at one resolution, against the study's FEM reference.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FemPoint {
+    /// Cells along the longest side.
+    pub resolution: usize,
+    /// Unknowns.
+    pub dofs: usize,
+    /// Wall-clock seconds of the run (voxelization, assembly, factorization, solve).
+    pub seconds: f64,
+    /// Relative L2 difference of its surface displacement from the reference's.
+    pub error_vs_fem: f64,
+}
+
+/// The physical axis of a study: the FEM reference and the FEM's own convergence.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PhysicalAxis {
+    /// The reference's resolution.
+    pub reference_resolution: usize,
+    /// The reference's surface displacement (m).
+    pub reference: Vec<fibfluid::geometry::Vec3>,
+    /// The FEM at coarser resolutions.
+    pub fem: Vec<FemPoint>,
+    /// The calibration made once for every point, when the scene gave only `[tissue]`.
+    pub calibration: Option<fibfluid::sim::calibration::Calibration>,
+}
+
+/// Resolutions of the FEM points of a study's physical axis.
+pub const FEM_STUDY_RESOLUTIONS: [usize; 4] = [8, 12, 16, 24];
+/// The resolution of the physical axis' FEM reference (finer than every FEM point).
+pub const FEM_STUDY_REFERENCE: usize = 32;
+
 /// The study's result: every point plus the reference it was compared with.
 #[derive(Clone, Debug)]
 pub struct Study {
+    /// The physical axis, when the scene has `[tissue]`.
+    pub physical: Option<PhysicalAxis>,
     /// The reference configuration (nonlinear, Heun, the most steps, f64, structured).
     pub reference: Config,
     /// Points in grid order.
@@ -111,6 +149,14 @@ pub struct Study {
 
 /// Runs the study. `progress(done, total)` is called after each point.
 pub fn run_study(scene: &Scene, grid: &Grid, progress: &dyn Fn(usize, usize)) -> crate::Result<Study> {
+    let (scene, physical) = match scene.tissue {
+        Some(_) => {
+            let (s, p) = physical_axis(scene)?;
+            (s, Some(p))
+        }
+        None => (scene.clone(), None),
+    };
+    let scene = &scene;
     let max_steps = grid.steps.iter().copied().max().unwrap_or(1);
     let mut reference_scene = scene.clone();
     reference_scene.steps = max_steps;
@@ -168,7 +214,11 @@ pub fn run_study(scene: &Scene, grid: &Grid, progress: &dyn Fn(usize, usize)) ->
     for (k, s) in configs.into_iter().enumerate() {
         let config = config_of(&s);
         let point = match timed_roundtrip(s) {
-            Ok(rt) => point_of(config, &rt, &reference_run, n, diag),
+            Ok(rt) => {
+                let mut p = point_of(config, &rt, &reference_run, n, diag);
+                p.error_vs_fem = physical.as_ref().map(|a| relative_l2(&rt.compressed, &rest, &a.reference));
+                p
+            }
             Err(e) => Point {
                 config,
                 roundtrip_error: None,
@@ -177,13 +227,62 @@ pub fn run_study(scene: &Scene, grid: &Grid, progress: &dyn Fn(usize, usize)) ->
                 residual_max: None,
                 factorizations: None,
                 seconds: None,
+                run_seconds: None,
+                error_vs_fem: None,
                 error: Some(e.to_string()),
             },
         };
         points.push(point);
         progress(k + 1, total);
     }
-    Ok(Study { reference, points, skipped })
+    Ok(Study { physical, reference, points, skipped })
+}
+
+/// The scene with its fibers calibrated once (when it gave only `[tissue]`), the FEM
+/// reference at [`FEM_STUDY_REFERENCE`] and the FEM at [`FEM_STUDY_RESOLUTIONS`].
+fn physical_axis(scene: &Scene) -> crate::Result<(Scene, PhysicalAxis)> {
+    let mut calibrated = scene.clone();
+    let calibration = if scene.ffm.calibrate {
+        let c = fibfluid::sim::calibration::calibrate(scene, None)?;
+        calibrated.material.young = [c.fiber_modulus; 3];
+        calibrated.material.surface_tension = c.surface_tension;
+        calibrated.ffm.calibrate = false;
+        Some(c)
+    } else {
+        None
+    };
+    let fem_run = |resolution: usize| -> crate::Result<fibfluid::sim::fem_run::FemRun> {
+        let mut m: fibfluid::sim::Model = scene.model.clone();
+        m.solver.method = fibfluid::Method::Fem;
+        m.fem.resolution = resolution;
+        Ok(fibfluid::sim::fem_run::FemRun::new(m, None)?)
+    };
+    let reference_run = fem_run(FEM_STUDY_REFERENCE)?;
+    let reference: Vec<_> = displacement(&reference_run.positions, &reference_run.rest);
+    let mut fem = Vec::new();
+    for r in FEM_STUDY_RESOLUTIONS {
+        let run = fem_run(r)?;
+        fem.push(FemPoint {
+            resolution: r,
+            dofs: run.stats.dofs,
+            seconds: run.seconds,
+            error_vs_fem: relative_l2(&run.positions, &run.rest, &reference),
+        });
+    }
+    Ok((calibrated, PhysicalAxis { reference_resolution: FEM_STUDY_REFERENCE, reference, fem, calibration }))
+}
+
+fn displacement(positions: &[[f64; 3]], rest: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    positions.iter().zip(rest).map(|(p, r)| [p[0] - r[0], p[1] - r[1], p[2] - r[2]]).collect()
+}
+
+/// `|(positions - rest) - reference| / |reference|` over the surface vertices.
+fn relative_l2(positions: &[[f64; 3]], rest: &[[f64; 3]], reference: &[[f64; 3]]) -> f64 {
+    let u = displacement(positions, rest);
+    let sq = |a: [f64; 3]| a[0] * a[0] + a[1] * a[1] + a[2] * a[2];
+    let diff: f64 = u.iter().zip(reference).map(|(a, b)| sq([a[0] - b[0], a[1] - b[1], a[2] - b[2]])).sum();
+    let norm: f64 = reference.iter().map(|&b| sq(b)).sum();
+    if norm > 0.0 { (diff / norm).sqrt() } else { diff.sqrt() }
 }
 
 /// A round trip timed as the fastest of a few repeats (at most [`MAX_REPEATS`], until
@@ -200,6 +299,7 @@ fn timed_roundtrip(scene: Scene) -> crate::Result<RoundTrip> {
         if again.seconds < best.seconds {
             best.seconds = again.seconds;
         }
+        best.compress_seconds = best.compress_seconds.min(again.compress_seconds);
     }
     Ok(best)
 }
@@ -238,6 +338,8 @@ fn point_of(mut config: Config, rt: &RoundTrip, reference: &RoundTrip, n: usize,
         residual_max: Some(rt.residual_max),
         factorizations: Some(rt.factorizations),
         seconds: Some(rt.seconds),
+        run_seconds: Some(rt.compress_seconds),
+        error_vs_fem: None,
         error: None,
     }
 }
@@ -264,11 +366,13 @@ fn measured_cells(p: &Point, num: impl Fn(f64) -> String, missing: &str) -> Vec<
 /// The study as CSV (one row per point).
 pub fn to_csv(study: &Study) -> String {
     let mut out = String::from(
-        "mode,stepping,steps,tolerance,precision,backend,roundtrip_error,volume_drift,reference_distance,residual_max,factorizations,seconds,error\n",
+        "mode,stepping,steps,tolerance,precision,backend,roundtrip_error,volume_drift,reference_distance,residual_max,factorizations,seconds,run_seconds,error_vs_fem,error\n",
     );
     for p in &study.points {
         let mut cells = measured_cells(p, |x| format!("{x:e}"), "");
         cells.push(p.seconds.map(|x| format!("{x:e}")).unwrap_or_default());
+        cells.push(p.run_seconds.map(|x| format!("{x:e}")).unwrap_or_default());
+        cells.push(p.error_vs_fem.map(|x| format!("{x:e}")).unwrap_or_default());
         cells.push(p.error.as_deref().unwrap_or("").replace(',', ";").replace('\n', " "));
         out.push_str(&cells.join(","));
         out.push('\n');
@@ -313,6 +417,9 @@ pub fn to_markdown(study: &Study, title: &str) -> String {
             p.error.clone().map(|e| format!("failed: {e}")).unwrap_or_default()
         });
         out.push_str(&format!("| {} |\n", cells.join(" | ")));
+    }
+    if let Some(axis) = &study.physical {
+        out.push_str(&physical_markdown(study, axis));
     }
     for (c, why) in &study.skipped {
         out.push_str(&format!(
@@ -367,4 +474,109 @@ pub fn chart(
         1200,
         800,
     )?)
+}
+
+/// The physical axis as Markdown: the FEM's convergence, then each FFM configuration's
+/// difference from the FEM reference beside the time of a plain run, Pareto points marked.
+fn physical_markdown(study: &Study, axis: &PhysicalAxis) -> String {
+    let mut out = format!("\n#### Against the FEM (reference: resolution {})\n\n", axis.reference_resolution);
+    if let Some(c) = &axis.calibration {
+        out.push_str(&format!(
+            "The scene gives only `[tissue]`: fiber modulus calibrated once against the FEM at resolution {} (scale {:.3}, fiber modulus {:.4e}, shape error {:.3}).\n\n",
+            c.fem_resolution, c.scale, c.fiber_modulus, c.error_vs_fem
+        ));
+    }
+    out.push_str(
+        "| FEM resolution | unknowns | seconds | difference from the reference |\n|---|---|---|---|\n",
+    );
+    for f in &axis.fem {
+        out.push_str(&format!(
+            "| {} | {} | {:.3} | {:.3} |\n",
+            f.resolution, f.dofs, f.seconds, f.error_vs_fem
+        ));
+    }
+    let front = physical_front(study);
+    out.push_str("\n| mode | stepping | steps | precision | backend | seconds (one run) | difference from the FEM | |\n|---|---|---|---|---|---|---|---|\n");
+    for (i, p) in study.points.iter().enumerate() {
+        let (Some(t), Some(e)) = (p.run_seconds, p.error_vs_fem) else { continue };
+        let c = &p.config;
+        let mark = if front.contains(&i) { "*" } else { "" };
+        out.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {t:.4} | {e:.3} | {mark} |\n",
+            c.mode,
+            c.stepping_label(),
+            c.steps,
+            c.precision,
+            c.backend
+        ));
+    }
+    out
+}
+
+/// Indices of the FFM points on the Pareto front of (one run's seconds, difference from the
+/// FEM).
+pub fn physical_front(study: &Study) -> Vec<usize> {
+    let idx: Vec<usize> = (0..study.points.len())
+        .filter(|&i| study.points[i].run_seconds.is_some() && study.points[i].error_vs_fem.is_some())
+        .collect();
+    let xy: Vec<(f64, f64)> = idx
+        .iter()
+        .map(|&i| {
+            (
+                study.points[i].run_seconds.unwrap_or(0.0),
+                study.points[i].error_vs_fem.unwrap_or(f64::INFINITY),
+            )
+        })
+        .collect();
+    fibfluid::render::pareto_front_with_margin(&xy, PARETO_MARGIN).into_iter().map(|k| idx[k]).collect()
+}
+
+/// Log-log chart of the difference from the FEM against the time of one run: one line per
+/// (mode, stepping) of the structured f64 FFM points across step counts, one line for the
+/// FEM across resolutions; the Pareto front of every point (FFM and FEM) marked. `None`
+/// without a physical axis.
+pub fn physical_chart(study: &Study, title: &str) -> crate::Result<Option<Vec<u8>>> {
+    let Some(axis) = &study.physical else { return Ok(None) };
+    let mut series: Vec<fibfluid::render::Series> = Vec::new();
+    let mut all: Vec<(f64, f64)> = Vec::new();
+    for p in &study.points {
+        let (Some(t), Some(e)) = (p.run_seconds, p.error_vs_fem) else { continue };
+        if !(t > 0.0 && e > 0.0) {
+            continue;
+        }
+        all.push((t, e));
+        if p.config.precision != Precision::F64 || p.config.backend != Backend::Structured {
+            continue;
+        }
+        let label = format!("ffm {} {}", p.config.mode, p.config.stepping_label());
+        match series.iter_mut().find(|s| s.label == label) {
+            Some(s) => s.points.push((t, e)),
+            None => series.push(fibfluid::render::Series { label, points: vec![(t, e)] }),
+        }
+    }
+    let fem: Vec<(f64, f64)> = axis
+        .fem
+        .iter()
+        .filter(|f| f.seconds > 0.0 && f.error_vs_fem > 0.0)
+        .map(|f| (f.seconds, f.error_vs_fem))
+        .collect();
+    all.extend(&fem);
+    series.push(fibfluid::render::Series {
+        label: format!("fem, resolution {:?}", FEM_STUDY_RESOLUTIONS),
+        points: fem,
+    });
+    for s in &mut series {
+        s.points.sort_by(|a, b| a.0.total_cmp(&b.0));
+    }
+    let front: Vec<(f64, f64)> =
+        fibfluid::render::pareto_front_with_margin(&all, PARETO_MARGIN).into_iter().map(|k| all[k]).collect();
+    Ok(Some(fibfluid::render::loglog_chart(
+        title,
+        "seconds (one run: setup and solve)",
+        &format!("relative L2 difference from the FEM at resolution {}", axis.reference_resolution),
+        &series,
+        &front,
+        1200,
+        800,
+    )?))
 }

@@ -228,6 +228,9 @@ pub struct RoundTrip {
     pub factorizations: usize,
     /// Wall-clock seconds of the simulation (setup, both ways).
     pub seconds: f64,
+    /// Wall-clock seconds of the setup and the compression alone (what a plain run of the
+    /// scene costs).
+    pub compress_seconds: f64,
 }
 
 /// Runs compression then decompression (REFERENCE §4): `steps` equal steps each way, or
@@ -237,6 +240,7 @@ pub fn roundtrip(model: impl Into<crate::Model>, opts: &crate::RunOptions) -> cr
     let steps = scene.steps;
     let mut sim = Simulation::new(scene)?;
     sim.run(opts)?;
+    let compress_seconds = sim.elapsed();
     let compressed = sim.positions().to_vec();
     let volume_drift = (sim.volume() / sim.volume_initial() - 1.0).abs();
     let max_displacement = compressed
@@ -261,5 +265,6 @@ pub fn roundtrip(model: impl Into<crate::Model>, opts: &crate::RunOptions) -> cr
         residual_max: sim.counters().residual_max,
         factorizations: sim.counters().factorizations,
         seconds: sim.elapsed(),
+        compress_seconds,
     })
 }
