@@ -111,14 +111,17 @@ pub fn assemble_projected(
     };
     let conn = body.fibers.mean_connections();
     let pairs = PairData::new(body, material, conn);
-    let spec =
-        ColumnSpec { pairs: &pairs, axes, young: material.young[0], fixed, method: opts.method, keep };
+    let spec = ColumnSpec { pairs: &pairs, axes, young: material.young[0], fixed, method: opts.method, keep };
     let (stiffness, diag_scale, kept) = fill(&spec)?;
     let lifts = kept.into_iter().map(|(k, column)| (k, prescribed(k).expect("kept"), column)).collect();
     let border = (0..axes * n)
         .map(|k| {
             let (i, c) = dof(k);
-            if opts.method == ConstraintMethod::Eliminate && spec.fixed[k] { 0.0 } else { body.vertex_areas[i][c] }
+            if opts.method == ConstraintMethod::Eliminate && spec.fixed[k] {
+                0.0
+            } else {
+                body.vertex_areas[i][c]
+            }
         })
         .collect();
     let gamma = material.surface_tension;
@@ -267,7 +270,13 @@ impl ProjectedSystem {
     /// volume target, as [`System::rhs`](crate::System::rhs) builds it: prescribed
     /// displacements (times `prescribed_scale`) enter through the constraint method,
     /// and under elimination through the volume row with `border_areas`.
-    pub fn rhs(&self, b: &[f64], volume_target: f64, border_areas: &[Vec3], prescribed_scale: f64) -> Vec<f64> {
+    pub fn rhs(
+        &self,
+        b: &[f64],
+        volume_target: f64,
+        border_areas: &[Vec3],
+        prescribed_scale: f64,
+    ) -> Vec<f64> {
         let n = self.n;
         let mut r = Vec::with_capacity(self.axes * n + 1);
         r.extend_from_slice(b);

@@ -70,7 +70,11 @@ fn rigid_motions(pos: &[[f64; 3]], center: [f64; 3]) -> Vec<Vec<f64>> {
         let mut r = vec![0.0; 3 * n];
         for (i, p) in pos.iter().enumerate() {
             let d = [p[0] - center[0], p[1] - center[1], p[2] - center[2]];
-            let v = [omega[1] * d[2] - omega[2] * d[1], omega[2] * d[0] - omega[0] * d[2], omega[0] * d[1] - omega[1] * d[0]];
+            let v = [
+                omega[1] * d[2] - omega[2] * d[1],
+                omega[2] * d[0] - omega[0] * d[2],
+                omega[0] * d[1] - omega[1] * d[0],
+            ];
             for c in 0..3 {
                 r[c * n + i] = v[c];
             }
@@ -129,7 +133,8 @@ fn the_papers_fibers_resist_a_rotation() {
     let mut constraints = Constraints::new(n);
     constraints.fix(0, [true; 3]).unwrap();
     let material = Material::isotropic(3000.0, 3000.0, 1000.0);
-    let opts = AssemblyOptions { method: ConstraintMethod::Eliminate, pressure_scaling: PressureScaling::None };
+    let opts =
+        AssemblyOptions { method: ConstraintMethod::Eliminate, pressure_scaling: PressureScaling::None };
     let projected = assemble_projected(&owned.body(), &material, &constraints, &opts).unwrap();
     let paper = assemble(&owned.body(), &material, &constraints, &opts).unwrap();
     for (m, r) in rigid_motions(&owned.pos, owned.pos[0]).iter().enumerate().skip(3) {
@@ -154,15 +159,17 @@ fn the_coupled_solve_satisfies_the_bordered_system() {
     let mut constraints = Constraints::new(n);
     constraints.fix_selected(&Selector::Above { axis: 1, value: 0.8 }, &owned.pos, [true; 3]).unwrap();
     let material = Material::isotropic(3000.0, 3000.0, 1000.0);
-    let loads = Loads { acceleration: [0.0, -10.0, 0.0], down: None, density: 1000.0, forces: &[(3, [-300.0; 3])] };
+    let loads =
+        Loads { acceleration: [0.0, -10.0, 0.0], down: None, density: 1000.0, forces: &[(3, [-300.0; 3])] };
     let b = load_vector(3, &owned.pos, &owned.s, &loads).unwrap();
     for method in [ConstraintMethod::Eliminate, ConstraintMethod::PAPER] {
         let opts = AssemblyOptions { method, pressure_scaling: PressureScaling::Auto };
         let sys = assemble_projected(&owned.body(), &material, &constraints, &opts).unwrap();
         let rhs = sys.rhs(&b, 0.0, &owned.s, 1.0);
         let k = sys.stiffness.clone();
-        let factor = CoupledCholesky::factor(sys.stiffness.clone(), sys.border.clone(), &FactorOptions::default())
-            .unwrap();
+        let factor =
+            CoupledCholesky::factor(sys.stiffness.clone(), sys.border.clone(), &FactorOptions::default())
+                .unwrap();
         let sol = factor.solve(&rhs).unwrap();
         assert!(sol.relative_residual < 1e-12, "{method:?}: {}", sol.relative_residual);
         let (u, p) = sys.split_solution(&sol.x);
@@ -175,7 +182,11 @@ fn the_coupled_solve_satisfies_the_bordered_system() {
         // Fixed vertices stay (to the penalty's 1 / big).
         let largest = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         for i in (0..n).filter(|&i| owned.pos[i][1] > 0.8) {
-            assert!(u[i].iter().all(|v| v.abs() < 1e-4 * largest), "{method:?}: vertex {i} moved: {:?}", u[i]);
+            assert!(
+                u[i].iter().all(|v| v.abs() < 1e-4 * largest),
+                "{method:?}: vertex {i} moved: {:?}",
+                u[i]
+            );
         }
         // The body sags.
         assert!(u.iter().map(|v| v[1]).sum::<f64>() < 0.0);
@@ -191,7 +202,8 @@ fn a_free_rotation_is_a_singular_system() {
     let mut constraints = Constraints::new(n);
     constraints.fix(0, [true; 3]).unwrap();
     let material = Material::isotropic(3000.0, 0.0, 1000.0);
-    let opts = AssemblyOptions { method: ConstraintMethod::Eliminate, pressure_scaling: PressureScaling::None };
+    let opts =
+        AssemblyOptions { method: ConstraintMethod::Eliminate, pressure_scaling: PressureScaling::None };
     let sys = assemble_projected(&owned.body(), &material, &constraints, &opts).unwrap();
     let e = CoupledCholesky::factor(sys.stiffness, sys.border, &FactorOptions::default()).unwrap_err();
     assert!(matches!(e, fibfluid_linalg::LinalgError::SingularPivot { .. }), "{e:?}");

@@ -84,8 +84,11 @@ impl CoupledCholesky {
         if !(schur > 0.0) || border.iter().all(|v| *v == 0.0) {
             return Err(LinalgError::SingularPivot { index: m, pivot: schur });
         }
-        let cost =
-            FactorCost { flops: cholesky_flops(m), seconds: start.elapsed().as_secs_f64(), bytes: 2 * m * m * 8 };
+        let cost = FactorCost {
+            flops: cholesky_flops(m),
+            seconds: start.elapsed().as_secs_f64(),
+            bytes: 2 * m * m * 8,
+        };
         Ok(Self { k, llt, border, kinv_s, schur, opts: *opts, cost })
     }
 
