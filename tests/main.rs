@@ -1,6 +1,7 @@
 //! The integration tests of this package, in one binary (one link instead of one per file).
 
 mod chainmail;
+mod fibers;
 mod fuzz_readers;
 mod golden_sphere42;
 mod hard_cases;

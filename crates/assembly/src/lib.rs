@@ -19,12 +19,16 @@
 //! keeping the matrix symmetric and well conditioned). With [`PressureScaling::Auto`] the
 //! border is multiplied by `lambda_S / |S|` (`lambda_S = S' K S / S' S`, free degrees of
 //! freedom) so the pressure unknown has the same scale as the displacements.
+//!
+//! [`assemble_projected`] builds the projected fiber model instead (each fiber's spring
+//! acts along the fiber, `k d d'` blocks that couple the axes): one dense dN x dN matrix.
 
 mod block;
 mod body;
 mod constraints;
 mod loads;
 mod material;
+mod projected;
 mod synthetic;
 mod system;
 
@@ -32,6 +36,7 @@ pub use body::Body;
 pub use constraints::{ConstraintKind, ConstraintMethod, Constraints, DEFAULT_PENALTY, Selector};
 pub use loads::{Loads, depths, load_vector};
 pub use material::{Material, StiffnessLaw};
+pub use projected::{ProjectedSystem, assemble_projected, projected_stiffness};
 pub use system::{AssemblyOptions, AssemblyStats, PressureScaling, System, assemble};
 
 /// What can go wrong while assembling.
@@ -73,6 +78,9 @@ pub enum AssemblyError {
     /// Every degree of freedom is fixed.
     #[error("every degree of freedom is fixed; nothing can move")]
     EverythingFixed,
+    /// A dense matrix does not fit (the projected fibers' dN x dN stiffness).
+    #[error(transparent)]
+    Linalg(#[from] fibfluid_linalg::LinalgError),
 }
 
 /// Result alias of this crate.

@@ -166,7 +166,7 @@ pub fn assemble(
 }
 
 /// The checks of [`assemble`] that need no matrix.
-fn validate(body: &Body, material: &Material, constraints: &Constraints) -> Result<()> {
+pub(crate) fn validate(body: &Body, material: &Material, constraints: &Constraints) -> Result<()> {
     material.check()?;
     let (n, axes) = (body.positions.len(), body.axes);
     if constraints.n_vertices() != n {

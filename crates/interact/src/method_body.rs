@@ -62,6 +62,14 @@ pub fn build_body(scene: &Model, opts: &ProbeOptions) -> Result<ProbeBody, Probe
     if !matches!(scene.shape, Shape::Surface(_)) {
         return Err(ProbeError::NotASurface { scene: scene.display_name() });
     }
+    if scene.ffm.fibers == fibfluid_sim::FiberModel::Projected {
+        return Err(fibfluid_sim::Error::MethodNeeds {
+            scene: scene.display_name(),
+            method: Method::Ffm,
+            problem: "with fibers = \"projected\" has no interactive body yet (its response is the coupled 3N x 3N factor; use fibers = \"paper\" to probe)",
+        }
+        .into());
+    }
     let n = scene.n_vertices();
     let nblocks = if scene.material.is_isotropic() && scene.constraints.is_uniform(3) { 1 } else { 3 };
     // The assembled blocks and their factorization stay alive (lazy: for good).

@@ -23,11 +23,16 @@
 //! - `structured` ([`Structured`], always built): a Cholesky per block (one when shared) plus
 //!   a scalar Schur complement for the pressure, `P = (S.K^-1 b - t) / (S.K^-1 S)`, so a new
 //!   border costs triangular solves only and the dense matrix is never formed.
+//!
+//! [`CoupledCholesky`] solves the same bordered form when the stiffness couples the axes
+//! (a dense dN x dN `K`, the projected fibers): a Cholesky of `K` and the Schur complement
+//! of the border.
 
 // Without a dense backend the shared dense helpers are unused.
 #![cfg_attr(not(any(feature = "faer-lu", feature = "nalgebra-lu", feature = "openblas")), allow(dead_code))]
 
 mod choice;
+mod coupled;
 mod dense;
 mod error;
 mod held;
@@ -47,6 +52,7 @@ mod nalgebra_lu;
 mod openblas_lu;
 
 pub use choice::{Choice, ParseChoiceError};
+pub use coupled::CoupledCholesky;
 pub use error::{LinalgError, Result};
 pub use held::{
     CAPACITANCE_PIVOT_FACTOR, HeldCapacitance, HeldRow, VertexColumns, VertexForce, VertexResponse,

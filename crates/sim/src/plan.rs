@@ -10,7 +10,7 @@
 use fibfluid_linalg::{Backend, Precision, cholesky_flops, lu_flops};
 use serde::Serialize;
 
-use crate::choices::{Method, Mode, Stepping};
+use crate::choices::{FiberModel, Method, Mode, Stepping};
 use crate::model::{Model, Shape, VOLUME_NEWTON_ITERATIONS};
 use crate::stages::{Stage, names};
 use crate::{Error, Result};
@@ -116,6 +116,12 @@ impl Plan {
             available: limit,
             hint: if self.runs(names::VOXELIZATION) {
                 "lower [fem] resolution"
+            } else if self
+                .stages
+                .iter()
+                .any(|s| s.name == names::FACTORIZATION && s.reason.contains("projected"))
+            {
+                "use a coarser mesh or fibers = \"paper\" (the projected fibers' stiffness is dense 3N x 3N)"
             } else if backend.is_dense() {
                 "use the `structured` backend (it never forms the dense matrix) or a coarser mesh"
             } else {
@@ -147,6 +153,8 @@ struct Costs {
     dim: f64,
     dense: bool,
     solve_flops: f64,
+    /// Side of the projected fibers' coupled stiffness (0: paper fibers).
+    projected: f64,
 }
 
 impl Costs {
@@ -168,7 +176,14 @@ impl Costs {
             block_bytes: blocks * n * n * 8.0,
             dim,
             dense,
-            solve_flops: if dense { 2.0 * dim * dim } else { 4.0 * d * n * n },
+            solve_flops: if scene.ffm.fibers == FiberModel::Projected {
+                6.0 * d * d * n * n
+            } else if dense {
+                2.0 * dim * dim
+            } else {
+                4.0 * d * n * n
+            },
+            projected: projected_side(scene, size),
         }
     }
 }
@@ -212,11 +227,18 @@ fn setup_stages(scene: &Model, size: &Size, c: &Costs) -> Vec<PlannedStage> {
     });
     st.push(stage(names::AREAS, true, "vertex area vectors S (Eq. 2)", 0.0, 30.0 * faces));
     let gamma = scene.material.surface_tension > 0.0;
-    let assembly_bytes = (1.0 + if gamma { 1.0 } else { 0.0 }) * n * n * 8.0 + block_bytes;
+    let projected = projected_side(scene, size);
+    let assembly_bytes =
+        (1.0 + if gamma { 1.0 } else { 0.0 }) * n * n * 8.0 + block_bytes + projected * projected * 8.0;
     let blocks_reason = if shared {
         "one shared N x N block (isotropic material, the same constraints on every axis)".to_string()
     } else {
         format!("{axes} N x N blocks (anisotropic material or different constraints per axis)")
+    };
+    let blocks_reason = if projected > 0.0 {
+        format!("{blocks_reason}; projected fibers: one coupled {projected} x {projected} matrix")
+    } else {
+        blocks_reason
     };
     st.push(stage(
         names::ASSEMBLY,
@@ -238,6 +260,11 @@ fn setup_stages(scene: &Model, size: &Size, c: &Costs) -> Vec<PlannedStage> {
     });
 
     st
+}
+
+/// The side dN of the projected fibers' coupled stiffness (0 with the paper's fibers).
+fn projected_side(scene: &Model, size: &Size) -> f64 {
+    if scene.ffm.fibers == FiberModel::Projected { size.axes as f64 * size.n } else { 0.0 }
 }
 
 /// The factorization: once, plus one per operator evaluation when the operator changes.
@@ -268,6 +295,18 @@ fn factor_stage(scene: &Model, c: &Costs) -> PlannedStage {
             blocks * cholesky_flops(n as usize),
             format!("Cholesky of {blocks} N x N block(s) and the Schur complement ({})", solver.backend),
         )
+    };
+    let m = c.projected;
+    let (factor_bytes, factor_flops, factor_reason) = if m > 0.0 {
+        (
+            factor_bytes + m * m * 8.0,
+            factor_flops + cholesky_flops(m as usize),
+            format!(
+                "{factor_reason} (the paper's operator), and the projected fibers' dense Cholesky of the {m} x {m} coupled stiffness with the Schur complement of the border"
+            ),
+        )
+    } else {
+        (factor_bytes, factor_flops, factor_reason)
     };
     let factor_reason = match solver.mode {
         Mode::Paper => format!("{factor_reason}; once, on the rest shape"),

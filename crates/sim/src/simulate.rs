@@ -10,17 +10,18 @@
 use std::time::Instant;
 
 use fibfluid_assembly::{
-    AssemblyOptions, Body, ConstraintMethod, Loads, PressureScaling, System, assemble, load_vector,
+    AssemblyOptions, Body, ConstraintMethod, Loads, PressureScaling, ProjectedSystem, System, assemble,
+    assemble_projected, load_vector,
 };
 use fibfluid_geometry::vec3::{add, dot, norm, scale, sub};
 use fibfluid_geometry::{Boundary, FiberSet, Vec3, VisibilityOptions, cull_fibers};
 use fibfluid_linalg::{
-    FactorOptions, Factorization, FactorizationExt, HeldCapacitance, LinearSolver, PrescribedSet,
-    VertexColumns, VertexResponse,
+    CoupledCholesky, FactorOptions, Factorization, FactorizationExt, HeldCapacitance, LinearSolver,
+    PrescribedSet, VertexColumns, VertexResponse,
 };
 use serde::Serialize;
 
-use crate::choices::{ForceTiming, Method, Mode, Stepping};
+use crate::choices::{FiberModel, ForceTiming, Method, Mode, Stepping};
 use crate::contact::{
     Contact, MAX_ACTIVE_SET_ITERATIONS, PENETRATION_TOLERANCE, PlateRecord, TENSION_TOLERANCE,
 };
@@ -166,6 +167,28 @@ struct Factored {
     held: Holds,
     /// Contact constraints, on this factorization.
     contact: PrescribedSet,
+    /// With projected fibers (`[ffm] fibers = "projected"`, paper mode): the coupled
+    /// system and its factorization, which every step's solve uses instead of
+    /// `factorization` (the paper's operator is still assembled and factored: it backs
+    /// [`Simulation::system`] and [`Simulation::factorization`]).
+    coupled: Option<Coupled>,
+}
+
+/// The projected fibers' bordered system and its dense Cholesky (the stiffness lives in
+/// the factorization; the system keeps what right-hand sides need).
+struct Coupled {
+    system: ProjectedSystem,
+    factor: CoupledCholesky,
+}
+
+impl Factored {
+    /// Splits a solution of the solved system into displacements and the pressure.
+    fn split(&self, x: &[f64]) -> (Vec<Vec3>, f64) {
+        match &self.coupled {
+            Some(c) => c.system.split_solution(x),
+            None => self.system.split_solution(x),
+        }
+    }
 }
 
 /// Vertices held by [`Simulation::respond_held`]: the compliance columns of the vertices
@@ -225,13 +248,7 @@ impl Simulation {
                 problem: "is not run by the fiber-fluid Simulation (fem: `fem_run::FemRun`; ChainMail: interactive bodies)",
             });
         }
-        if scene.ffm.fibers == crate::choices::FiberModel::Projected {
-            return Err(Error::MethodNeeds {
-                scene: scene.display_name(),
-                method: Method::Ffm,
-                problem: "with fibers = \"projected\" is not built yet (use fibers = \"paper\")",
-            });
-        }
+        refuse_projected(&scene)?;
         let started = Instant::now();
         let limit = fibfluid_linalg::memory_budget(opts.max_memory);
         // From counts first: a body too large is refused before its convexity check.
@@ -285,6 +302,17 @@ impl Simulation {
         let system = log.time(names::ASSEMBLY, || assemble_on(&scene, &body, &body.rest, &areas))?;
         let factorization =
             log.time(names::FACTORIZATION, || solver.factorize(&system.matrix, &factor_options))?;
+        let coupled = if scene.ffm.fibers == FiberModel::Projected {
+            let mut projected =
+                log.time(names::ASSEMBLY, || assemble_projected_on(&scene, &body, &body.rest, &areas))?;
+            let k = std::mem::replace(&mut projected.stiffness, fibfluid_linalg::Mat::new());
+            let border = projected.border.clone();
+            let factor =
+                log.time(names::FACTORIZATION, || CoupledCholesky::factor(k, border, &factor_options))?;
+            Some(Coupled { system: projected, factor })
+        } else {
+            None
+        };
         let state = State {
             positions: body.rest.clone(),
             pressure: 0.0,
@@ -300,8 +328,10 @@ impl Simulation {
             border_areas: areas,
             held: Holds::default(),
             contact: PrescribedSet::new(),
+            coupled,
         };
-        let counters = Counters { factorizations: 1, ..Default::default() };
+        let factorizations = if factored.coupled.is_some() { 2 } else { 1 };
+        let counters = Counters { factorizations, ..Default::default() };
         let plates = scene.plates.len();
         Ok(Self {
             model: scene,
@@ -382,12 +412,14 @@ impl Simulation {
         self.body.convex
     }
 
-    /// The assembled system currently factored.
+    /// The assembled system currently factored. With projected fibers this is the paper's
+    /// per-axis operator on the same body, not the coupled one the steps solve.
     pub fn system(&self) -> &System {
         &self.factored.system
     }
 
-    /// The current factorization.
+    /// The current factorization (with projected fibers: of [`system`](Self::system), the
+    /// paper's operator).
     pub fn factorization(&self) -> &dyn Factorization {
         self.factored.factorization.as_ref()
     }
@@ -395,7 +427,8 @@ impl Simulation {
     /// Ends the simulation and keeps its assembled system and factorization, for a caller
     /// that solves on with them (the interactive body's compliance columns are computed
     /// with the factorization of the base solve, not a second one). Everything else (the
-    /// state, the fibers, the held and contact sets) is dropped.
+    /// state, the fibers, the held and contact sets) is dropped. With projected fibers
+    /// these are the paper's operator: callers must refuse such scenes.
     pub fn into_factored(self) -> (System, Box<dyn Factorization>) {
         (self.factored.system, self.factored.factorization)
     }
@@ -803,15 +836,15 @@ impl Simulation {
         let b1 = self.load_increment(&s, inc.da, &inc.forces)?;
         if self.model.solver.stepping == Stepping::Euler && !estimate {
             let x = self.solve(&b1, target, inc.prescribed, true)?;
-            let (u, p) = self.factored.system.split_solution(&x);
+            let (u, p) = self.factored.split(&x);
             return Ok(Evaluation { du: u, dp: p, estimate: None });
         }
         let xb = self.solve(&b1, 0.0, inc.prescribed, true)?;
-        let (ub, pb) = self.factored.system.split_solution(&xb);
+        let (ub, pb) = self.factored.split(&xb);
         let (ut, pt) = if target != 0.0 {
             let zero = vec![0.0; b1.len()];
             let xt = self.solve(&zero, target, 0.0, false)?;
-            self.factored.system.split_solution(&xt)
+            self.factored.split(&xt)
         } else {
             (vec![[0.0; 3]; s.len()], 0.0)
         };
@@ -823,7 +856,7 @@ impl Simulation {
         });
         self.log.end(open);
         let x2 = corrected?;
-        let (u2, p2) = self.factored.system.split_solution(&x2);
+        let (u2, p2) = self.factored.split(&x2);
         // Heun minus Euler: half the difference of the two slopes.
         let est =
             estimate.then(|| ub.iter().zip(&u2).map(|(a, b)| 0.5 * norm(sub(*b, *a))).fold(0.0, f64::max));
@@ -849,6 +882,7 @@ impl Simulation {
     /// The static response of the current factorization to point forces alone (no
     /// stepping, no position update): the interactive use of a factored body.
     pub fn respond(&mut self, forces: &[(usize, Vec3)]) -> Result<(Vec<Vec3>, f64)> {
+        self.refuse_coupled()?;
         let n = self.state.positions.len();
         if let Some(&(v, _)) = forces.iter().find(|(v, _)| *v >= n) {
             return Err(Error::VertexOutOfRange { vertex: v, vertices: n });
@@ -856,7 +890,7 @@ impl Simulation {
         let loads = Loads { forces, ..Default::default() };
         let b = load_vector(self.axes(), &self.state.positions, &self.factored.border_areas, &loads)?;
         let x = self.solve(&b, 0.0, 1.0, false)?;
-        Ok(self.factored.system.split_solution(&x))
+        Ok(self.factored.split(&x))
     }
 
     /// The static response of the current factorization to point forces with vertices
@@ -871,6 +905,7 @@ impl Simulation {
     /// `N^3 / 3` per stiffness block. A vertex listed twice is held once (at its first
     /// displacement).
     pub fn respond_held(&mut self, forces: &[(usize, Vec3)], held: &[(usize, Vec3)]) -> Result<Response> {
+        self.refuse_coupled()?;
         let n = self.state.positions.len();
         let axes = self.axes();
         if let Some(&(v, _)) = forces.iter().chain(held).find(|(v, _)| *v >= n) {
@@ -918,12 +953,24 @@ impl Simulation {
         }
         self.log.add(names::SOLVE, start.elapsed().as_secs_f64());
         self.counters.solves += 1;
-        let (displacements, pressure) = self.factored.system.split_solution(&x);
+        let (displacements, pressure) = self.factored.split(&x);
         let reactions = held
             .iter()
             .map(|&(v, _)| *reactions.iter().find(|r| r.0 == v).expect("every held vertex has a reaction"))
             .collect();
         Ok(Response { displacements, pressure, reactions })
+    }
+
+    /// The interactive responses are built on the paper's per-axis operator only.
+    fn refuse_coupled(&self) -> Result<()> {
+        if self.factored.coupled.is_some() {
+            return Err(Error::MethodNeeds {
+                scene: self.model.display_name(),
+                method: Method::Ffm,
+                problem: "with fibers = \"projected\" has no interactive response yet (use fibers = \"paper\")",
+            });
+        }
+        Ok(())
     }
 
     /// Makes the factored operator describe shape `s` as the mode requires; returns the
@@ -998,7 +1045,7 @@ impl Simulation {
         let solved = self.solve(&zero, 1.0, 0.0, false);
         self.log.end(open);
         let xw = solved?;
-        let (w, pw) = self.factored.system.split_solution(&xw);
+        let (w, pw) = self.factored.split(&xw);
         let start = self.state.positions.clone();
         let along = |alpha: f64| -> Vec<Vec3> {
             start.iter().zip(&w).map(|(p, d)| add(*p, scale(*d, alpha))).collect()
@@ -1052,6 +1099,16 @@ impl Simulation {
             self.sync_contact_set()?;
         }
         let f = &self.factored;
+        if let Some(c) = &f.coupled {
+            let rhs = c.system.rhs(b, target, &f.border_areas, prescribed_scale);
+            let start = Instant::now();
+            let sol = c.factor.solve(&rhs)?;
+            self.log.add(names::SOLVE, start.elapsed().as_secs_f64());
+            self.counters.residual_max = self.counters.residual_max.max(sol.relative_residual);
+            self.counters.refinement_steps_max = self.counters.refinement_steps_max.max(sol.refinement_steps);
+            self.counters.solves += 1;
+            return Ok(sol.x);
+        }
         let rhs = f.system.rhs(b, target, &f.border_areas, prescribed_scale);
         let start = Instant::now();
         let x = if self.contact_active.is_empty() {
@@ -1108,6 +1165,47 @@ impl Simulation {
         self.log.add(names::CONTACT, start.elapsed().as_secs_f64());
         Ok(())
     }
+}
+
+/// Refuses, with one line, what the projected fibers do not run: only paper mode (one
+/// factorization of the rest shape's coupled operator) on a surface, in f64, without
+/// plates, is built.
+fn refuse_projected(scene: &Model) -> Result<()> {
+    if scene.ffm.fibers != FiberModel::Projected {
+        return Ok(());
+    }
+    let problem = if scene.solver.mode != Mode::Paper {
+        "with fibers = \"projected\" runs in mode = \"paper\" only (refresh and nonlinear modes are not built)"
+    } else if !scene.plates.is_empty() {
+        "with fibers = \"projected\" does not run plates yet (use fibers = \"paper\")"
+    } else if matches!(scene.shape, Shape::Polygon(_)) {
+        "with fibers = \"projected\" needs a surface mesh (2D polygons are not built)"
+    } else if scene.solver.precision != fibfluid_linalg::Precision::F64 {
+        "with fibers = \"projected\" factors in f64 only (precision = \"mixed\" is not built)"
+    } else {
+        return Ok(());
+    };
+    Err(Error::MethodNeeds { scene: scene.display_name(), method: Method::Ffm, problem })
+}
+
+/// The projected fibers' system on `positions` (the paper's constraint method).
+fn assemble_projected_on(
+    scene: &Model,
+    body: &BodyShape,
+    positions: &[Vec3],
+    areas: &[Vec3],
+) -> Result<ProjectedSystem> {
+    let shape = Body {
+        axes: body.boundary.axes(),
+        positions,
+        vertex_areas: areas,
+        edges: &body.edges,
+        fibers: &body.fibers,
+        rest_positions: Some(&body.rest),
+    };
+    let opts =
+        AssemblyOptions { method: scene.solver.constraint_method(), pressure_scaling: PressureScaling::None };
+    Ok(assemble_projected(&shape, &scene.material, &scene.constraints, &opts)?)
 }
 
 fn assemble_on(scene: &Model, body: &BodyShape, positions: &[Vec3], areas: &[Vec3]) -> Result<System> {
