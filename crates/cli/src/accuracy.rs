@@ -66,6 +66,10 @@ pub fn run(scene_path: &Path, out: &Path, flags: GridFlags) -> Result<(), CliErr
         }
         grid.backends = b;
     }
+    if scene.tissue.is_some() {
+        // The physical axis compares both fiber models with the FEM.
+        grid.fibers = vec![fibfluid::sim::FiberModel::Paper, fibfluid::sim::FiberModel::Projected];
+    }
     grid.modes = flags.modes.unwrap_or(grid.modes);
     grid.steppings = flags.steppings.unwrap_or(grid.steppings);
     grid.precisions = flags.precisions.unwrap_or(grid.precisions);

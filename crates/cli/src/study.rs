@@ -3,6 +3,7 @@
 
 use serde::Serialize;
 
+use fibfluid::sim::FiberModel;
 use fibfluid::{Backend, Mode, Precision, RoundTrip, RunOptions, Scene, Stepping, roundtrip};
 
 /// One configuration of the study.
@@ -20,12 +21,23 @@ pub struct Config {
     pub precision: Precision,
     /// Backend.
     pub backend: Backend,
+    /// FFM's fiber model.
+    pub fibers: FiberModel,
 }
 
 impl Config {
     /// The configuration's line label (everything but the step count).
     pub fn series(&self) -> String {
         format!("{} {} {} {}", self.mode, self.stepping_label(), self.precision, self.backend)
+    }
+
+    /// `ffm` or `ffm projected`, then the mode and the stepping (a chart line's label).
+    fn fibers_label(&self) -> String {
+        let ffm = match self.fibers {
+            FiberModel::Paper => "ffm".to_string(),
+            other => format!("ffm {other}"),
+        };
+        format!("{ffm} {} {}", self.mode, self.stepping_label())
     }
 
     /// `euler`, `heun`, or `adaptive` for a tolerance point.
@@ -80,6 +92,9 @@ pub struct Grid {
     pub precisions: Vec<Precision>,
     /// Backends.
     pub backends: Vec<Backend>,
+    /// Fiber models (`projected` runs in paper mode, f64, with its own coupled solver: one
+    /// point per stepping and step count).
+    pub fibers: Vec<FiberModel>,
     /// Dense backends refactor the (3N+1)^2 matrix at every step outside paper mode (a new
     /// border or a new K); above this many vertices they are run only up to
     /// `dense_refactor_max_steps` there.
@@ -97,6 +112,7 @@ impl Default for Grid {
             tolerances: vec![1e-2, 1e-3, 1e-4],
             precisions: vec![Precision::F64, Precision::Mixed],
             backends: Backend::compiled(),
+            fibers: vec![FiberModel::Paper],
             dense_refactor_vertex_limit: 500,
             dense_refactor_max_steps: 10,
         }
@@ -125,8 +141,9 @@ pub struct PhysicalAxis {
     pub reference: Vec<fibfluid::geometry::Vec3>,
     /// The FEM at coarser resolutions.
     pub fem: Vec<FemPoint>,
-    /// The calibration made once for every point, when the scene gave only `[tissue]`.
-    pub calibration: Option<fibfluid::sim::calibration::Calibration>,
+    /// The calibrations made once for every point of each fiber model, when the scene gave
+    /// only `[tissue]`.
+    pub calibrations: Vec<fibfluid::sim::calibration::Calibration>,
 }
 
 /// Resolutions of the FEM points of a study's physical axis.
@@ -151,7 +168,7 @@ pub struct Study {
 pub fn run_study(scene: &Scene, grid: &Grid, progress: &dyn Fn(usize, usize)) -> crate::Result<Study> {
     let (scene, physical) = match scene.tissue {
         Some(_) => {
-            let (s, p) = physical_axis(scene)?;
+            let (s, p) = physical_axis(scene, &grid.fibers)?;
             (s, Some(p))
         }
         None => (scene.clone(), None),
@@ -177,38 +194,8 @@ pub fn run_study(scene: &Scene, grid: &Grid, progress: &dyn Fn(usize, usize)) ->
     let (lo, hi) = fibfluid::geometry::bounding_box(&rest);
     let diag = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (hi[2] - lo[2]).powi(2)).sqrt();
     let n = rest.len();
-    let mut configs = Vec::new();
-    let mut skipped = Vec::new();
-    for &mode in &grid.modes {
-        for &stepping in &grid.steppings {
-            for &precision in &grid.precisions {
-                for &backend in &grid.backends {
-                    let fixed = grid.steps.iter().map(|&n| (n, None));
-                    let adaptive =
-                        grid.tolerances.iter().filter(|_| stepping == Stepping::Heun).map(|&t| (4, Some(t)));
-                    for (steps, tolerance) in fixed.chain(adaptive) {
-                        let mut s = scene.clone();
-                        s.steps = steps;
-                        s.tolerance = tolerance;
-                        s.solver.mode = mode;
-                        s.solver.stepping = stepping;
-                        s.solver.precision = precision;
-                        s.solver.backend = backend;
-                        let costly = tolerance.is_some() || steps > grid.dense_refactor_max_steps;
-                        if backend.is_dense()
-                            && mode != Mode::Paper
-                            && n > grid.dense_refactor_vertex_limit
-                            && costly
-                        {
-                            skipped.push((config_of(&s), format!("a dense refactorization per step at N = {n} costs too much beyond {} steps", grid.dense_refactor_max_steps)));
-                            continue;
-                        }
-                        configs.push(s);
-                    }
-                }
-            }
-        }
-    }
+    let calibrations = physical.as_ref().map(|a| a.calibrations.as_slice()).unwrap_or(&[]);
+    let (configs, skipped) = grid_configs(scene, grid, calibrations);
     let total = configs.len();
     let mut points = Vec::with_capacity(total);
     for (k, s) in configs.into_iter().enumerate() {
@@ -216,6 +203,10 @@ pub fn run_study(scene: &Scene, grid: &Grid, progress: &dyn Fn(usize, usize)) ->
         let point = match timed_roundtrip(s) {
             Ok(rt) => {
                 let mut p = point_of(config, &rt, &reference_run, n, diag);
+                if p.config.fibers != reference.fibers {
+                    // The converged reference is of the other fiber model.
+                    p.reference_distance = None;
+                }
                 p.error_vs_fem = physical.as_ref().map(|a| relative_l2(&rt.compressed, &rest, &a.reference));
                 p
             }
@@ -238,19 +229,88 @@ pub fn run_study(scene: &Scene, grid: &Grid, progress: &dyn Fn(usize, usize)) ->
     Ok(Study { physical, reference, points, skipped })
 }
 
+/// The scenes of every grid point (and the points skipped, with why).
+fn grid_configs(
+    scene: &Scene,
+    grid: &Grid,
+    calibrations: &[fibfluid::sim::calibration::Calibration],
+) -> (Vec<Scene>, Vec<(Config, String)>) {
+    let n = scene.n_vertices();
+    let mut configs = Vec::new();
+    let mut skipped = Vec::new();
+    for &fibers in &grid.fibers {
+        for &mode in &grid.modes {
+            for &stepping in &grid.steppings {
+                for &precision in &grid.precisions {
+                    for &backend in &grid.backends {
+                        let fixed = grid.steps.iter().map(|&n| (n, None));
+                        let adaptive = grid
+                            .tolerances
+                            .iter()
+                            .filter(|_| stepping == Stepping::Heun)
+                            .map(|&t| (4, Some(t)));
+                        for (steps, tolerance) in fixed.chain(adaptive) {
+                            let mut s = scene.clone();
+                            s.steps = steps;
+                            s.tolerance = tolerance;
+                            s.solver.mode = mode;
+                            s.solver.stepping = stepping;
+                            s.solver.precision = precision;
+                            s.solver.backend = backend;
+                            s.ffm.fibers = fibers;
+                            apply_calibration(&mut s, calibrations);
+                            match skip_reason(&s, grid, n) {
+                                Some(why) => skipped.push((config_of(&s), why)),
+                                None => configs.push(s),
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    (configs, skipped)
+}
+
+/// Why a grid point is not run, if it is not.
+fn skip_reason(s: &Scene, grid: &Grid, n: usize) -> Option<String> {
+    let (mode, backend) = (s.solver.mode, s.solver.backend);
+    if s.ffm.fibers == FiberModel::Projected {
+        if mode != Mode::Paper || s.solver.precision != Precision::F64 {
+            return Some("projected fibers run in paper mode, f64".into());
+        }
+        if backend != grid.backends[0] {
+            return Some("projected fibers have their own coupled solver (one backend's row)".into());
+        }
+        return None;
+    }
+    let costly = s.tolerance.is_some() || s.steps > grid.dense_refactor_max_steps;
+    if backend.is_dense() && mode != Mode::Paper && n > grid.dense_refactor_vertex_limit && costly {
+        return Some(format!(
+            "a dense refactorization per step at N = {n} costs too much beyond {} steps",
+            grid.dense_refactor_max_steps
+        ));
+    }
+    None
+}
+
 /// The scene with its fibers calibrated once (when it gave only `[tissue]`), the FEM
 /// reference at [`FEM_STUDY_REFERENCE`] and the FEM at [`FEM_STUDY_RESOLUTIONS`].
-fn physical_axis(scene: &Scene) -> crate::Result<(Scene, PhysicalAxis)> {
+fn physical_axis(scene: &Scene, fibers: &[FiberModel]) -> crate::Result<(Scene, PhysicalAxis)> {
     let mut calibrated = scene.clone();
-    let calibration = if scene.ffm.calibrate {
-        let c = fibfluid::sim::calibration::calibrate(scene, None)?;
-        calibrated.material.young = [c.fiber_modulus; 3];
-        calibrated.material.surface_tension = c.surface_tension;
+    let mut calibrations = Vec::new();
+    if scene.ffm.calibrate {
+        for &f in fibers.iter().chain([&scene.ffm.fibers]) {
+            if calibrations.iter().any(|c: &fibfluid::sim::calibration::Calibration| c.fibers == f) {
+                continue;
+            }
+            let mut m = scene.clone();
+            m.ffm.fibers = f;
+            calibrations.push(fibfluid::sim::calibration::calibrate(&m, None)?);
+        }
         calibrated.ffm.calibrate = false;
-        Some(c)
-    } else {
-        None
-    };
+        apply_calibration(&mut calibrated, &calibrations);
+    }
     let fem_run = |resolution: usize| -> crate::Result<fibfluid::sim::fem_run::FemRun> {
         let mut m: fibfluid::sim::Model = scene.model.clone();
         m.solver.method = fibfluid::Method::Fem;
@@ -269,7 +329,15 @@ fn physical_axis(scene: &Scene) -> crate::Result<(Scene, PhysicalAxis)> {
             error_vs_fem: relative_l2(&run.positions, &run.rest, &reference),
         });
     }
-    Ok((calibrated, PhysicalAxis { reference_resolution: FEM_STUDY_REFERENCE, reference, fem, calibration }))
+    Ok((calibrated, PhysicalAxis { reference_resolution: FEM_STUDY_REFERENCE, reference, fem, calibrations }))
+}
+
+/// Sets the scene's fiber modulus from the calibration of its fiber model, if any.
+fn apply_calibration(s: &mut Scene, calibrations: &[fibfluid::sim::calibration::Calibration]) {
+    if let Some(c) = calibrations.iter().find(|c| c.fibers == s.ffm.fibers) {
+        s.material.young = [c.fiber_modulus; 3];
+        s.material.surface_tension = c.surface_tension;
+    }
 }
 
 fn displacement(positions: &[[f64; 3]], rest: &[[f64; 3]]) -> Vec<[f64; 3]> {
@@ -317,6 +385,7 @@ fn config_of(s: &Scene) -> Config {
         tolerance: s.tolerance,
         precision: s.solver.precision,
         backend: s.solver.backend,
+        fibers: s.ffm.fibers,
     }
 }
 
@@ -366,10 +435,11 @@ fn measured_cells(p: &Point, num: impl Fn(f64) -> String, missing: &str) -> Vec<
 /// The study as CSV (one row per point).
 pub fn to_csv(study: &Study) -> String {
     let mut out = String::from(
-        "mode,stepping,steps,tolerance,precision,backend,roundtrip_error,volume_drift,reference_distance,residual_max,factorizations,seconds,run_seconds,error_vs_fem,error\n",
+        "fibers,mode,stepping,steps,tolerance,precision,backend,roundtrip_error,volume_drift,reference_distance,residual_max,factorizations,seconds,run_seconds,error_vs_fem,error\n",
     );
     for p in &study.points {
-        let mut cells = measured_cells(p, |x| format!("{x:e}"), "");
+        let mut cells = vec![p.config.fibers.to_string()];
+        cells.extend(measured_cells(p, |x| format!("{x:e}"), ""));
         cells.push(p.seconds.map(|x| format!("{x:e}")).unwrap_or_default());
         cells.push(p.run_seconds.map(|x| format!("{x:e}")).unwrap_or_default());
         cells.push(p.error_vs_fem.map(|x| format!("{x:e}")).unwrap_or_default());
@@ -480,10 +550,10 @@ pub fn chart(
 /// difference from the FEM reference beside the time of a plain run, Pareto points marked.
 fn physical_markdown(study: &Study, axis: &PhysicalAxis) -> String {
     let mut out = format!("\n#### Against the FEM (reference: resolution {})\n\n", axis.reference_resolution);
-    if let Some(c) = &axis.calibration {
+    for c in &axis.calibrations {
         out.push_str(&format!(
-            "The scene gives only `[tissue]`: fiber modulus calibrated once against the FEM at resolution {} (scale {:.3}, fiber modulus {:.4e}, shape error {:.3}).\n\n",
-            c.fem_resolution, c.scale, c.fiber_modulus, c.error_vs_fem
+            "The scene gives only `[tissue]`: {} fibers' modulus calibrated once against the FEM at resolution {} (scale {:.3}, fiber modulus {:.4e}, shape error {:.3}).\n\n",
+            c.fibers, c.fem_resolution, c.scale, c.fiber_modulus, c.error_vs_fem
         ));
     }
     out.push_str(
@@ -496,13 +566,14 @@ fn physical_markdown(study: &Study, axis: &PhysicalAxis) -> String {
         ));
     }
     let front = physical_front(study);
-    out.push_str("\n| mode | stepping | steps | precision | backend | seconds (one run) | difference from the FEM | |\n|---|---|---|---|---|---|---|---|\n");
+    out.push_str("\n| fibers | mode | stepping | steps | precision | backend | seconds (one run) | difference from the FEM | |\n|---|---|---|---|---|---|---|---|---|\n");
     for (i, p) in study.points.iter().enumerate() {
         let (Some(t), Some(e)) = (p.run_seconds, p.error_vs_fem) else { continue };
         let c = &p.config;
         let mark = if front.contains(&i) { "*" } else { "" };
         out.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {t:.4} | {e:.3} | {mark} |\n",
+            "| {} | {} | {} | {} | {} | {} | {t:.4} | {e:.3} | {mark} |\n",
+            c.fibers,
             c.mode,
             c.stepping_label(),
             c.steps,
@@ -548,7 +619,7 @@ pub fn physical_chart(study: &Study, title: &str) -> crate::Result<Option<Vec<u8
         if p.config.precision != Precision::F64 || p.config.backend != Backend::Structured {
             continue;
         }
-        let label = format!("ffm {} {}", p.config.mode, p.config.stepping_label());
+        let label = p.config.fibers_label();
         match series.iter_mut().find(|s| s.label == label) {
             Some(s) => s.points.push((t, e)),
             None => series.push(fibfluid::render::Series { label, points: vec![(t, e)] }),

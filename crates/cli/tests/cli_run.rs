@@ -656,3 +656,38 @@ fn bench_stages_json() {
     }
     assert!(v["machine"]["read_bytes_per_second"].as_f64().unwrap() > 1e8);
 }
+
+/// The accuracy study's physical axis on a tissue-only scene: the FEM converges toward its
+/// reference as the resolution grows, and each fiber model's difference from the FEM agrees
+/// with what its calibration found (a different resolution and no scaling: within 0.05).
+#[test]
+fn accuracy_study_has_a_physical_axis_with_both_fiber_models() {
+    use fibfluid::sim::FiberModel;
+    use fibfluid_cli::study::{Grid, run_study};
+    let scene = fibfluid::Scene::load(root().join("fixtures/scenes/sphere-tissue.toml")).unwrap();
+    let grid = Grid {
+        modes: vec![fibfluid::Mode::Paper],
+        steppings: vec![fibfluid::Stepping::Euler],
+        steps: vec![1],
+        tolerances: vec![],
+        precisions: vec![fibfluid::Precision::F64],
+        backends: vec![fibfluid::Backend::Structured],
+        fibers: vec![FiberModel::Paper, FiberModel::Projected],
+        ..Grid::default()
+    };
+    let study = run_study(&scene, &grid, &|_, _| {}).unwrap();
+    let axis = study.physical.as_ref().expect("a physical axis with [tissue]");
+    let fem: Vec<f64> = axis.fem.iter().map(|f| f.error_vs_fem).collect();
+    assert!(fem[0] > fem[2] && fem[2] > fem[3], "the FEM converges: {fem:?}");
+    assert_eq!(study.points.len(), 2);
+    for p in &study.points {
+        let c = axis.calibrations.iter().find(|c| c.fibers == p.config.fibers).expect("calibrated");
+        let e = p.error_vs_fem.expect("measured");
+        assert!(
+            (e - c.error_vs_fem).abs() < 0.05,
+            "{:?}: {e} vs calibration {}",
+            p.config.fibers,
+            c.error_vs_fem
+        );
+    }
+}
