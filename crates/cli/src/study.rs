@@ -318,7 +318,8 @@ fn physical_axis(scene: &Scene, fibers: &[FiberModel]) -> crate::Result<(Scene, 
         Ok(fibfluid::sim::fem_run::FemRun::new(m, None)?)
     };
     let reference_run = fem_run(FEM_STUDY_REFERENCE)?;
-    let reference: Vec<_> = displacement(&reference_run.positions, &reference_run.rest);
+    let reference: Vec<_> =
+        fibfluid::sim::calibration::displacements(&reference_run.positions, &reference_run.rest);
     let mut fem = Vec::new();
     for r in FEM_STUDY_RESOLUTIONS {
         let run = fem_run(r)?;
@@ -340,13 +341,9 @@ fn apply_calibration(s: &mut Scene, calibrations: &[fibfluid::sim::calibration::
     }
 }
 
-fn displacement(positions: &[[f64; 3]], rest: &[[f64; 3]]) -> Vec<[f64; 3]> {
-    positions.iter().zip(rest).map(|(p, r)| [p[0] - r[0], p[1] - r[1], p[2] - r[2]]).collect()
-}
-
 /// `|(positions - rest) - reference| / |reference|` over the surface vertices.
 fn relative_l2(positions: &[[f64; 3]], rest: &[[f64; 3]], reference: &[[f64; 3]]) -> f64 {
-    let u = displacement(positions, rest);
+    let u = fibfluid::sim::calibration::displacements(positions, rest);
     let sq = |a: [f64; 3]| a[0] * a[0] + a[1] * a[1] + a[2] * a[2];
     let diff: f64 = u.iter().zip(reference).map(|(a, b)| sq([a[0] - b[0], a[1] - b[1], a[2] - b[2]])).sum();
     let norm: f64 = reference.iter().map(|&b| sq(b)).sum();

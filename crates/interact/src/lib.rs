@@ -110,4 +110,4 @@ pub use replay::{
     CheckedPath, FrameRow, Latency, MAX_FRAME, MAX_REACH, PathHold, PathKind, PathProblem, PathRow,
     ProbeError, Replay, TipHold, ToolPath, check_method, check_path, replay, replay_observed,
 };
-pub use tools::{Grasp, Press, PressReport, RigidMotion, Wrench};
+pub use tools::{Grasp, Press, PressReport, RigidMotion, ToolLoad, ToolSet, Wrench};

@@ -370,3 +370,131 @@ fn outward(x: Vec3, centre: Vec3, p: Vec3) -> Vec3 {
     }
     unreachable!("the last candidate has unit length")
 }
+
+/// The tools of one user of a body (a viewer connection, a Python body): grasps by picked
+/// vertex and at most one pressing tip, with each tool's load after a frame.
+#[derive(Debug, Default)]
+pub struct ToolSet {
+    grasps: BTreeMap<usize, (Grasp, RigidMotion)>,
+    tip: Option<(Press, Vec3)>,
+}
+
+impl ToolSet {
+    /// Holds the patch of `radius` around body vertex `vertex`, moved by `motion` (a later
+    /// grasp of the same vertex moves it; a new radius rebuilds the patch).
+    pub fn grasp(
+        &mut self,
+        body: &mut dyn Interactive,
+        vertex: usize,
+        radius: f64,
+        motion: RigidMotion,
+    ) -> Result<()> {
+        let grasp = match self.grasps.get(&vertex) {
+            Some((g, _)) if g.radius() == radius => g.clone(),
+            _ => Grasp::new(&*body, vertex, radius)?,
+        };
+        if let Some((old, _)) = self.grasps.remove(&vertex) {
+            old.release(body)?;
+        }
+        grasp.hold(body, &motion)?;
+        self.grasps.insert(vertex, (grasp, motion));
+        Ok(())
+    }
+
+    /// Drops the grasp picked at `vertex`; false if there is none.
+    pub fn release(&mut self, body: &mut dyn Interactive, vertex: usize) -> Result<bool> {
+        match self.grasps.remove(&vertex) {
+            Some((g, _)) => g.release(body).map(|_| true),
+            None => Ok(false),
+        }
+    }
+
+    /// Places the tip (a new radius makes a new tip).
+    pub fn press(&mut self, body: &mut dyn Interactive, centre: Vec3, radius: f64) -> Result<()> {
+        match &mut self.tip {
+            Some((p, c)) if p.radius() == radius => *c = centre,
+            _ => {
+                self.lift(body)?;
+                self.tip = Some((Press::new(&*body, radius)?, centre));
+            }
+        }
+        Ok(())
+    }
+
+    /// Takes the tip away.
+    pub fn lift(&mut self, body: &mut dyn Interactive) -> Result<()> {
+        if let Some((mut p, _)) = self.tip.take() {
+            p.lift(body)?;
+        }
+        Ok(())
+    }
+
+    /// Forgets every tool (the body's holds are dropped by the caller, `release_all`).
+    pub fn clear(&mut self) {
+        self.grasps.clear();
+        self.tip = None;
+    }
+
+    /// Computes the frame (the tip's contact iterations, or one update) and the tools' loads;
+    /// `to_file` maps body vertices to file vertices.
+    pub fn frame(&mut self, body: &mut dyn Interactive, to_file: &[u32]) -> Result<Vec<ToolLoad>> {
+        let mut loads = Vec::new();
+        match &mut self.tip {
+            Some((press, centre)) => {
+                let r = press.place(body, *centre)?;
+                loads.push(ToolLoad::Press {
+                    press: *centre,
+                    radius: press.radius(),
+                    contacts: r.contacts.len(),
+                    force: r.force,
+                    penetration: r.penetration,
+                });
+            }
+            None => {
+                body.update()?;
+            }
+        }
+        for (g, motion) in self.grasps.values() {
+            let w = g.wrench(&*body, motion);
+            loads.push(ToolLoad::Grasp {
+                grasp: to_file[g.vertex()] as usize,
+                vertices: g.patch().len(),
+                force: w.force,
+                moment: w.moment,
+            });
+        }
+        Ok(loads)
+    }
+}
+
+/// The load of one tool after a frame, as the viewer's protocol and the Python package
+/// report it (JSON objects `{"grasp": V, ...}` and `{"press": [x, y, z], ...}`).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[serde(untagged)]
+pub enum ToolLoad {
+    /// A grasp: its patch size and total force and moment (about the tool's centre) on the
+    /// body.
+    Grasp {
+        /// Picked vertex (file order).
+        grasp: usize,
+        /// Patch vertices.
+        vertices: usize,
+        /// Total force on the body (N).
+        force: Vec3,
+        /// Moment about the tool's centre (N m).
+        moment: Vec3,
+    },
+    /// The tip.
+    Press {
+        /// Tip centre.
+        press: Vec3,
+        /// Tip radius.
+        radius: f64,
+        /// Vertices in contact.
+        contacts: usize,
+        /// Total force on the body (N).
+        force: Vec3,
+        /// Deepest vertex left inside (0 for a method with forces).
+        penetration: f64,
+    },
+}

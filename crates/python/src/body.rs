@@ -2,9 +2,9 @@
 //! the mesh file's vertex order (as path files are).
 
 use fibfluid_geometry::{MeshFile, Vec3};
-use std::collections::BTreeMap;
-
-use fibfluid_interact::{Grasp, InteractError, MethodBody, Press, ProbeError, ProbeOptions, RigidMotion};
+use fibfluid_interact::{
+    InteractError, MethodBody, ProbeError, ProbeOptions, RigidMotion, ToolLoad, ToolSet,
+};
 use fibfluid_sim::{Choice, Method, Shape};
 use numpy::IntoPyArray;
 use numpy::PyArray2;
@@ -28,12 +28,10 @@ pub(crate) struct NativeBody {
     file_to_mesh: Vec<Option<usize>>,
     method: Method,
     setup_seconds: f64,
-    /// Grasps by picked body vertex, with their motion.
-    grasps: BTreeMap<usize, (Grasp, RigidMotion)>,
-    /// The pressing tip and its centre (metres).
-    tip: Option<(Press, Vec3)>,
-    /// The tools' loads of the last step, as JSON.
-    loads: String,
+    /// Grasps and the pressing tip.
+    tools: ToolSet,
+    /// The tools' loads after the last step.
+    loads: Vec<ToolLoad>,
 }
 
 impl NativeBody {
@@ -64,26 +62,6 @@ impl NativeBody {
             other => other,
         };
         lib_error(ProbeError::Body(e))
-    }
-
-    /// The tools' loads as JSON: one object per grasp (picked file vertex, patch size,
-    /// force, moment) and for the tip (centre, radius, contacts, force, penetration).
-    fn tool_loads(&self, press: Option<fibfluid_interact::PressReport>) -> String {
-        let b = self.body.interactive_ref();
-        let mut out: Vec<serde_json::Value> = self
-            .grasps
-            .values()
-            .map(|(g, m)| {
-                let w = g.wrench(b, m);
-                serde_json::json!({ "grasp": self.file.to_file[g.vertex()], "vertices": g.patch().len(),
-                    "force": w.force, "moment": w.moment })
-            })
-            .collect();
-        if let (Some(r), Some((p, c))) = (press, &self.tip) {
-            out.push(serde_json::json!({ "press": c, "radius": p.radius(), "contacts": r.contacts.len(),
-                "force": r.force, "penetration": r.penetration }));
-        }
-        serde_json::Value::Array(out).to_string()
     }
 
     /// Positions (or any per-vertex vectors) of the body in file order.
@@ -128,9 +106,8 @@ impl NativeBody {
                 file,
                 method,
                 setup_seconds,
-                grasps: BTreeMap::new(),
-                tip: None,
-                loads: "[]".into(),
+                tools: ToolSet::default(),
+                loads: Vec::new(),
             })
         })
     }
@@ -170,17 +147,7 @@ impl NativeBody {
             let t = vec3(to, "the displacement")?;
             let r = rotation.map(|r| vec3(r, "the rotation")).transpose()?.unwrap_or([0.0; 3]);
             let motion = RigidMotion::with_rotation_vector(t, r);
-            let old = self.grasps.remove(&m);
-            let grasp = match old {
-                Some((g, _)) if g.radius() == radius => Ok(g),
-                Some((g, _)) => g
-                    .release(self.body.interactive())
-                    .and_then(|_| Grasp::new(self.body.interactive_ref(), m, radius)),
-                None => Grasp::new(self.body.interactive_ref(), m, radius),
-            }
-            .map_err(|e| self.body_error(e))?;
-            grasp.hold(self.body.interactive(), &motion).map_err(|e| self.body_error(e))?;
-            self.grasps.insert(m, (grasp, motion));
+            self.tools.grasp(self.body.interactive(), m, radius, motion).map_err(|e| self.body_error(e))?;
             Ok(())
         })
     }
@@ -190,38 +157,27 @@ impl NativeBody {
     fn press(&mut self, centre: &Bound<'_, PyAny>, radius: f64) -> PyResult<()> {
         guard(|| {
             let c = vec3(centre, "the centre")?;
-            match &mut self.tip {
-                Some((p, at)) if p.radius() == radius => *at = c,
-                _ => {
-                    self.lift()?;
-                    let p =
-                        Press::new(self.body.interactive_ref(), radius).map_err(|e| self.body_error(e))?;
-                    self.tip = Some((p, c));
-                }
-            }
+            self.tools.press(self.body.interactive(), c, radius).map_err(|e| self.body_error(e))?;
             Ok(())
         })
     }
 
     /// Takes the tip away from the next step.
     fn lift(&mut self) -> PyResult<()> {
-        if let Some((mut p, _)) = self.tip.take() {
-            p.lift(self.body.interactive()).map_err(|e| self.body_error(e))?;
-        }
-        Ok(())
+        self.tools.lift(self.body.interactive()).map_err(|e| self.body_error(e))
     }
 
     /// The tools' loads after the last step, as JSON (see `Body.tools`).
     fn tools_json(&self) -> String {
-        self.loads.clone()
+        serde_json::to_string(&self.loads).unwrap_or_else(|_| "[]".into())
     }
 
     /// Drops the hold (or the grasp picked) on file vertex `v` from the next step.
     fn release(&mut self, v: i64) -> PyResult<()> {
         guard(|| {
             let m = self.vertex(v)?;
-            if let Some((g, _)) = self.grasps.remove(&m) {
-                return g.release(self.body.interactive()).map_err(|e| self.body_error(e));
+            if self.tools.release(self.body.interactive(), m).map_err(|e| self.body_error(e))? {
+                return Ok(());
             }
             self.body.interactive().release(m).map_err(|e| self.body_error(e))
         })
@@ -230,8 +186,7 @@ impl NativeBody {
     /// Drops every hold, grasp and the tip from the next step.
     fn release_all(&mut self) -> PyResult<()> {
         guard(|| {
-            self.grasps.clear();
-            self.tip = None;
+            self.tools.clear();
             self.body.interactive().release_all();
             Ok(())
         })
@@ -241,16 +196,11 @@ impl NativeBody {
     /// `(N, 3)` in file order and the reactions `(k, 4)`: file vertex, force x, y, z.
     fn step<'py>(&mut self, py: Python<'py>) -> PyResult<Frame<'py>> {
         guard(|| {
-            let (body, tip) = (&mut self.body, &mut self.tip);
-            let (reactions, press) = py
-                .detach(|| match tip {
-                    Some((p, c)) => p
-                        .place(body.interactive(), *c)
-                        .map(|r| (body.interactive_ref().reactions().to_vec(), Some(r))),
-                    None => body.interactive().update().map(|r| (r.to_vec(), None)),
-                })
-                .map_err(|e| self.body_error(e))?;
-            self.loads = self.tool_loads(press);
+            let (body, tools, to_file) = (&mut self.body, &mut self.tools, &self.file.to_file);
+            let loads =
+                py.detach(|| tools.frame(body.interactive(), to_file)).map_err(|e| self.body_error(e))?;
+            self.loads = loads;
+            let reactions = self.body.interactive_ref().reactions().to_vec();
             let positions = self.in_file_order(self.body.interactive_ref().positions());
             Ok((points_array(py, &positions), self.reactions_array(py, &reactions)))
         })

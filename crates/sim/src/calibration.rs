@@ -52,7 +52,8 @@ pub struct Calibration {
     pub seconds: f64,
 }
 
-fn displacements(positions: &[Vec3], rest: &[Vec3]) -> Vec<Vec3> {
+/// `positions - rest`, vertex by vertex.
+pub fn displacements(positions: &[Vec3], rest: &[Vec3]) -> Vec<Vec3> {
     positions.iter().zip(rest).map(|(p, r)| [p[0] - r[0], p[1] - r[1], p[2] - r[2]]).collect()
 }
 

@@ -31,11 +31,11 @@ mod http;
 mod mesh;
 mod protocol;
 mod server;
-mod tools;
 
 pub use error::{Result, ViewerError};
+pub use fibfluid_interact::ToolLoad;
 pub use mesh::ViewMesh;
-pub use protocol::{ClientMessage, MessageError, ToolLoad, frame_json, parse_message, positions_le_f32};
+pub use protocol::{ClientMessage, MessageError, frame_json, parse_message, positions_le_f32};
 pub use server::{
     BodyFactory, Server, ServerHandle, ServerOptions, ServerStats, binding_warning, default_max_connections,
 };

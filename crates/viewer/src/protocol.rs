@@ -1,6 +1,7 @@
 //! The messages of the WebSocket protocol: parsing the client's, writing the server's.
 
 use fibfluid_geometry::Vec3;
+use fibfluid_interact::ToolLoad;
 use serde_json::Value;
 
 /// A client message.
@@ -183,52 +184,9 @@ pub fn frame_json(frame: u64, reactions: &[(usize, Vec3)], latency_us: f64, tool
     let r: Vec<Value> = reactions.iter().map(|&(v, f)| serde_json::json!([v, f[0], f[1], f[2]])).collect();
     let mut msg = serde_json::json!({ "frame": frame, "reactions": r, "latency_us": latency_us });
     if !tools.is_empty() {
-        msg["tools"] = tools.iter().map(ToolLoad::json).collect();
+        msg["tools"] = serde_json::to_value(tools).unwrap_or(Value::Null);
     }
     msg.to_string()
-}
-
-/// The load of one tool in a frame.
-#[derive(Clone, Debug, PartialEq)]
-pub enum ToolLoad {
-    /// `{"grasp": V, "vertices": k, "force": [..], "moment": [..]}`: a grasp's patch size and
-    /// total force and moment (about the picked vertex's target) on the body.
-    Grasp {
-        /// Picked vertex (file order).
-        vertex: usize,
-        /// Patch vertices.
-        vertices: usize,
-        /// Total force on the body (N).
-        force: Vec3,
-        /// Moment about the tool's centre (N m).
-        moment: Vec3,
-    },
-    /// `{"press": [x, y, z], "radius": r, "contacts": k, "force": [..], "penetration": p}`.
-    Press {
-        /// Tip centre.
-        centre: Vec3,
-        /// Tip radius.
-        radius: f64,
-        /// Vertices in contact.
-        contacts: usize,
-        /// Total force on the body (N).
-        force: Vec3,
-        /// Deepest vertex left inside (0 for a method with forces).
-        penetration: f64,
-    },
-}
-
-impl ToolLoad {
-    fn json(&self) -> Value {
-        match self {
-            ToolLoad::Grasp { vertex, vertices, force, moment } => {
-                serde_json::json!({ "grasp": vertex, "vertices": vertices, "force": force, "moment": moment })
-            }
-            ToolLoad::Press { centre, radius, contacts, force, penetration } => serde_json::json!({
-                "press": centre, "radius": radius, "contacts": contacts, "force": force, "penetration": penetration
-            }),
-        }
-    }
 }
 
 /// The binary message of a frame: `3 N` little-endian `f32` positions (`x0 y0 z0 x1 ...`).

@@ -8,13 +8,12 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use fibfluid_geometry::Vec3;
-use fibfluid_interact::{Interactive, Method};
+use fibfluid_interact::{Interactive, Method, RigidMotion, ToolSet};
 use tungstenite::protocol::frame::coding::CloseCode;
 use tungstenite::protocol::{CloseFrame, Role};
 use tungstenite::{Message, WebSocket};
 
 use crate::protocol::{ClientMessage, MessageError, frame_json, parse_message, positions_le_f32};
-use crate::tools::SessionTools;
 use crate::{INDEX_HTML, Result, ViewMesh, ViewerError, http};
 
 /// Builds a new body for a client for one of the server's [`ServerOptions::methods`]; a
@@ -437,7 +436,7 @@ fn refuse(mut ws: WebSocket<TcpStream>, text: &str, code: CloseCode) {
 struct Session<'a> {
     mesh: &'a ViewMesh,
     body: Box<dyn Interactive + Send>,
-    tools: SessionTools,
+    tools: ToolSet,
     positions: Vec<Vec3>,
     bytes: Vec<u8>,
 }
@@ -468,7 +467,9 @@ impl Session<'_> {
             }
             ClientMessage::Grasp { vertex, radius, to } => {
                 let b = body_vertex(vertex)?;
-                self.tools.grasp(self.body.as_mut(), b, radius, to)?;
+                let rest = self.body.rest_positions()[b];
+                let motion = RigidMotion::translation([to[0] - rest[0], to[1] - rest[1], to[2] - rest[2]]);
+                self.tools.grasp(self.body.as_mut(), b, radius, motion)?;
             }
             ClientMessage::Press { centre, radius } => {
                 self.tools.press(self.body.as_mut(), centre, radius)?
@@ -628,7 +629,7 @@ fn serve_client(mut ws: WebSocket<TcpStream>, shared: &Shared, method: &str) {
     let mut session = Session {
         mesh: &shared.mesh,
         body,
-        tools: SessionTools::default(),
+        tools: ToolSet::default(),
         positions: shared.mesh.positions.clone(),
         bytes: Vec::new(),
     };
