@@ -274,8 +274,8 @@ impl System {
     /// value is that of the stiffness before elimination. Meaningless at a fixed degree
     /// of freedom (its row is the constraint's).
     pub fn stiffness_force(&self, vertex: usize, axis: usize, u: &[Vec3]) -> f64 {
-        // K is symmetric: row `vertex` is column `vertex`, which is contiguous.
-        let column = self.matrix.block(axis).col(vertex);
+        // K is symmetric: row `vertex` is column `vertex`.
+        let column = self.matrix.block_column(axis, vertex);
         let mut sum: f64 = column.iter().zip(u).map(|(k, d)| k * d[axis]).sum();
         for lift in self.lifts.iter().filter(|l| l.axis == axis) {
             sum += lift.column[vertex] * u[lift.vertex][axis];

@@ -252,7 +252,7 @@ impl Compliance {
         let mut stored64 = Vec::new();
         let mut stored32 = Vec::new();
         for b in 0..nblocks {
-            let inv = invert_spd(a.block(b)).map_err(|index| InteractError::Singular {
+            let inv = invert_spd(a.block_full(b).into_owned()).map_err(|index| InteractError::Singular {
                 what: format!(
                     "the stiffness block{} is not positive definite at vertex {index} (fix more vertices)",
                     if nblocks == 1 { String::new() } else { format!(" of axis {}", AXES[b]) }
@@ -389,13 +389,18 @@ impl Compliance {
     }
 
     /// Bytes held: the blocks plus the border vectors; for the lazy response, the kept
-    /// factorization and the stiffness blocks it factors (kept for its residual checks),
-    /// the cached columns and the border vectors.
+    /// factorization and the stiffness blocks it factors (kept for its residual checks; the
+    /// same bytes when it was factored in place), the cached columns and the border vectors.
     pub fn memory_bytes(&self) -> usize {
         let border = 2 * self.axes * self.n * 8;
         match &self.blocks {
             Blocks::Lazy { factorization, columns } => {
-                let blocks = columns.n_blocks() * self.n * self.n * 8;
+                // A factorization made in place holds the blocks in its own bytes.
+                let blocks = if factorization.matrix().is_factored_in_place() {
+                    0
+                } else {
+                    columns.n_blocks() * self.n * self.n * 8
+                };
                 factorization.cost().bytes + blocks + columns.memory_bytes() + border
             }
             _ => self.n_blocks() * self.n * self.n * self.storage.word_bytes() + border,
@@ -603,10 +608,11 @@ fn axpy<T: Entry>(y: &mut [f64], x: &[T], a: f64) {
 /// `L[j0.., j0..]`, and no later block needs those columns of L), then the upper triangle
 /// is mirrored. One N x N f64 buffer; `N^3` flops in all. Returns the failing pivot's index
 /// on a matrix that is not (numerically) positive definite.
-fn invert_spd(k: &faer::Mat<f64>) -> std::result::Result<Mat<f64>, usize> {
+fn invert_spd(k: Mat<f64>) -> std::result::Result<Mat<f64>, usize> {
     let n = k.nrows();
     let par = faer::get_global_parallelism();
-    let mut a = k.clone();
+    let diagonal: Vec<f64> = (0..n).map(|i| k[(i, i)]).collect();
+    let mut a = k;
     {
         let mut mem = MemBuffer::new(cholesky_in_place_scratch::<f64>(n, par, Default::default()));
         cholesky_in_place(a.as_mut(), Default::default(), par, MemStack::new(&mut mem), Default::default())
@@ -618,7 +624,7 @@ fn invert_spd(k: &faer::Mat<f64>) -> std::result::Result<Mat<f64>, usize> {
     let tol = n as f64 * f64::EPSILON;
     for i in 0..n {
         let lii = a[(i, i)];
-        if !(lii * lii > tol * k[(i, i)].abs()) {
+        if !(lii * lii > tol * diagonal[i].abs()) {
             return Err(i);
         }
     }

@@ -36,6 +36,7 @@ mod coupled;
 mod dense;
 mod error;
 mod held;
+mod in_place;
 mod matrix;
 mod memory;
 mod prescribed;

@@ -1,5 +1,6 @@
 //! The bordered matrix of the fiber–fluid method, in structured form.
 
+use std::borrow::Cow;
 use std::sync::Arc;
 
 use faer::Mat;
@@ -32,6 +33,14 @@ pub enum Blocks {
 ///
 /// The blocks are immutable once built and shared between clones (a clone copies the
 /// border only), so a factorization keeps the matrix it factors without copying N^2 values.
+///
+/// **Factored in place.** A backend may overwrite the lower triangle of each block with its
+/// Cholesky factor while it owns the blocks alone
+/// ([`LinearSolver::factorize_in_place`](crate::LinearSolver::factorize_in_place)): the
+/// strict upper triangle still holds `K` and the diagonal of `K` is kept beside it, so one
+/// N x N buffer per block serves both the factor and the residual checks. Every method
+/// here reads `K` from whichever form the block is in; only [`block`](Self::block) and
+/// [`blocks`](Self::blocks), which hand out the raw storage, refuse such a matrix.
 #[derive(Clone, Debug)]
 pub struct BorderedMatrix {
     n: usize,
@@ -40,9 +49,50 @@ pub struct BorderedMatrix {
     pressure_scale: f64,
     /// Absolute row sums of each block (without the border), cached for `norm_inf`.
     block_row_sums: Arc<Vec<Vec<f64>>>,
-    /// Per block: every off-diagonal entry is <= 0 (a weighted Laplacian with constraints),
-    /// so `|K| |x| = 2 D |x| - K |x|` needs one matrix product.
+    /// Per block: every off-diagonal entry is <= 0 and every diagonal one >= 0 (a weighted
+    /// Laplacian with constraints), so `|K| |x| = 2 D |x| - K |x|` needs one matrix product.
     block_is_z_matrix: Vec<bool>,
+    /// When the blocks hold their Cholesky factor in the lower triangle: `K`'s diagonal per
+    /// block (the strict upper triangle is still `K`'s).
+    packed_diagonals: Option<Arc<Vec<Vec<f64>>>>,
+}
+
+/// How one stiffness block is stored.
+#[derive(Clone, Copy)]
+pub(crate) enum BlockView<'a> {
+    /// The whole symmetric block.
+    Full(&'a Mat<f64>),
+    /// `K`'s strict upper triangle in `upper` (its lower triangle holds a factor) and
+    /// `K`'s diagonal.
+    Upper { upper: &'a Mat<f64>, diagonal: &'a [f64] },
+}
+
+impl BlockView<'_> {
+    /// `K_ij`.
+    pub(crate) fn entry(&self, i: usize, j: usize) -> f64 {
+        match *self {
+            BlockView::Full(k) => k[(i, j)],
+            BlockView::Upper { upper, diagonal } => match i.cmp(&j) {
+                std::cmp::Ordering::Equal => diagonal[i],
+                std::cmp::Ordering::Less => upper[(i, j)],
+                std::cmp::Ordering::Greater => upper[(j, i)],
+            },
+        }
+    }
+
+    /// Column `j` of `K` (equal to row `j`) into `out`.
+    pub(crate) fn column_into(&self, j: usize, out: &mut [f64]) {
+        match *self {
+            BlockView::Full(k) => out.copy_from_slice(k.col_as_slice(j)),
+            BlockView::Upper { upper, diagonal } => {
+                out[..j].copy_from_slice(&upper.col_as_slice(j)[..j]);
+                out[j] = diagonal[j];
+                for (i, o) in out.iter_mut().enumerate().skip(j + 1) {
+                    *o = upper[(j, i)];
+                }
+            }
+        }
+    }
 }
 
 impl BorderedMatrix {
@@ -72,7 +122,15 @@ impl BorderedMatrix {
         };
         let block_is_z_matrix = summaries.iter().map(|s| s.1).collect();
         let block_row_sums = Arc::new(summaries.into_iter().map(|s| s.0).collect());
-        Self { n, blocks: Arc::new(blocks), border, pressure_scale, block_row_sums, block_is_z_matrix }
+        Self {
+            n,
+            blocks: Arc::new(blocks),
+            border,
+            pressure_scale,
+            block_row_sums,
+            block_is_z_matrix,
+            packed_diagonals: None,
+        }
     }
 
     /// Number of vertices N.
@@ -91,16 +149,89 @@ impl BorderedMatrix {
     }
 
     /// The stiffness blocks.
+    ///
+    /// # Panics
+    /// If the matrix was [factored in place](Self::is_factored_in_place) (its blocks'
+    /// lower triangles hold the factor): read `K` through [`block_full`](Self::block_full).
+    #[track_caller]
     pub fn blocks(&self) -> &Blocks {
+        assert!(self.packed_diagonals.is_none(), "the blocks hold their factor: use block_full");
         &self.blocks
     }
 
     /// The stiffness block of one axis.
+    ///
+    /// # Panics
+    /// If the matrix was [factored in place](Self::is_factored_in_place): read `K` through
+    /// [`block_full`](Self::block_full), [`block_entry`](Self::block_entry) or
+    /// [`block_column`](Self::block_column).
+    #[track_caller]
     pub fn block(&self, axis: usize) -> &Mat<f64> {
+        assert!(self.packed_diagonals.is_none(), "the blocks hold their factor: use block_full");
+        self.stored_block(axis)
+    }
+
+    /// The storage of one axis's block, whatever it holds.
+    pub(crate) fn stored_block(&self, axis: usize) -> &Mat<f64> {
         match &*self.blocks {
             Blocks::Shared(k) => k,
             Blocks::PerAxis(ks) => &ks[axis],
         }
+    }
+
+    /// One axis's block as `K` is stored in it.
+    pub(crate) fn view(&self, axis: usize) -> BlockView<'_> {
+        let upper = self.stored_block(axis);
+        match &self.packed_diagonals {
+            None => BlockView::Full(upper),
+            Some(d) => BlockView::Upper { upper, diagonal: &d[if self.is_shared() { 0 } else { axis }] },
+        }
+    }
+
+    /// Whether a backend wrote its factor over the blocks' lower triangles (see the type's
+    /// docs); `K` is still readable through every method but [`block`](Self::block).
+    pub fn is_factored_in_place(&self) -> bool {
+        self.packed_diagonals.is_some()
+    }
+
+    /// `K_c[i, j]` of axis `c`'s block, in either storage.
+    pub fn block_entry(&self, axis: usize, i: usize, j: usize) -> f64 {
+        self.view(axis).entry(i, j)
+    }
+
+    /// Column `j` of axis `c`'s block (equal to its row `j`), in either storage.
+    pub fn block_column(&self, axis: usize, j: usize) -> Vec<f64> {
+        let mut out = vec![0.0; self.n];
+        self.view(axis).column_into(j, &mut out);
+        out
+    }
+
+    /// Axis `c`'s whole block `K_c`: borrowed, or rebuilt (an N x N copy) when the matrix
+    /// was factored in place.
+    pub fn block_full(&self, axis: usize) -> Cow<'_, Mat<f64>> {
+        match self.view(axis) {
+            BlockView::Full(k) => Cow::Borrowed(k),
+            view => Cow::Owned(Mat::from_fn(self.n, self.n, |i, j| view.entry(i, j))),
+        }
+    }
+
+    /// Exclusive access to the blocks, for a factorization in place: `None` when a clone
+    /// shares them. Whatever the caller writes, it must leave `K` readable: either the
+    /// whole block, or (after [`set_factored_in_place`](Self::set_factored_in_place)) its
+    /// strict upper triangle.
+    pub(crate) fn blocks_mut(&mut self) -> Option<&mut Blocks> {
+        Arc::get_mut(&mut self.blocks)
+    }
+
+    /// `K`'s diagonal of axis `c`'s block, in either storage.
+    pub(crate) fn block_diagonal(&self, axis: usize) -> Vec<f64> {
+        (0..self.n).map(|i| self.view(axis).entry(i, i)).collect()
+    }
+
+    /// Records that the blocks' lower triangles hold a factor (`Some`, with `K`'s diagonal
+    /// per distinct block) or hold `K` again (`None`).
+    pub(crate) fn set_factored_in_place(&mut self, diagonals: Option<Vec<Vec<f64>>>) {
+        self.packed_diagonals = diagonals.map(Arc::new);
     }
 
     /// Whether one block serves every axis.
@@ -148,10 +279,10 @@ impl BorderedMatrix {
         crate::memory::check_alloc::<f64>(dim.saturating_mul(dim), crate::memory::DENSE_WHAT)?;
         let mut a = Mat::<f64>::zeros(dim, dim);
         for c in 0..d {
-            let k = self.block(c);
+            let k = self.view(c);
             let off = c * n;
             for j in 0..n {
-                a.col_as_slice_mut(off + j)[off..off + n].copy_from_slice(k.col_as_slice(j));
+                k.column_into(j, &mut a.col_as_slice_mut(off + j)[off..off + n]);
             }
             a.col_as_slice_mut(dim - 1)[off..off + n].copy_from_slice(&self.border[c]);
             for i in 0..n {
@@ -196,7 +327,7 @@ impl BorderedMatrix {
                 let (c, jj) = (j / n, j % n);
                 let off = c * n;
                 col[..off].fill(0.0);
-                col[off..off + n].copy_from_slice(self.block(c).col_as_slice(jj));
+                self.view(c).column_into(jj, &mut col[off..off + n]);
                 col[off + n..dim - 1].fill(0.0);
                 col[dim - 1] = self.border[c][jj];
             }
@@ -219,6 +350,12 @@ impl BorderedMatrix {
         assert!(x.len() == dim && y.len() == dim, "apply: vector length");
         let par = if n >= 512 { faer::get_global_parallelism() } else { faer::Par::Seq };
         match &*self.blocks {
+            _ if self.is_factored_in_place() => {
+                let slices: Vec<(usize, &[f64])> = (0..d).map(|c| (c, &x[c * n..(c + 1) * n])).collect();
+                for (c, kx) in self.triangle_products(&slices, false).into_iter().enumerate() {
+                    y[c * n..(c + 1) * n].copy_from_slice(&kx);
+                }
+            }
             Blocks::Shared(k) => {
                 let xm = MatRef::from_column_major_slice(&x[..d * n], n, d);
                 let ym = MatMut::from_column_major_slice_mut(&mut y[..d * n], n, d);
@@ -243,6 +380,29 @@ impl BorderedMatrix {
             }
         }
         y[dim - 1] = last;
+    }
+
+    /// `K_c x` (or `|K_c| |x|` with `abs`) for each `(axis c, x)` of `slices`, in order, by the
+    /// one-triangle kernel of [`crate::residual`]: one pass over each distinct block for all
+    /// the slices it multiplies. Serves every storage, and is the only product for a matrix
+    /// factored in place.
+    fn triangle_products(&self, slices: &[(usize, &[f64])], abs: bool) -> Vec<Vec<f64>> {
+        let n = self.n;
+        let nblocks = if self.is_shared() { 1 } else { self.axes() };
+        let mut out = vec![Vec::new(); slices.len()];
+        for bi in 0..nblocks {
+            let mine: Vec<usize> = (0..slices.len()).filter(|&s| nblocks == 1 || slices[s].0 == bi).collect();
+            if mine.is_empty() {
+                continue;
+            }
+            let xs: Vec<&[f64]> = mine.iter().map(|&s| slices[s].1).collect();
+            let prod = crate::residual::symmetric_products(self.view(bi), &xs);
+            let half = if abs { mine.len() * n } else { 0 };
+            for (v, &s) in mine.iter().enumerate() {
+                out[s] = prod[half + v * n..half + (v + 1) * n].to_vec();
+            }
+        }
+        out
     }
 
     /// `y_k = A x_k` for `count` vectors stored one after another (each [`dim`](Self::dim)
@@ -280,6 +440,15 @@ impl BorderedMatrix {
         let par = if n >= 512 { faer::get_global_parallelism() } else { faer::Par::Seq };
         let sign = if abs { -1.0 } else { 1.0 };
         match &*self.blocks {
+            _ if self.is_factored_in_place() => {
+                let slices: Vec<(usize, &[f64])> = (0..count * d)
+                    .map(|j| (j % d, &x[(j / d) * dim + (j % d) * n..(j / d) * dim + (j % d + 1) * n]))
+                    .collect();
+                for (j, kx) in self.triangle_products(&slices, abs).into_iter().enumerate() {
+                    let (kk, c) = (j / d, j % d);
+                    y[kk * dim + c * n..kk * dim + (c + 1) * n].copy_from_slice(&kx);
+                }
+            }
             Blocks::Shared(k) => {
                 let xm = Mat::<f64>::from_fn(n, d * count, |i, j| val(x[(j / d) * dim + (j % d) * n + i]));
                 let mut ym = Mat::<f64>::zeros(n, d * count);
@@ -355,10 +524,11 @@ impl BorderedMatrix {
                 .collect();
             let xs: Vec<&[f64]> =
                 pairs.iter().map(|&(k, c)| &x[k * dim + c * n..k * dim + (c + 1) * n]).collect();
-            let prod = if self.block_is_z_matrix[bi] && n < crate::residual::STREAMING_MIN_N {
-                crate::residual::z_matrix_products(self.block(bi), &xs)
-            } else {
-                crate::residual::symmetric_products(self.block(bi), &xs)
+            let prod = match self.view(bi) {
+                BlockView::Full(k) if self.block_is_z_matrix[bi] && n < crate::residual::STREAMING_MIN_N => {
+                    crate::residual::z_matrix_products(k, &xs)
+                }
+                view => crate::residual::symmetric_products(view, &xs),
             };
             let m = pairs.len();
             for (v, &(k, c)) in pairs.iter().enumerate() {
@@ -393,7 +563,12 @@ impl BorderedMatrix {
         let (n, d, dim) = (self.n, self.axes(), self.dim());
         assert!(x.len() == dim && y.len() == dim, "apply_abs: vector length");
         let ax: Vec<f64> = x.iter().map(|v| v.abs()).collect();
-        if self.is_shared() && self.block_is_z_matrix[0] {
+        if self.is_factored_in_place() {
+            let slices: Vec<(usize, &[f64])> = (0..d).map(|c| (c, &x[c * n..(c + 1) * n])).collect();
+            for (c, kx) in self.triangle_products(&slices, true).into_iter().enumerate() {
+                y[c * n..(c + 1) * n].copy_from_slice(&kx);
+            }
+        } else if self.is_shared() && self.block_is_z_matrix[0] {
             // One product for every axis (one pass over the shared block, as in `apply`):
             // Y = 2 D |X| - K |X| with |X| the n x d matrix of the axes' unknowns.
             let k = self.block(0);
@@ -461,25 +636,23 @@ impl BorderedMatrix {
             return self.border.iter().flatten().fold(0.0, |m, v| m.max(v.abs()));
         }
         let (c, i) = (j / n, j % n);
-        let k = self.block(c);
-        k.col(i).iter().fold(self.border[c][i].abs(), |m, v| m.max(v.abs()))
+        self.block_column(c, i).iter().fold(self.border[c][i].abs(), |m, v| m.max(v.abs()))
     }
 
     /// Returns an error naming the first non-finite entry, if any.
     pub fn check_finite(&self) -> Result<()> {
         let (n, dim) = (self.n, self.dim());
-        let blocks: Vec<&Mat<f64>> = match &*self.blocks {
-            Blocks::Shared(k) => vec![k],
-            Blocks::PerAxis(ks) => ks.iter().collect(),
-        };
-        for (c, k) in blocks.iter().enumerate() {
+        let nblocks = if self.is_shared() { 1 } else { self.axes() };
+        let mut column = vec![0.0; n];
+        for c in 0..nblocks {
             // The cached absolute row sums are finite exactly when every entry is (barring
             // an overflow of the sum, which the scan below then rules out): then no scan.
             if self.block_row_sums[c].iter().all(|v| v.is_finite()) {
                 continue;
             }
             for j in 0..n {
-                if let Some(i) = k.col(j).iter().position(|v| !v.is_finite()) {
+                self.view(c).column_into(j, &mut column);
+                if let Some(i) = column.iter().position(|v| !v.is_finite()) {
                     return Err(LinalgError::NonFinite { row: c * n + i, col: c * n + j });
                 }
             }
@@ -494,14 +667,16 @@ impl BorderedMatrix {
 }
 
 /// The absolute row sums of a symmetric block (its column sums: columns are contiguous)
-/// and whether every off-diagonal entry is <= 0, in one pass, columns in parallel.
+/// and whether every off-diagonal entry is <= 0 and every diagonal one >= 0, in one pass,
+/// columns in parallel.
 fn block_summary(k: &Mat<f64>) -> (Vec<f64>, bool) {
     use rayon::prelude::*;
     let n = k.nrows();
     let column = |j: usize| {
         let col = k.col_as_slice(j);
         let sum = col.iter().map(|v| v.abs()).sum::<f64>();
-        let z = col.iter().enumerate().all(|(i, v)| i == j || *v <= 0.0);
+        // `|K| |x| = 2 D |x| - K |x|` also needs a diagonal that is not negative.
+        let z = col.iter().enumerate().all(|(i, v)| if i == j { *v >= 0.0 } else { *v <= 0.0 });
         (sum, z)
     };
     let cols: Vec<(f64, bool)> =

@@ -7,15 +7,19 @@
 //!
 //! A checked solve needs `r = b - A x` and the denominator `|A| |x|` of the componentwise
 //! backward error. Done as two matrix products, that reads every block twice, in full. The
-//! kernel here reads each block once and only its lower triangle (the blocks are
-//! symmetric): column j of the lower triangle updates rows `i > j` (`y_i += K_ij x_j`) and
-//! row j (`y_j += sum_i K_ij x_i`) for `K x` and `|K| |x|` together, for every vector. The
+//! kernel here reads each block once and only one triangle (the blocks are symmetric):
+//! column j of the lower triangle updates rows `i > j` (`y_i += K_ij x_j`) and row j
+//! (`y_j += sum_i K_ij x_i`) for `K x` and `|K| |x|` together, for every vector. A block
+//! factored in place keeps `K` in its strict upper triangle and its diagonal beside it;
+//! the kernel then reads column j's rows `i < j` the same way. The
 //! columns are split into one range of equal triangle area per thread, each with its own
 //! accumulators, summed at the end. The loop is compiled for the widest vector unit the CPU
 //! has (runtime dispatch through `pulp`).
 
 use faer::Mat;
 use rayon::prelude::*;
+
+use crate::matrix::BlockView;
 
 /// From this N on, every block goes through [`symmetric_products`]: faer's product with a
 /// thin right-hand side read K at about 3 GB/s at N = 10,242 (against 40 GB/s for a plain
@@ -62,15 +66,21 @@ pub(crate) fn z_matrix_products(k: &Mat<f64>, xs: &[&[f64]]) -> Vec<f64> {
 }
 
 /// `(K X, |K| |X|)` for the vectors `xs` (each of length n) and a symmetric block `k`
-/// (only its lower triangle is read): returns `2 m n` values, `K x_c` at `[c n, (c + 1) n)`
-/// and `|K| |x_c|` at `[(m + c) n, (m + c + 1) n)`.
-pub(crate) fn symmetric_products(k: &Mat<f64>, xs: &[&[f64]]) -> Vec<f64> {
-    let n = k.nrows();
+/// (only one triangle is read: the lower of a full block, the strict upper and the kept
+/// diagonal of one factored in place): returns `2 m n` values, `K x_c` at
+/// `[c n, (c + 1) n)` and `|K| |x_c|` at `[(m + c) n, (m + c + 1) n)`.
+pub(crate) fn symmetric_products(k: BlockView<'_>, xs: &[&[f64]]) -> Vec<f64> {
+    let n = match k {
+        BlockView::Full(k) | BlockView::Upper { upper: k, .. } => k.nrows(),
+    };
     let m = xs.len();
     let parts = if n >= 512 { rayon::current_num_threads().max(1) } else { 1 };
-    // Column ranges of equal lower-triangle area: column j holds n - j entries.
+    // Column ranges of equal triangle area: column j holds n - j entries of the lower
+    // triangle, j of the strict upper one.
+    let upper = matches!(k, BlockView::Upper { .. });
     let bound = |t: usize| -> usize {
-        let f = 1.0 - (1.0 - t as f64 / parts as f64).max(0.0).sqrt();
+        let share = t as f64 / parts as f64;
+        let f = if upper { share.sqrt() } else { 1.0 - (1.0 - share).max(0.0).sqrt() };
         if t == parts { n } else { ((n as f64 * f) as usize).min(n) }
     };
     let run = |t: usize| -> Vec<f64> {
@@ -91,9 +101,9 @@ pub(crate) fn symmetric_products(k: &Mat<f64>, xs: &[&[f64]]) -> Vec<f64> {
         .unwrap_or_else(|| vec![0.0; 2 * m * n])
 }
 
-/// The columns `range` of the lower triangle, accumulated into `acc`.
+/// The columns `range` of the stored triangle, accumulated into `acc`.
 struct Columns<'a> {
-    k: &'a Mat<f64>,
+    k: BlockView<'a>,
     xs: &'a [&'a [f64]],
     range: std::ops::Range<usize>,
     acc: &'a mut [f64],
@@ -104,17 +114,27 @@ impl pulp::WithSimd for Columns<'_> {
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) -> Self::Output {
-        let n = self.k.nrows();
+        let (storage, diagonal) = match self.k {
+            BlockView::Full(k) => (k, None),
+            BlockView::Upper { upper, diagonal } => (upper, Some(diagonal)),
+        };
+        let n = storage.nrows();
         let m = self.xs.len();
         let (ys, zs) = self.acc.split_at_mut(m * n);
         for j in self.range {
-            let col = self.k.col_as_slice(j);
-            let (kjj, lower) = (col[j], &col[j + 1..]);
+            let col = storage.col_as_slice(j);
+            // The rows of column j that hold K: below the diagonal, or above it.
+            let (kjj, rows) = match diagonal {
+                None => (col[j], j + 1..n),
+                Some(d) => (d[j], 0..j),
+            };
+            let part = &col[rows.clone()];
             for (c, x) in self.xs.iter().enumerate() {
                 let xj = x[j];
                 let y = &mut ys[c * n..(c + 1) * n];
                 let z = &mut zs[c * n..(c + 1) * n];
-                let (dot, adot) = axpy_dot(lower, &x[j + 1..], xj, &mut y[j + 1..], &mut z[j + 1..]);
+                let (dot, adot) =
+                    axpy_dot(part, &x[rows.clone()], xj, &mut y[rows.clone()], &mut z[rows.clone()]);
                 y[j] += kjj * xj + dot;
                 z[j] += kjj.abs() * xj.abs() + adot;
             }

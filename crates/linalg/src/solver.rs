@@ -75,6 +75,18 @@ pub trait LinearSolver: Send + Sync + Debug {
     fn supports(&self, precision: Precision) -> bool;
     /// Factorizes `a`. Singular or non-finite input is an error naming the pivot or entry.
     fn factorize(&self, a: &BorderedMatrix, opts: &FactorOptions) -> Result<Box<dyn Factorization>>;
+    /// Factorizes `a` as [`factorize`](Self::factorize) does, and may keep the factor in
+    /// `a`'s own storage when nothing else shares it: the structured backend in f64 writes
+    /// each block's Cholesky factor over the block's lower triangle, so the system and its
+    /// factorization take one N x N buffer per block instead of two. `a` stays the same
+    /// matrix for every reader (see [`BorderedMatrix`]). The default factors a copy.
+    fn factorize_in_place(
+        &self,
+        a: &mut BorderedMatrix,
+        opts: &FactorOptions,
+    ) -> Result<Box<dyn Factorization>> {
+        self.factorize(a, opts)
+    }
 }
 
 /// A factorized system that solves many right-hand sides.

@@ -8,9 +8,11 @@ use faer::linalg::triangular_solve::{solve_lower_triangular_in_place, solve_uppe
 use faer::{Mat, MatMut, MatRef, Par};
 use rayon::prelude::*;
 
+use crate::in_place::cholesky_keeping_upper;
+use crate::matrix::BlockView;
 use crate::{
-    BorderedMatrix, FactorCost, FactorOptions, Factorization, LinalgError, LinearSolver, Precision, Result,
-    cholesky_flops,
+    Blocks, BorderedMatrix, FactorCost, FactorOptions, Factorization, LinalgError, LinearSolver, Precision,
+    Result, cholesky_flops,
 };
 
 /// Never forms the dense matrix. Each stiffness block `K_c` is factored by Cholesky (one
@@ -40,6 +42,8 @@ pub struct Structured;
 enum Factor {
     F64(Vec<f64>),
     F32(Vec<f32>),
+    /// In the lower triangle of the matrix's own block (factored in place, f64).
+    InPlace,
 }
 
 /// Below this N the triangular solves run on one thread; from it on they use faer's global
@@ -53,27 +57,26 @@ fn solve_par(n: usize) -> Par {
 }
 
 impl Factor {
-    fn n(&self) -> usize {
-        match self {
-            Factor::F64(v) => v.len().isqrt(),
-            Factor::F32(v) => v.len().isqrt(),
-        }
-    }
-
-    /// The diagonal entry `L_ii`.
-    fn diag(&self, i: usize) -> f64 {
-        let n = self.n();
+    /// The diagonal entry `L_ii` of a factor of order `n` held in its own buffer.
+    fn diag(&self, n: usize, i: usize) -> f64 {
         match self {
             Factor::F64(v) => v[i * n + i],
             Factor::F32(v) => v[i * n + i] as f64,
+            Factor::InPlace => unreachable!("an in-place factor is checked where it is made"),
         }
     }
 
     /// Solves `K X = B` in place for the columns of `b` (n x k): one blocked forward and
     /// one blocked backward triangular solve over all k columns (each reads L once).
-    fn solve(&self, mut b: MatMut<'_, f64>, par: Par) {
-        let n = self.n();
+    /// `stored` is the matrix's block, which holds the factor when it was made in place
+    /// (faer's triangular solves read only the triangle they are given).
+    fn solve(&self, stored: &Mat<f64>, mut b: MatMut<'_, f64>, par: Par) {
+        let n = stored.nrows();
         match self {
+            Factor::InPlace => {
+                solve_lower_triangular_in_place(stored.as_ref(), b.as_mut(), par);
+                solve_upper_triangular_in_place(stored.as_ref().transpose(), b, par);
+            }
             Factor::F64(v) => {
                 let l = MatRef::from_column_major_slice(v, n, n);
                 solve_lower_triangular_in_place(l, b.as_mut(), par);
@@ -119,7 +122,7 @@ impl LinearSolver for Structured {
         let n = a.n_vertices();
         let nblocks = if a.is_shared() { 1 } else { a.axes() };
         let factors =
-            (0..nblocks).map(|c| factor_block(a.block(c), c, opts.precision)).collect::<Result<_>>()?;
+            (0..nblocks).map(|c| factor_block(a.view(c), c, opts.precision)).collect::<Result<_>>()?;
         let bytes = nblocks * n * n * if opts.precision == Precision::F64 { 8 } else { 4 };
         let mut f = StructuredFactorization {
             // The blocks are shared with `a`, not copied.
@@ -138,19 +141,122 @@ impl LinearSolver for Structured {
         };
         Ok(Box::new(f))
     }
+
+    /// In f64, when nothing else shares `a`'s blocks, writes each block's Cholesky factor
+    /// over its lower triangle (`K` stays in the strict upper triangle, its diagonal is
+    /// kept beside it): the factorization then needs no second N x N buffer. Otherwise,
+    /// or in mixed precision, factors a copy as [`factorize`](Self::factorize) does.
+    fn factorize_in_place(
+        &self,
+        a: &mut BorderedMatrix,
+        opts: &FactorOptions,
+    ) -> Result<Box<dyn Factorization>> {
+        if opts.precision != Precision::F64 || a.blocks_mut().is_none() {
+            return self.factorize(a, opts);
+        }
+        a.check_finite()?;
+        let start = Instant::now();
+        let diagonals = factor_blocks_in_place(a)?;
+        let nblocks = diagonals.len();
+        a.set_factored_in_place(Some(diagonals));
+        let n = a.n_vertices();
+        let mut f = StructuredFactorization {
+            matrix: a.clone(),
+            opts: *opts,
+            factors: (0..nblocks).map(|_| Factor::InPlace).collect(),
+            z: Mat::zeros(n, a.axes()),
+            schur: 0.0,
+            cost: FactorCost::default(),
+        };
+        f.update_schur()?;
+        f.cost = FactorCost {
+            flops: nblocks as f64 * cholesky_flops(n) + 2.0 * (a.axes() * n * n) as f64,
+            seconds: start.elapsed().as_secs_f64(),
+            bytes: nblocks * n * n * 8,
+        };
+        Ok(Box::new(f))
+    }
 }
 
-/// Copies the lower triangle of `k` (upper triangle zero) into a fresh column-major buffer,
-/// columns in parallel (this also spreads the first touch of the pages over the threads),
-/// or reports that it cannot be allocated.
-fn lower_copy<T: Copy + Send + Default>(k: &Mat<f64>, cast: impl Fn(f64) -> T + Sync) -> Result<Vec<T>> {
+/// Factors every distinct block of `a` (whose blocks it must own alone) over its lower
+/// triangle and returns `K`'s diagonals. A matrix already factored in place gets its lower
+/// triangles back from the upper ones first. On failure every block holds `K` again.
+fn factor_blocks_in_place(a: &mut BorderedMatrix) -> Result<Vec<Vec<f64>>> {
+    let n = a.n_vertices();
+    let previous: Option<Vec<Vec<f64>>> =
+        a.is_factored_in_place().then(|| (0..a.axes()).map(|c| a.block_diagonal(c)).collect());
+    a.set_factored_in_place(None);
+    let blocks = a.blocks_mut().expect("the caller checked that the blocks are not shared");
+    let mut ks: Vec<&mut Mat<f64>> = match blocks {
+        Blocks::Shared(k) => vec![k],
+        Blocks::PerAxis(ks) => ks.iter_mut().collect(),
+    };
+    let mut diagonals: Vec<Vec<f64>> = Vec::with_capacity(ks.len());
+    let tol = n as f64 * f64::EPSILON;
+    for c in 0..ks.len() {
+        if let Some(d) = &previous {
+            restore_lower(ks[c], &d[c]);
+        }
+        diagonals.push((0..n).map(|i| ks[c][(i, i)]).collect());
+        let result = cholesky_keeping_upper(ks[c].as_mut(), faer::get_global_parallelism()).and_then(|()| {
+            // As for a copied factor: a tiny positive pivot is a singular block.
+            (0..n).find(|&i| !(ks[c][(i, i)].powi(2) > tol * diagonals[c][i].abs())).map_or(Ok(()), Err)
+        });
+        if let Err(index) = result {
+            for (k, d) in ks.iter_mut().zip(&diagonals) {
+                restore_lower(k, d);
+            }
+            for (k, d) in ks.iter_mut().zip(previous.iter().flatten()).skip(c + 1) {
+                restore_lower(k, d);
+            }
+            return Err(LinalgError::NotPositiveDefinite { axis: c, index });
+        }
+    }
+    Ok(diagonals)
+}
+
+/// Writes `K` back into the lower triangle of a block from its strict upper triangle and
+/// its diagonal, in 64 x 64 tiles (the strided reads stay in cache).
+fn restore_lower(k: &mut Mat<f64>, diagonal: &[f64]) {
+    const TILE: usize = 64;
     let n = k.nrows();
+    for j0 in (0..n).step_by(TILE) {
+        for i0 in (j0..n).step_by(TILE) {
+            for j in j0..(j0 + TILE).min(n) {
+                for i in i0.max(j + 1)..(i0 + TILE).min(n) {
+                    k[(i, j)] = k[(j, i)];
+                }
+            }
+        }
+    }
+    for (i, d) in diagonal.iter().enumerate() {
+        k[(i, i)] = *d;
+    }
+}
+
+/// Copies the lower triangle of `K` (upper triangle zero) into a fresh column-major buffer,
+/// columns in parallel (this also spreads the first touch of the pages over the threads),
+/// or reports that it cannot be allocated. A block factored in place gives its `K` from
+/// the upper triangle (strided reads).
+fn lower_copy<T: Copy + Send + Default>(k: BlockView<'_>, cast: impl Fn(f64) -> T + Sync) -> Result<Vec<T>> {
+    let n = match k {
+        BlockView::Full(k) | BlockView::Upper { upper: k, .. } => k.nrows(),
+    };
     crate::dense::check_alloc::<T>(n.saturating_mul(n), "the Cholesky factors")?;
     let mut v = vec![T::default(); n * n];
     let fill = |(j, col): (usize, &mut [T])| {
         col[..j].fill(T::default());
-        for (d, s) in col[j..].iter_mut().zip(&k.col_as_slice(j)[j..]) {
-            *d = cast(*s);
+        match k {
+            BlockView::Full(k) => {
+                for (d, s) in col[j..].iter_mut().zip(&k.col_as_slice(j)[j..]) {
+                    *d = cast(*s);
+                }
+            }
+            view => {
+                for (i, d) in col.iter_mut().enumerate().skip(j) {
+                    *d = cast(view.entry(i, j));
+                }
+            }
         }
     };
     if n >= 256 {
@@ -172,8 +278,10 @@ fn cholesky<T: faer::traits::RealField>(a: &mut [T], n: usize) -> std::result::R
         .map_err(|LltError::NonPositivePivot { index }| index)
 }
 
-fn factor_block(k: &Mat<f64>, axis: usize, precision: Precision) -> Result<Factor> {
-    let n = k.nrows();
+fn factor_block(k: BlockView<'_>, axis: usize, precision: Precision) -> Result<Factor> {
+    let n = match k {
+        BlockView::Full(k) | BlockView::Upper { upper: k, .. } => k.nrows(),
+    };
     let not_pd = |index| LinalgError::NotPositiveDefinite { axis, index };
     let factor = match precision {
         Precision::F64 => {
@@ -191,8 +299,8 @@ fn factor_block(k: &Mat<f64>, axis: usize, precision: Precision) -> Result<Facto
     // last pivot: compare each pivot L_ii^2 with its diagonal entry.
     let tol = n as f64 * eps(precision);
     for i in 0..n {
-        let lii = factor.diag(i);
-        if !(lii * lii > tol * k[(i, i)].abs()) {
+        let lii = factor.diag(n, i);
+        if !(lii * lii > tol * k.entry(i, i).abs()) {
             return Err(not_pd(i));
         }
     }
@@ -211,16 +319,22 @@ impl StructuredFactorization {
     /// A shared factor takes one matrix of every column (`cols` of length 1).
     fn solve_blocks(&self, cols: &mut [MatMut<'_, f64>]) {
         let n = self.matrix.n_vertices();
+        let m = &self.matrix;
         if self.factors.len() == 1 {
             for b in cols.iter_mut() {
-                self.factors[0].solve(b.as_mut(), solve_par(n));
+                self.factors[0].solve(m.stored_block(0), b.as_mut(), solve_par(n));
             }
         } else if n >= 256 {
             // Three different factors, each streamed once for its own columns; the axes
             // share the cores (one thread each: no nested parallelism).
-            cols.par_iter_mut().zip(&self.factors).for_each(|(b, f)| f.solve(b.as_mut(), Par::Seq));
+            cols.par_iter_mut()
+                .zip(&self.factors)
+                .enumerate()
+                .for_each(|(c, (b, f))| f.solve(m.stored_block(c), b.as_mut(), Par::Seq));
         } else {
-            cols.iter_mut().zip(&self.factors).for_each(|(b, f)| f.solve(b.as_mut(), Par::Seq));
+            for (c, (b, f)) in cols.iter_mut().zip(&self.factors).enumerate() {
+                f.solve(m.stored_block(c), b.as_mut(), Par::Seq);
+            }
         }
     }
 
@@ -381,7 +495,7 @@ mod tests {
         });
         let border = (0..3).map(|c| (0..n).map(|i| 1.0 + ((i + c) % 5) as f64).collect()).collect();
         let a = BorderedMatrix::new(Blocks::Shared(k), border, 1.0);
-        let mut factor = factor_block(a.block(0), 0, Precision::F64).unwrap();
+        let mut factor = factor_block(a.view(0), 0, Precision::F64).unwrap();
         if let Factor::F64(v) = &mut factor {
             corrupt(v, n);
         }

@@ -810,3 +810,107 @@ fn apply_many_matches_apply_per_vector() {
         }
     }
 }
+
+/// Reads `m` three ways (dense form, `A x`, `|A| |x|` and the residual) and compares each
+/// with the dense matrix `dense` built before any factorization.
+fn assert_reads_as(m: &BorderedMatrix, dense: &Mat<f64>, what: &str) {
+    let dim = m.dim();
+    assert!(m.to_dense() == *dense, "{what}: the dense form changed");
+    let x: Vec<f64> = (0..dim).map(|i| ((i * 7) % 13) as f64 / 13.0 - 0.4).collect();
+    let b: Vec<f64> = (0..dim).map(|i| ((i * 5) % 11) as f64 / 11.0).collect();
+    let xm = Mat::<f64>::from_fn(dim, 1, |i, _| x[i]);
+    let ax_dense = dense * &xm;
+    let abs_dense = Mat::<f64>::from_fn(dim, dim, |i, j| dense[(i, j)].abs())
+        * Mat::<f64>::from_fn(dim, 1, |i, _| x[i].abs());
+    let (mut ax, mut abs_ax) = (vec![0.0; dim], vec![0.0; dim]);
+    m.apply(&x, &mut ax);
+    m.apply_abs(&x, &mut abs_ax);
+    let (mut r, mut abs_r) = (vec![0.0; dim], vec![0.0; dim]);
+    m.residual(&x, &b, &mut r, &mut abs_r);
+    // Different summation orders: a few ulps of |A| |x| per entry.
+    let tol = |i: usize| RESIDUAL_C * dim as f64 * EPS * abs_dense[(i, 0)];
+    for i in 0..dim {
+        assert!((ax[i] - ax_dense[(i, 0)]).abs() <= tol(i), "{what}: (A x)_{i}");
+        assert!((abs_ax[i] - abs_dense[(i, 0)]).abs() <= tol(i), "{what}: (|A| |x|)_{i}");
+        assert!((r[i] - (b[i] - ax_dense[(i, 0)])).abs() <= tol(i), "{what}: r_{i}");
+        assert!((abs_r[i] - abs_dense[(i, 0)]).abs() <= tol(i), "{what}: residual's |A| |x|_{i}");
+    }
+}
+
+/// `factorize_in_place` in every backend, on matrices nobody else holds (the random cases
+/// and one past the in-place kernel's block size of 256, with the threaded product): the
+/// solution passes the independent dense residual check, the matrix reads as before, a
+/// second factorization while the first is alive and one after it is dropped both solve,
+/// and a clone held elsewhere keeps the blocks from being written.
+#[test]
+fn factoring_in_place_keeps_the_matrix_and_solves() {
+    let mut cases = random_cases();
+    cases.push(random_case(9, 600, 3, true, Spd::LaplacianPlusDiagonal, 1.0));
+    for backend in all_backends() {
+        let name = backend.name();
+        for case in &cases {
+            let what = format!("{}: {name}", case.name);
+            let dense = case.matrix.to_dense();
+            let dim = case.matrix.dim();
+            let mut m = BorderedMatrix::new(
+                if case.matrix.is_shared() {
+                    Blocks::Shared(case.matrix.block(0).clone())
+                } else {
+                    Blocks::PerAxis((0..case.matrix.axes()).map(|c| case.matrix.block(c).clone()).collect())
+                },
+                (0..case.matrix.axes())
+                    .map(|c| case.matrix.border(c).iter().map(|v| v / case.matrix.pressure_scale()).collect())
+                    .collect(),
+                case.matrix.pressure_scale(),
+            );
+            let check = |f: &dyn fibfluid_linalg::Factorization, when: &str| {
+                let sol = f.solve(&case.rhs).unwrap_or_else(|e| panic!("{what} {when}: {e}"));
+                let res = rowwise_residual(&dense, &sol.x, &case.rhs);
+                assert!(res <= residual_tol(dim), "{what} {when}: residual {res:e}");
+            };
+            let opts = FactorOptions::default();
+            let first = backend.factorize_in_place(&mut m, &opts).unwrap_or_else(|e| panic!("{what}: {e}"));
+            assert_eq!(m.is_factored_in_place(), name == "structured", "{what}: who writes in place");
+            assert_reads_as(&m, &dense, &what);
+            check(first.as_ref(), "in place");
+            let second = backend.factorize_in_place(&mut m, &opts).expect("a shared matrix is copied");
+            check(second.as_ref(), "while the first is alive");
+            drop((first, second));
+            let third = backend.factorize_in_place(&mut m, &opts).expect("factored again");
+            assert_reads_as(&m, &dense, &what);
+            check(third.as_ref(), "after the first was dropped");
+        }
+    }
+    let case = random_case(10, 30, 3, false, Spd::Gram, 1.0);
+    let (mut m, held) = (case.matrix.clone(), case.matrix);
+    fibfluid_linalg::Structured.factorize_in_place(&mut m, &FactorOptions::default()).expect("spd");
+    assert!(!m.is_factored_in_place() && !held.is_factored_in_place(), "a shared matrix is not written");
+}
+
+/// A block that is not positive definite fails `factorize_in_place` with the same error
+/// as `factorize`, and leaves the matrix as it was (read back in full).
+#[test]
+fn a_failed_factorization_in_place_leaves_the_matrix_whole() {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    for shared in [true, false] {
+        let n = 300;
+        let mut ks: Vec<Mat<f64>> =
+            (0..3).map(|_| random_spd(&mut rng, n, Spd::LaplacianPlusDiagonal)).collect();
+        // The last block is indefinite at row 280: its diagonal entry is far below the
+        // off-diagonal weights, past the first 256-column block.
+        let last = if shared { 0 } else { 2 };
+        ks[last][(280, 280)] = -1.0;
+        let blocks = if shared { Blocks::Shared(ks[0].clone()) } else { Blocks::PerAxis(ks) };
+        let mut m = BorderedMatrix::new(blocks, random_border(&mut rng, n, 3), 1.0);
+        let dense = m.to_dense();
+        let copied =
+            fibfluid_linalg::Structured.factorize(&m, &FactorOptions::default()).err().expect("indefinite");
+        let e = fibfluid_linalg::Structured
+            .factorize_in_place(&mut m, &FactorOptions::default())
+            .err()
+            .expect("indefinite");
+        assert_eq!(e.to_string(), copied.to_string());
+        assert!(!m.is_factored_in_place());
+        assert_reads_as(&m, &dense, "after a failed factorization in place");
+    }
+}

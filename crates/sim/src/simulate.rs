@@ -299,9 +299,11 @@ impl Simulation {
         let (lo, hi) = fibfluid_geometry::bounding_box(&rest);
         let diagonal = norm(sub(hi, lo));
         let body = BodyShape { boundary, edges, fibers, convex, rest, volume0, diagonal };
-        let system = log.time(names::ASSEMBLY, || assemble_on(&scene, &body, &body.rest, &areas))?;
-        let factorization =
-            log.time(names::FACTORIZATION, || solver.factorize(&system.matrix, &factor_options))?;
+        let mut system = log.time(names::ASSEMBLY, || assemble_on(&scene, &body, &body.rest, &areas))?;
+        // The factor takes the assembled blocks' storage where the backend can (one N x N
+        // buffer per block instead of two); the system still reads as K.
+        let factorization = log
+            .time(names::FACTORIZATION, || solver.factorize_in_place(&mut system.matrix, &factor_options))?;
         let coupled = if scene.ffm.fibers == FiberModel::Projected {
             let mut projected =
                 log.time(names::ASSEMBLY, || assemble_projected_on(&scene, &body, &body.rest, &areas))?;
@@ -1001,11 +1003,11 @@ impl Simulation {
                 }
             }
             Mode::Nonlinear => {
-                let system =
+                let mut system =
                     self.log.time(names::REASSEMBLY, || assemble_on(&self.model, &self.body, s, &areas))?;
                 let f = &mut self.factored;
                 let start = Instant::now();
-                f.factorization = f.solver.factorize(&system.matrix, &f.options)?;
+                f.factorization = f.solver.factorize_in_place(&mut system.matrix, &f.options)?;
                 self.log.add(names::FACTORIZATION, start.elapsed().as_secs_f64());
                 self.counters.factorizations += 1;
                 f.system = system;
