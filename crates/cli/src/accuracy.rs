@@ -35,7 +35,8 @@ pub struct GridFlags {
 }
 
 /// Runs the grid and writes accuracy.csv, accuracy.md, accuracy.png and
-/// accuracy-reference.png into `out` (all or nothing).
+/// accuracy-reference.png into `out` (all or nothing); with `[tissue]` also
+/// accuracy-fem.png, accuracy-grab.csv and accuracy-grab.png.
 pub fn run(scene_path: &Path, out: &Path, flags: GridFlags) -> Result<(), CliError> {
     let mut scene = Scene::load(scene_path)?;
     // The grid sets the modes, so the scene's own mode says nothing about stiffening here.
@@ -115,6 +116,12 @@ pub fn run(scene_path: &Path, out: &Path, flags: GridFlags) -> Result<(), CliErr
         fibfluid_cli::study::physical_chart(&study, &format!("{title}: difference from the FEM vs time"))?
     {
         files.push(("accuracy-fem.png", png_fem));
+    }
+    if let Some(grab) = study.physical.as_ref().and_then(|a| a.grab.as_ref()) {
+        let png =
+            fibfluid_cli::grab::chart(grab, &format!("{title}: one grasp, difference from the FEM vs time"))?;
+        files.push(("accuracy-grab.csv", fibfluid_cli::grab::to_csv(grab).into_bytes()));
+        files.push(("accuracy-grab.png", png));
     }
     fibfluid_cli::write_files_atomically(out, &files)?;
     for (name, _) in &files {

@@ -30,6 +30,12 @@ pub enum Error {
     /// Serializing a report failed.
     #[error("writing JSON: {0}")]
     Json(#[from] serde_json::Error),
+    /// The accuracy study's grab comparison has no vertex to grab: every vertex is fixed.
+    #[error("{scene}: every vertex is fixed along some axis, so the grab comparison has no vertex to grab")]
+    NoFreeVertex {
+        /// The scene file (or the scene's name when built in code).
+        scene: String,
+    },
 }
 
 impl From<fibfluid::sim::Error> for Error {

@@ -6,6 +6,7 @@
 pub mod bench;
 pub mod comparison;
 mod error;
+pub mod grab;
 pub mod info;
 pub mod output;
 pub mod probe_run;

@@ -3,6 +3,7 @@
 
 use serde::Serialize;
 
+use fibfluid::render::log_drawable;
 use fibfluid::sim::FiberModel;
 use fibfluid::{Backend, Mode, Precision, RoundTrip, RunOptions, Scene, Stepping, roundtrip};
 
@@ -101,6 +102,9 @@ pub struct Grid {
     pub dense_refactor_vertex_limit: usize,
     /// See `dense_refactor_vertex_limit`.
     pub dense_refactor_max_steps: usize,
+    /// Whether the physical axis adds the grab comparison of every interactive method
+    /// ([`crate::grab`]).
+    pub grab: bool,
 }
 
 impl Default for Grid {
@@ -115,6 +119,7 @@ impl Default for Grid {
             fibers: vec![FiberModel::Paper],
             dense_refactor_vertex_limit: 500,
             dense_refactor_max_steps: 10,
+            grab: true,
         }
     }
 }
@@ -144,6 +149,9 @@ pub struct PhysicalAxis {
     /// The calibrations made once for every point of each fiber model, when the scene gave
     /// only `[tissue]`.
     pub calibrations: Vec<fibfluid::sim::calibration::Calibration>,
+    /// One grab given to every interactive method, against the FEM reference under the same
+    /// grab (`None` when the grid leaves it out or the body is not a surface mesh).
+    pub grab: Option<crate::grab::GrabComparison>,
 }
 
 /// Resolutions of the FEM points of a study's physical axis.
@@ -168,7 +176,7 @@ pub struct Study {
 pub fn run_study(scene: &Scene, grid: &Grid, progress: &dyn Fn(usize, usize)) -> crate::Result<Study> {
     let (scene, physical) = match scene.tissue {
         Some(_) => {
-            let (s, p) = physical_axis(scene, &grid.fibers)?;
+            let (s, p) = physical_axis(scene, &grid.fibers, grid.grab)?;
             (s, Some(p))
         }
         None => (scene.clone(), None),
@@ -295,12 +303,15 @@ fn skip_reason(s: &Scene, grid: &Grid, n: usize) -> Option<String> {
 }
 
 /// The scene with its fibers calibrated once (when it gave only `[tissue]`), the FEM
-/// reference at [`FEM_STUDY_REFERENCE`] and the FEM at [`FEM_STUDY_RESOLUTIONS`].
-fn physical_axis(scene: &Scene, fibers: &[FiberModel]) -> crate::Result<(Scene, PhysicalAxis)> {
+/// reference at [`FEM_STUDY_REFERENCE`], the FEM at [`FEM_STUDY_RESOLUTIONS`] and, with
+/// `grab`, the grab comparison (the paper's fibers are then calibrated too, for its FFM body).
+fn physical_axis(scene: &Scene, fibers: &[FiberModel], grab: bool) -> crate::Result<(Scene, PhysicalAxis)> {
     let mut calibrated = scene.clone();
     let mut calibrations = Vec::new();
+    let grab = grab && crate::grab::applies(scene);
     if scene.ffm.calibrate {
-        for &f in fibers.iter().chain([&scene.ffm.fibers]) {
+        let paper = grab.then_some(&FiberModel::Paper);
+        for &f in fibers.iter().chain([&scene.ffm.fibers]).chain(paper) {
             if calibrations.iter().any(|c: &fibfluid::sim::calibration::Calibration| c.fibers == f) {
                 continue;
             }
@@ -330,7 +341,11 @@ fn physical_axis(scene: &Scene, fibers: &[FiberModel]) -> crate::Result<(Scene, 
             error_vs_fem: relative_l2(&run.positions, &run.rest, &reference),
         });
     }
-    Ok((calibrated, PhysicalAxis { reference_resolution: FEM_STUDY_REFERENCE, reference, fem, calibrations }))
+    let grab = if grab { Some(crate::grab::grab_comparison(scene, &calibrations)?) } else { None };
+    Ok((
+        calibrated,
+        PhysicalAxis { reference_resolution: FEM_STUDY_REFERENCE, reference, fem, calibrations, grab },
+    ))
 }
 
 /// Sets the scene's fiber modulus from the calibration of its fiber model, if any.
@@ -344,10 +359,7 @@ fn apply_calibration(s: &mut Scene, calibrations: &[fibfluid::sim::calibration::
 /// `|(positions - rest) - reference| / |reference|` over the surface vertices.
 fn relative_l2(positions: &[[f64; 3]], rest: &[[f64; 3]], reference: &[[f64; 3]]) -> f64 {
     let u = fibfluid::sim::calibration::displacements(positions, rest);
-    let sq = |a: [f64; 3]| a[0] * a[0] + a[1] * a[1] + a[2] * a[2];
-    let diff: f64 = u.iter().zip(reference).map(|(a, b)| sq([a[0] - b[0], a[1] - b[1], a[2] - b[2]])).sum();
-    let norm: f64 = reference.iter().map(|&b| sq(b)).sum();
-    if norm > 0.0 { (diff / norm).sqrt() } else { diff.sqrt() }
+    crate::grab::relative_difference(&u, reference)
 }
 
 /// A round trip timed as the fastest of a few repeats (at most [`MAX_REPEATS`], until
@@ -429,6 +441,30 @@ fn measured_cells(p: &Point, num: impl Fn(f64) -> String, missing: &str) -> Vec<
     ]
 }
 
+/// A sentence naming the points whose round-trip error, distance to the reference or
+/// difference from the FEM cannot be drawn on the log charts (not finite, or beyond 1e100:
+/// the run diverged); empty when every point can.
+fn off_chart_note(study: &Study) -> String {
+    let off: Vec<String> = study
+        .points
+        .iter()
+        .filter(|p| {
+            [p.roundtrip_error, p.reference_distance, p.error_vs_fem]
+                .iter()
+                .flatten()
+                .any(|&e| !log_drawable(e) && e != 0.0)
+        })
+        .map(|p| format!("{} {} steps {}", p.config.fibers_label(), p.config.steps, p.config.precision))
+        .collect();
+    if off.is_empty() {
+        return String::new();
+    }
+    format!(
+        "Off the charts (an error not finite or beyond 1e100: the run diverged; its numbers are in the tables): {}.\n\n",
+        off.join("; ")
+    )
+}
+
 /// The study as CSV (one row per point).
 pub fn to_csv(study: &Study) -> String {
     let mut out = String::from(
@@ -451,7 +487,7 @@ pub fn to_csv(study: &Study) -> String {
 /// (failed points and zero errors left out; see [`PARETO_MARGIN`]).
 pub fn pareto(study: &Study, error: impl Fn(&Point) -> Option<f64>) -> Vec<usize> {
     let idx: Vec<usize> = (0..study.points.len())
-        .filter(|&i| study.points[i].seconds.is_some() && error(&study.points[i]).is_some_and(|e| e > 0.0))
+        .filter(|&i| study.points[i].seconds.is_some() && error(&study.points[i]).is_some_and(log_drawable))
         .collect();
     let xy: Vec<(f64, f64)> = idx
         .iter()
@@ -474,9 +510,11 @@ pub fn to_markdown(study: &Study, title: &str) -> String {
         study.reference.precision,
         study.reference.backend
     );
-    out.push_str("| mode | stepping | steps | tolerance | precision | backend | round-trip error | volume drift | distance to reference | residual | factorizations | seconds | |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    out.push_str(&off_chart_note(study));
+    out.push_str("| fibers | mode | stepping | steps | tolerance | precision | backend | round-trip error | volume drift | distance to reference | residual | factorizations | seconds | |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (i, p) in study.points.iter().enumerate() {
-        let mut cells = measured_cells(p, |x| format!("{x:.2e}"), "—");
+        let mut cells = vec![p.config.fibers.to_string()];
+        cells.extend(measured_cells(p, |x| format!("{x:.2e}"), "—"));
         cells.push(p.seconds.map(|s| format!("{s:.4}")).unwrap_or_else(|| "—".into()));
         cells.push(if front.contains(&i) {
             "*".to_string()
@@ -485,12 +523,10 @@ pub fn to_markdown(study: &Study, title: &str) -> String {
         });
         out.push_str(&format!("| {} |\n", cells.join(" | ")));
     }
-    if let Some(axis) = &study.physical {
-        out.push_str(&physical_markdown(study, axis));
-    }
     for (c, why) in &study.skipped {
         out.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} | skipped: {why} |||||||\n",
+            "| {} | {} | {} | {} | {} | {} | {} | skipped: {why} |||||||\n",
+            c.fibers,
             c.mode,
             c.stepping_label(),
             c.steps,
@@ -498,6 +534,13 @@ pub fn to_markdown(study: &Study, title: &str) -> String {
             c.precision,
             c.backend
         ));
+    }
+    // After the skipped rows, which belong to the table above.
+    if let Some(axis) = &study.physical {
+        out.push_str(&physical_markdown(study, axis));
+        if let Some(g) = &axis.grab {
+            out.push_str(&crate::grab::to_markdown(g));
+        }
     }
     out
 }
@@ -516,10 +559,10 @@ pub fn chart(
     let mut series: Vec<fibfluid::render::Series> = Vec::new();
     for p in study.points.iter().filter(|p| p.config.precision == precision && p.config.backend == backend) {
         let (Some(t), Some(e)) = (p.seconds, error(p)) else { continue };
-        if !(e > 0.0 && t > 0.0) {
+        if !(log_drawable(e) && log_drawable(t)) {
             continue;
         }
-        let label = format!("{} {} ({precision}, {backend})", p.config.mode, p.config.stepping_label());
+        let label = format!("{} ({precision}, {backend})", p.config.fibers_label());
         match series.iter_mut().find(|s| s.label == label) {
             Some(s) => s.points.push((t, e)),
             None => series.push(fibfluid::render::Series { label, points: vec![(t, e)] }),
@@ -585,7 +628,9 @@ fn physical_markdown(study: &Study, axis: &PhysicalAxis) -> String {
 /// FEM).
 pub fn physical_front(study: &Study) -> Vec<usize> {
     let idx: Vec<usize> = (0..study.points.len())
-        .filter(|&i| study.points[i].run_seconds.is_some() && study.points[i].error_vs_fem.is_some())
+        .filter(|&i| {
+            study.points[i].run_seconds.is_some() && study.points[i].error_vs_fem.is_some_and(log_drawable)
+        })
         .collect();
     let xy: Vec<(f64, f64)> = idx
         .iter()
@@ -609,7 +654,7 @@ pub fn physical_chart(study: &Study, title: &str) -> crate::Result<Option<Vec<u8
     let mut all: Vec<(f64, f64)> = Vec::new();
     for p in &study.points {
         let (Some(t), Some(e)) = (p.run_seconds, p.error_vs_fem) else { continue };
-        if !(t > 0.0 && e > 0.0) {
+        if !(log_drawable(t) && log_drawable(e)) {
             continue;
         }
         all.push((t, e));
@@ -625,7 +670,7 @@ pub fn physical_chart(study: &Study, title: &str) -> crate::Result<Option<Vec<u8
     let fem: Vec<(f64, f64)> = axis
         .fem
         .iter()
-        .filter(|f| f.seconds > 0.0 && f.error_vs_fem > 0.0)
+        .filter(|f| log_drawable(f.seconds) && log_drawable(f.error_vs_fem))
         .map(|f| (f.seconds, f.error_vs_fem))
         .collect();
     all.extend(&fem);

@@ -677,6 +677,8 @@ fn accuracy_study_has_a_physical_axis_with_both_fiber_models() {
     };
     let study = run_study(&scene, &grid, &|_, _| {}).unwrap();
     let axis = study.physical.as_ref().expect("a physical axis with [tissue]");
+    // The grab comparison comes with the same run (one FEM reference build is paid once).
+    check_grab_comparison(axis.grab.as_ref().expect("a grab comparison on a surface mesh"));
     let fem: Vec<f64> = axis.fem.iter().map(|f| f.error_vs_fem).collect();
     assert!(fem[0] > fem[2] && fem[2] > fem[3], "the FEM converges: {fem:?}");
     assert_eq!(study.points.len(), 2);
@@ -690,4 +692,103 @@ fn accuracy_study_has_a_physical_axis_with_both_fiber_models() {
             c.error_vs_fem
         );
     }
+}
+
+/// How close the grabbed vertex must land to where the grab holds it, relative to the
+/// grab's length: every method holds the vertex exactly up to its solver's rounding.
+const HELD_TOLERANCE: f64 = 1e-9;
+
+/// The grab comparison of the study's physical axis on sphere-tissue (the unit icosphere
+/// in cm, its cap above y = 0.8 cm fixed): the grab is a grasp around the bottom pole
+/// (0, -1, 0) cm, the free vertex farthest from the cap, of radius 5 % of the bounding box's
+/// diagonal (2 sqrt(3) cm), moved down (gravity is -y) by as much; every method holds the
+/// pole there; the FEM's coarse levels
+/// approach the reference; each reported difference is the one recomputed here from the
+/// returned fields.
+fn check_grab_comparison(c: &fibfluid_cli::grab::GrabComparison) {
+    use fibfluid::interact::Method;
+    let g = c.grab;
+    let length = 0.05 * 2.0 * 3f64.sqrt() * 0.01;
+    let close = |a: [f64; 3], b: [f64; 3], tol: f64| (0..3).all(|k| (a[k] - b[k]).abs() <= tol);
+    assert!(close(g.rest, [0.0, -0.01, 0.0], 1e-12), "grabbed {g:?}");
+    assert!(close(g.displacement, [0.0, -length, 0.0], 1e-15), "grabbed {g:?}");
+    assert!((g.radius - length).abs() <= 1e-15, "grabbed {g:?}");
+    let labels: Vec<String> = c.points.iter().map(|p| p.label()).collect();
+    assert_eq!(
+        labels,
+        ["ffm", "tsve-chainmail", "generalized-chainmail", "fem 8", "fem 12", "fem 16", "fem 24"]
+    );
+    assert_eq!((c.reference.method, c.reference.resolution), (Method::Fem, Some(32)));
+    let sq = |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>();
+    let r = &c.reference.field;
+    for p in std::iter::once(&c.reference).chain(&c.points) {
+        assert!(p.error.is_none(), "{}: {:?}", p.label(), p.error);
+        let u = p.field[g.vertex];
+        assert!(
+            sq(u, g.displacement).sqrt() <= HELD_TOLERANCE * length,
+            "{} holds the vertex at {u:?}, not {:?}",
+            p.label(),
+            g.displacement
+        );
+        let diff: f64 = p.field.iter().zip(r).map(|(a, b)| sq(*a, *b)).sum();
+        let norm: f64 = r.iter().map(|b| sq(*b, [0.0; 3])).sum();
+        let e = (diff / norm).sqrt();
+        let reported = p.error_vs_fem.unwrap();
+        assert!((reported - e).abs() <= 1e-12 * e.max(1.0), "{}: {reported} vs {e}", p.label());
+        assert!(p.setup_seconds.unwrap() > 0.0 && p.first_frame_seconds.unwrap() > 0.0);
+    }
+    let fem = |res: usize| c.points.iter().find(|p| p.resolution == Some(res)).unwrap().error_vs_fem.unwrap();
+    assert!(fem(24) < fem(8), "the FEM approaches its reference: 24 -> {}, 8 -> {}", fem(24), fem(8));
+    // Different models of the same grab: never the reference itself.
+    assert!(c.points.iter().all(|p| p.error_vs_fem.unwrap() > 0.0));
+}
+
+/// A diverged configuration (a round-trip error of 1e122, another's not finite) stays in
+/// the tables, is named as off the charts, and leaves the charts drawable.
+#[test]
+fn a_diverged_configuration_does_not_break_the_charts() {
+    use fibfluid::sim::FiberModel;
+    use fibfluid::{Backend, Mode, Precision, Stepping};
+    use fibfluid_cli::study::{Config, Point, Study, chart, to_markdown};
+    let config = |steps| Config {
+        mode: Mode::Paper,
+        stepping: Stepping::Heun,
+        steps,
+        tolerance: None,
+        precision: Precision::F64,
+        backend: Backend::Structured,
+        fibers: FiberModel::Projected,
+    };
+    let point = |steps, error: f64| Point {
+        config: config(steps),
+        roundtrip_error: Some(error),
+        volume_drift: Some(1e-3),
+        reference_distance: Some(error),
+        residual_max: Some(1e-15),
+        factorizations: Some(2),
+        seconds: Some(0.1 * steps as f64),
+        run_seconds: Some(0.05 * steps as f64),
+        error_vs_fem: None,
+        error: None,
+    };
+    let study = Study {
+        physical: None,
+        reference: config(100),
+        points: vec![point(1, 0.3), point(3, 3.7e122), point(10, f64::NAN), point(30, 1e-3)],
+        skipped: Vec::new(),
+    };
+    let png = chart(
+        &study,
+        "diverged",
+        "round-trip error",
+        |p| p.roundtrip_error,
+        Precision::F64,
+        Backend::Structured,
+    )
+    .expect("the drawable points are charted");
+    assert!(png.starts_with(b"\x89PNG"));
+    let md = to_markdown(&study, "diverged");
+    let note = md.lines().find(|l| l.starts_with("Off the charts")).expect("a note naming the diverged runs");
+    assert!(note.contains("3 steps") && note.contains("10 steps") && !note.contains(" 1 steps"), "{note}");
+    assert!(md.contains("3.70e122"), "the table keeps the diverged number:\n{md}");
 }

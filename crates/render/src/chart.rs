@@ -60,9 +60,14 @@ pub fn pareto_front_with_margin(points: &[(f64, f64)], margin: f64) -> Vec<usize
 /// axis arithmetic of plotters would overflow).
 const LOG_LIMITS: (f64, f64) = (1e-100, 1e100);
 
+/// Whether `v` can be drawn on a log axis of [`loglog_chart`]: finite, positive and within
+/// `1e-100..=1e100`. Callers leave other values out of a chart (and say so).
+pub fn log_drawable(v: f64) -> bool {
+    (LOG_LIMITS.0..=LOG_LIMITS.1).contains(&v)
+}
+
 fn check_log_points(label: &str, points: &[(f64, f64)]) -> Result<()> {
-    let ok = |v: f64| (LOG_LIMITS.0..=LOG_LIMITS.1).contains(&v);
-    match points.iter().position(|&(x, y)| !(ok(x) && ok(y))) {
+    match points.iter().position(|&(x, y)| !(log_drawable(x) && log_drawable(y))) {
         Some(point) => Err(RenderError::NonPositiveLog {
             series: label.to_string(),
             point,

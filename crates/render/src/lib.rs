@@ -25,7 +25,7 @@ mod error;
 mod surface;
 mod text;
 
-pub use chart::{Series, line_chart, loglog_chart, pareto_front, pareto_front_with_margin};
+pub use chart::{Series, line_chart, log_drawable, loglog_chart, pareto_front, pareto_front_with_margin};
 pub use error::{RenderError, Result};
 pub use surface::{Colormap, Surface, ViewOptions, render_surfaces};
 
