@@ -189,18 +189,49 @@ fn spawned_first_touch(bin: &str, path: &std::path::Path, precompute: Precompute
     let first = start.elapsed().as_secs_f64();
     c.grab(v, [rest[v][0] + 0.06, rest[v][1] - 0.1, rest[v][2]]);
     let second = c.frame().latency_us;
+    // The child's peak resident set, before it goes (`VmHWM` of its /proc status, kB).
+    let peak_bytes = std::fs::read_to_string(format!("/proc/{}/status", child.id()))
+        .ok()
+        .and_then(|s| {
+            s.lines().find(|l| l.starts_with("VmHWM:"))?.split_whitespace().nth(1)?.parse::<f64>().ok()
+        })
+        .map_or(0.0, |kb| kb * 1024.0);
     let _ = child.kill();
     let _ = child.wait();
-    let sim = Simulation::new(linearized(&scene)).expect("the scene assembles");
-    let stage =
-        |name: Stage| sim.log().records().iter().filter(|r| r.name == name).map(|r| r.seconds).sum::<f64>();
-    let (assembly, factorization) = (stage(Stage::Assembly), stage(Stage::Factorization));
+    let (assembly, factorization) = run_stages(bin, path);
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     println!(
-        "first touch ({precompute}, `fibfluid view` child): N = {n}: spawn -> handshake done {connected:.2} s -> first grab's frame {first:.2} s (server latency {:.1} ms; the next frame {second:.0} us); assembly + factorization here {assembly:.2} s + {factorization:.2} s = {:.2} s; ratio {:.2}; load average {}",
+        "first touch ({precompute}, `fibfluid view` child): N = {n}: spawn -> handshake done {connected:.2} s -> first grab's frame {first:.2} s (server latency {:.1} ms; the next frame {second:.0} us); assembly + factorization in `fibfluid run`'s report {assembly:.2} s + {factorization:.2} s = {:.2} s; ratio {:.2}; the child's VmHWM {:.1} MiB = {:.2} x an N x N f64 factor; load average {}",
         f.latency_us / 1e3,
         assembly + factorization,
         first / (assembly + factorization),
+        peak_bytes / 1048576.0,
+        peak_bytes / (8.0 * (n * n) as f64),
         load.split_whitespace().take(3).collect::<Vec<_>>().join(" ")
     );
+}
+
+/// The assembly and factorization seconds of `fibfluid run` (a child process of `bin`) on
+/// the scene at `path`, from its report.json's stages.
+fn run_stages(bin: &str, path: &std::path::Path) -> (f64, f64) {
+    let out = std::env::temp_dir().join(format!("fibfluid-touch-run-{}", std::process::id()));
+    let status = std::process::Command::new(bin)
+        .args(["run", path.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .stdout(std::process::Stdio::null())
+        .status()
+        .expect("fibfluid run starts");
+    assert!(status.success(), "fibfluid run failed on {}", path.display());
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).expect("report.json");
+    let _ = std::fs::remove_dir_all(&out);
+    let stage = |name: &str| {
+        report["stages"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|s| s["name"] == name)
+            .filter_map(|s| s["seconds"].as_f64())
+            .sum::<f64>()
+    };
+    (stage("assembly"), stage("factorization"))
 }
