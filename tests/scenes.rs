@@ -423,6 +423,11 @@ fn settings_that_cannot_act_are_found_and_really_do_nothing() {
     let mut without = s.clone();
     without.material.density = 0.0;
     same(s, without, "density without gravity");
+    // A density calibrated fibers took from [tissue] describes the tissue: not reported.
+    let mut s = Scene::load("fixtures/scenes/sphere-tissue.toml").unwrap();
+    assert!(s.ffm.calibrate && s.material.density > 0.0);
+    s.gravity = [0.0; 3];
+    assert_eq!(ineffective(&s), vec![]);
 
     let mut s = sphere();
     s.material.law = StiffnessLaw::Quadratic { c: 50.0 };

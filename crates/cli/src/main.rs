@@ -540,7 +540,7 @@ fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> 
     let written = fibfluid_cli::write_outputs(out, &sim, &report)?;
     report.seconds_total += start.elapsed().as_secs_f64();
     say!(
-        "{}: {} vertices, {} steps ({} / {} / {}), max |u| = {}, volume {} -> {} (drift {:.2e}), P = {}, residual {:.1e}, {:.3} s",
+        "{}: {} vertices, {} steps ({} / {} / {}), max |u| = {} m, volume {} -> {} m^3 (drift {:.2e}), P = {} Pa, residual {:.1e}, {:.3} s",
         report.scene,
         report.vertices,
         report.steps,
@@ -559,7 +559,7 @@ fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> 
         let (force, area) =
             (r.force.last().copied().unwrap_or(0.0), r.contact_area.last().copied().unwrap_or(0.0));
         say!(
-            "  plate {}: force {}, {} vertices in contact, contact area {}, mean pressure {}, gap {}",
+            "  plate {}: force {} N, {} vertices in contact, contact area {} m^2, mean pressure {} Pa, gap {} m",
             k + 1,
             num(force),
             r.contact_vertices.last().copied().unwrap_or(0),
@@ -607,6 +607,15 @@ fn run_fem(
         report.residual,
         report.seconds_total
     );
+    for (k, p) in report.plates.iter().enumerate() {
+        say!(
+            "  plate {}: force {} N, {} vertices in contact, {} active-set iterations",
+            k + 1,
+            num(p.force),
+            p.contact_vertices,
+            p.active_set_iterations
+        );
+    }
     for w in written {
         say!("  wrote {}", w.display());
     }

@@ -143,7 +143,7 @@ fn render_plates_png(sim: &Simulation) -> Result<Vec<u8>> {
     // Look at the side the most loaded plate presses on: from that plate towards the
     // body, tilted as the default view is.
     let mut opts =
-        fibfluid::render::ViewOptions { scalar_label: "contact pressure".into(), ..Default::default() };
+        fibfluid::render::ViewOptions { scalar_label: "contact pressure (Pa)".into(), ..Default::default() };
     let loaded = sim
         .plate_records()
         .iter()
@@ -203,22 +203,24 @@ fn plate_outline(
     (corners, quads)
 }
 
-/// Force against thickness for each plate (`compression.png`).
+/// Force (N) against thickness (the mesh's unit) for each plate (`compression.png`).
 pub fn compression_png(sim: &Simulation) -> Result<Vec<u8>> {
+    let unit = sim.model().unit;
+    let to_unit = 1.0 / unit.metres();
     let series: Vec<fibfluid::render::Series> = sim
         .plate_records()
         .iter()
         .enumerate()
         .map(|(k, r)| fibfluid::render::Series {
             label: format!("plate {}", k + 1),
-            points: r.gap.iter().copied().zip(r.force.iter().copied()).collect(),
+            points: r.gap.iter().map(|g| g * to_unit).zip(r.force.iter().copied()).collect(),
         })
         .collect();
     let title = format!("{}: plate force against thickness", sim.model().name);
     Ok(fibfluid::render::line_chart(
         &title,
-        "thickness (plate gap)",
-        "force on the plate",
+        &format!("thickness, the plate gap ({unit})"),
+        "force on the plate (N)",
         &series,
         900,
         560,

@@ -108,7 +108,10 @@ pub fn ineffective(scene: &Model) -> Vec<Ineffective> {
             Ineffective::GravityWithoutDensity { acceleration: scene.gravity }
         });
     }
-    if !has_gravity && density > 0.0 && !fem {
+    // A density FFM took from `[tissue]` (its fibers calibrated) describes the tissue; it
+    // asks for no effect, so its absence of gravity is no mistake.
+    let from_tissue = scene.ffm.calibrate && scene.tissue.is_some_and(|t| t.density == density);
+    if !has_gravity && density > 0.0 && !fem && !from_tissue {
         found.push(Ineffective::DensityWithoutGravity { density });
     }
     let stiffens = match &scene.material.law {
