@@ -104,18 +104,16 @@ fn projected_fibers_beat_the_papers_on_a_swinging_body() {
     assert!(projected < 1.1 * paper, "projected {projected} vs paper {paper}");
 }
 
-/// What projected fibers do not run is refused in one line, before any work; the plan
-/// counts the coupled matrix and its factor; several paper-mode steps run.
+/// What projected fibers do not run (plates, mixed precision) is refused in one line,
+/// before any work; the plan counts the coupled matrix and its factor; several paper-mode
+/// steps run.
 #[test]
 fn projected_fibers_refuse_what_is_not_built() {
     let dir = tempfile::tempdir().unwrap();
     let sphere = mesh("icosphere-2.obj");
     let plate = "[[plate]]\npoint = [0.0, -1.0, 0.0]\nnormal = [0.0, 1.0, 0.0]\ntravel = 0.1\n";
-    for (extra, refresh, says) in [("", true, "refresh and nonlinear"), (plate, false, "plates")] {
-        let mut s = scene(dir.path(), &sphere, "above = 0.8", "projected", extra);
-        if refresh {
-            s.model.solver.mode = fibfluid::Mode::Refresh;
-        }
+    for (extra, says) in [(plate, "plates"), ("precision = \"mixed\"", "mixed")] {
+        let s = scene(dir.path(), &sphere, "above = 0.8", "projected", extra);
         let e = Simulation::new(s).err().expect("refused");
         let text = e.to_string();
         assert!(matches!(e, SimError::MethodNeeds { method: Method::Ffm, .. }), "{e:?}");
@@ -138,6 +136,68 @@ fn projected_fibers_refuse_what_is_not_built() {
     // The interactive body (probe, view, compare, Python) refuses too, in one line.
     let e = fibfluid::interact::build_body(&s, &fibfluid::interact::ProbeOptions::default()).unwrap_err();
     assert!(e.to_string().contains("projected") && !e.to_string().contains('\n'), "{e}");
+}
+
+/// Largest distance of the run's vertices from where the rotation by `angle` about z takes
+/// their rest positions (the unit sphere: relative to its radius).
+fn rotation_miss(sim: &Simulation, angle: f64) -> f64 {
+    let (c, s) = (angle.cos(), angle.sin());
+    sim.positions()
+        .iter()
+        .zip(sim.rest_positions())
+        .map(|(p, r)| {
+            let q = [c * r[0] - s * r[1], s * r[0] + c * r[1], r[2]];
+            ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Projected fibers cost nothing under a rigid rotation: with the cap turned 0.5 rad about
+/// z (prescribed displacements `R p - p`, no load) and the operator re-assembled on the
+/// current shape at each of 20 steps (nonlinear mode), the whole unit sphere follows the
+/// rotation (the exact answer is the rotated rest shape; each linearized step misses by
+/// about (0.5 / 20)^2, so 20 of them by about 0.0125). Operators kept from the rest shape
+/// (paper and refresh modes) only know infinitesimal rotations and miss by about
+/// 0.5^2 / 2; the paper's fibers (a Laplacian per axis) drag the body along without turning
+/// it and miss by most of the radius. Volume: refresh and nonlinear keep it (1e-9).
+#[test]
+fn projected_fibers_follow_a_rigid_rotation_in_nonlinear_mode() {
+    let dir = tempfile::tempdir().unwrap();
+    let sphere = mesh("icosphere-2.obj");
+    let angle: f64 = 0.5;
+    let (c, s) = (angle.cos(), angle.sin());
+    let run = |fibers: &str, mode: fibfluid::Mode| {
+        let mut sc = scene(dir.path(), &sphere, "above = 0.8", fibers, "");
+        sc.model.gravity = [0.0; 3];
+        sc.model.material.density = 0.0;
+        sc.model.steps = 20;
+        sc.model.solver.mode = mode;
+        let rest = sc.rest_positions();
+        for (v, p) in rest.iter().enumerate().filter(|(_, p)| p[1] > 0.8) {
+            let q = [c * p[0] - s * p[1], s * p[0] + c * p[1], p[2]];
+            for a in 0..3 {
+                sc.model.constraints.prescribe(v, a, q[a] - p[a]).unwrap();
+            }
+        }
+        let mut sim = Simulation::new(sc).unwrap();
+        sim.run(&RunOptions::default()).unwrap();
+        assert!(sim.counters().residual_max < 1e-10, "{fibers} {mode}");
+        if mode != fibfluid::Mode::Paper {
+            assert!((sim.volume() / sim.volume_initial() - 1.0).abs() < 1e-9, "{fibers} {mode}: volume");
+        }
+        rotation_miss(&sim, angle)
+    };
+    let nonlinear = run("projected", fibfluid::Mode::Nonlinear);
+    let kept = run("projected", fibfluid::Mode::Paper);
+    let refresh = run("projected", fibfluid::Mode::Refresh);
+    let laplacian = run("paper", fibfluid::Mode::Nonlinear);
+    eprintln!(
+        "rotation miss: projected nonlinear {nonlinear:.4}, paper mode {kept:.4}, refresh {refresh:.4}; paper fibers nonlinear {laplacian:.4}"
+    );
+    assert!(nonlinear < 0.03, "projected, nonlinear: misses the rotation by {nonlinear}");
+    assert!(kept > 0.06 && refresh > 0.06, "kept operators: {kept}, {refresh}");
+    assert!(nonlinear < 0.3 * kept.min(refresh), "{nonlinear} vs {kept}, {refresh}");
+    assert!(laplacian > 0.3, "the paper's fibers miss by {laplacian}");
 }
 
 /// Writes the icosphere of `level` subdivisions as an OBJ file.

@@ -114,16 +114,7 @@ pub fn assemble_projected(
     let spec = ColumnSpec { pairs: &pairs, axes, young: material.young[0], fixed, method: opts.method, keep };
     let (stiffness, diag_scale, kept) = fill(&spec)?;
     let lifts = kept.into_iter().map(|(k, column)| (k, prescribed(k).expect("kept"), column)).collect();
-    let border = (0..axes * n)
-        .map(|k| {
-            let (i, c) = dof(k);
-            if opts.method == ConstraintMethod::Eliminate && spec.fixed[k] {
-                0.0
-            } else {
-                body.vertex_areas[i][c]
-            }
-        })
-        .collect();
+    let border = border_of(body.vertex_areas, constraints, opts.method, axes);
     let gamma = material.surface_tension;
     let stats = AssemblyStats {
         bulk_fibers: body.fibers.kept(),
@@ -143,6 +134,22 @@ pub fn assemble_projected(
         diag_scale,
         lifts,
     })
+}
+
+/// The border `S` for vertex area vectors `areas`, axis-major: zero at the degrees of
+/// freedom elimination removes.
+fn border_of(areas: &[Vec3], constraints: &Constraints, method: ConstraintMethod, axes: usize) -> Vec<f64> {
+    let n = areas.len();
+    (0..axes * n)
+        .map(|k| {
+            let (i, c) = (k % n, k / n);
+            if method == ConstraintMethod::Eliminate && constraints.get(i, c).is_some() {
+                0.0
+            } else {
+                areas[i][c]
+            }
+        })
+        .collect()
 }
 
 /// The checks that need no matrix: an isotropic material and a matrix that fits.
@@ -264,6 +271,12 @@ impl ProjectedSystem {
     /// The constraint method.
     pub fn method(&self) -> ConstraintMethod {
         self.method
+    }
+
+    /// The border `S` of another shape (its vertex area vectors), as assembly builds it:
+    /// axis-major, zero at eliminated degrees of freedom (refresh mode's new border).
+    pub fn border_for(&self, areas: &[Vec3]) -> Vec<f64> {
+        border_of(areas, &self.constraints, self.method, self.axes)
     }
 
     /// The right-hand side `[f; t]` for a load vector `b` (length dN, axis-major) and a

@@ -193,6 +193,43 @@ fn the_coupled_solve_satisfies_the_bordered_system() {
     }
 }
 
+/// A new border on the kept factor (refresh mode) solves what a fresh factorization with
+/// that border solves; a zero border is refused and leaves the factorization as it was.
+#[test]
+fn a_new_border_on_the_kept_factor_matches_a_fresh_factorization() {
+    let owned = sphere();
+    let n = owned.pos.len();
+    let mut constraints = Constraints::new(n);
+    constraints.fix_selected(&Selector::Above { axis: 1, value: 0.8 }, &owned.pos, [true; 3]).unwrap();
+    let material = Material::isotropic(3000.0, 3000.0, 1000.0);
+    let opts =
+        AssemblyOptions { method: ConstraintMethod::Eliminate, pressure_scaling: PressureScaling::None };
+    let sys = assemble_projected(&owned.body(), &material, &constraints, &opts).unwrap();
+    // Another shape's area vectors: the sphere stretched along y.
+    let other: Vec<[f64; 3]> = owned.s.iter().map(|a| [a[0] * 1.1, a[1] * 0.9, a[2] * 1.1]).collect();
+    let border = sys.border_for(&other);
+    let fixed = |k: usize| constraints.get(k % n, k / n).is_some();
+    assert!((0..3 * n).all(|k| if fixed(k) { border[k] == 0.0 } else { border[k] == other[k % n][k / n] }));
+    let mut kept =
+        CoupledCholesky::factor(sys.stiffness.clone(), sys.border.clone(), &FactorOptions::default())
+            .unwrap();
+    let before = kept.schur();
+    assert!(kept.set_border(vec![0.0; 3 * n]).is_err());
+    assert_eq!(kept.schur(), before, "a refused border leaves the factorization as it was");
+    kept.set_border(border.clone()).unwrap();
+    let fresh = CoupledCholesky::factor(sys.stiffness.clone(), border, &FactorOptions::default()).unwrap();
+    assert!((kept.schur() - fresh.schur()).abs() <= 1e-12 * fresh.schur());
+    let rhs: Vec<f64> = (0..=3 * n)
+        .map(|i| if fixed(i % (3 * n)) || i == 3 * n { 0.0 } else { ((i * 37) % 11) as f64 - 5.0 })
+        .collect();
+    let (a, b) = (kept.solve(&rhs).unwrap().x, fresh.solve(&rhs).unwrap().x);
+    let scale = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    assert!(
+        a.iter().zip(&b).all(|(x, y)| (x - y).abs() <= 1e-10 * scale),
+        "the kept factor with the new border differs"
+    );
+}
+
 /// Too few constraints leave a rotation free: the factorization says the system is
 /// singular instead of returning garbage.
 #[test]

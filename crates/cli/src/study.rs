@@ -93,8 +93,8 @@ pub struct Grid {
     pub precisions: Vec<Precision>,
     /// Backends.
     pub backends: Vec<Backend>,
-    /// Fiber models (`projected` runs in paper mode, f64, with its own coupled solver: one
-    /// point per stepping and step count).
+    /// Fiber models (`projected` runs in f64 with its own coupled solver: one point per
+    /// mode, stepping and step count; nonlinear mode follows the dense backends' cost rule).
     pub fibers: Vec<FiberModel>,
     /// Dense backends refactor the (3N+1)^2 matrix at every step outside paper mode (a new
     /// border or a new K); above this many vertices they are run only up to
@@ -283,16 +283,22 @@ fn grid_configs(
 /// Why a grid point is not run, if it is not.
 fn skip_reason(s: &Scene, grid: &Grid, n: usize) -> Option<String> {
     let (mode, backend) = (s.solver.mode, s.solver.backend);
+    let costly = s.tolerance.is_some() || s.steps > grid.dense_refactor_max_steps;
     if s.ffm.fibers == FiberModel::Projected {
-        if mode != Mode::Paper || s.solver.precision != Precision::F64 {
-            return Some("projected fibers run in paper mode, f64".into());
+        if s.solver.precision != Precision::F64 {
+            return Some("projected fibers factor in f64 only".into());
         }
         if backend != grid.backends[0] {
             return Some("projected fibers have their own coupled solver (one backend's row)".into());
         }
+        if mode == Mode::Nonlinear && n > grid.dense_refactor_vertex_limit && costly {
+            return Some(format!(
+                "a dense 3N x 3N refactorization per step at N = {n} costs too much beyond {} steps",
+                grid.dense_refactor_max_steps
+            ));
+        }
         return None;
     }
-    let costly = s.tolerance.is_some() || s.steps > grid.dense_refactor_max_steps;
     if backend.is_dense() && mode != Mode::Paper && n > grid.dense_refactor_vertex_limit && costly {
         return Some(format!(
             "a dense refactorization per step at N = {n} costs too much beyond {} steps",

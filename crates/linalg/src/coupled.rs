@@ -78,18 +78,27 @@ impl CoupledCholesky {
                 return Err(LinalgError::SingularPivot { index: i, pivot });
             }
         }
-        let mut kinv_s = border.clone();
-        llt_solve(&llt, &mut kinv_s);
-        let schur = dot(&border, &kinv_s);
-        if !(schur > 0.0) || border.iter().all(|v| *v == 0.0) {
-            return Err(LinalgError::SingularPivot { index: m, pivot: schur });
-        }
+        let (kinv_s, schur) = schur_of(&llt, &border)?;
         let cost = FactorCost {
             flops: cholesky_flops(m),
             seconds: start.elapsed().as_secs_f64(),
             bytes: 2 * m * m * 8,
         };
         Ok(Self { k, llt, border, kinv_s, schur, opts: *opts, cost })
+    }
+
+    /// Replaces the border S (refresh mode: the current shape's area vectors) keeping K's
+    /// factor: one solve for `K^-1 S` and the new Schur complement. A non-finite or zero
+    /// border is an error and leaves the factorization as it was.
+    pub fn set_border(&mut self, border: Vec<f64>) -> Result<()> {
+        let m = self.k.nrows();
+        assert_eq!(border.len(), m, "border length");
+        if let Some(i) = border.iter().position(|v| !v.is_finite()) {
+            return Err(LinalgError::NonFinite { row: i, col: m });
+        }
+        let (kinv_s, schur) = schur_of(&self.llt, &border)?;
+        (self.border, self.kinv_s, self.schur) = (border, kinv_s, schur);
+        Ok(())
     }
 
     /// Size of the bordered system, dN + 1.
@@ -189,6 +198,18 @@ impl CoupledCholesky {
         }
         Ok(Solution { x, relative_residual: rel, refinement_steps: steps })
     }
+}
+
+/// `K^-1 S` and the Schur complement `S' K^-1 S` of a border; a zero border or a Schur
+/// complement that is not positive is an error.
+fn schur_of(llt: &Llt<f64>, border: &[f64]) -> Result<(Vec<f64>, f64)> {
+    let mut kinv_s = border.to_vec();
+    llt_solve(llt, &mut kinv_s);
+    let schur = dot(border, &kinv_s);
+    if !(schur > 0.0) || border.iter().all(|v| *v == 0.0) {
+        return Err(LinalgError::SingularPivot { index: border.len(), pivot: schur });
+    }
+    Ok((kinv_s, schur))
 }
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {

@@ -353,7 +353,8 @@ fn load_stages(scene: &Model, c: &Costs) -> Vec<PlannedStage> {
                 "new border S from the current shape: K^-1 S by triangular solves"
             },
             d * n * 8.0,
-            steps * evaluations * 2.0 * d * n * n,
+            // The projected fibers' K^-1 S: one solve with their dense factor too.
+            steps * evaluations * 2.0 * (d * n * n + c.projected * c.projected),
         ),
         Mode::Paper => stage(names::BORDER, false, "paper mode keeps the rest-shape border", 0.0, 0.0),
         Mode::Nonlinear => stage(names::BORDER, false, "nonlinear mode re-assembles everything", 0.0, 0.0),

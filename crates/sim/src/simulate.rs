@@ -167,7 +167,7 @@ struct Factored {
     held: Holds,
     /// Contact constraints, on this factorization.
     contact: PrescribedSet,
-    /// With projected fibers (`[ffm] fibers = "projected"`, paper mode): the coupled
+    /// With projected fibers (`[ffm] fibers = "projected"`): the coupled
     /// system and its factorization, which every step's solve uses instead of
     /// `factorization` (the paper's operator is still assembled and factored: it backs
     /// [`Simulation::system`] and [`Simulation::factorization`]).
@@ -994,6 +994,11 @@ impl Simulation {
                 let start = Instant::now();
                 f.system.matrix.set_border(&border);
                 f.factorization.set_border(&border)?;
+                if let Some(c) = &mut f.coupled {
+                    let border = c.system.border_for(&areas);
+                    c.factor.set_border(border.clone())?;
+                    c.system.border = border;
+                }
                 // A dense backend refactors the whole matrix for a new border: say so.
                 if f.factorization.border_update_refactors() {
                     self.counters.factorizations += 1;
@@ -1011,6 +1016,9 @@ impl Simulation {
                 self.log.add(names::FACTORIZATION, start.elapsed().as_secs_f64());
                 self.counters.factorizations += 1;
                 f.system = system;
+                if self.factored.coupled.is_some() {
+                    self.refactor_coupled(s, &areas)?;
+                }
             }
         }
         let start = Instant::now();
@@ -1018,6 +1026,22 @@ impl Simulation {
         self.log.add(names::VOLUME, start.elapsed().as_secs_f64());
         self.factored.border_areas = areas;
         Ok(target)
+    }
+
+    /// Nonlinear mode with projected fibers: the coupled operator assembled on shape `s`
+    /// (its fibers' directions and lengths, its border `areas`) and factored again.
+    fn refactor_coupled(&mut self, s: &[Vec3], areas: &[Vec3]) -> Result<()> {
+        // The old matrix and factor go first: the plan counts one of each.
+        self.factored.coupled = None;
+        let mut system =
+            self.log.time(names::REASSEMBLY, || assemble_projected_on(&self.model, &self.body, s, areas))?;
+        let k = std::mem::replace(&mut system.stiffness, fibfluid_linalg::Mat::new());
+        let border = system.border.clone();
+        let options = self.factored.options;
+        let factor = self.log.time(names::FACTORIZATION, || CoupledCholesky::factor(k, border, &options))?;
+        self.counters.factorizations += 1;
+        self.factored.coupled = Some(Coupled { system, factor });
+        Ok(())
     }
 
     /// The volume row's target on shape `s` with border `areas`: the row asks
@@ -1169,16 +1193,13 @@ impl Simulation {
     }
 }
 
-/// Refuses, with one line, what the projected fibers do not run: only paper mode (one
-/// factorization of the rest shape's coupled operator) on a surface, in f64, without
-/// plates, is built.
+/// Refuses, with one line, what the projected fibers do not run: they run every mode on a
+/// surface, in f64, without plates.
 fn refuse_projected(scene: &Model) -> Result<()> {
     if scene.ffm.fibers != FiberModel::Projected {
         return Ok(());
     }
-    let problem = if scene.solver.mode != Mode::Paper {
-        "with fibers = \"projected\" runs in mode = \"paper\" only (refresh and nonlinear modes are not built)"
-    } else if !scene.plates.is_empty() {
+    let problem = if !scene.plates.is_empty() {
         "with fibers = \"projected\" does not run plates yet (use fibers = \"paper\")"
     } else if matches!(scene.shape, Shape::Polygon(_)) {
         "with fibers = \"projected\" needs a surface mesh (2D polygons are not built)"
