@@ -371,7 +371,7 @@ fn check_volume_row(shape: &Shape, sys: &System, b: &[f64], target: f64) -> Resu
 
 /// Relative error allowed in the volume row (`dim` = system size).
 fn volume_tol(dim: usize) -> f64 {
-    fibfluid_linalg::DEFAULT_TARGET_RESIDUAL + SUM_C * dim as f64 * EPS
+    fibfluid_linalg::FactorOptions::default().target_for(dim) + SUM_C * dim as f64 * EPS
 }
 
 // ----- the paper's sphere case -----

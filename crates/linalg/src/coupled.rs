@@ -186,7 +186,7 @@ impl CoupledCholesky {
             }
             self.residual(&x, b, &mut r, &mut denom);
             let rel = componentwise_backward_error(&r, &denom, b);
-            if rel <= self.opts.target_residual || steps >= self.opts.max_refinement_steps {
+            if rel <= self.opts.target_for(dim) || steps >= self.opts.max_refinement_steps {
                 break rel;
             }
             self.solve_unrefined(&mut r);

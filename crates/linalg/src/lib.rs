@@ -66,7 +66,8 @@ pub use memory::{
 pub use prescribed::{ConstrainedSolution, PrescribedSet};
 pub use solver::{
     DEFAULT_MAX_RESIDUAL, DEFAULT_TARGET_RESIDUAL, FactorCost, FactorOptions, Factorization,
-    FactorizationExt, LinearSolver, LinearSolverExt, Precision, Solution, componentwise_backward_error,
+    FactorizationExt, LinearSolver, LinearSolverExt, Precision, Solution, TARGET_RESIDUAL_PER_UNKNOWN,
+    componentwise_backward_error,
 };
 pub use structured::Structured;
 

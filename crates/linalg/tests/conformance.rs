@@ -9,10 +9,11 @@
 //!
 //! Tolerances, all growing with the system size `dim`:
 //! - [`residual_tol`]: the checked solve refines until its componentwise backward error
-//!   `max_i |b - A x|_i / (|A| |x| + |b|)_i` is at most `DEFAULT_TARGET_RESIDUAL` (which also
-//!   bounds the normwise `|b - A x|_inf / (|A|_inf |x|_inf + |b|_inf)`); the test recomputes
-//!   both from the dense matrix, which adds about `dim * eps` of its own rounding. Bound:
-//!   `DEFAULT_TARGET_RESIDUAL + RESIDUAL_C * dim * eps`.
+//!   `max_i |b - A x|_i / (|A| |x| + |b|)_i` is at most `FactorOptions::target_for(dim)`, the
+//!   larger of `DEFAULT_TARGET_RESIDUAL` and `dim * eps` (which also bounds the normwise
+//!   `|b - A x|_inf / (|A|_inf |x|_inf + |b|_inf)`); the test recomputes both from the dense
+//!   matrix, which adds about `dim * eps` of its own rounding. Bound:
+//!   `target_for(dim) + RESIDUAL_C * dim * eps`.
 //! - [`agreement_tol`]: a solution with normwise backward error `eta` has forward error at
 //!   most about `2 cond eta`; two of them differ by at most twice that. Bound:
 //!   `AGREEMENT_C * cond * residual_tol(dim)`, with `cond` the exact 1-norm condition number
@@ -26,8 +27,8 @@ use fibfluid_assembly::{
 };
 use fibfluid_geometry::{FiberSet, TriMesh, icosphere};
 use fibfluid_linalg::{
-    Backend, Blocks, BorderedMatrix, Choice, DEFAULT_TARGET_RESIDUAL, FactorOptions, FactorizationExt,
-    LinalgError, LinearSolver, LinearSolverExt, Precision, all_backends,
+    Backend, Blocks, BorderedMatrix, Choice, FactorOptions, FactorizationExt, LinalgError, LinearSolver,
+    LinearSolverExt, Precision, all_backends,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -42,7 +43,7 @@ const AGREEMENT_C: f64 = 4.0;
 
 /// Relative residual every accepted solve must reach, checked independently.
 fn residual_tol(dim: usize) -> f64 {
-    DEFAULT_TARGET_RESIDUAL + RESIDUAL_C * dim as f64 * EPS
+    FactorOptions::default().target_for(dim) + RESIDUAL_C * dim as f64 * EPS
 }
 
 /// Largest relative difference `|x - y|_inf / |x|_inf` two backends may show.
@@ -837,8 +838,9 @@ fn assert_reads_as(m: &BorderedMatrix, dense: &Mat<f64>, what: &str) {
     }
 }
 
-/// `factorize_in_place` in every backend, on matrices nobody else holds (the random cases
-/// and one past the in-place kernel's block size of 256, with the threaded product): the
+/// `factorize_in_place` in every backend, on matrices nobody else holds (the random cases,
+/// one past the in-place kernel's block size of 256 with the threaded product, and two of
+/// odd order): the
 /// solution passes the independent dense residual check, the matrix reads as before, a
 /// second factorization while the first is alive and one after it is dropped both solve,
 /// and a clone held elsewhere keeps the blocks from being written.
@@ -846,6 +848,9 @@ fn assert_reads_as(m: &BorderedMatrix, dense: &Mat<f64>, what: &str) {
 fn factoring_in_place_keeps_the_matrix_and_solves() {
     let mut cases = random_cases();
     cases.push(random_case(9, 600, 3, true, Spd::LaplacianPlusDiagonal, 1.0));
+    // Odd orders (the residual kernel takes columns in pairs), one past the threaded split.
+    cases.push(random_case(10, 601, 2, false, Spd::Gram, 1.0));
+    cases.push(random_case(11, 33, 3, true, Spd::Gram, 1.0));
     for backend in all_backends() {
         let name = backend.name();
         for case in &cases {
@@ -869,6 +874,7 @@ fn factoring_in_place_keeps_the_matrix_and_solves() {
                 assert!(res <= residual_tol(dim), "{what} {when}: residual {res:e}");
             };
             let opts = FactorOptions::default();
+            assert_reads_as(&m, &dense, &format!("{what}, before"));
             let first = backend.factorize_in_place(&mut m, &opts).unwrap_or_else(|e| panic!("{what}: {e}"));
             assert_eq!(m.is_factored_in_place(), name == "structured", "{what}: who writes in place");
             assert_reads_as(&m, &dense, &what);
