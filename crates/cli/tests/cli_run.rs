@@ -56,6 +56,11 @@ fn sphere_scene_through_the_cli_with_every_backend() {
             serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
         assert_eq!(report["backend"], backend.as_str());
         assert_eq!(report["vertices"], 162);
+        let units = &report["units"];
+        assert_eq!(
+            (&units["length"], &units["mesh"], &units["force"]),
+            (&"m".into(), &"m".into(), &"N".into())
+        );
         assert!(report["stages"].as_array().unwrap().iter().any(|s| s["name"] == "factorization"));
         let vtk = std::fs::read_to_string(out.join("deformed.vtk")).unwrap();
         assert!(vtk.starts_with("# vtk DataFile Version 3.0") && vtk.contains("VECTORS displacement double"));

@@ -22,6 +22,8 @@ pub struct SkippedStage {
 pub struct Report {
     /// Model name.
     pub scene: String,
+    /// The units of every number below (SI; the mesh file's unit for the written meshes).
+    pub units: crate::fem_run::Units,
     /// Linear backend.
     pub backend: Backend,
     /// Stepping mode.
@@ -132,6 +134,7 @@ impl Report {
         };
         Report {
             scene: scene.name.clone(),
+            units: crate::fem_run::Units::si(scene.unit),
             backend: scene.solver.backend,
             mode: scene.solver.mode,
             stepping: scene.solver.stepping,
