@@ -205,12 +205,33 @@ impl pulp::WithSimd for Weights<'_, '_> {
         let (two_conn, young) = (p.two_conn, self.young);
         let n = self.col.len();
         let it = self.col.iter_mut().zip(&p.x[..n]).zip(&p.y[..n]).zip(&p.z[..n]).zip(&p.area[..n]);
-        for ((((v, x), y), z), a) in it {
-            let (dx, dy, dz) = (x - xj, y - yj, z - zj);
-            let d = (dx * dx + dy * dy + dz * dz).sqrt();
-            *v = -(young * ((a + aj) / (two_conn * d)));
+        match p.kernel {
+            None => {
+                for ((((v, x), y), z), a) in it {
+                    let (dx, dy, dz) = (x - xj, y - yj, z - zj);
+                    let d = (dx * dx + dy * dy + dz * dz).sqrt();
+                    *v = -(young * ((a + aj) / (two_conn * d)));
+                }
+            }
+            Some((length, power)) => {
+                for ((((v, x), y), z), a) in it {
+                    let (dx, dy, dz) = (x - xj, y - yj, z - zj);
+                    let d = (dx * dx + dy * dy + dz * dz).sqrt();
+                    *v = -(young * ((a + aj) / (two_conn * d)) * (length / d).powf(power));
+                }
+            }
         }
     }
+}
+
+/// The kernel of [`PairData::kernel`]: `None` for the paper's exponent.
+fn kernel(body: &Body, material: &Material) -> Option<(f64, f64)> {
+    let p = material.kernel_exponent;
+    if p == crate::PAPER_KERNEL_EXPONENT {
+        return None;
+    }
+    let (lo, hi) = fibfluid_geometry::bounding_box(body.rest_positions.unwrap_or(body.positions));
+    Some((dist(lo, hi), p - 1.0))
 }
 
 /// What the weight of a vertex pair depends on, in contiguous per-vertex arrays.
@@ -228,6 +249,9 @@ pub(crate) struct PairData<'a> {
     pub(crate) all_fibers: bool,
     /// Surface-edge neighbours of each vertex (empty when gamma = 0).
     pub(crate) neighbors: Vec<Vec<u32>>,
+    /// `(l, p - 1)` of a kernel exponent `p` other than the paper's 1: the weight is
+    /// multiplied by `(l / d)^(p - 1)`, `l` the rest shape's bounding-box diagonal.
+    pub(crate) kernel: Option<(f64, f64)>,
 }
 
 impl<'a> PairData<'a> {
@@ -257,6 +281,7 @@ impl<'a> PairData<'a> {
             material,
             all_fibers: body.fibers.kept() == body.fibers.total(),
             neighbors,
+            kernel: kernel(body, material),
         }
     }
 
@@ -264,6 +289,9 @@ impl<'a> PairData<'a> {
     pub(crate) fn bulk(&self, i: usize, j: usize) -> (f64, f64) {
         let d = dist(self.body.positions[i], self.body.positions[j]);
         let mut w = (self.area[i] + self.area[j]) / (self.two_conn * d);
+        if let Some((length, power)) = self.kernel {
+            w *= (length / d).powf(power);
+        }
         if !self.material.law.is_linear() {
             let rest = self.body.rest_positions.unwrap_or(self.body.positions);
             let d0 = dist(rest[i], rest[j]);

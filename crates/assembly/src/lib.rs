@@ -35,7 +35,7 @@ mod system;
 pub use body::Body;
 pub use constraints::{ConstraintKind, ConstraintMethod, Constraints, DEFAULT_PENALTY, Selector};
 pub use loads::{Loads, depths, load_vector};
-pub use material::{Material, StiffnessLaw};
+pub use material::{KERNEL_EXPONENT_RANGE, Material, PAPER_KERNEL_EXPONENT, StiffnessLaw};
 pub use projected::{ProjectedSystem, assemble_projected, projected_stiffness};
 pub use system::{AssemblyOptions, AssemblyStats, PressureScaling, System, assemble};
 

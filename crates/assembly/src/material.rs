@@ -49,7 +49,8 @@ impl fmt::Debug for StiffnessLaw {
 /// Material of the body: fibers and fluid.
 #[derive(Clone, Debug)]
 pub struct Material {
-    /// Young's modulus per axis (Yx, Yy, Yz); isotropic when equal.
+    /// FFM's fiber modulus per axis (Yx, Yy, Yz), N/m^2 per unit fiber weight; isotropic
+    /// when equal. A model parameter, not a tissue's Young's modulus.
     pub young: [f64; 3],
     /// Surface tension gamma; 0 switches surface fibers off.
     pub surface_tension: f64,
@@ -57,19 +58,40 @@ pub struct Material {
     pub density: f64,
     /// Strain dependence of the bulk modulus.
     pub law: StiffnessLaw,
+    /// How a bulk fiber's weight falls with its length d: `w = (|S_i| + |S_j|) / (2 n d)
+    /// (l / d)^(p - 1)` with `l` the rest shape's bounding-box diagonal (so the modulus keeps
+    /// its unit and a body in mm and in m agree). 1 is the paper's `1 / d`.
+    pub kernel_exponent: f64,
 }
+
+/// The paper's kernel exponent: bulk weights fall as `1 / d`.
+pub const PAPER_KERNEL_EXPONENT: f64 = 1.0;
+/// The kernel exponents a scene may choose (`[ffm] kernel_exponent`).
+pub const KERNEL_EXPONENT_RANGE: std::ops::RangeInclusive<f64> = 0.5..=6.0;
 
 impl Default for Material {
     /// The paper's sphere example: Y = gamma = 3000, rho = 1000.
     fn default() -> Self {
-        Self { young: [3000.0; 3], surface_tension: 3000.0, density: 1000.0, law: StiffnessLaw::Linear }
+        Self {
+            young: [3000.0; 3],
+            surface_tension: 3000.0,
+            density: 1000.0,
+            law: StiffnessLaw::Linear,
+            kernel_exponent: PAPER_KERNEL_EXPONENT,
+        }
     }
 }
 
 impl Material {
     /// An isotropic material.
     pub fn isotropic(young: f64, surface_tension: f64, density: f64) -> Self {
-        Self { young: [young; 3], surface_tension, density, law: StiffnessLaw::Linear }
+        Self {
+            young: [young; 3],
+            surface_tension,
+            density,
+            law: StiffnessLaw::Linear,
+            kernel_exponent: PAPER_KERNEL_EXPONENT,
+        }
     }
 
     /// Whether Yx = Yy = Yz.
@@ -82,7 +104,7 @@ impl Material {
         for (c, y) in self.young.iter().enumerate() {
             if !(y.is_finite() && *y > 0.0) {
                 return Err(AssemblyError::Material(format!(
-                    "Young's modulus along {} must be positive and finite, got {y}",
+                    "fiber modulus along {} must be positive and finite, got {y}",
                     crate::AXES[c]
                 )));
             }
@@ -103,6 +125,14 @@ impl Material {
             && !(c.is_finite() && c >= 0.0)
         {
             return Err(AssemblyError::Material(format!("stiffening coefficient must be >= 0, got {c}")));
+        }
+        if !KERNEL_EXPONENT_RANGE.contains(&self.kernel_exponent) {
+            return Err(AssemblyError::Material(format!(
+                "kernel exponent must be in [{}, {}], got {}",
+                KERNEL_EXPONENT_RANGE.start(),
+                KERNEL_EXPONENT_RANGE.end(),
+                self.kernel_exponent
+            )));
         }
         Ok(())
     }

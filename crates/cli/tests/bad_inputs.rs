@@ -87,6 +87,10 @@ const EXPECTED: &[(&str, &str)] = &[
         "scene-negative-density.toml:10: [fluid].density: must be >= 0, got -1000",
     ),
     (
+        "scene-kernel-exponent-zero.toml",
+        "scene-kernel-exponent-zero.toml:7: [ffm].kernel_exponent: must be in [0.5, 6], got 0",
+    ),
+    (
         "scene-negative-surface-tension.toml",
         "scene-negative-surface-tension.toml:7: [material].surface_tension: must be >= 0, got -1",
     ),

@@ -2,7 +2,10 @@
 
 use std::path::Path;
 
-use fibfluid_assembly::{Constraints, DEFAULT_PENALTY, Material, Selector, StiffnessLaw};
+use fibfluid_assembly::{
+    Constraints, DEFAULT_PENALTY, KERNEL_EXPONENT_RANGE, Material, PAPER_KERNEL_EXPONENT, Selector,
+    StiffnessLaw,
+};
 use fibfluid_geometry::{MeshFile, Polygon, ReadOptions, load_mesh_with};
 use fibfluid_sim::contact::{Plate, PlateProblem, check_plates};
 use fibfluid_sim::guards::Guards;
@@ -167,6 +170,11 @@ fn ffm_material(
 ) -> Result<(Material, FfmSettings), Invalid> {
     let fibers = choice("[ffm].fibers", ffm.as_ref().and_then(|f| f.fibers.clone()), FiberModel::Paper)?;
     let mut settings = FfmSettings { fibers, calibrate: false };
+    let kernel = ffm.as_ref().and_then(|f| f.kernel_exponent).unwrap_or(PAPER_KERNEL_EXPONENT);
+    if !KERNEL_EXPONENT_RANGE.contains(&kernel) {
+        return Err(range("[ffm].kernel_exponent", "in [0.5, 6]", kernel));
+    }
+    let with_kernel = |m: Material| Material { kernel_exponent: kernel, ..m };
     let new = ffm.and_then(|f| {
         f.young.map(|young| MaterialToml {
             young,
@@ -186,7 +194,7 @@ fn ffm_material(
         (a, b) => a.or(b),
     };
     if let Some(m) = given {
-        return Ok((material(m, fluid, axes)?, settings));
+        return Ok((with_kernel(material(m, fluid, axes)?), settings));
     }
     match (tissue, method) {
         (Some(t), _) => {
@@ -203,7 +211,7 @@ fn ffm_material(
             if method == Method::Fem {
                 m = Material { density: 0.0, surface_tension: 0.0, ..Material::default() };
             }
-            Ok((m, settings))
+            Ok((with_kernel(m), settings))
         }
         (None, Method::Fem) => Err(unkeyed(SceneProblem::Conflict(
             "method fem needs a [tissue] table (young in Pa, poisson, density in kg/m^3)",
@@ -242,7 +250,7 @@ fn material(m: MaterialToml, fluid: Option<FluidToml>, axes: usize) -> Result<Ma
     if !(density.is_finite() && density >= 0.0) {
         return Err(range("[fluid].density", ">= 0", density));
     }
-    Ok(Material { young, surface_tension: gamma, density, law })
+    Ok(Material { young, surface_tension: gamma, density, law, kernel_exponent: PAPER_KERNEL_EXPONENT })
 }
 
 /// `[load]`: the step count and the adaptive tolerance.

@@ -89,6 +89,8 @@ pub(crate) struct FfmToml {
     pub(crate) surface_tension: Option<f64>,
     pub(crate) stiffening: Option<f64>,
     pub(crate) fibers: Option<String>,
+    /// Bulk weights fall as `1 / d^p` (the paper's p = 1).
+    pub(crate) kernel_exponent: Option<f64>,
 }
 
 #[derive(Deserialize)]

@@ -43,6 +43,10 @@ pub struct Report {
     pub faces: usize,
     /// Whether the body was found convex.
     pub convex: bool,
+    /// FFM's fiber model (`paper` or `projected`).
+    pub fibers: crate::FiberModel,
+    /// How the bulk fibers' weights fall with length: `1 / d^p` (the paper's p = 1).
+    pub kernel_exponent: f64,
     /// Candidate fibers N(N-1)/2.
     pub fibers_total: usize,
     /// Kept fibers.
@@ -144,6 +148,8 @@ impl Report {
             vertices: rest.len(),
             faces,
             convex: sim.convex(),
+            fibers: scene.ffm.fibers,
+            kernel_exponent: scene.material.kernel_exponent,
             fibers_total: sim.fibers().total(),
             fibers_kept: sim.fibers().kept(),
             steps: scene.steps,
