@@ -124,22 +124,7 @@ impl LinearSolver for Structured {
         let factors =
             (0..nblocks).map(|c| factor_block(a.view(c), c, opts.precision)).collect::<Result<_>>()?;
         let bytes = nblocks * n * n * if opts.precision == Precision::F64 { 8 } else { 4 };
-        let mut f = StructuredFactorization {
-            // The blocks are shared with `a`, not copied.
-            matrix: a.clone(),
-            opts: *opts,
-            factors,
-            z: Mat::zeros(n, a.axes()),
-            schur: 0.0,
-            cost: FactorCost::default(),
-        };
-        f.update_schur()?;
-        f.cost = FactorCost {
-            flops: nblocks as f64 * cholesky_flops(n) + 2.0 * (a.axes() * n * n) as f64,
-            seconds: start.elapsed().as_secs_f64(),
-            bytes,
-        };
-        Ok(Box::new(f))
+        StructuredFactorization::finish(a, opts, factors, start, bytes)
     }
 
     /// In f64, when nothing else shares `a`'s blocks, writes each block's Cholesky factor
@@ -160,10 +145,27 @@ impl LinearSolver for Structured {
         let nblocks = diagonals.len();
         a.set_factored_in_place(Some(diagonals));
         let n = a.n_vertices();
+        let factors = (0..nblocks).map(|_| Factor::InPlace).collect();
+        StructuredFactorization::finish(a, opts, factors, start, nblocks * n * n * 8)
+    }
+}
+
+impl StructuredFactorization {
+    /// The factorization of `a` with its blocks' `factors` (made since `start`, holding
+    /// `bytes`): the Schur complement of the border, and the cost. The blocks are shared
+    /// with `a`, not copied.
+    fn finish(
+        a: &BorderedMatrix,
+        opts: &FactorOptions,
+        factors: Vec<Factor>,
+        start: Instant,
+        bytes: usize,
+    ) -> Result<Box<dyn Factorization>> {
+        let (n, nblocks) = (a.n_vertices(), factors.len());
         let mut f = StructuredFactorization {
             matrix: a.clone(),
             opts: *opts,
-            factors: (0..nblocks).map(|_| Factor::InPlace).collect(),
+            factors,
             z: Mat::zeros(n, a.axes()),
             schur: 0.0,
             cost: FactorCost::default(),
@@ -172,7 +174,7 @@ impl LinearSolver for Structured {
         f.cost = FactorCost {
             flops: nblocks as f64 * cholesky_flops(n) + 2.0 * (a.axes() * n * n) as f64,
             seconds: start.elapsed().as_secs_f64(),
-            bytes: nblocks * n * n * 8,
+            bytes,
         };
         Ok(Box::new(f))
     }
