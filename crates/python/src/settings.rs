@@ -1,9 +1,9 @@
 //! A scene's settings by name: read as Python values, written with the checks a scene
 //! file's keys get (the same ranges and the same choice parsers).
 
-use fibfluid_assembly::StiffnessLaw;
+use fibfluid_assembly::{KERNEL_EXPONENT_RANGE, StiffnessLaw};
 use fibfluid_scene::Scene;
-use fibfluid_sim::{Backend, Choice, ConstraintKind, MAX_STEPS, Mode, Precision, Stepping};
+use fibfluid_sim::{Backend, Choice, ConstraintKind, FiberModel, MAX_STEPS, Mode, Precision, Stepping};
 use pyo3::IntoPyObjectExt;
 use pyo3::prelude::*;
 use pyo3::types::PyBool;
@@ -20,6 +20,8 @@ pub(crate) const NAMES: &[&str] = &[
     "surface_tension",
     "density",
     "stiffening",
+    "fibers",
+    "kernel_exponent",
     "backend",
     "mode",
     "stepping",
@@ -53,6 +55,8 @@ pub(crate) fn get(py: Python<'_>, scene: &Scene, name: &str) -> PyResult<Py<PyAn
             // Not from a scene file: a law given in code has no number to show.
             StiffnessLaw::Custom(_) => "custom".into_py_any(py),
         },
+        "fibers" => scene.ffm.fibers.name().into_py_any(py),
+        "kernel_exponent" => m.kernel_exponent.into_py_any(py),
         "backend" => s.backend.name().into_py_any(py),
         "mode" => s.mode.name().into_py_any(py),
         "stepping" => s.stepping.name().into_py_any(py),
@@ -139,6 +143,12 @@ pub(crate) fn set(scene: &mut Scene, name: &str, v: &Bound<'_, PyAny>) -> PyResu
                 let c = number(v, name)?;
                 StiffnessLaw::Quadratic { c: checked(name, c, ">= 0", c.is_finite() && c >= 0.0)? }
             };
+        }
+        "fibers" => scene.ffm.fibers = choice::<FiberModel>(v, name)?,
+        "kernel_exponent" => {
+            let p = number(v, name)?;
+            scene.material.kernel_exponent =
+                checked(name, p, "in [0.5, 6]", KERNEL_EXPONENT_RANGE.contains(&p))?;
         }
         "backend" => {
             let b: Backend = choice(v, name)?;

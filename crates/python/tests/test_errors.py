@@ -88,6 +88,8 @@ def test_an_unknown_method_raises(scene):
         ("stepping", 3, "stepping: expected a string"),
         ("precision", "f16", "precision: `f16` is not a precision"),
         ("penalty", 0.0, "penalty: must be positive"),
+        ("fibers", "springs", "fibers: `springs` is not a"),
+        ("kernel_exponent", 7.0, r"kernel_exponent: must be in \[0.5, 6\]"),
     ],
 )
 def test_a_bad_setting_raises_and_changes_nothing(scene, name, value, message):
@@ -126,6 +128,10 @@ def test_settings_are_read_and_written(scene):
     assert s["tolerance"] == 0.01
     scene.tolerance = None
     assert scene.tolerance is None
+    assert (scene.fibers, scene.kernel_exponent) == ("paper", 1.0)
+    scene.fibers = "projected"
+    scene.kernel_exponent = 3
+    assert scene.settings["fibers"] == "projected" and scene.settings["kernel_exponent"] == 3.0
 
 
 def test_a_missing_scene_file_raises():

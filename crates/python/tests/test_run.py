@@ -140,3 +140,19 @@ def test_a_2d_polygon_scene_runs():
     assert result.positions.shape[1] == 3
     assert np.all(result.positions[:, 2] == 0.0)
     assert result.report["vertices"] == result.positions.shape[0]
+
+
+def test_a_kernel_exponent_set_in_python_is_the_scene_files(cli, tmp_path, py_run):
+    """`scene.kernel_exponent = 3` runs as `[ffm] kernel_exponent = 3.0` in the file does."""
+    text = SCENE.read_text().replace('path = "../meshes/', f'path = "{(SCENES / ".." / "meshes").resolve()}/')
+    path = tmp_path / "bunny-kernel.toml"
+    path.write_text(text.replace("[ffm]\n", "[ffm]\nkernel_exponent = 3.0\n", 1))
+    out = tmp_path / "out"
+    done = run_cli(cli, "run", str(path), "--out", str(out))
+    assert done.returncode == 0, done.stderr
+    scene = fibfluid.Scene.load(SCENE)
+    scene.kernel_exponent = 3
+    result = fibfluid.run(scene)
+    assert np.array_equal(result.positions, np.array(read_obj_vertices(out / "deformed.obj")))
+    assert json.loads((out / "report.json").read_text())["kernel_exponent"] == 3.0
+    assert not np.allclose(result.positions, py_run.positions), "the exponent must change the run"

@@ -27,6 +27,8 @@ class Scene:
     surface_tension: float
     density: float
     stiffening: Optional[float]
+    fibers: Literal["paper", "projected"]
+    kernel_exponent: float
     backend: Literal["structured", "faer-lu", "nalgebra-lu", "openblas-lu"]
     mode: Literal["paper", "refresh", "nonlinear"]
     stepping: Literal["euler", "heun"]
