@@ -25,10 +25,11 @@ use std::time::Instant;
 use serde::Serialize;
 
 use fibfluid::geometry::Vec3;
+use fibfluid::geometry::vec3::{dist, norm};
 use fibfluid::interact::{Grasp, Method, MethodBody, ProbeError, ProbeOptions, RigidMotion};
 use fibfluid::render::log_drawable;
 use fibfluid::sim::FiberModel;
-use fibfluid::sim::calibration::Calibration;
+use fibfluid::sim::calibration::{Calibration, relative_l2};
 use fibfluid::{Scene, Shape};
 
 use crate::study::{FEM_STUDY_REFERENCE, FEM_STUDY_RESOLUTIONS, PARETO_MARGIN};
@@ -119,7 +120,7 @@ pub fn choose_grab(scene: &Scene) -> crate::Result<Grab> {
         let sum = rest.iter().fold([0.0; 3], |s, p| [s[0] + p[0], s[1] + p[1], s[2] + p[2]]);
         vec![[sum[0] / n, sum[1] / n, sum[2] / n]]
     };
-    let nearest = |p: &Vec3| anchors.iter().map(|a| distance(p, a)).fold(f64::INFINITY, f64::min);
+    let nearest = |p: &Vec3| anchors.iter().map(|a| dist(*p, *a)).fold(f64::INFINITY, f64::min);
     let mut best: Option<(usize, f64)> = None;
     for (v, p) in rest.iter().enumerate().filter(|(v, _)| !fixed[*v]) {
         let d = nearest(p);
@@ -131,10 +132,11 @@ pub fn choose_grab(scene: &Scene) -> crate::Result<Grab> {
         return Err(crate::Error::NoFreeVertex { scene: scene.display_name() });
     };
     let (lo, hi) = fibfluid::geometry::bounding_box(&rest);
-    let length = GRAB_FRACTION * distance(&lo, &hi);
+    let length = GRAB_FRACTION * dist(lo, hi);
     let g = scene.gravity;
-    let norm = distance(&g, &[0.0; 3]);
-    let direction = if norm > 0.0 { [g[0] / norm, g[1] / norm, g[2] / norm] } else { [0.0, -1.0, 0.0] };
+    let g_norm = norm(g);
+    let direction =
+        if g_norm > 0.0 { [g[0] / g_norm, g[1] / g_norm, g[2] / g_norm] } else { [0.0, -1.0, 0.0] };
     Ok(Grab { vertex, rest: rest[vertex], radius: length, displacement: direction.map(|c| c * length) })
 }
 
@@ -176,8 +178,8 @@ pub fn grab_comparison(scene: &Scene, calibrations: &[Calibration]) -> crate::Re
     for (method, resolution) in runs {
         let point = match grab_point(&s, method, resolution, &grab) {
             Ok(mut p) => {
-                p.error_vs_fem = Some(relative_difference(&p.field, &reference.field));
-                p.amplitude_vs_fem = Some(norm(&p.field) / norm(&reference.field));
+                p.error_vs_fem = Some(relative_l2(&p.field, &reference.field));
+                p.amplitude_vs_fem = Some(stacked_norm(&p.field) / stacked_norm(&reference.field));
                 p
             }
             Err(e) => GrabPoint {
@@ -223,22 +225,9 @@ fn grab_point(s: &Scene, method: Method, resolution: Option<usize>, grab: &Grab)
     })
 }
 
-/// `|u - reference| / |reference|` over the vertices (the L2 norm of the stacked
-/// displacements; `|u - reference|` alone when the reference is zero).
-pub fn relative_difference(u: &[Vec3], reference: &[Vec3]) -> f64 {
-    let sq = |a: [f64; 3]| a[0] * a[0] + a[1] * a[1] + a[2] * a[2];
-    let diff: f64 = u.iter().zip(reference).map(|(a, b)| sq([a[0] - b[0], a[1] - b[1], a[2] - b[2]])).sum();
-    let norm: f64 = reference.iter().map(|&b| sq(b)).sum();
-    if norm > 0.0 { (diff / norm).sqrt() } else { diff.sqrt() }
-}
-
 /// The L2 norm of the stacked displacements.
-fn norm(u: &[Vec3]) -> f64 {
-    u.iter().map(|a| a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sum::<f64>().sqrt()
-}
-
-fn distance(a: &Vec3, b: &Vec3) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+fn stacked_norm(u: &[Vec3]) -> f64 {
+    u.iter().map(|&a| norm(a).powi(2)).sum::<f64>().sqrt()
 }
 
 /// The reference row first, then every point, in table order.

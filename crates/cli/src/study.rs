@@ -365,7 +365,7 @@ fn apply_calibration(s: &mut Scene, calibrations: &[fibfluid::sim::calibration::
 /// `|(positions - rest) - reference| / |reference|` over the surface vertices.
 fn relative_l2(positions: &[[f64; 3]], rest: &[[f64; 3]], reference: &[[f64; 3]]) -> f64 {
     let u = fibfluid::sim::calibration::displacements(positions, rest);
-    crate::grab::relative_difference(&u, reference)
+    fibfluid::sim::calibration::relative_l2(&u, reference)
 }
 
 /// A round trip timed as the fastest of a few repeats (at most [`MAX_REPEATS`], until

@@ -61,6 +61,15 @@ fn dot(a: &[Vec3], b: &[Vec3]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x[0] * y[0] + x[1] * y[1] + x[2] * y[2]).sum()
 }
 
+/// `|u - reference| / |reference|` over the vertices, no scaling (L2 norms of the stacked
+/// displacements; `|u - reference|` alone when the reference is zero).
+pub fn relative_l2(u: &[Vec3], reference: &[Vec3]) -> f64 {
+    let diff: Vec<Vec3> =
+        u.iter().zip(reference).map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]]).collect();
+    let (dd, rr) = (dot(&diff, &diff), dot(reference, reference));
+    if rr > 0.0 { (dd / rr).sqrt() } else { dd.sqrt() }
+}
+
 /// The best scale `s` of `u_ffm / s` against `u_fem` and the relative L2 error left.
 /// Without any displacement to fit (no load) the scale is 1 and the error 0.
 pub fn best_scale(u_ffm: &[Vec3], u_fem: &[Vec3]) -> (f64, f64) {

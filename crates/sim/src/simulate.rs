@@ -28,7 +28,7 @@ use crate::contact::{
 use crate::guards::{Guard, GuardWarning, OnFailure, inverted_faces};
 use crate::model::{Model, Shape, VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE};
 use crate::plan::Plan;
-use crate::stages::{StageLog, names};
+use crate::stages::{Stage, StageLog, names};
 use crate::{Error, Result};
 
 /// Options that are not part of a scene.
@@ -181,6 +181,25 @@ struct Coupled {
     factor: CoupledCholesky,
 }
 
+impl Coupled {
+    /// The coupled system assembled on a shape (its positions and vertex area vectors,
+    /// timed as `assembly`) and its factorization.
+    fn build(
+        scene: &Model,
+        body: &BodyShape,
+        (positions, areas): (&[Vec3], &[Vec3]),
+        options: &FactorOptions,
+        log: &mut StageLog,
+        assembly: Stage,
+    ) -> Result<Self> {
+        let mut system = log.time(assembly, || assemble_projected_on(scene, body, positions, areas))?;
+        let k = std::mem::replace(&mut system.stiffness, fibfluid_linalg::Mat::new());
+        let border = system.border.clone();
+        let factor = log.time(names::FACTORIZATION, || CoupledCholesky::factor(k, border, options))?;
+        Ok(Self { system, factor })
+    }
+}
+
 impl Factored {
     /// Splits a solution of the solved system into displacements and the pressure.
     fn split(&self, x: &[f64]) -> (Vec<Vec3>, f64) {
@@ -305,13 +324,8 @@ impl Simulation {
         let factorization = log
             .time(names::FACTORIZATION, || solver.factorize_in_place(&mut system.matrix, &factor_options))?;
         let coupled = if scene.ffm.fibers == FiberModel::Projected {
-            let mut projected =
-                log.time(names::ASSEMBLY, || assemble_projected_on(&scene, &body, &body.rest, &areas))?;
-            let k = std::mem::replace(&mut projected.stiffness, fibfluid_linalg::Mat::new());
-            let border = projected.border.clone();
-            let factor =
-                log.time(names::FACTORIZATION, || CoupledCholesky::factor(k, border, &factor_options))?;
-            Some(Coupled { system: projected, factor })
+            let on_rest = (&body.rest[..], &areas[..]);
+            Some(Coupled::build(&scene, &body, on_rest, &factor_options, &mut log, names::ASSEMBLY)?)
         } else {
             None
         };
@@ -1033,14 +1047,11 @@ impl Simulation {
     fn refactor_coupled(&mut self, s: &[Vec3], areas: &[Vec3]) -> Result<()> {
         // The old matrix and factor go first: the plan counts one of each.
         self.factored.coupled = None;
-        let mut system =
-            self.log.time(names::REASSEMBLY, || assemble_projected_on(&self.model, &self.body, s, areas))?;
-        let k = std::mem::replace(&mut system.stiffness, fibfluid_linalg::Mat::new());
-        let border = system.border.clone();
         let options = self.factored.options;
-        let factor = self.log.time(names::FACTORIZATION, || CoupledCholesky::factor(k, border, &options))?;
+        let coupled =
+            Coupled::build(&self.model, &self.body, (s, areas), &options, &mut self.log, names::REASSEMBLY)?;
         self.counters.factorizations += 1;
-        self.factored.coupled = Some(Coupled { system, factor });
+        self.factored.coupled = Some(coupled);
         Ok(())
     }
 
