@@ -173,7 +173,7 @@ fn the_plan_runs_only_the_stages_a_scene_needs() {
     assert!(sim.fibers().kept() < sim.fibers().total());
     // Anisotropic material: three blocks.
     let mut aniso = sphere();
-    aniso.material.young = [3000.0, 4000.0, 5000.0];
+    aniso.material.fiber_modulus = [3000.0, 4000.0, 5000.0];
     aniso.steps = 1;
     let sim = run(aniso);
     assert_eq!(sim.system().stats.blocks, 3);

@@ -23,7 +23,7 @@ fn soft_liver(young: f64, mode: Mode, stepping: Stepping) -> Scene {
         .unwrap();
     s.shape = liver.model.shape;
     s.constraints = constraints;
-    s.material.young = [young; 3];
+    s.material.fiber_modulus = [young; 3];
     s.solver.mode = mode;
     s.solver.stepping = stepping;
     s

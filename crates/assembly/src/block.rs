@@ -9,7 +9,7 @@ use crate::{AssemblyError, ConstraintMethod, Material, Result};
 /// What one block is built from besides the pair data.
 pub(crate) struct BlockSpec {
     /// `Y_c` of the block.
-    pub young: f64,
+    pub fiber_modulus: f64,
     /// The degrees of freedom fixed along the block's axis.
     pub fixed: Vec<bool>,
     /// How they are imposed.
@@ -81,10 +81,10 @@ pub(crate) fn fill_block(pairs: &PairData, spec: &BlockSpec) -> Result<BlockFill
 /// degrees of freedom and the pressure-scale terms.
 fn fill_column(pairs: &PairData, spec: &BlockSpec, j: usize, col: &mut [f64]) -> ColumnOut {
     let mut out = ColumnOut::default();
-    pulp::Arch::new().dispatch(Weights { pairs, young: spec.young, j, col });
+    pulp::Arch::new().dispatch(Weights { pairs, fiber_modulus: spec.fiber_modulus, j, col });
     if !pairs.material.law.is_linear() {
         for (i, v) in col.iter_mut().enumerate() {
-            *v = if i == j { 0.0 } else { -(spec.young * pairs.bulk(i, j).0) };
+            *v = if i == j { 0.0 } else { -(spec.fiber_modulus * pairs.bulk(i, j).0) };
         }
     }
     if !pairs.all_fibers {
@@ -117,7 +117,7 @@ fn fill_column(pairs: &PairData, spec: &BlockSpec, j: usize, col: &mut [f64]) ->
                 } else {
                     0.0
                 };
-                col[i] = -(spec.young * w + t);
+                col[i] = -(spec.fiber_modulus * w + t);
             }
         }
     }
@@ -189,7 +189,7 @@ fn dot8(a: &[f64], b: &[f64]) -> f64 {
 /// arrays; compiled for the widest vector unit (runtime dispatch).
 struct Weights<'a, 'b> {
     pairs: &'a PairData<'b>,
-    young: f64,
+    fiber_modulus: f64,
     j: usize,
     col: &'a mut [f64],
 }
@@ -202,7 +202,7 @@ impl pulp::WithSimd for Weights<'_, '_> {
         let p = self.pairs;
         let j = self.j;
         let (xj, yj, zj, aj) = (p.x[j], p.y[j], p.z[j], p.area[j]);
-        let (two_conn, young) = (p.two_conn, self.young);
+        let (two_conn, fiber_modulus) = (p.two_conn, self.fiber_modulus);
         let n = self.col.len();
         let it = self.col.iter_mut().zip(&p.x[..n]).zip(&p.y[..n]).zip(&p.z[..n]).zip(&p.area[..n]);
         match p.kernel {
@@ -210,14 +210,14 @@ impl pulp::WithSimd for Weights<'_, '_> {
                 for ((((v, x), y), z), a) in it {
                     let (dx, dy, dz) = (x - xj, y - yj, z - zj);
                     let d = (dx * dx + dy * dy + dz * dz).sqrt();
-                    *v = -(young * ((a + aj) / (two_conn * d)));
+                    *v = -(fiber_modulus * ((a + aj) / (two_conn * d)));
                 }
             }
             Some((length, power)) => {
                 for ((((v, x), y), z), a) in it {
                     let (dx, dy, dz) = (x - xj, y - yj, z - zj);
                     let d = (dx * dx + dy * dy + dz * dz).sqrt();
-                    *v = -(young * ((a + aj) / (two_conn * d)) * (length / d).powf(power));
+                    *v = -(fiber_modulus * ((a + aj) / (two_conn * d)) * (length / d).powf(power));
                 }
             }
         }

@@ -51,7 +51,7 @@ impl fmt::Debug for StiffnessLaw {
 pub struct Material {
     /// FFM's fiber modulus per axis (Yx, Yy, Yz), N/m^2 per unit fiber weight; isotropic
     /// when equal. A model parameter, not a tissue's Young's modulus.
-    pub young: [f64; 3],
+    pub fiber_modulus: [f64; 3],
     /// Surface tension gamma; 0 switches surface fibers off.
     pub surface_tension: f64,
     /// Fluid density rho.
@@ -70,10 +70,10 @@ pub const PAPER_KERNEL_EXPONENT: f64 = 1.0;
 pub const KERNEL_EXPONENT_RANGE: std::ops::RangeInclusive<f64> = 0.5..=6.0;
 
 impl Default for Material {
-    /// The paper's sphere example: Y = gamma = 3000, rho = 1000.
+    /// The paper's sphere example: fiber modulus Y = gamma = 3000, rho = 1000.
     fn default() -> Self {
         Self {
-            young: [3000.0; 3],
+            fiber_modulus: [3000.0; 3],
             surface_tension: 3000.0,
             density: 1000.0,
             law: StiffnessLaw::Linear,
@@ -83,10 +83,11 @@ impl Default for Material {
 }
 
 impl Material {
-    /// An isotropic material.
-    pub fn isotropic(young: f64, surface_tension: f64, density: f64) -> Self {
+    /// An isotropic material: one fiber modulus on every axis (not a Young's modulus; see
+    /// [`Material::fiber_modulus`]).
+    pub fn isotropic(fiber_modulus: f64, surface_tension: f64, density: f64) -> Self {
         Self {
-            young: [young; 3],
+            fiber_modulus: [fiber_modulus; 3],
             surface_tension,
             density,
             law: StiffnessLaw::Linear,
@@ -96,12 +97,12 @@ impl Material {
 
     /// Whether Yx = Yy = Yz.
     pub fn is_isotropic(&self) -> bool {
-        self.young[0] == self.young[1] && self.young[1] == self.young[2]
+        self.fiber_modulus[0] == self.fiber_modulus[1] && self.fiber_modulus[1] == self.fiber_modulus[2]
     }
 
     /// Checks ranges: Y > 0, gamma >= 0, rho >= 0, all finite.
     pub fn check(&self) -> Result<()> {
-        for (c, y) in self.young.iter().enumerate() {
+        for (c, y) in self.fiber_modulus.iter().enumerate() {
             if !(y.is_finite() && *y > 0.0) {
                 return Err(AssemblyError::Material(format!(
                     "fiber modulus along {} must be positive and finite, got {y}",

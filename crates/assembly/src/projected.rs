@@ -54,7 +54,7 @@ pub struct ProjectedSystem {
 struct ColumnSpec<'a> {
     pairs: &'a PairData<'a>,
     axes: usize,
-    young: f64,
+    fiber_modulus: f64,
     /// Per degree of freedom: fixed (empty: no constraints).
     fixed: Vec<bool>,
     method: ConstraintMethod,
@@ -78,7 +78,7 @@ pub fn projected_stiffness(body: &Body, material: &Material) -> Result<Mat<f64>>
     let spec = ColumnSpec {
         pairs: &pairs,
         axes: body.axes,
-        young: material.young[0],
+        fiber_modulus: material.fiber_modulus[0],
         fixed: Vec::new(),
         method: ConstraintMethod::Eliminate,
         keep: Vec::new(),
@@ -111,7 +111,14 @@ pub fn assemble_projected(
     };
     let conn = body.fibers.mean_connections();
     let pairs = PairData::new(body, material, conn);
-    let spec = ColumnSpec { pairs: &pairs, axes, young: material.young[0], fixed, method: opts.method, keep };
+    let spec = ColumnSpec {
+        pairs: &pairs,
+        axes,
+        fiber_modulus: material.fiber_modulus[0],
+        fixed,
+        method: opts.method,
+        keep,
+    };
     let (stiffness, diag_scale, kept) = fill(&spec)?;
     let lifts = kept.into_iter().map(|(k, column)| (k, prescribed(k).expect("kept"), column)).collect();
     let border = border_of(body.vertex_areas, constraints, opts.method, axes);
@@ -215,7 +222,7 @@ fn fill_column(spec: &ColumnSpec, col: usize, v: &mut [f64]) -> ColumnOut {
             out.coincident = Some((i.min(j), i.max(j), d));
             return out;
         }
-        add(i, spec.young * w, d, v);
+        add(i, spec.fiber_modulus * w, d, v);
     }
     let gamma = pairs.material.surface_tension;
     for &i in pairs.neighbors.get(j).map(Vec::as_slice).unwrap_or(&[]) {

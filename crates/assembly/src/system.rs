@@ -100,7 +100,7 @@ pub fn assemble(
     for c in 0..nblocks {
         let served: Vec<usize> = if shared { (0..axes).collect() } else { vec![c] };
         let spec = BlockSpec {
-            young: material.young[c],
+            fiber_modulus: material.fiber_modulus[c],
             fixed: (0..n).map(|i| constraints.get(i, c).is_some()).collect(),
             method: opts.method,
             // Free border components of the served axes, for the automatic pressure scale.

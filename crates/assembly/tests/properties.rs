@@ -246,8 +246,12 @@ fn check_penalty_blocks(shape: &Shape, material: &Material, c: &Constraints) -> 
     let n = shape.n();
     for axis in 0..3 {
         let k = sys.matrix.block(axis);
-        let reference =
-            independent_block(&shape.pos, &shape.tris, material.young[axis], material.surface_tension);
+        let reference = independent_block(
+            &shape.pos,
+            &shape.tris,
+            material.fiber_modulus[axis],
+            material.surface_tension,
+        );
         let fixed = fixed_vertices(c, axis);
         for i in 0..n {
             let diag_ref = reference[i * n + i];
@@ -304,8 +308,12 @@ fn check_eliminated_blocks(shape: &Shape, material: &Material, c: &Constraints) 
     let n = shape.n();
     for axis in 0..3 {
         let k = sys.matrix.block(axis);
-        let reference =
-            independent_block(&shape.pos, &shape.tris, material.young[axis], material.surface_tension);
+        let reference = independent_block(
+            &shape.pos,
+            &shape.tris,
+            material.fiber_modulus[axis],
+            material.surface_tension,
+        );
         let fixed = fixed_vertices(c, axis);
         for i in (0..n).filter(|&i| !fixed[i]) {
             let (mut row_sum, mut grounded) = (0.0, 0.0);
@@ -380,7 +388,9 @@ fn volume_tol(dim: usize) -> f64 {
 fn sphere_matrix_is_symmetric_to_the_last_bit() {
     let shape = sphere();
     let c = paper_constraints(&shape);
-    for material in [paper_material(), Material { young: [3000.0, 1000.0, 7000.0], ..paper_material() }] {
+    for material in
+        [paper_material(), Material { fiber_modulus: [3000.0, 1000.0, 7000.0], ..paper_material() }]
+    {
         for (method, scaling) in [
             (PENALTY, PressureScaling::None),
             (PENALTY, PressureScaling::Auto),
@@ -405,7 +415,8 @@ fn sphere_blocks_are_the_formulas_laplacians() {
     one.fix(57, [true; 3]).unwrap();
     check_penalty_blocks(&shape, &paper_material(), &one).unwrap();
     check_eliminated_blocks(&shape, &paper_material(), &one).unwrap();
-    let aniso = Material { young: [500.0, 3000.0, 9000.0], surface_tension: 10.0, ..paper_material() };
+    let aniso =
+        Material { fiber_modulus: [500.0, 3000.0, 9000.0], surface_tension: 10.0, ..paper_material() };
     check_penalty_blocks(&shape, &aniso, &c).unwrap();
     check_eliminated_blocks(&shape, &aniso, &c).unwrap();
 }
@@ -413,7 +424,7 @@ fn sphere_blocks_are_the_formulas_laplacians() {
 #[test]
 fn with_any_one_vertex_fixed_every_block_is_positive_definite() {
     let shape = sphere();
-    let aniso = Material { young: [3000.0, 800.0, 5000.0], ..paper_material() };
+    let aniso = Material { fiber_modulus: [3000.0, 800.0, 5000.0], ..paper_material() };
     for v in 0..shape.n() {
         let mut c = Constraints::new(shape.n());
         c.fix(v, [true; 3]).unwrap();
@@ -573,7 +584,7 @@ fn penalty_and_elimination_agree_and_scaling_fixes_conditioning() {
     // (maximum principle of the Laplacian). A priori bound on the relative difference:
     // PENALTY_C * max diag K / big, the factor 2 leaving room for the |S_i P| and |b_i| terms.
     const PENALTY_C: f64 = 2.0;
-    let kx = independent_block(&shape.pos, &shape.tris, m.young[0], m.surface_tension);
+    let kx = independent_block(&shape.pos, &shape.tris, m.fiber_modulus[0], m.surface_tension);
     let max_diag = (0..shape.n()).map(|i| kx[i * shape.n() + i]).fold(0.0, f64::max);
     for big in [1e9, 1e11, 1e13] {
         let method = ConstraintMethod::Penalty { big };
@@ -635,7 +646,7 @@ fn auto_pressure_scale_is_near_the_best_factor() {
         (
             "level 2, Y = (1e3, 5e4, 2e5), gamma = 10",
             &level2,
-            Material { young: [1e3, 5e4, 2e5], surface_tension: 10.0, ..paper_material() },
+            Material { fiber_modulus: [1e3, 5e4, 2e5], surface_tension: 10.0, ..paper_material() },
         ),
         ("level 1, Y = gamma = 3000", &level1, paper_material()),
         ("level 2, Y = gamma = 3 (kN, m)", &level2, Material::isotropic(3.0, 3.0, 1000.0)),
@@ -746,7 +757,7 @@ fn arb_material() -> impl Strategy<Value = Material> {
     (1.0f64..1e4, prop::bool::ANY, prop::array::uniform3(0.2f64..5.0), prop_oneof![Just(0.0), 1.0f64..1e4])
         .prop_map(|(y, aniso, ratio, gamma)| {
             let young = if aniso { ratio.map(|r| y * r) } else { [y; 3] };
-            Material { young, surface_tension: gamma, density: 1000.0, ..Material::default() }
+            Material { fiber_modulus: young, surface_tension: gamma, density: 1000.0, ..Material::default() }
         })
 }
 

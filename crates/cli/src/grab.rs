@@ -152,7 +152,7 @@ pub fn grab_scene(scene: &Scene, calibrations: &[Calibration]) -> crate::Result<
             Some(c) => *c,
             None => fibfluid::sim::calibration::calibrate(&s.model, None)?,
         };
-        s.model.material.young = [c.fiber_modulus; 3];
+        s.model.material.fiber_modulus = [c.fiber_modulus; 3];
         s.model.material.surface_tension = c.surface_tension;
         s.model.ffm.calibrate = false;
     }

@@ -45,8 +45,8 @@ pub(crate) fn get(py: Python<'_>, scene: &Scene, name: &str) -> PyResult<Py<PyAn
         "steps" => scene.steps.into_py_any(py),
         "tolerance" => scene.tolerance.into_py_any(py),
         "gravity" => (scene.gravity[0], scene.gravity[1], scene.gravity[2]).into_py_any(py),
-        "young" if m.young.iter().all(|&y| y == m.young[0]) => m.young[0].into_py_any(py),
-        "young" => (m.young[0], m.young[1], m.young[2]).into_py_any(py),
+        "young" if m.fiber_modulus.iter().all(|&y| y == m.fiber_modulus[0]) => m.fiber_modulus[0].into_py_any(py),
+        "young" => (m.fiber_modulus[0], m.fiber_modulus[1], m.fiber_modulus[2]).into_py_any(py),
         "surface_tension" => m.surface_tension.into_py_any(py),
         "density" => m.density.into_py_any(py),
         "stiffening" => match m.law {
@@ -126,7 +126,7 @@ pub(crate) fn set(scene: &mut Scene, name: &str, v: &Bound<'_, PyAny>) -> PyResu
                     return Err(error(format!("young: must be positive, got {y} along {axis}")));
                 }
             }
-            scene.material.young = young;
+            scene.material.fiber_modulus = young;
         }
         "surface_tension" => {
             let g = number(v, name)?;

@@ -77,7 +77,7 @@ pub struct Report {
     /// The fiber modulus calibrated against the FEM (a scene with only `[tissue]`;
     /// omitted otherwise).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub calibration: Option<crate::calibration::Calibration>,
+    pub calibration: Option<crate::fit::Calibration>,
     /// Volume before.
     pub volume_initial: f64,
     /// Volume after.
