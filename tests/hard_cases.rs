@@ -51,21 +51,21 @@ fn run_checked(scene: Scene, tag: &str) -> (Simulation, Report) {
     let report = Report::of(&sim, &[], vec![]);
     assert!(sim.positions().iter().flatten().all(|v| v.is_finite()), "{tag}: non-finite position");
     assert!(sim.pressure().is_finite(), "{tag}: non-finite pressure");
-    assert!(report.residual_max <= BACKWARD_ERROR_F64, "{tag}: backward error {:e}", report.residual_max);
+    assert!(report.cost.residual_max <= BACKWARD_ERROR_F64, "{tag}: backward error {:e}", report.cost.residual_max);
     if method == ConstraintKind::Eliminate {
-        assert_eq!(report.fixed_max_displacement, 0.0, "{tag}: a fixed vertex moved");
+        assert_eq!(report.result.fixed_max_displacement, 0.0, "{tag}: a fixed vertex moved");
     }
     if mode != Mode::Paper {
         assert!(
-            report.volume_drift <= REFRESH_VOLUME,
+            report.result.volume_drift <= REFRESH_VOLUME,
             "{tag}: volume drift {:e} (max |u| {:e})",
-            report.volume_drift,
-            report.max_displacement
+            report.result.volume_drift,
+            report.result.max_displacement
         );
     }
     eprintln!(
         "{tag}: backward error {:.1e}, refinement steps {}, max |u| {:.3e}, drift {:.1e}",
-        report.residual_max, report.refinement_steps_max, report.max_displacement, report.volume_drift
+        report.cost.residual_max, report.cost.refinement_steps_max, report.result.max_displacement, report.result.volume_drift
     );
     (sim, report)
 }
@@ -89,9 +89,9 @@ fn penalty_and_elimination_in_f64_and_mixed_precision() {
                 if precision == Precision::Mixed {
                     // f32 factors, f64 refinement: the f64 backward error within 3 steps.
                     assert!(
-                        report.refinement_steps_max <= 3,
+                        report.cost.refinement_steps_max <= 3,
                         "{tag}: {} refinement steps",
-                        report.refinement_steps_max
+                        report.cost.refinement_steps_max
                     );
                 }
                 // Penalty and elimination agree up to the penalty's own O(K u / big) leak.
@@ -214,8 +214,8 @@ fn metres_and_millimetres_give_the_same_deformation() {
             .map(|(p, r)| [p[0] - r[0], p[1] - r[1], p[2] - r[2]])
             .collect();
         let d = max_abs_diff(&ua, &ub);
-        assert!(ra.max_displacement > 1e-4, "the case must deform");
-        assert!(d <= 1e-9 * l * ra.max_displacement, "{backend}: mm vs m differ by {d:e} mm");
+        assert!(ra.result.max_displacement > 1e-4, "the case must deform");
+        assert!(d <= 1e-9 * l * ra.result.max_displacement, "{backend}: mm vs m differ by {d:e} mm");
     }
 }
 
@@ -257,7 +257,7 @@ fn a_rotated_body_gives_the_rotated_result() {
     let (sb, rb) = run_checked(make(turned, rot(g), rot(f)), "rotated");
     let expected: Vec<Vec3> = sa.positions().iter().map(|p| rot(*p)).collect();
     let d = max_abs_diff(&expected, sb.positions());
-    assert!(d <= 1e-9 * rb.max_displacement.max(1.0), "rotation equivariance broken by {d:e}");
+    assert!(d <= 1e-9 * rb.result.max_displacement.max(1.0), "rotation equivariance broken by {d:e}");
 }
 
 #[test]
@@ -266,7 +266,7 @@ fn large_structured_and_dense_systems() {
     let spot = load_mesh("fixtures/meshes/spot.obj").unwrap();
     let material = moderate(spot.mesh.diagonal(), 1000.0);
     let (_, r) = run_checked(hanging(spot, material, 0.1, 1), "spot structured");
-    assert!(r.fibers_kept < r.fibers_total);
+    assert!(r.ffm.fibers_kept < r.ffm.fibers_total);
     // The dense backends: liver2 (1170 vertices, n = 3511, 99 MB per dense copy) for the
     // multithreaded ones, a 642-vertex icosphere (n = 1927) for single-threaded nalgebra.
     for backend in Backend::compiled().into_iter().filter(|b| *b != Backend::Structured) {

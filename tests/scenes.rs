@@ -36,17 +36,17 @@ fn sphere_scene_agrees_across_backends_and_behaves_physically() {
         let k = &sim.system().matrix;
         let diag_max =
             (0..k.n_vertices()).map(|i| k.block_entry(0, i, i)).filter(|d| *d < 1e8).fold(0.0, f64::max);
-        let penalty_bound = 2.0 * diag_max * report.max_displacement / 1e9;
+        let penalty_bound = 2.0 * diag_max * report.result.max_displacement / 1e9;
         assert!(
-            report.fixed_max_displacement < penalty_bound,
+            report.result.fixed_max_displacement < penalty_bound,
             "{backend}: cap moved {}",
-            report.fixed_max_displacement
+            report.result.fixed_max_displacement
         );
         assert!(
-            report.volume_initial > 3.9 && report.volume_initial < 4.19,
+            report.result.volume_initial > 3.9 && report.result.volume_initial < 4.19,
             "icosphere-2 volume below 4/3 pi"
         );
-        assert!(report.volume_final.is_finite());
+        assert!(report.result.volume_final.is_finite());
     }
     let (_, reference, p_ref) = &results[0];
     let scale = reference.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
@@ -67,8 +67,8 @@ fn eliminated_constraints_hold_the_cap_exactly() {
     scene.solver.constraints = ConstraintKind::Eliminate;
     let sim = run(scene);
     let report = Report::of(&sim, &[], vec![]);
-    assert_eq!(report.fixed_max_displacement, 0.0);
-    assert!(report.max_displacement > 0.1);
+    assert_eq!(report.result.fixed_max_displacement, 0.0);
+    assert!(report.result.max_displacement > 0.1);
 }
 
 #[test]
@@ -209,9 +209,9 @@ fn the_report_lists_stages_and_skips() {
     ] {
         assert!(json.get(key).is_some(), "report lacks {key}");
     }
-    assert!(report.residual_max < 1e-10);
-    assert_eq!(report.fibers_kept, 162 * 161 / 2);
-    assert!(report.stages.iter().all(|s| s.seconds >= 0.0 && s.count >= 1));
+    assert!(report.cost.residual_max < 1e-10);
+    assert_eq!(report.ffm.fibers_kept, 162 * 161 / 2);
+    assert!(report.cost.stages.iter().all(|s| s.seconds >= 0.0 && s.count >= 1));
 }
 
 /// Every choice has one name, used alike by `FromStr`, `Display` and serde, and an

@@ -77,7 +77,7 @@ fn each_guard_fires_on_a_case_built_to_trip_it() {
     assert!(fired(&sim).contains(&Guard::Inverted), "{:?}", sim.warnings());
     assert!(!fired(&sim).contains(&Guard::Volume));
     let report = fibfluid::Report::of(&sim, &[], vec![]);
-    assert!(report.inverted_faces > 0);
+    assert!(report.guards.inverted_faces > 0);
 }
 
 /// The two soft-liver runs of the issue: Y = 1e5 in paper mode with Heun steps ends with

@@ -32,7 +32,7 @@ use fibfluid::sim::FiberModel;
 use fibfluid::sim::calibration::{Calibration, relative_l2};
 use fibfluid::{Scene, Shape};
 
-use crate::study::{FEM_STUDY_REFERENCE, FEM_STUDY_RESOLUTIONS, PARETO_MARGIN};
+use crate::study_grid::{FEM_STUDY_REFERENCE, FEM_STUDY_RESOLUTIONS, PARETO_MARGIN};
 
 /// The grasp's radius and its translation, each as a fraction of the body's bounding-box
 /// diagonal.

@@ -11,6 +11,7 @@ pub mod info;
 pub mod output;
 pub mod probe_run;
 pub mod study;
+mod study_grid;
 
 pub use error::{Error, Result};
 pub use info::MeshInfo;

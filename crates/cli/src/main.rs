@@ -542,17 +542,17 @@ fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> 
     say!(
         "{}: {} vertices, {} steps ({} / {} / {}), max |u| = {} m, volume {} -> {} m^3 (drift {:.2e}), P = {} Pa, residual {:.1e}, {:.3} s",
         report.scene,
-        report.vertices,
-        report.steps,
-        report.backend,
-        report.mode,
-        report.stepping,
-        num(report.max_displacement),
-        num(report.volume_initial),
-        num(report.volume_final),
-        report.volume_drift,
-        num(report.pressure),
-        report.residual_max,
+        report.body.vertices,
+        report.load.steps,
+        report.solver.backend,
+        report.solver.mode,
+        report.solver.stepping,
+        num(report.result.max_displacement),
+        num(report.result.volume_initial),
+        num(report.result.volume_final),
+        report.result.volume_drift,
+        num(report.result.pressure),
+        report.cost.residual_max,
         report.seconds_total
     );
     for (k, r) in report.plates.iter().enumerate() {

@@ -154,10 +154,7 @@ pub struct PhysicalAxis {
     pub grab: Option<crate::grab::GrabComparison>,
 }
 
-/// Resolutions of the FEM points of a study's physical axis.
-pub const FEM_STUDY_RESOLUTIONS: [usize; 4] = [8, 12, 16, 24];
-/// The resolution of the physical axis' FEM reference (finer than every FEM point).
-pub const FEM_STUDY_REFERENCE: usize = 32;
+pub use crate::study_grid::{FEM_STUDY_REFERENCE, FEM_STUDY_RESOLUTIONS, PARETO_MARGIN};
 
 /// The study's result: every point plus the reference it was compared with.
 #[derive(Clone, Debug)]
@@ -501,9 +498,6 @@ pub fn pareto(study: &Study, error: impl Fn(&Point) -> Option<f64>) -> Vec<usize
         .collect();
     fibfluid::render::pareto_front_with_margin(&xy, PARETO_MARGIN).into_iter().map(|k| idx[k]).collect()
 }
-
-/// Relative improvement a slower point needs to count on the Pareto front.
-pub const PARETO_MARGIN: f64 = 0.01;
 
 /// The study as a Markdown table, Pareto points marked.
 pub fn to_markdown(study: &Study, title: &str) -> String {

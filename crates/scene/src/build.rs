@@ -250,7 +250,13 @@ fn material(m: MaterialToml, fluid: Option<FluidToml>, axes: usize) -> Result<Ma
     if !(density.is_finite() && density >= 0.0) {
         return Err(range("[fluid].density", ">= 0", density));
     }
-    Ok(Material { fiber_modulus: young, surface_tension: gamma, density, law, kernel_exponent: PAPER_KERNEL_EXPONENT })
+    Ok(Material {
+        fiber_modulus: young,
+        surface_tension: gamma,
+        density,
+        law,
+        kernel_exponent: PAPER_KERNEL_EXPONENT,
+    })
 }
 
 /// `[load]`: the step count and the adaptive tolerance.

@@ -43,7 +43,10 @@ pub use model::{
     VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE,
 };
 pub use plan::{Plan, PlannedStage};
-pub use report::{Report, RoundTrip, SkippedStage, roundtrip, roundtrip_error};
+pub use report::{
+    BodyFacts, CostFacts, FfmFacts, GuardFacts, Report, ResultFacts, RoundTrip, SkippedStage, SolverFacts,
+    StepFacts, roundtrip, roundtrip_error,
+};
 pub use simulate::{
     BodyShape, Counters, Direction, MIN_ADAPTIVE_STEP, Response, RunOptions, SetupOptions, Simulation, State,
     StepStats,

@@ -6,24 +6,65 @@ use serde::Serialize;
 
 use crate::choices::{Mode, Stepping};
 use crate::simulate::Simulation;
-use crate::stages::StageRecord;
+use crate::stages::{Stage, StageRecord};
 
 /// A stage the plan left out, and why.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct SkippedStage {
-    /// Stage name.
-    pub name: String,
+    /// The stage.
+    pub name: Stage,
     /// Why it was not needed.
     pub reason: String,
 }
 
-/// What a run did and how accurate it was.
+/// What a run did and how accurate it was: `report.json`. The groups are flattened into one
+/// JSON object (the file reads as it always has); in code each group is a struct of its own.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Report {
     /// Model name.
     pub scene: String,
     /// The units of every number below (SI; the mesh file's unit for the written meshes).
     pub units: crate::fem_run::Units,
+    /// The solver choices a run used.
+    #[serde(flatten)]
+    pub solver: SolverFacts,
+    /// The body: its size and shape class.
+    #[serde(flatten)]
+    pub body: BodyFacts,
+    /// The fiber–fluid method's fibers.
+    #[serde(flatten)]
+    pub ffm: FfmFacts,
+    /// The load steps asked for and taken.
+    #[serde(flatten)]
+    pub load: StepFacts,
+    /// What the guards found.
+    #[serde(flatten)]
+    pub guards: GuardFacts,
+    /// Each plate's force, contact area, contacts and gap after every step (empty
+    /// without plates).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub plates: Vec<crate::contact::PlateRecord>,
+    /// The fiber modulus calibrated against the FEM (a scene with only `[tissue]`;
+    /// omitted otherwise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<crate::fit::Calibration>,
+    /// The deformed body: volume, displacements, pressure.
+    #[serde(flatten)]
+    pub result: ResultFacts,
+    /// What the run cost: solves, factorizations, memory and stage times.
+    #[serde(flatten)]
+    pub cost: CostFacts,
+    /// Notes (mesh warnings, etc.).
+    pub notes: Vec<String>,
+    /// Settings of the scene that had no effect ([`crate::ineffective`]), one line each.
+    pub ineffective: Vec<String>,
+    /// Wall-clock seconds of the whole run.
+    pub seconds_total: f64,
+}
+
+/// The solver choices a run used. (flattened into `report.json`).
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct SolverFacts {
     /// Linear backend.
     pub backend: Backend,
     /// Stepping mode.
@@ -37,12 +78,22 @@ pub struct Report {
     /// The penalty's diagonal value, when `constraints` is `penalty`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub penalty: Option<f64>,
+}
+
+/// The body: its size and shape class. (flattened into `report.json`).
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct BodyFacts {
     /// Vertex count.
     pub vertices: usize,
     /// Face count (edges for a polygon).
     pub faces: usize,
     /// Whether the body was found convex.
     pub convex: bool,
+}
+
+/// The fiber–fluid method's fibers. (flattened into `report.json`).
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct FfmFacts {
     /// FFM's fiber model (`paper` or `projected`).
     pub fibers: crate::FiberModel,
     /// How the bulk fibers' weights fall with length: `1 / d^p` (the paper's p = 1).
@@ -51,6 +102,11 @@ pub struct Report {
     pub fibers_total: usize,
     /// Kept fibers.
     pub fibers_kept: usize,
+}
+
+/// The load steps asked for and taken. (flattened into `report.json`).
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct StepFacts {
     /// Load steps asked for (with a tolerance: the first step's fraction is 1/steps).
     pub steps: usize,
     /// Adaptive stepping tolerance, when set.
@@ -66,18 +122,20 @@ pub struct Report {
     /// displacement (compare with `tolerance`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error_estimate: Option<f64>,
+}
+
+/// What the guards found. (flattened into `report.json`).
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct GuardFacts {
     /// Step guards that fired.
     pub warnings: Vec<crate::guards::GuardWarning>,
     /// Faces inverted against the rest shape at the end.
     pub inverted_faces: usize,
-    /// Each plate's force, contact area, contacts and gap after every step (empty
-    /// without plates).
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub plates: Vec<crate::contact::PlateRecord>,
-    /// The fiber modulus calibrated against the FEM (a scene with only `[tissue]`;
-    /// omitted otherwise).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub calibration: Option<crate::fit::Calibration>,
+}
+
+/// The deformed body: volume, displacements, pressure. (flattened into `report.json`).
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct ResultFacts {
     /// Volume before.
     pub volume_initial: f64,
     /// Volume after.
@@ -92,6 +150,11 @@ pub struct Report {
     pub fixed_max_displacement: f64,
     /// Accumulated pressure change.
     pub pressure: f64,
+}
+
+/// What the run cost: solves, factorizations, memory and stage times. (flattened into `report.json`).
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct CostFacts {
     /// Largest relative residual of any solve.
     pub residual_max: f64,
     /// Largest number of refinement steps of any solve.
@@ -109,12 +172,6 @@ pub struct Report {
     pub stages: Vec<StageRecord>,
     /// Stages the plan left out, with the reason.
     pub skipped: Vec<SkippedStage>,
-    /// Notes (mesh warnings, etc.).
-    pub notes: Vec<String>,
-    /// Settings of the scene that had no effect ([`crate::ineffective`]), one line each.
-    pub ineffective: Vec<String>,
-    /// Wall-clock seconds of the whole run.
-    pub seconds_total: f64,
 }
 
 impl Report {
@@ -139,51 +196,62 @@ impl Report {
         Report {
             scene: scene.name.clone(),
             units: crate::fem_run::Units::si(scene.unit),
-            backend: scene.solver.backend,
-            mode: scene.solver.mode,
-            stepping: scene.solver.stepping,
-            precision: scene.solver.precision,
-            constraints: scene.solver.constraints,
-            penalty: (scene.solver.constraints == ConstraintKind::Penalty).then_some(scene.solver.penalty),
-            vertices: rest.len(),
-            faces,
-            convex: sim.convex(),
-            fibers: scene.ffm.fibers,
-            kernel_exponent: scene.material.kernel_exponent,
-            fibers_total: sim.fibers().total(),
-            fibers_kept: sim.fibers().kept(),
-            steps: scene.steps,
-            tolerance: scene.tolerance,
-            steps_taken: sim.step_stats().taken,
-            steps_rejected: sim.step_stats().rejected,
-            steps_skipped: sim.step_stats().skipped,
-            error_estimate: scene.tolerance.map(|_| {
-                sim.step_stats().error_estimate
-                    / disp.iter().copied().fold(0.0, f64::max).max(f64::MIN_POSITIVE)
-            }),
-            warnings: sim.warnings().to_vec(),
-            inverted_faces: crate::guards::inverted_faces(&sim.body().boundary, rest, sim.positions()),
+            solver: SolverFacts {
+                backend: scene.solver.backend,
+                mode: scene.solver.mode,
+                stepping: scene.solver.stepping,
+                precision: scene.solver.precision,
+                constraints: scene.solver.constraints,
+                penalty: (scene.solver.constraints == ConstraintKind::Penalty)
+                    .then_some(scene.solver.penalty),
+            },
+            body: BodyFacts { vertices: rest.len(), faces, convex: sim.convex() },
+            ffm: FfmFacts {
+                fibers: scene.ffm.fibers,
+                kernel_exponent: scene.material.kernel_exponent,
+                fibers_total: sim.fibers().total(),
+                fibers_kept: sim.fibers().kept(),
+            },
+            load: StepFacts {
+                steps: scene.steps,
+                tolerance: scene.tolerance,
+                steps_taken: sim.step_stats().taken,
+                steps_rejected: sim.step_stats().rejected,
+                steps_skipped: sim.step_stats().skipped,
+                error_estimate: scene.tolerance.map(|_| {
+                    sim.step_stats().error_estimate
+                        / disp.iter().copied().fold(0.0, f64::max).max(f64::MIN_POSITIVE)
+                }),
+            },
+            guards: GuardFacts {
+                warnings: sim.warnings().to_vec(),
+                inverted_faces: crate::guards::inverted_faces(&sim.body().boundary, rest, sim.positions()),
+            },
             plates: sim.plate_records().to_vec(),
             calibration: sim.calibration().copied(),
-            volume_initial: v0,
-            volume_final: v1,
-            volume_drift: (v1 / v0 - 1.0).abs(),
-            max_displacement: disp.iter().copied().fold(0.0, f64::max),
-            mean_displacement: disp.iter().sum::<f64>() / disp.len().max(1) as f64,
-            fixed_max_displacement: fixed.iter().map(|&i| disp[i]).fold(0.0, f64::max),
-            pressure: sim.pressure(),
-            residual_max: sim.counters().residual_max,
-            refinement_steps_max: sim.counters().refinement_steps_max,
-            factorizations: sim.counters().factorizations,
-            blocks_factored: sim.system().stats.blocks,
-            solves: sim.counters().solves,
-            memory_bytes_planned: sim.plan().memory_bytes,
-            stages,
-            skipped: sim
-                .plan()
-                .skipped()
-                .map(|s| SkippedStage { name: s.name.to_string(), reason: s.reason.clone() })
-                .collect(),
+            result: ResultFacts {
+                volume_initial: v0,
+                volume_final: v1,
+                volume_drift: (v1 / v0 - 1.0).abs(),
+                max_displacement: disp.iter().copied().fold(0.0, f64::max),
+                mean_displacement: disp.iter().sum::<f64>() / disp.len().max(1) as f64,
+                fixed_max_displacement: fixed.iter().map(|&i| disp[i]).fold(0.0, f64::max),
+                pressure: sim.pressure(),
+            },
+            cost: CostFacts {
+                residual_max: sim.counters().residual_max,
+                refinement_steps_max: sim.counters().refinement_steps_max,
+                factorizations: sim.counters().factorizations,
+                blocks_factored: sim.system().stats.blocks,
+                solves: sim.counters().solves,
+                memory_bytes_planned: sim.plan().memory_bytes,
+                stages,
+                skipped: sim
+                    .plan()
+                    .skipped()
+                    .map(|s| SkippedStage { name: s.name, reason: s.reason.clone() })
+                    .collect(),
+            },
             notes,
             ineffective: crate::ineffective(scene).iter().map(ToString::to_string).collect(),
             seconds_total: sim.elapsed() + extra_stages.iter().map(|s| s.seconds).sum::<f64>(),
