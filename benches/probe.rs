@@ -44,7 +44,7 @@ use fibfluid::{Mode, Model, Simulation};
 
 fn scene(level: u32) -> Model {
     let mut scene = fibfluid::sim::samples::hanging_sphere(level).expect("the icosphere is a closed surface");
-    scene.steps = 1;
+    scene.load.steps = 1;
     scene.solver.mode = Mode::Paper;
     scene
 }

@@ -31,7 +31,7 @@ const STEPS: usize = 10;
 
 fn scene(level: u32, backend: Backend, mode: Mode) -> Model {
     let mut scene = fibfluid::sim::samples::hanging_sphere(level).expect("the icosphere is a closed surface");
-    scene.steps = STEPS;
+    scene.load.steps = STEPS;
     scene.solver.backend = backend;
     scene.solver.mode = mode;
     scene

@@ -36,8 +36,8 @@ fn reference(
     let mut s = scene.clone();
     s.solver.mode = mode;
     s.solver.stepping = Stepping::Heun;
-    s.steps = steps;
-    s.forces.push(PointForce { vertex: v, value: r, timing: ForceTiming::Ramp });
+    s.load.steps = steps;
+    s.load.forces.push(PointForce { vertex: v, value: r, timing: ForceTiming::Ramp });
     let mut sim = Simulation::new(s)?;
     sim.run(&RunOptions::default())?;
     Ok(sim.positions().to_vec())
@@ -45,8 +45,8 @@ fn reference(
 
 fn main() -> Result<(), fibfluid::Error> {
     let mut scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/scenes/sphere.toml"))?;
-    scene.gravity = [0.0; 3];
-    scene.forces.clear();
+    scene.load.gravity = [0.0; 3];
+    scene.load.forces.clear();
     scene.solver.constraints = fibfluid::ConstraintKind::Eliminate;
     let Shape::Surface(file) = &scene.shape else { unreachable!("the sphere is a surface") };
     let triangles = file.mesh.triangles().to_vec();

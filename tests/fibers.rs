@@ -125,7 +125,7 @@ fn projected_fibers_refuse_what_is_not_built() {
     let (ours, theirs) = (Plan::from_scene(&s.model), Plan::from_scene(&paper.model));
     assert_eq!(ours.memory_bytes - theirs.memory_bytes, 2 * m * m * 8);
     let mut two = s.clone();
-    two.model.steps = 2;
+    two.model.load.steps = 2;
     let mut sim = Simulation::new(two).unwrap();
     sim.run(&RunOptions::default()).unwrap();
     assert_eq!(sim.step_stats().taken, 2);
@@ -168,9 +168,9 @@ fn projected_fibers_follow_a_rigid_rotation_in_nonlinear_mode() {
     let (c, s) = (angle.cos(), angle.sin());
     let run = |fibers: &str, mode: fibfluid::Mode| {
         let mut sc = scene(dir.path(), &sphere, "above = 0.8", fibers, "");
-        sc.model.gravity = [0.0; 3];
+        sc.model.load.gravity = [0.0; 3];
         sc.model.material.density = 0.0;
-        sc.model.steps = 20;
+        sc.model.load.steps = 20;
         sc.model.solver.mode = mode;
         let rest = sc.rest_positions();
         for (v, p) in rest.iter().enumerate().filter(|(_, p)| p[1] > 0.8) {

@@ -35,8 +35,8 @@ fn hanging(file: MeshFile, material: Material, within: f64, steps: usize) -> Sce
         .constraints
         .fix_selected(&Selector::Top { axis: 1, within }, &pos, [true; 3])
         .expect("top selection");
-    scene.gravity = [0.0, -9.81, 0.0];
-    scene.steps = steps;
+    scene.load.gravity = [0.0, -9.81, 0.0];
+    scene.load.steps = steps;
     scene.solver.mode = Mode::Refresh;
     scene.solver.constraints = ConstraintKind::Eliminate;
     scene
@@ -51,7 +51,11 @@ fn run_checked(scene: Scene, tag: &str) -> (Simulation, Report) {
     let report = Report::of(&sim, &[], vec![]);
     assert!(sim.positions().iter().flatten().all(|v| v.is_finite()), "{tag}: non-finite position");
     assert!(sim.pressure().is_finite(), "{tag}: non-finite pressure");
-    assert!(report.cost.residual_max <= BACKWARD_ERROR_F64, "{tag}: backward error {:e}", report.cost.residual_max);
+    assert!(
+        report.cost.residual_max <= BACKWARD_ERROR_F64,
+        "{tag}: backward error {:e}",
+        report.cost.residual_max
+    );
     if method == ConstraintKind::Eliminate {
         assert_eq!(report.result.fixed_max_displacement, 0.0, "{tag}: a fixed vertex moved");
     }
@@ -65,7 +69,10 @@ fn run_checked(scene: Scene, tag: &str) -> (Simulation, Report) {
     }
     eprintln!(
         "{tag}: backward error {:.1e}, refinement steps {}, max |u| {:.3e}, drift {:.1e}",
-        report.cost.residual_max, report.cost.refinement_steps_max, report.result.max_displacement, report.result.volume_drift
+        report.cost.residual_max,
+        report.cost.refinement_steps_max,
+        report.result.max_displacement,
+        report.result.volume_drift
     );
     (sim, report)
 }
@@ -165,7 +172,7 @@ fn extreme_material_ratios_and_densities() {
             let (young, gamma) = if ratio >= 1.0 { (base, base / ratio) } else { (base * ratio, base) };
             let material = Material::isotropic(young, gamma, density);
             let mut scene = hanging(file_of(icosphere(2, 1.0)), material, 0.2, 3);
-            scene.gravity = [0.0, -9.81 * 1e3 / density, 0.0];
+            scene.load.gravity = [0.0, -9.81 * 1e3 / density, 0.0];
             for backend in Backend::compiled() {
                 let mut s = scene.clone();
                 s.solver.backend = backend;
@@ -244,9 +251,10 @@ fn a_rotated_body_gives_the_rotated_result() {
         let mut s = Scene::from_mesh("rot", file_of(mesh), moderate(diag, 100.0));
         let pos = s.rest_positions();
         s.constraints.fix_selected(&Selector::Vertices(top.clone()), &pos, [true; 3]).unwrap();
-        s.gravity = g;
-        s.forces = vec![fibfluid::PointForce { vertex: 5, value: f, timing: fibfluid::ForceTiming::Ramp }];
-        s.steps = 4;
+        s.load.gravity = g;
+        s.load.forces =
+            vec![fibfluid::PointForce { vertex: 5, value: f, timing: fibfluid::ForceTiming::Ramp }];
+        s.load.steps = 4;
         s.solver.mode = Mode::Refresh;
         s.solver.stepping = Stepping::Heun;
         s.solver.constraints = ConstraintKind::Eliminate;
@@ -318,14 +326,14 @@ fn concave_and_genus_one_bodies_and_a_single_fixed_vertex() {
     for backend in Backend::compiled() {
         let mut s = Scene::from_mesh("one fixed", file_of(icosphere(2, 1.0)), moderate(3.46, 1000.0));
         s.constraints.fix(0, [true; 3]).unwrap();
-        s.forces = vec![fibfluid::PointForce {
+        s.load.forces = vec![fibfluid::PointForce {
             vertex: 100,
             value: [1.0, 2.0, -3.0],
             timing: fibfluid::ForceTiming::Ramp,
         }];
         s.solver.constraints = ConstraintKind::Eliminate;
         s.solver.backend = backend;
-        s.steps = 2;
+        s.load.steps = 2;
         run_checked(s, &format!("single fixed vertex {backend}"));
     }
 }

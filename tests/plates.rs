@@ -172,10 +172,14 @@ fn state_force(sim: &Simulation, plate: usize) -> f64 {
     };
     let system = assemble(&shape, &model.material, &model.constraints, &opts).unwrap();
     let areas = body.boundary.vertex_area_vectors(s_shape);
-    let forces: Vec<(usize, Vec3)> = model.forces.iter().map(|f| (f.vertex, f.value)).collect();
-    assert!(model.forces.iter().all(|f| f.timing == ForceTiming::Ramp));
-    let loads =
-        Loads { acceleration: model.gravity, down: None, density: model.material.density, forces: &forces };
+    let forces: Vec<(usize, Vec3)> = model.load.forces.iter().map(|f| (f.vertex, f.value)).collect();
+    assert!(model.load.forces.iter().all(|f| f.timing == ForceTiming::Ramp));
+    let loads = Loads {
+        acceleration: model.load.gravity,
+        down: None,
+        density: model.material.density,
+        forces: &forces,
+    };
     let now_areas = body.boundary.vertex_area_vectors(now);
     let f = load_vector(axes, now, &now_areas, &loads).unwrap();
     let u: Vec<Vec3> = now.iter().zip(rest).map(|(p, r)| sub(*p, *r)).collect();
@@ -198,7 +202,7 @@ fn state_force(sim: &Simulation, plate: usize) -> f64 {
 fn checked_forces(scene: &Scene, mode: Mode, steps: usize) -> Vec<f64> {
     let mut scene = scene.clone();
     scene.solver.mode = mode;
-    scene.steps = steps;
+    scene.load.steps = steps;
     let mut sim = Simulation::new(scene).unwrap();
     sim.run(&RunOptions::default()).unwrap();
     let reported: Vec<f64> = sim.plate_records().iter().map(|r| *r.force.last().unwrap()).collect();

@@ -94,7 +94,7 @@ fn roundtrip_error_falls_as_one_over_n() {
         .iter()
         .map(|&n| {
             let mut s = sphere();
-            s.steps = n;
+            s.load.steps = n;
             roundtrip(s, &RunOptions::default()).unwrap().roundtrip_error
         })
         .collect();
@@ -134,7 +134,7 @@ fn unloading_with_the_paper_stepping_returns_near_the_start() {
     // A sanity check of Direction::Unload independent of roundtrip(): one step each way
     // with a point force alone is linear in paper mode and returns exactly.
     let mut s = Scene::load("fixtures/scenes/rectangle.toml").unwrap();
-    s.steps = 1;
+    s.load.steps = 1;
     let mut sim = Simulation::new(s).unwrap();
     sim.run_steps(1, Direction::Load, &RunOptions::default()).unwrap();
     sim.run_steps(1, Direction::Unload, &RunOptions::default()).unwrap();
@@ -160,7 +160,7 @@ fn the_plan_runs_only_the_stages_a_scene_needs() {
     // The bunny pulled by a force: no gravity, so no depth is ever computed; concave, so
     // the visibility tests run.
     let mut bunny = Scene::load("fixtures/scenes/bunny-pull.toml").unwrap();
-    bunny.steps = 1;
+    bunny.load.steps = 1;
     let sim = run(bunny);
     let log = sim.log();
     assert!(
@@ -174,13 +174,13 @@ fn the_plan_runs_only_the_stages_a_scene_needs() {
     // Anisotropic material: three blocks.
     let mut aniso = sphere();
     aniso.material.fiber_modulus = [3000.0, 4000.0, 5000.0];
-    aniso.steps = 1;
+    aniso.load.steps = 1;
     let sim = run(aniso);
     assert_eq!(sim.system().stats.blocks, 3);
     // Paper mode factors once; nonlinear mode once per step (plus the first).
     let mut nl = sphere();
     nl.solver.mode = Mode::Nonlinear;
-    nl.steps = 4;
+    nl.load.steps = 4;
     let sim = run(nl);
     assert_eq!(sim.counters().factorizations, 5);
     assert!(sim.log().ran(names::REASSEMBLY));
@@ -252,7 +252,7 @@ fn the_plan_estimate_covers_the_factorization() {
             let mut scene = sphere();
             scene.solver.backend = backend;
             scene.solver.precision = precision;
-            scene.steps = 1;
+            scene.load.steps = 1;
             let sim = Simulation::new(scene).unwrap();
             let planned = sim.plan().stages.iter().find(|s| s.name == names::FACTORIZATION).unwrap().bytes;
             let held = sim.factorization().cost().bytes as u64;
@@ -414,11 +414,11 @@ fn settings_that_cannot_act_are_found_and_really_do_nothing() {
     s.material.density = 0.0;
     assert_eq!(ineffective(&s), vec![Ineffective::GravityWithoutDensity { acceleration: [0.0, -10.0, 0.0] }]);
     let mut without = s.clone();
-    without.gravity = [0.0; 3];
+    without.load.gravity = [0.0; 3];
     same(s, without, "gravity without density");
 
     let mut s = sphere();
-    s.gravity = [0.0; 3];
+    s.load.gravity = [0.0; 3];
     assert_eq!(ineffective(&s), vec![Ineffective::DensityWithoutGravity { density: 1000.0 }]);
     let mut without = s.clone();
     without.material.density = 0.0;
@@ -426,7 +426,7 @@ fn settings_that_cannot_act_are_found_and_really_do_nothing() {
     // A density calibrated fibers took from [tissue] describes the tissue: not reported.
     let mut s = Scene::load("fixtures/scenes/sphere-tissue.toml").unwrap();
     assert!(s.ffm.calibrate && s.material.density > 0.0);
-    s.gravity = [0.0; 3];
+    s.load.gravity = [0.0; 3];
     assert_eq!(ineffective(&s), vec![]);
 
     let mut s = sphere();
@@ -443,20 +443,20 @@ fn settings_that_cannot_act_are_found_and_really_do_nothing() {
     assert_ne!(run(s).positions(), run(linear).positions(), "stiffening must act in nonlinear mode");
 
     let mut s = sphere();
-    s.forces[0].value = [0.0; 3];
+    s.load.forces[0].value = [0.0; 3];
     assert_eq!(ineffective(&s), vec![Ineffective::ZeroForce { index: 1, vertex: 3 }]);
     let mut without = s.clone();
-    without.forces.clear();
+    without.load.forces.clear();
     same(s, without, "a zero force");
 
     // A force on a vertex of the fixed cap (held exactly by elimination).
     let mut s = sphere();
     s.solver.constraints = ConstraintKind::Eliminate;
     let held = (0..s.n_vertices()).find(|&v| (0..3).all(|c| s.constraints.get(v, c).is_some())).unwrap();
-    s.forces[0].vertex = held;
+    s.load.forces[0].vertex = held;
     assert_eq!(ineffective(&s), vec![Ineffective::ForceOnFixedVertex { index: 1, vertex: held }]);
     let mut without = s.clone();
-    without.forces.clear();
+    without.load.forces.clear();
     same(s, without, "a force on a fixed vertex");
 }
 
@@ -469,7 +469,7 @@ fn load_with_mesh_builds_the_files_constraints_and_forces_on_the_new_mesh() {
     let same = MeshFile::from_mesh("arrays", file.mesh.clone()).expect("valid");
     let again = Scene::load_with_mesh(path, same).expect("the same mesh");
     assert_eq!(again.constraints.count(1), scene.constraints.count(1));
-    assert_eq!(again.forces, scene.forces);
+    assert_eq!(again.load.forces, scene.load.forces);
     // Shifted up by 0.1: `above = 0.8` now selects a larger cap, chosen on the new mesh.
     let shifted: Vec<_> = file.mesh.positions().iter().map(|p| [p[0], p[1] + 0.1, p[2]]).collect();
     let expected = shifted.iter().filter(|p| p[1] > 0.8).count();

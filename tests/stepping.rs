@@ -119,9 +119,9 @@ fn the_error_policy_stops_the_run() {
 #[test]
 fn zero_load_steps_are_skipped() {
     let mut s = sphere();
-    s.gravity = [0.0; 3];
+    s.load.gravity = [0.0; 3];
     let mut one = s.clone();
-    one.steps = 1;
+    one.load.steps = 1;
     let ten = run(s).unwrap();
     let one = run(one).unwrap();
     assert_eq!(ten.step_stats().skipped, 9);
@@ -138,7 +138,7 @@ fn zero_load_steps_are_skipped() {
 fn adaptive_steps_meet_their_tolerance() {
     const TOLERANCE: f64 = 1e-3;
     let mut push = sphere();
-    push.forces.iter_mut().for_each(|f| f.timing = ForceTiming::Ramp);
+    push.load.forces.iter_mut().for_each(|f| f.timing = ForceTiming::Ramp);
     let liver = Scene::load("fixtures/scenes/liver-hanging.toml").unwrap();
     // Fixed Heun steps of the reference: several times finer than the adaptive runs take.
     for (base, reference_steps) in [(push, 40), (liver, 16)] {
@@ -146,11 +146,11 @@ fn adaptive_steps_meet_their_tolerance() {
             let mut fixed = base.clone();
             fixed.solver.mode = mode;
             fixed.solver.stepping = Stepping::Heun;
-            fixed.steps = reference_steps;
+            fixed.load.steps = reference_steps;
             fixed.guards.volume = Some(1.0);
             let mut adaptive = fixed.clone();
-            adaptive.steps = 4;
-            adaptive.tolerance = Some(TOLERANCE);
+            adaptive.load.steps = 4;
+            adaptive.load.tolerance = Some(TOLERANCE);
             let reference = run(fixed).unwrap();
             let sim = run(adaptive).unwrap();
             let umax = reference

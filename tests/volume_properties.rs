@@ -46,14 +46,14 @@ fn scene(
     let mut s = Scene::from_mesh("random", file, Material::isotropic(y, y * gamma_ratio, density));
     let pos = s.rest_positions();
     s.constraints.fix_selected(&Selector::Top { axis: 1, within: 0.15 * diag }, &pos, [true; 3]).unwrap();
-    s.gravity = g;
+    s.load.gravity = g;
     let bottom = (0..n).min_by(|&a, &b| pos[a][1].total_cmp(&pos[b][1])).unwrap();
-    s.forces = vec![PointForce {
+    s.load.forces = vec![PointForce {
         vertex: bottom,
         value: force.map(|c| c * y * diag / 100.0),
         timing: ForceTiming::Ramp,
     }];
-    s.steps = 3;
+    s.load.steps = 3;
     s.solver.mode = mode;
     s.solver.stepping = stepping;
     s.solver.constraints = fibfluid::ConstraintKind::Eliminate;

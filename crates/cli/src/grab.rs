@@ -133,7 +133,7 @@ pub fn choose_grab(scene: &Scene) -> crate::Result<Grab> {
     };
     let (lo, hi) = fibfluid::geometry::bounding_box(&rest);
     let length = GRAB_FRACTION * dist(lo, hi);
-    let g = scene.gravity;
+    let g = scene.load.gravity;
     let g_norm = norm(g);
     let direction =
         if g_norm > 0.0 { [g[0] / g_norm, g[1] / g_norm, g[2] / g_norm] } else { [0.0, -1.0, 0.0] };
@@ -156,8 +156,8 @@ pub fn grab_scene(scene: &Scene, calibrations: &[Calibration]) -> crate::Result<
         s.model.material.surface_tension = c.surface_tension;
         s.model.ffm.calibrate = false;
     }
-    s.model.gravity = [0.0; 3];
-    s.model.forces.clear();
+    s.model.load.gravity = [0.0; 3];
+    s.model.load.forces.clear();
     Ok(s)
 }
 

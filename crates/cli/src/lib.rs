@@ -14,7 +14,7 @@ pub mod study;
 mod study_grid;
 
 pub use error::{Error, Result};
-pub use info::MeshInfo;
+pub use info::{FiberCounts, MeshInfo, SurfaceMeasures, SurfaceTopology};
 pub use output::{
     COMPRESSION_FILE, OUTPUT_FILES, SurfaceResult, compression_png, render_png, write_fem_outputs,
     write_fibers_vtk, write_files_atomically, write_outputs, write_vtk,

@@ -279,7 +279,7 @@ impl Overrides {
                     problem: "must be between 1 and 1000000",
                 });
             }
-            scene.steps = n;
+            scene.load.steps = n;
         }
         Ok(())
     }
@@ -438,7 +438,7 @@ fn mesh_info(path: &Path, json: bool, fibers_out: Option<&Path>) -> Result<(), C
     say!("{}", info.path);
     say!("  vertices        {} ({} in the file)", info.vertices, info.file_vertices);
     say!("  faces           {}", info.faces);
-    say!("  closed          yes, genus {}", info.genus);
+    say!("  closed          yes, genus {}", info.topology.genus);
     say!(
         "  bounding box    [{}, {}, {}] .. [{}, {}, {}]",
         num(lo[0]),
@@ -448,16 +448,23 @@ fn mesh_info(path: &Path, json: bool, fibers_out: Option<&Path>) -> Result<(), C
         num(hi[1]),
         num(hi[2])
     );
-    say!("  area            {}  (sum |S_i| = {})", num(info.area), num(info.vertex_area_sum));
-    say!("  volume          {}", num(info.volume));
-    say!("  convex          {}", if info.convex { "yes (every fiber kept, no test ran)" } else { "no" });
+    say!(
+        "  area            {}  (sum |S_i| = {})",
+        num(info.measures.area),
+        num(info.measures.vertex_area_sum)
+    );
+    say!("  volume          {}", num(info.measures.volume));
+    say!(
+        "  convex          {}",
+        if info.fibers.convex { "yes (every fiber kept, no test ran)" } else { "no" }
+    );
     say!(
         "  fibers          {} of {} kept ({:.1} %; exit test removed {}, crossing test {})",
-        info.fibers_kept,
-        info.fibers_total,
-        100.0 * info.fibers_kept as f64 / info.fibers_total.max(1) as f64,
-        info.fibers_removed_exit,
-        info.fibers_removed_crossing
+        info.fibers.fibers_kept,
+        info.fibers.fibers_total,
+        100.0 * info.fibers.fibers_kept as f64 / info.fibers.fibers_total.max(1) as f64,
+        info.fibers.fibers_removed_exit,
+        info.fibers.fibers_removed_crossing
     );
     say!("  seconds         {:.3} (load, check, cull)", info.seconds);
     for n in &info.notes {
@@ -492,7 +499,7 @@ fn plan(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> {
             "{}: {} vertices, {} steps ({} / {} / {} / {})",
             scene.name,
             scene.n_vertices(),
-            scene.steps,
+            scene.load.steps,
             scene.solver.backend,
             scene.solver.mode,
             scene.solver.stepping,
@@ -530,7 +537,7 @@ fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> 
     if scene.solver.method == Method::Fem {
         return run_fem(scene, load, notes, out, over);
     }
-    let steps = scene.steps;
+    let steps = scene.load.steps;
     let mut sim = Simulation::with_options(scene, &over.setup()).map_err(in_scene(path))?;
     let opts = RunOptions { progress: progress(steps, "run") };
     sim.run(&opts).map_err(in_scene(path))?;
@@ -644,7 +651,7 @@ const MAX_WARNING_LINES: usize = 10;
 fn roundtrip(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> {
     let (scene, _) = load_scene(path, over)?;
     warn_ineffective(&scene);
-    let steps = scene.steps;
+    let steps = scene.load.steps;
     let progress = progress(2 * steps, "round trip").map(|p| {
         let done = std::sync::atomic::AtomicUsize::new(0);
         let both_ways: Arc<dyn Fn(usize, usize) + Send + Sync> = Arc::new(move |_k, _n| {

@@ -86,7 +86,7 @@ pub fn render_png(sim: &Simulation) -> Result<Vec<u8>> {
     if !sim.model().plates.is_empty() {
         return render_plates_png(sim);
     }
-    let title = format!("deformed ({} steps, {})", sim.model().steps, sim.model().solver.mode);
+    let title = format!("deformed ({} steps, {})", sim.model().load.steps, sim.model().solver.mode);
     render_rest_and_deformed(&SurfaceResult::of_simulation(sim), &title)
 }
 

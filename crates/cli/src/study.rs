@@ -181,16 +181,16 @@ pub fn run_study(scene: &Scene, grid: &Grid, progress: &dyn Fn(usize, usize)) ->
     let scene = &scene;
     let max_steps = grid.steps.iter().copied().max().unwrap_or(1);
     let mut reference_scene = scene.clone();
-    reference_scene.steps = max_steps;
-    reference_scene.tolerance = None;
+    reference_scene.load.steps = max_steps;
+    reference_scene.load.tolerance = None;
     reference_scene.solver.mode = Mode::Nonlinear;
     reference_scene.solver.stepping = Stepping::Heun;
     reference_scene.solver.precision = Precision::F64;
     reference_scene.solver.backend = Backend::Structured;
     // Warm-up (thread pools, page faults) so the first measured point is not penalized.
     let mut warm = scene.clone();
-    warm.steps = 1;
-    warm.tolerance = None;
+    warm.load.steps = 1;
+    warm.load.tolerance = None;
     warm.solver.backend = Backend::Structured;
     let _ = roundtrip(warm, &RunOptions::default());
     let reference_run = roundtrip(reference_scene.clone(), &RunOptions::default())?;
@@ -256,8 +256,8 @@ fn grid_configs(
                             .map(|&t| (4, Some(t)));
                         for (steps, tolerance) in fixed.chain(adaptive) {
                             let mut s = scene.clone();
-                            s.steps = steps;
-                            s.tolerance = tolerance;
+                            s.load.steps = steps;
+                            s.load.tolerance = tolerance;
                             s.solver.mode = mode;
                             s.solver.stepping = stepping;
                             s.solver.precision = precision;
@@ -280,7 +280,7 @@ fn grid_configs(
 /// Why a grid point is not run, if it is not.
 fn skip_reason(s: &Scene, grid: &Grid, n: usize) -> Option<String> {
     let (mode, backend) = (s.solver.mode, s.solver.backend);
-    let costly = s.tolerance.is_some() || s.steps > grid.dense_refactor_max_steps;
+    let costly = s.load.tolerance.is_some() || s.load.steps > grid.dense_refactor_max_steps;
     if s.ffm.fibers == FiberModel::Projected {
         if s.solver.precision != Precision::F64 {
             return Some("projected fibers factor in f64 only".into());
@@ -393,8 +393,8 @@ fn config_of(s: &Scene) -> Config {
     Config {
         mode: s.solver.mode,
         stepping: s.solver.stepping,
-        steps: s.steps,
-        tolerance: s.tolerance,
+        steps: s.load.steps,
+        tolerance: s.load.tolerance,
         precision: s.solver.precision,
         backend: s.solver.backend,
         fibers: s.ffm.fibers,

@@ -45,7 +45,7 @@ pub struct ProbeBody {
 pub fn linearized(scene: &Model) -> Model {
     let mut s = scene.clone();
     s.solver.mode = Mode::Paper;
-    s.steps = 1;
+    s.load.steps = 1;
     s.solver.backend = Backend::Structured;
     s.solver.precision = Precision::F64;
     s

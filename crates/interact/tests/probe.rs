@@ -45,10 +45,10 @@ fn sphere(method: ConstraintMethod) -> Model {
     let mut scene = Model::from_mesh("sphere", file, material);
     let rest = scene.rest_positions();
     scene.constraints.fix_selected(&Selector::Above { axis: 1, value: 0.8 }, &rest, [true; 3]).unwrap();
-    scene.gravity = [0.0, -10.0, 0.0];
+    scene.load.gravity = [0.0, -10.0, 0.0];
     let vertex = mesh_index(&scene, 3);
-    scene.forces.push(PointForce { vertex, value: [-300.0; 3], timing: ForceTiming::Last });
-    scene.steps = 10;
+    scene.load.forces.push(PointForce { vertex, value: [-300.0; 3], timing: ForceTiming::Last });
+    scene.load.steps = 10;
     scene.solver.backend = Backend::Structured;
     scene.solver.mode = Mode::Paper;
     scene.solver.constraints = method;
@@ -77,7 +77,7 @@ fn mesh_index(scene: &Model, file_vertex: usize) -> usize {
 fn full_solve(scene: &Model, extra: &[(usize, Vec3)]) -> Vec<Vec3> {
     let mut s = linearized(scene);
     for &(vertex, value) in extra {
-        s.forces.push(PointForce { vertex, value, timing: ForceTiming::Last });
+        s.load.forces.push(PointForce { vertex, value, timing: ForceTiming::Last });
     }
     let mut sim = Simulation::new(s).expect("the sphere assembles");
     sim.run(&RunOptions::default()).expect("the full solve succeeds");

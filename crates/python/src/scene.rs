@@ -70,9 +70,9 @@ impl NativeScene {
             let mut scene = rebuilt;
             scene.model.name = old.name.clone();
             scene.model.material = old.material.clone();
-            scene.model.gravity = old.gravity;
-            scene.model.steps = old.steps;
-            scene.model.tolerance = old.tolerance;
+            scene.model.load.gravity = old.load.gravity;
+            scene.model.load.steps = old.load.steps;
+            scene.model.load.tolerance = old.load.tolerance;
             scene.model.guards = old.guards;
             scene.model.solver = old.solver.clone();
             scene.chainmail = old.chainmail.clone();

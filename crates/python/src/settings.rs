@@ -42,9 +42,9 @@ pub(crate) fn get(py: Python<'_>, scene: &Scene, name: &str) -> PyResult<Py<PyAn
     let m = &scene.material;
     let s = &scene.solver;
     match name {
-        "steps" => scene.steps.into_py_any(py),
-        "tolerance" => scene.tolerance.into_py_any(py),
-        "gravity" => (scene.gravity[0], scene.gravity[1], scene.gravity[2]).into_py_any(py),
+        "steps" => scene.load.steps.into_py_any(py),
+        "tolerance" => scene.load.tolerance.into_py_any(py),
+        "gravity" => (scene.load.gravity[0], scene.load.gravity[1], scene.load.gravity[2]).into_py_any(py),
         "young" if m.fiber_modulus.iter().all(|&y| y == m.fiber_modulus[0]) => m.fiber_modulus[0].into_py_any(py),
         "young" => (m.fiber_modulus[0], m.fiber_modulus[1], m.fiber_modulus[2]).into_py_any(py),
         "surface_tension" => m.surface_tension.into_py_any(py),
@@ -104,17 +104,17 @@ pub(crate) fn set(scene: &mut Scene, name: &str, v: &Bound<'_, PyAny>) -> PyResu
             if !(1..=MAX_STEPS as i64).contains(&n) {
                 return Err(error(format!("steps: must be between 1 and {MAX_STEPS}, got {n}")));
             }
-            scene.steps = n as usize;
+            scene.load.steps = n as usize;
         }
         "tolerance" => {
-            scene.tolerance = if v.is_none() {
+            scene.load.tolerance = if v.is_none() {
                 None
             } else {
                 let t = number(v, name)?;
                 Some(checked(name, t, "between 0 and 1", t.is_finite() && t > 0.0 && t < 1.0)?)
             };
         }
-        "gravity" => scene.gravity = vec3(v, "gravity")?,
+        "gravity" => scene.load.gravity = vec3(v, "gravity")?,
         "young" => {
             let young = match number(v, name) {
                 Ok(y) => [y; 3],

@@ -77,10 +77,10 @@ pub(crate) fn build(
     let plates = plates(&spec.plate, &vertices)?;
     let mut model = Model::new(name, shape, material);
     model.constraints = constraints;
-    model.gravity = gravity;
-    model.forces = forces;
-    model.steps = steps;
-    model.tolerance = tolerance;
+    model.load.gravity = gravity;
+    model.load.forces = forces;
+    model.load.steps = steps;
+    model.load.tolerance = tolerance;
     model.guards = guards;
     model.plates = plates;
     model.solver = solver;

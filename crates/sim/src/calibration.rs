@@ -40,8 +40,8 @@ pub fn calibrate(model: &Model, max_memory: Option<u64>) -> Result<Calibration> 
     ffm.ffm.calibrate = false;
     ffm.solver.method = Method::Ffm;
     ffm.solver.mode = Mode::Paper;
-    ffm.steps = 1;
-    ffm.tolerance = None;
+    ffm.load.steps = 1;
+    ffm.load.tolerance = None;
     // The probe run: a fiber modulus numerically equal to E (the answer scales with its
     // inverse, so any value would do).
     ffm.material.fiber_modulus = [tissue.young; 3];

@@ -97,15 +97,15 @@ impl fmt::Display for Ineffective {
 /// reported: a [`Model`] keeps the merged constraints, not the tables they came from.
 pub fn ineffective(scene: &Model) -> Vec<Ineffective> {
     let mut found = Vec::new();
-    let has_gravity = scene.gravity.iter().any(|&g| g != 0.0);
+    let has_gravity = scene.load.gravity.iter().any(|&g| g != 0.0);
     let fem = scene.solver.method == Method::Fem;
     // FFM's gravity acts through the fluid's density, the FEM's through the tissue's.
     let density = if fem { scene.tissue.map(|t| t.density).unwrap_or(0.0) } else { scene.material.density };
     if has_gravity && density == 0.0 {
         found.push(if fem {
-            Ineffective::GravityWithoutTissueDensity { acceleration: scene.gravity }
+            Ineffective::GravityWithoutTissueDensity { acceleration: scene.load.gravity }
         } else {
-            Ineffective::GravityWithoutDensity { acceleration: scene.gravity }
+            Ineffective::GravityWithoutDensity { acceleration: scene.load.gravity }
         });
     }
     // A density FFM took from `[tissue]` (its fibers calibrated) describes the tissue; it
@@ -124,7 +124,7 @@ pub fn ineffective(scene: &Model) -> Vec<Ineffective> {
     }
     let axes = if matches!(scene.shape, Shape::Polygon(_)) { 2 } else { 3 };
     let n = scene.constraints.n_vertices();
-    for (k, force) in scene.forces.iter().enumerate() {
+    for (k, force) in scene.load.forces.iter().enumerate() {
         let vertex = match &scene.shape {
             Shape::Surface(m) => m.to_file.get(force.vertex).map(|&f| f as usize).unwrap_or(force.vertex),
             Shape::Polygon(_) => force.vertex,

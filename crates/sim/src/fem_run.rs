@@ -78,7 +78,10 @@ pub fn fixed_axes(model: &Model) -> Result<Vec<[bool; 3]>> {
 /// The model's loads in full: gravity and every point force (their timing is a stepping
 /// matter; the linear FEM applies the whole load at once).
 pub fn full_loads(model: &Model) -> Loads {
-    Loads { gravity: model.gravity, point_forces: model.forces.iter().map(|f| (f.vertex, f.value)).collect() }
+    Loads {
+        gravity: model.load.gravity,
+        point_forces: model.load.forces.iter().map(|f| (f.vertex, f.value)).collect(),
+    }
 }
 
 /// Builds the model's finite-element body (voxelized, assembled, factored), refusing from

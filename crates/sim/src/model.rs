@@ -24,6 +24,27 @@ pub struct PointForce {
     pub timing: ForceTiming,
 }
 
+/// The loads of a model and how they are stepped.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Load {
+    /// Final acceleration, reached in `steps` equal increments.
+    pub gravity: Vec3,
+    /// Point forces.
+    pub forces: Vec<PointForce>,
+    /// Number of load steps (with `tolerance`: the first step is 1/steps of the load).
+    pub steps: usize,
+    /// Adaptive load steps: the largest error estimate of a step, relative to the step's
+    /// displacement (`[load] tolerance`); `None`: `steps` equal steps.
+    pub tolerance: Option<f64>,
+}
+
+impl Default for Load {
+    /// No loads, one step.
+    fn default() -> Self {
+        Self { gravity: [0.0; 3], forces: vec![], steps: 1, tolerance: None }
+    }
+}
+
 /// Solver choices.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SolverOptions {
@@ -87,15 +108,8 @@ pub struct Model {
     pub material: Material,
     /// Constraints (per vertex and axis).
     pub constraints: Constraints,
-    /// Final acceleration, reached in `steps` equal increments.
-    pub gravity: Vec3,
-    /// Point forces.
-    pub forces: Vec<PointForce>,
-    /// Number of load steps (with `tolerance`: the first step is 1/steps of the load).
-    pub steps: usize,
-    /// Adaptive load steps: the largest error estimate of a step, relative to the step's
-    /// displacement (`[load] tolerance`); `None`: `steps` equal steps.
-    pub tolerance: Option<f64>,
+    /// The loads and how they are stepped (`[gravity]`, `[[force]]`, `[load]`).
+    pub load: Load,
     /// Step guards (`[guards]`).
     pub guards: Guards,
     /// Rigid plates (`[[plate]]`), moving along their normals over the load.
@@ -155,10 +169,7 @@ impl Model {
             shape,
             material,
             constraints: Constraints::new(n),
-            gravity: [0.0; 3],
-            forces: vec![],
-            steps: 1,
-            tolerance: None,
+            load: Load::default(),
             guards: Guards::default(),
             plates: vec![],
             solver: SolverOptions::default(),

@@ -170,7 +170,7 @@ impl Costs {
             n,
             faces,
             d,
-            steps: scene.steps as f64,
+            steps: scene.load.steps as f64,
             evaluations: if solver.stepping == Stepping::Heun { 2.0 } else { 1.0 },
             blocks,
             block_bytes: blocks * n * n * 8.0,
@@ -322,13 +322,13 @@ fn load_stages(scene: &Model, c: &Costs) -> Vec<PlannedStage> {
     let Costs { n, faces, d, steps, evaluations, block_bytes, dense, .. } = *c;
     let solver = &scene.solver;
     let mut st = Vec::new();
-    let hydrostatic = scene.material.density > 0.0 && scene.gravity != [0.0; 3];
-    let forces = !scene.forces.is_empty();
+    let hydrostatic = scene.material.density > 0.0 && scene.load.gravity != [0.0; 3];
+    let forces = !scene.load.forces.is_empty();
     let loads_reason = match (hydrostatic, forces) {
-        (true, true) => format!("hydrostatic pressure and {} point force(s)", scene.forces.len()),
+        (true, true) => format!("hydrostatic pressure and {} point force(s)", scene.load.forces.len()),
         (true, false) => "hydrostatic pressure rho a h S".into(),
-        (false, true) => format!("{} point force(s)", scene.forces.len()),
-        (false, false) if scene.gravity != [0.0; 3] => {
+        (false, true) => format!("{} point force(s)", scene.load.forces.len()),
+        (false, false) if scene.load.gravity != [0.0; 3] => {
             "nothing acts: gravity acts through the fluid, and [fluid] density is 0".into()
         }
         (false, false) => "nothing acts: no gravity, no point forces".into(),

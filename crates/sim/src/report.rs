@@ -213,12 +213,12 @@ impl Report {
                 fibers_kept: sim.fibers().kept(),
             },
             load: StepFacts {
-                steps: scene.steps,
-                tolerance: scene.tolerance,
+                steps: scene.load.steps,
+                tolerance: scene.load.tolerance,
                 steps_taken: sim.step_stats().taken,
                 steps_rejected: sim.step_stats().rejected,
                 steps_skipped: sim.step_stats().skipped,
-                error_estimate: scene.tolerance.map(|_| {
+                error_estimate: scene.load.tolerance.map(|_| {
                     sim.step_stats().error_estimate
                         / disp.iter().copied().fold(0.0, f64::max).max(f64::MIN_POSITIVE)
                 }),
@@ -314,7 +314,7 @@ pub struct RoundTrip {
 /// adaptive steps when the scene sets a `tolerance`.
 pub fn roundtrip(model: impl Into<crate::Model>, opts: &crate::RunOptions) -> crate::Result<RoundTrip> {
     let scene: crate::Model = model.into();
-    let steps = scene.steps;
+    let steps = scene.load.steps;
     let mut sim = Simulation::new(scene)?;
     sim.run(opts)?;
     let compress_seconds = sim.elapsed();
@@ -329,7 +329,7 @@ pub fn roundtrip(model: impl Into<crate::Model>, opts: &crate::RunOptions) -> cr
     let s = sim.model();
     Ok(RoundTrip {
         steps,
-        tolerance: s.tolerance,
+        tolerance: s.load.tolerance,
         steps_taken: sim.step_stats().taken,
         mode: s.solver.mode,
         stepping: s.solver.stepping,

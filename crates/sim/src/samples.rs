@@ -17,7 +17,7 @@ pub fn hanging_sphere(level: u32) -> Result<Model> {
     let mut scene = Model::from_mesh(format!("sphere-{n}"), file, Material::default());
     let positions = scene.rest_positions();
     scene.constraints.fix_selected(&Selector::Above { axis: 1, value: 0.8 }, &positions, [true; 3])?;
-    scene.gravity = [0.0, -10.0, 0.0];
+    scene.load.gravity = [0.0, -10.0, 0.0];
     scene.solver.constraints = ConstraintKind::Eliminate;
     Ok(scene)
 }

@@ -23,7 +23,7 @@ fn fem_sphere() -> Model {
     let mut m = sphere(ConstraintKind::Eliminate);
     m.tissue = Some(fibfluid_fem::Tissue::new(5e4, 0.45, 1000.0).unwrap());
     m.fem.resolution = 12;
-    m.forces.clear();
+    m.load.forces.clear();
     m
 }
 

@@ -54,6 +54,7 @@ impl Simulation {
         let (lambda, last) = (self.state.load_factor, self.state.last_forces);
         let forces: Vec<(usize, Vec3)> = self
             .model
+            .load
             .forces
             .iter()
             .map(|f| {
@@ -65,8 +66,8 @@ impl Simulation {
             })
             .collect();
         let loads = Loads {
-            acceleration: scale(self.model.gravity, lambda),
-            down: Some(self.model.gravity),
+            acceleration: scale(self.model.load.gravity, lambda),
+            down: Some(self.model.load.gravity),
             density: self.model.material.density,
             forces: &forces,
         };

@@ -145,7 +145,7 @@ impl Simulation {
     ) -> Result<Vec<f64>> {
         let loads = Loads {
             acceleration: da,
-            down: Some(self.model.gravity),
+            down: Some(self.model.load.gravity),
             density: self.model.material.density,
             forces,
         };

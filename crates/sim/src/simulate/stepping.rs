@@ -15,9 +15,9 @@ impl Simulation {
     /// Runs the scene's loads to full: `steps` equal steps, or adaptive steps when the
     /// scene sets a `tolerance`.
     pub fn run(&mut self, opts: &RunOptions) -> Result<()> {
-        match self.model.tolerance {
+        match self.model.load.tolerance {
             Some(tolerance) => self.adaptive(Direction::Load, tolerance, opts),
-            None => self.run_steps(self.model.steps, Direction::Load, opts),
+            None => self.run_steps(self.model.load.steps, Direction::Load, opts),
         }
     }
 
@@ -52,9 +52,9 @@ impl Simulation {
     /// Removes the loads again: the reverse of [`run`](Self::run), with the same kind of
     /// steps (equal ones, or adaptive ones when the scene sets a `tolerance`).
     pub fn unload(&mut self, opts: &RunOptions) -> Result<()> {
-        match self.model.tolerance {
+        match self.model.load.tolerance {
             Some(tolerance) => self.adaptive(Direction::Unload, tolerance, opts),
-            None => self.run_steps(self.model.steps, Direction::Unload, opts),
+            None => self.run_steps(self.model.load.steps, Direction::Unload, opts),
         }
     }
 
@@ -78,7 +78,7 @@ impl Simulation {
             Ramp,
             Last,
         }
-        let has_last = self.model.forces.iter().any(|f| f.timing == ForceTiming::Last);
+        let has_last = self.model.load.forces.iter().any(|f| f.timing == ForceTiming::Last);
         let (sign, phases) = match (direction, has_last) {
             (Direction::Load, true) => (1.0, vec![Phase::Ramp, Phase::Last]),
             (Direction::Unload, true) => (-1.0, vec![Phase::Last, Phase::Ramp]),
@@ -86,7 +86,7 @@ impl Simulation {
             (Direction::Unload, false) => (-1.0, vec![Phase::Ramp]),
         };
         let count = phases.len();
-        let mut h = 1.0 / self.model.steps.max(1) as f64;
+        let mut h = 1.0 / self.model.load.steps.max(1) as f64;
         for (k, phase) in phases.into_iter().enumerate() {
             let (lambda0, last0) = (self.state.load_factor, self.state.last_forces);
             let mut done = 0.0;
@@ -138,6 +138,7 @@ impl Simulation {
     pub(super) fn increment(&self, ramp: f64, last: f64, to: f64, last_to: f64) -> Increment {
         let forces = self
             .model
+            .load
             .forces
             .iter()
             .filter_map(|f| {
@@ -148,11 +149,12 @@ impl Simulation {
                 (k != 0.0).then(|| (f.vertex, scale(f.value, k)))
             })
             .collect();
-        Increment { da: scale(self.model.gravity, ramp), forces, prescribed: ramp, to, last_to }
+        Increment { da: scale(self.model.load.gravity, ramp), forces, prescribed: ramp, to, last_to }
     }
 
     pub(super) fn last_forces(&self, fraction: f64) -> Vec<(usize, Vec3)> {
         self.model
+            .load
             .forces
             .iter()
             .filter(|f| f.timing == ForceTiming::Last)
