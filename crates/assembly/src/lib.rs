@@ -35,14 +35,22 @@ mod system;
 pub use body::Body;
 pub use constraints::{ConstraintKind, ConstraintMethod, Constraints, DEFAULT_PENALTY, Selector};
 pub use loads::{Loads, depths, load_vector};
-pub use material::{KERNEL_EXPONENT_RANGE, Material, PAPER_KERNEL_EXPONENT, StiffnessLaw};
+pub use material::{KERNEL_EXPONENT_RANGE, Material, MaterialParameter, PAPER_KERNEL_EXPONENT, StiffnessLaw};
 pub use projected::{ProjectedSystem, assemble_projected, projected_stiffness};
 pub use system::{AssemblyOptions, AssemblyStats, PressureScaling, System, assemble};
 
 /// What can go wrong while assembling.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum AssemblyError {
-    /// A material parameter is out of range.
+    /// A material parameter is out of its range.
+    #[error("material: {parameter} must be {}, got {value}", parameter.rule())]
+    InvalidMaterial {
+        /// The parameter.
+        parameter: MaterialParameter,
+        /// Its value.
+        value: f64,
+    },
+    /// A material the method cannot use as a whole.
     #[error("material: {0}")]
     Material(String),
     /// A constraint refers to a vertex that does not exist.

@@ -100,41 +100,79 @@ impl Material {
         self.fiber_modulus[0] == self.fiber_modulus[1] && self.fiber_modulus[1] == self.fiber_modulus[2]
     }
 
-    /// Checks ranges: Y > 0, gamma >= 0, rho >= 0, all finite.
+    /// Checks every parameter's range ([`MaterialParameter::check`], the one place the
+    /// ranges are written): fiber modulus > 0, gamma >= 0, rho >= 0, stiffening >= 0, all
+    /// finite, kernel exponent in [`KERNEL_EXPONENT_RANGE`].
     pub fn check(&self) -> Result<()> {
-        for (c, y) in self.fiber_modulus.iter().enumerate() {
-            if !(y.is_finite() && *y > 0.0) {
-                return Err(AssemblyError::Material(format!(
-                    "fiber modulus along {} must be positive and finite, got {y}",
-                    crate::AXES[c]
-                )));
-            }
+        for (axis, y) in self.fiber_modulus.iter().enumerate() {
+            MaterialParameter::FiberModulus { axis }.check(*y)?;
         }
-        if !(self.surface_tension.is_finite() && self.surface_tension >= 0.0) {
-            return Err(AssemblyError::Material(format!(
-                "surface tension must be >= 0 and finite, got {}",
-                self.surface_tension
-            )));
+        MaterialParameter::SurfaceTension.check(self.surface_tension)?;
+        MaterialParameter::Density.check(self.density)?;
+        if let StiffnessLaw::Quadratic { c } = self.law {
+            MaterialParameter::Stiffening.check(c)?;
         }
-        if !(self.density.is_finite() && self.density >= 0.0) {
-            return Err(AssemblyError::Material(format!(
-                "density must be >= 0 and finite, got {}",
-                self.density
-            )));
-        }
-        if let StiffnessLaw::Quadratic { c } = self.law
-            && !(c.is_finite() && c >= 0.0)
-        {
-            return Err(AssemblyError::Material(format!("stiffening coefficient must be >= 0, got {c}")));
-        }
-        if !KERNEL_EXPONENT_RANGE.contains(&self.kernel_exponent) {
-            return Err(AssemblyError::Material(format!(
-                "kernel exponent must be in [{}, {}], got {}",
-                KERNEL_EXPONENT_RANGE.start(),
-                KERNEL_EXPONENT_RANGE.end(),
-                self.kernel_exponent
-            )));
-        }
+        MaterialParameter::KernelExponent.check(self.kernel_exponent)?;
         Ok(())
+    }
+}
+
+/// A parameter of FFM's [`Material`], as range errors name it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum MaterialParameter {
+    /// The fiber modulus along one axis (0, 1, 2 for x, y, z).
+    FiberModulus {
+        /// The axis.
+        axis: usize,
+    },
+    /// The surface tension gamma.
+    SurfaceTension,
+    /// The fluid density rho.
+    Density,
+    /// The quadratic stiffening coefficient.
+    Stiffening,
+    /// The bulk fibers' kernel exponent.
+    KernelExponent,
+}
+
+impl MaterialParameter {
+    /// The rule a value must meet, in words (`positive`, `>= 0`, `in [0.5, 6]`); a value
+    /// must also be finite.
+    pub fn rule(self) -> &'static str {
+        match self {
+            Self::FiberModulus { .. } => "positive",
+            Self::SurfaceTension | Self::Density | Self::Stiffening => ">= 0",
+            Self::KernelExponent => "in [0.5, 6]",
+        }
+    }
+
+    /// Whether `value` meets the rule.
+    pub fn accepts(self, value: f64) -> bool {
+        match self {
+            Self::FiberModulus { .. } => value.is_finite() && value > 0.0,
+            Self::SurfaceTension | Self::Density | Self::Stiffening => value.is_finite() && value >= 0.0,
+            Self::KernelExponent => KERNEL_EXPONENT_RANGE.contains(&value),
+        }
+    }
+
+    /// `value` when it meets the rule, else [`AssemblyError::InvalidMaterial`].
+    pub fn check(self, value: f64) -> Result<f64> {
+        if self.accepts(value) {
+            Ok(value)
+        } else {
+            Err(AssemblyError::InvalidMaterial { parameter: self, value })
+        }
+    }
+}
+
+impl std::fmt::Display for MaterialParameter {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::FiberModulus { axis } => write!(f, "fiber modulus along {}", crate::AXES[*axis % 3]),
+            Self::SurfaceTension => f.write_str("surface tension"),
+            Self::Density => f.write_str("density"),
+            Self::Stiffening => f.write_str("stiffening coefficient"),
+            Self::KernelExponent => f.write_str("kernel exponent"),
+        }
     }
 }

@@ -140,7 +140,6 @@ impl FemBody {
         element: Element,
         ordering: Ordering,
     ) -> Result<Self> {
-        tissue.validate()?;
         if fixed.len() != grid.n_vertices() {
             return Err(FemError::LengthMismatch {
                 what: "fixed",
@@ -285,7 +284,7 @@ impl FemBody {
             return Err(FemError::NonFinite { what: "gravity" });
         }
         let mut f = vec![0.0; self.n_free];
-        let node_mass = self.tissue.density * self.grid.cell_size().powi(3) / 8.0;
+        let node_mass = self.tissue.density() * self.grid.cell_size().powi(3) / 8.0;
         if loads.gravity != [0.0; 3] {
             for (nodes, fill) in self.grid.cell_nodes().iter().zip(self.grid.fill()) {
                 for &n in nodes {

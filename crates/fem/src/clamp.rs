@@ -35,7 +35,7 @@ pub const CLAMP_PENALTY: f64 = 10.0;
 
 /// The penalty per unit area of fixed surface: `CLAMP_PENALTY * E / h`.
 pub(crate) fn clamp_stiffness(tissue: &Tissue, h: f64) -> f64 {
-    CLAMP_PENALTY * tissue.young / h
+    CLAMP_PENALTY * tissue.young() / h
 }
 
 /// One penalty term `beta * area * (w . u_axis)^2 / 2`: an embedded surface point held at 0

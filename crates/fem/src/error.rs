@@ -8,8 +8,8 @@ pub enum FemError {
     /// A material parameter is out of its range.
     #[error("tissue parameter {name} = {value} is invalid: {reason}")]
     InvalidTissue {
-        /// The parameter (`young`, `poisson` or `density`).
-        name: &'static str,
+        /// The parameter.
+        name: crate::TissueParameter,
         /// Its value.
         value: f64,
         /// What is required.

@@ -62,4 +62,4 @@ pub use grid::{
 };
 pub use held::{FemHold, HeldResponse};
 pub use ordering::{ND_LEAF, Ordering};
-pub use tissue::Tissue;
+pub use tissue::{Tissue, TissueParameter};

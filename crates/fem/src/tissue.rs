@@ -4,15 +4,41 @@ use serde::Serialize;
 
 use crate::error::{FemError, Result};
 
-/// An isotropic linear-elastic material, SI units.
+/// A parameter of a [`Tissue`], as errors name it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum TissueParameter {
+    /// Young's modulus E (Pa).
+    Young,
+    /// Poisson's ratio nu.
+    Poisson,
+    /// Mass density rho (kg/m^3).
+    Density,
+}
+
+impl TissueParameter {
+    /// The parameter's key in a scene's `[tissue]` table.
+    pub fn key(self) -> &'static str {
+        match self {
+            Self::Young => "young",
+            Self::Poisson => "poisson",
+            Self::Density => "density",
+        }
+    }
+}
+
+impl std::fmt::Display for TissueParameter {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.key())
+    }
+}
+
+/// An isotropic linear-elastic material, SI units. Its fields are private: a `Tissue` is
+/// valid by construction ([`Tissue::new`] is the one place its ranges are checked).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Tissue {
-    /// Young's modulus E, Pa (finite, > 0).
-    pub young: f64,
-    /// Poisson's ratio nu, in (-1, 0.5).
-    pub poisson: f64,
-    /// Mass density rho, kg/m^3 (finite, >= 0).
-    pub density: f64,
+    young: f64,
+    poisson: f64,
+    density: f64,
 }
 
 impl Tissue {
@@ -27,17 +53,36 @@ impl Tissue {
         Ok(t)
     }
 
-    /// Checks the ranges of [`Tissue::new`] (for a value built from its public fields).
-    pub fn validate(&self) -> Result<()> {
+    /// Young's modulus E, Pa (finite, > 0).
+    pub fn young(&self) -> f64 {
+        self.young
+    }
+
+    /// Poisson's ratio nu, in (-1, 0.5).
+    pub fn poisson(&self) -> f64 {
+        self.poisson
+    }
+
+    /// Mass density rho, kg/m^3 (finite, >= 0).
+    pub fn density(&self) -> f64 {
+        self.density
+    }
+
+    /// The same tissue with another density (validated as [`Tissue::new`] does).
+    pub fn with_density(&self, density: f64) -> Result<Self> {
+        Self::new(self.young, self.poisson, density)
+    }
+
+    fn validate(&self) -> Result<()> {
         let bad = |name, value, reason| Err(FemError::InvalidTissue { name, value, reason });
         if !(self.young.is_finite() && self.young > 0.0) {
-            return bad("young", self.young, "must be finite and > 0");
+            return bad(TissueParameter::Young, self.young, "must be finite and > 0");
         }
         if !(self.poisson > -1.0 && self.poisson < 0.5) {
-            return bad("poisson", self.poisson, "must lie in (-1, 0.5)");
+            return bad(TissueParameter::Poisson, self.poisson, "must lie in (-1, 0.5)");
         }
         if !(self.density.is_finite() && self.density >= 0.0) {
-            return bad("density", self.density, "must be finite and >= 0");
+            return bad(TissueParameter::Density, self.density, "must be finite and >= 0");
         }
         Ok(())
     }

@@ -33,8 +33,8 @@ fn clamp_slip_matches_its_bound() {
         }
         area += a;
     }
-    let weight = tissue.density * g * grid.filled_volume();
-    let predicted = weight * h / (CLAMP_PENALTY * tissue.young * area);
+    let weight = tissue.density() * g * grid.filled_volume();
+    let predicted = weight * h / (CLAMP_PENALTY * tissue.young() * area);
     let slip = -integral / area;
     let sag = -s.surface_displacements.iter().map(|u| u[1]).sum::<f64>() / pos.len() as f64;
     eprintln!("clamp slip {slip:.4e}, predicted {predicted:.4e}, mean sag {sag:.4e}");

@@ -16,7 +16,7 @@ fn bad_tissue_is_refused() {
         (1.0, 0.3, -1.0, "density"),
     ] {
         match Tissue::new(e, nu, rho) {
-            Err(FemError::InvalidTissue { name: n, .. }) => assert_eq!(n, name),
+            Err(FemError::InvalidTissue { name: n, .. }) => assert_eq!(n.key(), name),
             other => panic!("({e}, {nu}, {rho}): {other:?}"),
         }
     }

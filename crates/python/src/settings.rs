@@ -1,7 +1,7 @@
 //! A scene's settings by name: read as Python values, written with the checks a scene
 //! file's keys get (the same ranges and the same choice parsers).
 
-use fibfluid_assembly::{KERNEL_EXPONENT_RANGE, StiffnessLaw};
+use fibfluid_assembly::{MaterialParameter, StiffnessLaw};
 use fibfluid_scene::Scene;
 use fibfluid_sim::{Backend, Choice, ConstraintKind, FiberModel, MAX_STEPS, Mode, Precision, Stepping};
 use pyo3::IntoPyObjectExt;
@@ -45,7 +45,9 @@ pub(crate) fn get(py: Python<'_>, scene: &Scene, name: &str) -> PyResult<Py<PyAn
         "steps" => scene.load.steps.into_py_any(py),
         "tolerance" => scene.load.tolerance.into_py_any(py),
         "gravity" => (scene.load.gravity[0], scene.load.gravity[1], scene.load.gravity[2]).into_py_any(py),
-        "young" if m.fiber_modulus.iter().all(|&y| y == m.fiber_modulus[0]) => m.fiber_modulus[0].into_py_any(py),
+        "young" if m.fiber_modulus.iter().all(|&y| y == m.fiber_modulus[0]) => {
+            m.fiber_modulus[0].into_py_any(py)
+        }
         "young" => (m.fiber_modulus[0], m.fiber_modulus[1], m.fiber_modulus[2]).into_py_any(py),
         "surface_tension" => m.surface_tension.into_py_any(py),
         "density" => m.density.into_py_any(py),
@@ -84,6 +86,11 @@ fn checked(name: &str, value: f64, rule: &'static str, ok: bool) -> PyResult<f64
     if ok { Ok(value) } else { Err(error(format!("{name}: must be {rule}, got {value}"))) }
 }
 
+/// Checks a material parameter by the material's own rule ([`MaterialParameter::check`]).
+fn material_value(name: &str, value: f64, parameter: MaterialParameter) -> PyResult<f64> {
+    checked(name, value, parameter.rule(), parameter.accepts(value))
+}
+
 fn choice<T: Choice>(v: &Bound<'_, PyAny>, name: &str) -> PyResult<T> {
     let s: String =
         v.extract().map_err(|_| error(format!("{name}: expected a string, got {}", type_name(v))))?;
@@ -120,35 +127,35 @@ pub(crate) fn set(scene: &mut Scene, name: &str, v: &Bound<'_, PyAny>) -> PyResu
                 Ok(y) => [y; 3],
                 Err(_) => vec3(v, "young (a number or three numbers)")?,
             };
-            for (c, y) in young.iter().enumerate().take(axes) {
-                if !(y.is_finite() && *y > 0.0) {
-                    let axis = fibfluid_geometry::AXES[c];
-                    return Err(error(format!("young: must be positive, got {y} along {axis}")));
+            for (axis, y) in young.iter().enumerate().take(axes) {
+                let parameter = MaterialParameter::FiberModulus { axis };
+                if !parameter.accepts(*y) {
+                    let axis = fibfluid_geometry::AXES[axis];
+                    return Err(error(format!("young: must be {}, got {y} along {axis}", parameter.rule())));
                 }
             }
             scene.material.fiber_modulus = young;
         }
         "surface_tension" => {
             let g = number(v, name)?;
-            scene.material.surface_tension = checked(name, g, ">= 0", g.is_finite() && g >= 0.0)?;
+            scene.material.surface_tension = material_value(name, g, MaterialParameter::SurfaceTension)?;
         }
         "density" => {
             let d = number(v, name)?;
-            scene.material.density = checked(name, d, ">= 0", d.is_finite() && d >= 0.0)?;
+            scene.material.density = material_value(name, d, MaterialParameter::Density)?;
         }
         "stiffening" => {
             scene.material.law = if v.is_none() {
                 StiffnessLaw::Linear
             } else {
                 let c = number(v, name)?;
-                StiffnessLaw::Quadratic { c: checked(name, c, ">= 0", c.is_finite() && c >= 0.0)? }
+                StiffnessLaw::Quadratic { c: material_value(name, c, MaterialParameter::Stiffening)? }
             };
         }
         "fibers" => scene.ffm.fibers = choice::<FiberModel>(v, name)?,
         "kernel_exponent" => {
             let p = number(v, name)?;
-            scene.material.kernel_exponent =
-                checked(name, p, "in [0.5, 6]", KERNEL_EXPONENT_RANGE.contains(&p))?;
+            scene.material.kernel_exponent = material_value(name, p, MaterialParameter::KernelExponent)?;
         }
         "backend" => {
             let b: Backend = choice(v, name)?;

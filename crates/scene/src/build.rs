@@ -3,9 +3,9 @@
 use std::path::Path;
 
 use fibfluid_assembly::{
-    Constraints, DEFAULT_PENALTY, KERNEL_EXPONENT_RANGE, Material, PAPER_KERNEL_EXPONENT, Selector,
-    StiffnessLaw,
+    Constraints, DEFAULT_PENALTY, Material, MaterialParameter, PAPER_KERNEL_EXPONENT, Selector, StiffnessLaw,
 };
+use fibfluid_fem::TissueParameter;
 use fibfluid_geometry::{MeshFile, Polygon, ReadOptions, load_mesh_with};
 use fibfluid_sim::contact::{Plate, PlateProblem, check_plates};
 use fibfluid_sim::guards::Guards;
@@ -97,9 +97,11 @@ fn tissue(t: TissueToml) -> Result<Tissue, Invalid> {
     Tissue::new(t.young, t.poisson, density).map_err(|e| match e {
         fibfluid_fem::FemError::InvalidTissue { name, value, .. } => {
             let rule = match name {
-                "young" => "finite and > 0 (Pa)",
-                "poisson" => "in (-1, 0.5): 0.5 is the incompressible limit the linear FEM cannot take",
-                _ => "finite and >= 0 (kg/m^3)",
+                TissueParameter::Young => "finite and > 0 (Pa)",
+                TissueParameter::Poisson => {
+                    "in (-1, 0.5): 0.5 is the incompressible limit the linear FEM cannot take"
+                }
+                TissueParameter::Density => "finite and >= 0 (kg/m^3)",
             };
             range(format!("[tissue].{name}"), rule, value)
         }
@@ -171,9 +173,7 @@ fn ffm_material(
     let fibers = choice("[ffm].fibers", ffm.as_ref().and_then(|f| f.fibers.clone()), FiberModel::Paper)?;
     let mut settings = FfmSettings { fibers, calibrate: false };
     let kernel = ffm.as_ref().and_then(|f| f.kernel_exponent).unwrap_or(PAPER_KERNEL_EXPONENT);
-    if !KERNEL_EXPONENT_RANGE.contains(&kernel) {
-        return Err(range("[ffm].kernel_exponent", "in [0.5, 6]", kernel));
-    }
+    let kernel = checked("[ffm].kernel_exponent", MaterialParameter::KernelExponent, kernel)?;
     let with_kernel = |m: Material| Material { kernel_exponent: kernel, ..m };
     let new = ffm.and_then(|f| {
         f.young.map(|young| MaterialToml {
@@ -203,10 +203,10 @@ fn ffm_material(
             settings.calibrate = method != Method::Fem;
             let density = match &fluid {
                 Some(f) => f.density,
-                None => t.density,
+                None => t.density(),
             };
             let placeholder =
-                MaterialToml { young: Young::One(t.young), surface_tension: 0.0, stiffening: None };
+                MaterialToml { young: Young::One(t.young()), surface_tension: 0.0, stiffening: None };
             let mut m = material(placeholder, Some(FluidToml { density }), axes)?;
             if method == Method::Fem {
                 m = Material { density: 0.0, surface_tension: 0.0, ..Material::default() };
@@ -228,28 +228,22 @@ fn material(m: MaterialToml, fluid: Option<FluidToml>, axes: usize) -> Result<Ma
         Young::One(y) => [y; 3],
         Young::Three(y) => y,
     };
-    for (c, y) in young.iter().enumerate().take(axes) {
-        if !(y.is_finite() && *y > 0.0) {
-            return Err(range(
-                "[material].young",
-                "positive",
-                format!("{y} along {}", fibfluid_geometry::AXES[c]),
-            ));
+    for (axis, y) in young.iter().enumerate().take(axes) {
+        let parameter = MaterialParameter::FiberModulus { axis };
+        if !parameter.accepts(*y) {
+            let value = format!("{y} along {}", fibfluid_geometry::AXES[axis]);
+            return Err(range("[material].young", parameter.rule(), value));
         }
     }
-    let gamma = m.surface_tension;
-    if !(gamma.is_finite() && gamma >= 0.0) {
-        return Err(range("[material].surface_tension", ">= 0", gamma));
-    }
+    let gamma = checked("[material].surface_tension", MaterialParameter::SurfaceTension, m.surface_tension)?;
     let law = match m.stiffening {
         None => StiffnessLaw::Linear,
-        Some(c) if c.is_finite() && c >= 0.0 => StiffnessLaw::Quadratic { c },
-        Some(c) => return Err(range("[material].stiffening", ">= 0", c)),
+        Some(c) => {
+            StiffnessLaw::Quadratic { c: checked("[material].stiffening", MaterialParameter::Stiffening, c)? }
+        }
     };
-    let density = fluid.map(|f| f.density).unwrap_or(0.0);
-    if !(density.is_finite() && density >= 0.0) {
-        return Err(range("[fluid].density", ">= 0", density));
-    }
+    let density =
+        checked("[fluid].density", MaterialParameter::Density, fluid.map(|f| f.density).unwrap_or(0.0))?;
     Ok(Material {
         fiber_modulus: young,
         surface_tension: gamma,
@@ -257,6 +251,11 @@ fn material(m: MaterialToml, fluid: Option<FluidToml>, axes: usize) -> Result<Ma
         law,
         kernel_exponent: PAPER_KERNEL_EXPONENT,
     })
+}
+
+/// `value` when `parameter` accepts it (the material's own rule), else a range error on `key`.
+fn checked(key: &str, parameter: MaterialParameter, value: f64) -> Result<f64, Invalid> {
+    parameter.check(value).map_err(|_| range(key, parameter.rule(), value))
 }
 
 /// `[load]`: the step count and the adaptive tolerance.

@@ -100,7 +100,7 @@ pub fn ineffective(scene: &Model) -> Vec<Ineffective> {
     let has_gravity = scene.load.gravity.iter().any(|&g| g != 0.0);
     let fem = scene.solver.method == Method::Fem;
     // FFM's gravity acts through the fluid's density, the FEM's through the tissue's.
-    let density = if fem { scene.tissue.map(|t| t.density).unwrap_or(0.0) } else { scene.material.density };
+    let density = if fem { scene.tissue.map(|t| t.density()).unwrap_or(0.0) } else { scene.material.density };
     if has_gravity && density == 0.0 {
         found.push(if fem {
             Ineffective::GravityWithoutTissueDensity { acceleration: scene.load.gravity }
@@ -110,7 +110,7 @@ pub fn ineffective(scene: &Model) -> Vec<Ineffective> {
     }
     // A density FFM took from `[tissue]` (its fibers calibrated) describes the tissue; it
     // asks for no effect, so its absence of gravity is no mistake.
-    let from_tissue = scene.ffm.calibrate && scene.tissue.is_some_and(|t| t.density == density);
+    let from_tissue = scene.ffm.calibrate && scene.tissue.is_some_and(|t| t.density() == density);
     if !has_gravity && density > 0.0 && !fem && !from_tissue {
         found.push(Ineffective::DensityWithoutGravity { density });
     }

@@ -54,9 +54,9 @@ pub fn box_surface(lo: V3, n: [usize; 3], s: f64) -> (Vec<V3>, Vec<[u32; 3]>) {
 /// `k = 10 (1 + nu) / (12 + 11 nu)`.
 pub fn timoshenko_tip(t: &Tissue, l: f64, b: f64, g: f64) -> f64 {
     let (area, inertia) = (b * b, b.powi(4) / 12.0);
-    let q = t.density * g * area;
-    let k = 10.0 * (1.0 + t.poisson) / (12.0 + 11.0 * t.poisson);
-    q * l.powi(4) / (8.0 * t.young * inertia) + q * l * l / (2.0 * k * t.shear_modulus() * area)
+    let q = t.density() * g * area;
+    let k = 10.0 * (1.0 + t.poisson()) / (12.0 + 11.0 * t.poisson());
+    q * l.powi(4) / (8.0 * t.young() * inertia) + q * l * l / (2.0 * k * t.shear_modulus() * area)
 }
 
 /// Relative L2 distance `|a - b| / |b|` over the listed entries.
