@@ -9,6 +9,7 @@ mod memory_guard;
 mod plates;
 mod scenes;
 mod stepping;
+mod structure;
 mod tools;
 mod units;
 mod volume_properties;

@@ -2,7 +2,7 @@
 //! trip's 1/n behaviour (REFERENCE §4), and the plan (only the stages a scene needs).
 
 use fibfluid::stages::names;
-use fibfluid::{Backend, ConstraintKind};
+use fibfluid::{Backend, ConstraintKind, Stage};
 use fibfluid::{Direction, Mode, Report, RunOptions, Scene, Simulation, Stepping, roundtrip};
 
 fn sphere() -> Scene {
@@ -211,7 +211,22 @@ fn the_report_lists_stages_and_skips() {
     }
     assert!(report.cost.residual_max < 1e-10);
     assert_eq!(report.ffm.fibers_kept, 162 * 161 / 2);
-    assert!(report.cost.stages.iter().all(|s| s.seconds >= 0.0 && s.count >= 1));
+    // The stage times are measured, not made up: the top-level stages fit in the run's wall
+    // time, a sub-stage in its parent, and each stage ran as often as the counters say.
+    let stages = &report.cost.stages;
+    let top: f64 = stages.iter().filter(|s| s.parent.is_none()).map(|s| s.seconds).sum();
+    assert!(
+        top > 0.0 && top <= report.seconds_total,
+        "top-level stages {top} s in a run of {} s",
+        report.seconds_total
+    );
+    for s in stages.iter().filter(|s| s.parent.is_some()) {
+        let parent: f64 = stages.iter().filter(|p| Some(p.name) == s.parent).map(|p| p.seconds).sum();
+        assert!(s.seconds <= parent, "{:?} ({} s) inside {:?} ({parent} s)", s.name, s.seconds, s.parent);
+    }
+    let count = |name| stages.iter().filter(|s| s.name == name).map(|s| s.count).sum::<usize>();
+    assert_eq!(count(Stage::Solve), report.cost.solves);
+    assert_eq!(count(Stage::Factorization), report.cost.factorizations);
 }
 
 /// Every choice has one name, used alike by `FromStr`, `Display` and serde, and an

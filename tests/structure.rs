@@ -69,8 +69,10 @@ fn uses(module: &str, code: &str, modules: &BTreeSet<String>) -> BTreeSet<String
             if at > 0 && (bytes[at - 1].is_ascii_alphanumeric() || bytes[at - 1] == b'_') {
                 continue;
             }
-            let tail: String =
-                code[at + base.len()..].chars().take_while(|c| c.is_alphanumeric() || *c == '_' || *c == ':').collect();
+            let tail: String = code[at + base.len()..]
+                .chars()
+                .take_while(|c| c.is_alphanumeric() || *c == '_' || *c == ':')
+                .collect();
             let mut full: Vec<&str> = match (base, &parent) {
                 ("crate::", _) => vec!["crate"],
                 (_, Some(p)) => p.clone(),
@@ -80,7 +82,9 @@ fn uses(module: &str, code: &str, modules: &BTreeSet<String>) -> BTreeSet<String
             for k in (1..=full.len()).rev() {
                 let candidate = full[..k].join("::");
                 if modules.contains(&candidate) {
-                    if candidate != module && !module.starts_with(&format!("{candidate}::")) && candidate != "crate"
+                    if candidate != module
+                        && !module.starts_with(&format!("{candidate}::"))
+                        && candidate != "crate"
                     {
                         out.insert(candidate);
                     }
@@ -127,8 +131,10 @@ fn no_module_imports_in_a_circle() {
     for src in source_dirs() {
         let mut files = vec![];
         rust_files(&src, &mut files);
-        let texts: BTreeMap<String, String> =
-            files.iter().map(|f| (module_of(&src, f), code_of(&std::fs::read_to_string(f).unwrap()))).collect();
+        let texts: BTreeMap<String, String> = files
+            .iter()
+            .map(|f| (module_of(&src, f), code_of(&std::fs::read_to_string(f).unwrap())))
+            .collect();
         let modules: BTreeSet<String> = texts.keys().cloned().collect();
         let graph: BTreeMap<String, BTreeSet<String>> = texts
             .iter()
@@ -184,7 +190,8 @@ fn oversized(text: &str) -> Vec<String> {
         } else if trimmed.starts_with("pub struct ") && line.trim_end().ends_with('{') {
             let field = format!("{indent}    pub ");
             if let Some(j) = end() {
-                let count = lines[i + 1..j].iter().filter(|l| l.starts_with(&field) && l.contains(':')).count();
+                let count =
+                    lines[i + 1..j].iter().filter(|l| l.starts_with(&field) && l.contains(':')).count();
                 if count > MAX_PUBLIC_FIELDS {
                     out.push(format!("line {}: a struct with {count} public fields", i + 1));
                 }
@@ -214,8 +221,14 @@ fn no_function_or_struct_too_large() {
 fn the_size_check_finds_large_items() {
     let long_fn = format!("fn f() {{\n{}}}\n", "    let x = 1;\n".repeat(MAX_FUNCTION_LINES));
     assert_eq!(oversized(&long_fn).len(), 1);
-    let wide = format!("pub struct S {{\n{}}}\n", (0..16).map(|k| format!("    pub f{k}: u8,\n")).collect::<String>());
+    let wide = format!(
+        "pub struct S {{\n{}}}\n",
+        (0..16).map(|k| format!("    pub f{k}: u8,\n")).collect::<String>()
+    );
     assert_eq!(oversized(&wide).len(), 1);
-    let fine = format!("pub struct S {{\n{}}}\n", (0..15).map(|k| format!("    pub f{k}: u8,\n")).collect::<String>());
+    let fine = format!(
+        "pub struct S {{\n{}}}\n",
+        (0..15).map(|k| format!("    pub f{k}: u8,\n")).collect::<String>()
+    );
     assert!(oversized(&fine).is_empty());
 }

@@ -539,15 +539,29 @@ fn compare_writes_the_documented_keys() {
     names.sort();
     assert_eq!(names, ["ffm", "generalized-chainmail", "tsve-chainmail"]);
     for (name, m) in methods {
-        for k in [
-            "setup_seconds",
-            "memory_bytes",
-            "volume_change_max",
-            "rest_distance_after_release",
-            "error_vs_reference",
-            "worst_vertex_error",
-        ] {
-            assert!(m[k].as_f64().is_some_and(|v| v.is_finite() && v >= 0.0), "{name}.{k}: {}", m[k]);
+        let value = |k: &str| m[k].as_f64().unwrap_or_else(|| panic!("{name}.{k}: {}", m[k]));
+        // Setting a body up takes time and memory; a poke of a tenth of the body's size
+        // neither doubles nor empties its volume, and leaves no vertex a diagonal away from
+        // its base state.
+        assert!(value("setup_seconds") > 0.0 && value("setup_seconds").is_finite(), "{name}");
+        assert!(
+            m["memory_bytes"].as_u64().is_some_and(|b| b > 0),
+            "{name}.memory_bytes: {}",
+            m["memory_bytes"]
+        );
+        assert!((0.0..1.0).contains(&value("volume_change_max")), "{name}.volume_change_max");
+        assert!(
+            (0.0..1.0).contains(&value("rest_distance_after_release")),
+            "{name}.rest_distance_after_release"
+        );
+        if name == "ffm" {
+            // The reference itself, and a linear response: released, it is back exactly.
+            assert_eq!(value("worst_vertex_error"), 0.0);
+            assert!(value("rest_distance_after_release") < 1e-12, "{}", value("rest_distance_after_release"));
+        } else {
+            for k in ["error_vs_reference", "worst_vertex_error"] {
+                assert!(value(k) > 0.0 && value(k).is_finite(), "{name}.{k}: {}", value(k));
+            }
         }
         for k in ["p50", "p99", "max"] {
             assert!(m["latency_us"][k].as_f64().unwrap() > 0.0, "{name}.latency_us.{k}");
