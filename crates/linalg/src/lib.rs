@@ -31,6 +31,7 @@
 // Without a dense backend the shared dense helpers are unused.
 #![cfg_attr(not(any(feature = "faer-lu", feature = "nalgebra-lu", feature = "openblas")), allow(dead_code))]
 
+mod block_view;
 mod choice;
 mod coupled;
 mod dense;
