@@ -27,6 +27,13 @@
 //! [`CoupledCholesky`] solves the same bordered form when the stiffness couples the axes
 //! (a dense dN x dN `K`, the projected fibers): a Cholesky of `K` and the Schur complement
 //! of the border.
+//!
+//! [`SparseCholesky`] factors a sparse symmetric positive definite matrix given by its lower
+//! triangle (faer's supernodal or simplicial Cholesky, the finite-element stiffness). The
+//! symbolic analysis ([`SparseSymbolic`]: fill-reducing ordering, given or AMD, and the
+//! structure of the factor) is kept and shared, so new values on the same pattern cost a
+//! numeric [`refactor`](SparseCholesky::refactor) only; a matrix on another pattern is
+//! refused with a typed error.
 
 // Without a dense backend the shared dense helpers are unused.
 #![cfg_attr(not(any(feature = "faer-lu", feature = "nalgebra-lu", feature = "openblas")), allow(dead_code))]
@@ -43,6 +50,7 @@ mod memory;
 mod prescribed;
 mod residual;
 mod solver;
+mod sparse;
 mod structured;
 pub mod threads;
 
@@ -70,6 +78,7 @@ pub use solver::{
     FactorizationExt, LinearSolver, LinearSolverExt, Precision, Solution, TARGET_RESIDUAL_PER_UNKNOWN,
     componentwise_backward_error,
 };
+pub use sparse::{SparseCholesky, SparseOrdering, SparseSymbolic};
 pub use structured::Structured;
 
 #[cfg(feature = "faer-lu")]
