@@ -120,6 +120,17 @@ pub enum LinalgError {
         /// Its axis (0 = x).
         axis: usize,
     },
+    /// A capacitance matrix (constraints imposed on a kept factorization) is not positive
+    /// definite: the constraint of this row depends on the ones before it.
+    #[error(
+        "the capacitance of {constraints} constraints is not positive definite at constraint {constraint}"
+    )]
+    CapacitanceNotPositiveDefinite {
+        /// The constraint (row of the capacitance) whose pivot failed.
+        constraint: usize,
+        /// How many constraints there are.
+        constraints: usize,
+    },
     /// A sparse matrix is not (numerically) positive definite: the sparse Cholesky
     /// factorization met a non-positive pivot.
     #[error("the sparse matrix is not positive definite (non-positive pivot at elimination step {step})")]

@@ -34,11 +34,18 @@
 //! structure of the factor) is kept and shared, so new values on the same pattern cost a
 //! numeric [`refactor`](SparseCholesky::refactor) only; a matrix on another pattern is
 //! refused with a typed error.
+//!
+//! Constraints imposed on a kept factorization instead of refactoring (held vertices,
+//! contact rows, the finite-element holds) share one capacitance (Sherman–Morrison–Woodbury)
+//! update: [`ComplianceSource`] gives the columns `W = A^-1 E` from any kept factorization,
+//! [`RowCapacitance`] forms, factors and applies `E' W`, and [`CapacitanceFactor`] is the
+//! one small dense Cholesky ([`HeldCapacitance`] and [`PrescribedSet`] build on them).
 
 // Without a dense backend the shared dense helpers are unused.
 #![cfg_attr(not(any(feature = "faer-lu", feature = "nalgebra-lu", feature = "openblas")), allow(dead_code))]
 
 mod block_view;
+mod capacitance;
 mod choice;
 mod coupled;
 mod dense;
@@ -61,6 +68,7 @@ mod nalgebra_lu;
 #[cfg(feature = "openblas")]
 mod openblas_lu;
 
+pub use capacitance::{CapacitanceFactor, ComplianceSource, RowCapacitance, SparseRow, row_dot};
 pub use choice::{Choice, ParseChoiceError};
 pub use coupled::CoupledCholesky;
 pub use error::{LinalgError, Result};

@@ -33,6 +33,7 @@ use fibfluid_linalg::{
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+mod capacitance;
 mod sparse;
 
 const EPS: f64 = f64::EPSILON;

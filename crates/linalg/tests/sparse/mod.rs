@@ -13,10 +13,10 @@ use rand_chacha::ChaCha8Rng;
 
 /// Side of the grid whose 5-point Laplacian (random positive edge weights, plus a positive
 /// diagonal) is the test matrix.
-const SIDE: usize = 12;
+pub(crate) const SIDE: usize = 12;
 
 /// The lower-triangle entries `(row, col)` of the grid matrix, in a fixed order.
-fn grid_pattern() -> Vec<(usize, usize)> {
+pub(crate) fn grid_pattern() -> Vec<(usize, usize)> {
     let id = |i: usize, j: usize| i * SIDE + j;
     let mut entries = Vec::new();
     for i in 0..SIDE {
@@ -36,7 +36,7 @@ fn grid_pattern() -> Vec<(usize, usize)> {
 /// A symmetric positive definite matrix on `pattern` (diagonally dominant: random
 /// negative off-diagonal weights, diagonal the row sum of their magnitudes plus a random
 /// positive shift), as its sparse lower triangle and its dense full form.
-fn spd_on(pattern: &[(usize, usize)], seed: u64) -> (SparseColMat<usize, f64>, Mat<f64>) {
+pub(crate) fn spd_on(pattern: &[(usize, usize)], seed: u64) -> (SparseColMat<usize, f64>, Mat<f64>) {
     let n = SIDE * SIDE;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut dense = Mat::<f64>::zeros(n, n);
@@ -60,7 +60,7 @@ fn lower_of(pattern: &[(usize, usize)], dense: &Mat<f64>) -> SparseColMat<usize,
     SparseColMat::try_new_from_triplets(n, n, &triplets).expect("valid triplets")
 }
 
-fn rhs(n: usize, cols: usize, seed: u64) -> Mat<f64> {
+pub(crate) fn rhs(n: usize, cols: usize, seed: u64) -> Mat<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     Mat::from_fn(n, cols, |_, _| rng.random_range(-1.0..1.0))
 }
