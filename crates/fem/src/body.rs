@@ -6,12 +6,12 @@ use std::time::Instant;
 use faer::Mat;
 use faer::sparse::SparseColMat;
 use fibfluid_geometry::Vec3;
+use fibfluid_linalg::{SparseCholesky, SparseOrdering};
 use serde::Serialize;
 
 use crate::assemble::{FIXED, add_penalty, assemble_lower, cell_matrix, number_free_dofs, symmetric_mul};
 use crate::clamp::{Clamp, clamp_stiffness};
 use crate::error::{FemError, Result};
-use crate::factor::SparseCholesky;
 use crate::grid::{Element, FemOptions, SparseGrid};
 use crate::ordering::{Ordering, dof_permutation, nested_dissection};
 use crate::tissue::Tissue;
@@ -160,11 +160,11 @@ impl FemBody {
         let assembly_seconds = start.elapsed().as_secs_f64();
         let start = Instant::now();
         let factor = match ordering {
-            Ordering::Amd => SparseCholesky::new(k_lower.as_ref(), None)?,
+            Ordering::Amd => SparseCholesky::new(k_lower.as_ref(), SparseOrdering::Amd)?,
             Ordering::NestedDissection => {
                 let nodes = nested_dissection(grid.node_coords());
                 let (fwd, inv) = dof_permutation(&nodes, &free, n_free);
-                SparseCholesky::new(k_lower.as_ref(), Some((&fwd, &inv)))?
+                SparseCholesky::new(k_lower.as_ref(), SparseOrdering::Custom { fwd: &fwd, inv: &inv })?
             }
         };
         let factor_seconds = start.elapsed().as_secs_f64();

@@ -1,6 +1,7 @@
 //! Errors of the FEM crate.
 
 use fibfluid_geometry::MeshError;
+use fibfluid_linalg::LinalgError;
 
 /// Everything that can go wrong when building or solving a finite-element body.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -118,3 +119,15 @@ pub enum FemError {
 
 /// Result with [`FemError`].
 pub type Result<T, E = FemError> = std::result::Result<T, E>;
+
+/// The sparse factorization's errors in this crate's terms: a non-positive pivot is
+/// [`FemError::NotPositiveDefinite`], anything else [`FemError::Factorization`] with the
+/// linear algebra crate's message.
+impl From<LinalgError> for FemError {
+    fn from(e: LinalgError) -> Self {
+        match e {
+            LinalgError::SparseNotPositiveDefinite { .. } => FemError::NotPositiveDefinite,
+            other => FemError::Factorization { reason: other.to_string() },
+        }
+    }
+}

@@ -8,9 +8,13 @@
 //! one solve for `u0`, the dense `m x m` capacitance `C Z` (8 m^2 flops from the sparse
 //! rows) and its Cholesky (`m^3 / 3`), against a refactorization of K (its factor flops,
 //! see [`crate::FemStats`]) for eliminating the held dofs.
+//! The capacitance is formed, factored and applied by `fibfluid_linalg::RowCapacitance`
+//! (the columns by the factor's `fibfluid_linalg::ComplianceSource`), the same code as the
+//! fiber–fluid method's contact rows.
 
-use faer::{Mat, Side};
+use faer::Mat;
 use fibfluid_geometry::Vec3;
+use fibfluid_linalg::{ComplianceSource, LinalgError, RowCapacitance, SparseRow, row_dot};
 
 use crate::assemble::FIXED;
 use crate::body::{FemBody, Loads};
@@ -114,16 +118,12 @@ impl FemBody {
         let vertices: Vec<usize> = holds.iter().map(|h| h.0).collect();
         self.cache_compliance(&vertices)?;
         let f = self.load_vector(loads)?;
-        let u0 = self.unheld_solution(loads, &f);
+        let mut u = self.unheld_solution(loads, &f);
         let columns: Vec<Vec<f64>> = rows.iter().map(|r| self.row_column(r)).collect();
-        let lambda = Self::row_multipliers(&rows, &columns, &u0)?;
-        let mut u = u0;
+        let lambda = Self::impose_rows(&rows, &columns, &mut u)?;
         let mut reactions = vec![[0.0; 3]; holds.len()];
         let mut applied = f;
-        for ((row, z), l) in rows.iter().zip(&columns).zip(&lambda) {
-            for (ui, zi) in u.iter_mut().zip(z) {
-                *ui += l * zi;
-            }
+        for (row, l) in rows.iter().zip(&lambda) {
             let k = holds.iter().position(|h| h.0 == row.vertex).unwrap_or(0);
             for a in 0..3 {
                 reactions[k][a] += l * row.direction[a];
@@ -167,34 +167,35 @@ impl FemBody {
         z
     }
 
-    /// Solves `(C Z) lambda = d - C u0`; a singular `C Z` (dependent rows) is retried with a
-    /// tiny ridge and accepted only if the constraints are then met.
-    fn row_multipliers(rows: &[Row], columns: &[Vec<f64>], u0: &[f64]) -> Result<Vec<f64>> {
-        use faer::linalg::solvers::Solve;
-        let m = rows.len();
-        if m == 0 {
+    /// Imposes the rows on `u` (`K^-1 f` on entry) by the capacitance update of
+    /// `fibfluid_linalg` and returns the multipliers `lambda` (`u = u0 + Z lambda`, the
+    /// reactions `C^T lambda`). A singular `C Z` (dependent rows) is retried with a tiny
+    /// ridge and accepted only if the constraints are then met.
+    fn impose_rows(rows: &[Row], columns: &[Vec<f64>], u: &mut [f64]) -> Result<Vec<f64>> {
+        if rows.is_empty() {
             return Ok(Vec::new());
         }
-        let dot = |r: &Row, x: &[f64]| r.entries.iter().map(|&(d, w)| w * x[d]).sum::<f64>();
-        let capacitance = Mat::<f64>::from_fn(m, m, |i, j| dot(&rows[i], &columns[j]));
-        let gap = Mat::<f64>::from_fn(m, 1, |i, _| rows[i].target - dot(&rows[i], u0));
-        let dependent = FemError::DependentHolds { vertex: rows[0].vertex };
-        if let Ok(llt) = capacitance.llt(Side::Lower) {
-            let x = llt.solve(&gap);
-            return Ok((0..m).map(|i| x[(i, 0)]).collect());
-        }
-        let ridge = DEPENDENT_RIDGE * (0..m).map(|i| capacitance[(i, i)]).fold(0.0, f64::max);
-        let shifted =
-            Mat::<f64>::from_fn(m, m, |i, j| capacitance[(i, j)] + if i == j { ridge } else { 0.0 });
-        let x = shifted.llt(Side::Lower).map_err(|_| dependent.clone())?.solve(&gap);
-        let scale = rows.iter().map(|r| r.target.abs()).fold(1.0, f64::max);
-        for i in 0..m {
-            let achieved: f64 = (0..m).map(|j| capacitance[(i, j)] * x[(j, 0)]).sum();
-            if (achieved - gap[(i, 0)]).abs() > CONSTRAINT_TOLERANCE * scale {
-                return Err(FemError::DependentHolds { vertex: rows[i].vertex });
+        let entries: Vec<&SparseRow> = rows.iter().map(|r| r.entries.as_slice()).collect();
+        let targets: Vec<f64> = rows.iter().map(|r| r.target).collect();
+        let dependent = |i: usize| FemError::DependentHolds { vertex: rows[i].vertex };
+        let (capacitance, ridged) = match RowCapacitance::new(&entries, columns, 0.0) {
+            Ok(c) => (c, false),
+            Err(LinalgError::CapacitanceNotPositiveDefinite { .. }) => {
+                (RowCapacitance::new(&entries, columns, DEPENDENT_RIDGE).map_err(|_| dependent(0))?, true)
+            }
+            Err(other) => return Err(other.into()),
+        };
+        // The update's multipliers r are the negated reactions: u = u0 - Z r.
+        let r = capacitance.correct(&entries, columns, &targets, u);
+        if ridged {
+            let scale = targets.iter().fold(1.0_f64, |a, t| a.max(t.abs()));
+            let unmet = (0..rows.len())
+                .find(|&i| (row_dot(entries[i], u) - targets[i]).abs() > CONSTRAINT_TOLERANCE * scale);
+            if let Some(i) = unmet {
+                return Err(dependent(i));
             }
         }
-        Ok((0..m).map(|i| x[(i, 0)]).collect())
+        Ok(r.into_iter().map(|x| -x).collect())
     }
 
     /// Drops the cached compliance columns of every held vertex.
@@ -253,22 +254,23 @@ impl FemBody {
         if new.is_empty() {
             return Ok(());
         }
-        let mut rhs = Mat::<f64>::zeros(self.n_free, 3 * new.len());
-        for (k, &v) in new.iter().enumerate() {
+        let mut rows: Vec<Vec<(usize, f64)>> = Vec::with_capacity(3 * new.len());
+        for &v in &new {
             let e = self.grid.embedding()[v];
-            for b in 0..8 {
-                for a in 0..3 {
-                    let dof = self.free[3 * e.nodes[b] + a];
-                    if dof != FIXED {
-                        rhs[(dof, 3 * k + a)] += e.weights[b];
-                    }
-                }
+            for a in 0..3 {
+                let row = (0..8)
+                    .map(|b| (self.free[3 * e.nodes[b] + a], e.weights[b]))
+                    .filter(|&(dof, _)| dof != FIXED)
+                    .collect();
+                rows.push(row);
             }
         }
-        self.factor.solve_in_place(rhs.as_mut());
-        for (k, &v) in new.iter().enumerate() {
-            let col = |a: usize| (0..self.n_free).map(|i| rhs[(i, 3 * k + a)]).collect::<Vec<f64>>();
-            self.compliance.insert(v, [col(0), col(1), col(2)]);
+        let refs: Vec<&SparseRow> = rows.iter().map(Vec::as_slice).collect();
+        let mut columns = self.factor.compliance_columns(&refs)?.into_iter();
+        for &v in &new {
+            let mut next = || columns.next().expect("three columns per vertex");
+            let cols = [next(), next(), next()];
+            self.compliance.insert(v, cols);
         }
         Ok(())
     }

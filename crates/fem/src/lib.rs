@@ -32,7 +32,7 @@
 //! # Linear algebra
 //! K (symmetric positive definite once rigid motions are fixed) is stored as its lower
 //! triangle in compressed columns and factored once by faer's sparse Cholesky (supernodal
-//! when it pays), ordered by nested dissection along grid planes ([`Ordering`]; faer's AMD
+//! when it pays, through `fibfluid_linalg::SparseCholesky`), ordered by nested dissection along grid planes ([`Ordering`]; faer's AMD
 //! on request, [`FemBody::with_ordering`]). [`FemBody::solve_many`] solves several loads in one pass over
 //! the factor; [`FemBody::respond_held`] holds surface vertices at given displacements by a
 //! capacitance update of the same factor, with compliance columns cached per held vertex.
@@ -46,7 +46,6 @@ mod body;
 mod clamp;
 mod element;
 mod error;
-mod factor;
 mod grid;
 mod held;
 mod ordering;

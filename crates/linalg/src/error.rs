@@ -120,6 +120,42 @@ pub enum LinalgError {
         /// Its axis (0 = x).
         axis: usize,
     },
+    /// A capacitance matrix (constraints imposed on a kept factorization) is not positive
+    /// definite: the constraint of this row depends on the ones before it.
+    #[error(
+        "the capacitance of {constraints} constraints is not positive definite at constraint {constraint}"
+    )]
+    CapacitanceNotPositiveDefinite {
+        /// The constraint (row of the capacitance) whose pivot failed.
+        constraint: usize,
+        /// How many constraints there are.
+        constraints: usize,
+    },
+    /// A sparse matrix is not (numerically) positive definite: the sparse Cholesky
+    /// factorization met a non-positive pivot.
+    #[error("the sparse matrix is not positive definite (non-positive pivot at elimination step {step})")]
+    SparseNotPositiveDefinite {
+        /// The elimination step (the position in the fill-reducing ordering).
+        step: usize,
+    },
+    /// A matrix given for a sparse refactorization does not have the analysed pattern.
+    #[error("the matrix's sparsity pattern differs from the analysed one ({what})")]
+    SparsePatternMismatch {
+        /// What differs first (size, column pointers, column counts, row indices).
+        what: &'static str,
+    },
+    /// A buffer of a sparse factorization could not be allocated.
+    #[error("cannot allocate {what} of the sparse factorization")]
+    SparseOutOfMemory {
+        /// What the buffer is for.
+        what: &'static str,
+    },
+    /// A sparse factorization's sizes overflow its index type.
+    #[error("{what} of the sparse factorization overflows its index type")]
+    SparseIndexOverflow {
+        /// The stage that overflowed.
+        what: &'static str,
+    },
     /// A LAPACK routine reported a failure.
     #[error("LAPACK failed: {0}")]
     Lapack(String),

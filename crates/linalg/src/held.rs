@@ -32,17 +32,15 @@
 //! - the full inverse (`fibfluid_interact::Compliance` with the full precompute), every
 //!   column at once, for haptic devices that need any vertex without a first-touch cost.
 //!
-//! [`HeldCapacitance`] factors `G` for a held set; the field of the reactions is then an
+//! [`HeldCapacitance`] factors `G` for a held set (with [`crate::CapacitanceFactor`], the
+//! one small dense factor of every capacitance update); the field of the reactions is then an
 //! ordinary point-force field ([`VertexResponse::add_field_axes`]).
 
 use std::sync::Arc;
 
 use faer::Mat;
-use faer::Par;
-use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::linalg::cholesky::llt::factor::{LltError, cholesky_in_place, cholesky_in_place_scratch};
-use faer::linalg::cholesky::llt::solve::{solve_in_place, solve_in_place_scratch};
 
+use crate::capacitance::CapacitanceFactor;
 use crate::{Factorization, FactorizationExt, LinalgError, Result};
 
 /// A point force (or a reaction) at a vertex: (vertex, components; unused axes zero).
@@ -178,8 +176,8 @@ impl HeldRow {
 pub struct HeldCapacitance {
     rows: Vec<HeldRow>,
     vertices: Vec<usize>,
-    /// Lower Cholesky factor of G (`m` square).
-    l: Mat<f64>,
+    /// The Cholesky factor of G.
+    factor: CapacitanceFactor,
 }
 
 impl HeldCapacitance {
@@ -215,29 +213,16 @@ impl HeldCapacitance {
         }
         let mut vertices: Vec<usize> = rows.iter().map(|row| row.vertex).collect();
         vertices.dedup();
-        let diag: Vec<f64> = (0..dim).map(|i| g[(i, i)]).collect();
-        let singular = |i: usize| LinalgError::SingularHold {
-            held: vertices.len(),
-            vertex: rows[i].vertex,
-            axis: rows[i].main_axis(),
-        };
-        let mut mem = MemBuffer::new(cholesky_in_place_scratch::<f64>(dim, Par::Seq, Default::default()));
-        cholesky_in_place(
-            g.as_mut(),
-            Default::default(),
-            Par::Seq,
-            MemStack::new(&mut mem),
-            Default::default(),
-        )
-        .map_err(|LltError::NonPositivePivot { index }| singular(index))?;
         let tol = CAPACITANCE_PIVOT_FACTOR * dim as f64 * r.epsilon();
-        for (i, gii) in diag.iter().enumerate() {
-            let lii = g[(i, i)];
-            if !(lii * lii > tol * gii.abs()) {
-                return Err(singular(i));
-            }
-        }
-        Ok(Self { rows: rows.to_vec(), vertices, l: g })
+        let factor = CapacitanceFactor::new(g.as_ref(), Some(tol)).map_err(|e| match e {
+            LinalgError::CapacitanceNotPositiveDefinite { constraint: i, .. } => LinalgError::SingularHold {
+                held: vertices.len(),
+                vertex: rows[i].vertex,
+                axis: rows[i].main_axis(),
+            },
+            other => other,
+        })?;
+        Ok(Self { rows: rows.to_vec(), vertices, factor })
     }
 
     /// The held vertices, in the order of the reactions (a vertex with several consecutive
@@ -253,7 +238,7 @@ impl HeldCapacitance {
 
     /// Bytes of the factor.
     pub fn memory_bytes(&self) -> usize {
-        self.l.nrows() * self.l.ncols() * 8
+        self.factor.memory_bytes()
     }
 
     /// The reaction multipliers that close `gap` (one value per row, in the order of
@@ -267,15 +252,11 @@ impl HeldCapacitance {
     pub fn multipliers(&self, gap: &[f64]) -> Result<Vec<f64>> {
         let m = self.rows.len();
         assert_eq!(gap.len(), m, "one gap per held row");
-        let mut rhs = Mat::<f64>::from_fn(m, 1, |i, _| gap[i]);
-        let mut mem = MemBuffer::new(solve_in_place_scratch::<f64>(m, 1, Par::Seq));
-        solve_in_place(self.l.as_ref(), rhs.as_mut(), Par::Seq, MemStack::new(&mut mem));
-        (0..m)
-            .map(|i| {
-                let x = rhs[(i, 0)];
-                if x.is_finite() { Ok(x) } else { Err(LinalgError::NonFiniteSolution { index: i }) }
-            })
-            .collect()
+        let lambda = self.factor.solve(gap);
+        match lambda.iter().position(|x| !x.is_finite()) {
+            Some(index) => Err(LinalgError::NonFiniteSolution { index }),
+            None => Ok(lambda),
+        }
     }
 
     /// The reactions that close `gap` (see [`multipliers`](Self::multipliers)) as forces,

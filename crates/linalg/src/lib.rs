@@ -27,10 +27,25 @@
 //! [`CoupledCholesky`] solves the same bordered form when the stiffness couples the axes
 //! (a dense dN x dN `K`, the projected fibers): a Cholesky of `K` and the Schur complement
 //! of the border.
+//!
+//! [`SparseCholesky`] factors a sparse symmetric positive definite matrix given by its lower
+//! triangle (faer's supernodal or simplicial Cholesky, the finite-element stiffness). The
+//! symbolic analysis ([`SparseSymbolic`]: fill-reducing ordering, given or AMD, and the
+//! structure of the factor) is kept and shared, so new values on the same pattern cost a
+//! numeric [`refactor`](SparseCholesky::refactor) only; a matrix on another pattern is
+//! refused with a typed error.
+//!
+//! Constraints imposed on a kept factorization instead of refactoring (held vertices,
+//! contact rows, the finite-element holds) share one capacitance (Sherman–Morrison–Woodbury)
+//! update: [`ComplianceSource`] gives the columns `W = A^-1 E` from any kept factorization,
+//! [`RowCapacitance`] forms, factors and applies `E' W`, and [`CapacitanceFactor`] is the
+//! one small dense Cholesky ([`HeldCapacitance`] and [`PrescribedSet`] build on them).
 
 // Without a dense backend the shared dense helpers are unused.
 #![cfg_attr(not(any(feature = "faer-lu", feature = "nalgebra-lu", feature = "openblas")), allow(dead_code))]
 
+mod block_view;
+mod capacitance;
 mod choice;
 mod coupled;
 mod dense;
@@ -42,6 +57,7 @@ mod memory;
 mod prescribed;
 mod residual;
 mod solver;
+mod sparse;
 mod structured;
 pub mod threads;
 
@@ -52,6 +68,7 @@ mod nalgebra_lu;
 #[cfg(feature = "openblas")]
 mod openblas_lu;
 
+pub use capacitance::{CapacitanceFactor, ComplianceSource, RowCapacitance, SparseRow, row_dot};
 pub use choice::{Choice, ParseChoiceError};
 pub use coupled::CoupledCholesky;
 pub use error::{LinalgError, Result};
@@ -69,6 +86,7 @@ pub use solver::{
     FactorizationExt, LinearSolver, LinearSolverExt, Precision, Solution, TARGET_RESIDUAL_PER_UNKNOWN,
     componentwise_backward_error,
 };
+pub use sparse::{SparseCholesky, SparseOrdering, SparseSymbolic};
 pub use structured::Structured;
 
 #[cfg(feature = "faer-lu")]

@@ -31,11 +31,12 @@
 //! constraint instead. What stays on it are the plate contacts: a contact row is not a hold
 //! but a plate normal spread over a vertex's free axes (`n . u_v = g`), whose column could
 //! be assembled from vertex columns (`W = sum_c n_c W_(c,v)`) but is not yet. Both are the
-//! same Sherman–Morrison–Woodbury update.
+//! same Sherman–Morrison–Woodbury update, and share its code: the columns come from
+//! [`crate::ComplianceSource`], the capacitance is formed, factored and applied by
+//! [`crate::RowCapacitance`] (as the finite-element holds do), and its k x k Cholesky is
+//! [`crate::CapacitanceFactor`] (as [`crate::HeldCapacitance`]'s is).
 
-use faer::linalg::solvers::Solve;
-use faer::{Mat, Side};
-
+use crate::capacitance::{ComplianceSource, RowCapacitance, SparseRow};
 use crate::{Factorization, FactorizationExt, LinalgError, Result};
 
 /// Linear constraints on the unknowns, imposed on a kept factorization (see the module
@@ -47,8 +48,8 @@ pub struct PrescribedSet {
     rows: Vec<Vec<(usize, f64)>>,
     /// `W = A^-1 E`, one column per constraint.
     columns: Vec<Vec<f64>>,
-    /// Cholesky factor of the capacitance `C = E' W`.
-    capacitance: Option<faer::linalg::solvers::Llt<f64>>,
+    /// The factored capacitance `C = E' W`.
+    capacitance: Option<RowCapacitance>,
 }
 
 /// A solve under a [`PrescribedSet`]: the solution and the multipliers.
@@ -104,19 +105,12 @@ impl PrescribedSet {
         if new.is_empty() {
             return Ok(());
         }
-        let dim = f.matrix().dim();
-        let mut e = vec![0.0; dim * new.len()];
-        for (j, (_, row)) in new.iter().enumerate() {
-            for &(i, c) in row {
-                assert!(i < dim, "unknown {i} of a {dim}-unknown system");
-                e[j * dim + i] += c;
-            }
-        }
-        let solutions = f.solve_many(&e, new.len())?;
+        let rows: Vec<&SparseRow> = new.iter().map(|(_, row)| row.as_slice()).collect();
+        let solutions = f.compliance_columns(&rows)?;
         for ((key, row), w) in new.into_iter().zip(solutions) {
             self.keys.push(*key);
             self.rows.push(row.clone());
-            self.columns.push(w.x);
+            self.columns.push(w);
         }
         self.refactor()
     }
@@ -137,22 +131,19 @@ impl PrescribedSet {
         Ok(())
     }
 
-    /// `row . v` for constraint `k`.
-    fn apply_row(&self, k: usize, v: &[f64]) -> f64 {
-        self.rows[k].iter().map(|&(i, c)| c * v[i]).sum()
-    }
-
     fn refactor(&mut self) -> Result<()> {
         let k = self.keys.len();
         if k == 0 {
             self.capacitance = None;
             return Ok(());
         }
-        let c = Mat::from_fn(k, k, |i, j| {
-            0.5 * (self.apply_row(i, &self.columns[j]) + self.apply_row(j, &self.columns[i]))
-        });
-        let llt = c.llt(Side::Lower).map_err(|_| LinalgError::DependentConstraints { held: k })?;
-        self.capacitance = Some(llt);
+        let c = RowCapacitance::new(&self.rows, &self.columns, 0.0).map_err(|e| match e {
+            LinalgError::CapacitanceNotPositiveDefinite { .. } => {
+                LinalgError::DependentConstraints { held: k }
+            }
+            other => other,
+        })?;
+        self.capacitance = Some(c);
         Ok(())
     }
 
@@ -162,18 +153,10 @@ impl PrescribedSet {
         let first = f.solve(b)?;
         let relative_residual = first.relative_residual;
         let mut y = first.x;
-        let Some(llt) = &self.capacitance else {
+        let Some(capacitance) = &self.capacitance else {
             return Ok(ConstrainedSolution { x: y, relative_residual, multipliers: vec![] });
         };
-        let k = self.keys.len();
-        let rhs = Mat::from_fn(k, 1, |i, _| self.apply_row(i, &y) - values[i]);
-        let r = llt.solve(&rhs);
-        let multipliers: Vec<f64> = (0..k).map(|i| r[(i, 0)]).collect();
-        for (w, &ri) in self.columns.iter().zip(&multipliers) {
-            for (yi, wi) in y.iter_mut().zip(w) {
-                *yi -= wi * ri;
-            }
-        }
+        let multipliers = capacitance.correct(&self.rows, &self.columns, values, &mut y);
         if let Some(i) = y.iter().position(|v| !v.is_finite()) {
             return Err(LinalgError::NonFiniteSolution { index: i });
         }

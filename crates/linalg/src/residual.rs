@@ -19,7 +19,7 @@
 use faer::Mat;
 use rayon::prelude::*;
 
-use crate::matrix::BlockView;
+use crate::block_view::BlockView;
 
 /// From this N on, every block goes through [`symmetric_products`]: faer's product with a
 /// thin right-hand side read K at about 3 GB/s at N = 10,242 (against 40 GB/s for a plain

@@ -8,8 +8,8 @@ use faer::linalg::triangular_solve::{solve_lower_triangular_in_place, solve_uppe
 use faer::{Mat, MatMut, MatRef, Par};
 use rayon::prelude::*;
 
+use crate::block_view::BlockView;
 use crate::in_place::cholesky_keeping_upper;
-use crate::matrix::BlockView;
 use crate::{
     Blocks, BorderedMatrix, FactorCost, FactorOptions, Factorization, LinalgError, LinearSolver, Precision,
     Result, cholesky_flops,

@@ -33,6 +33,9 @@ use fibfluid_linalg::{
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+mod capacitance;
+mod sparse;
+
 const EPS: f64 = f64::EPSILON;
 
 /// Rounding of the test's own dense residual evaluation, in units of `dim * eps`.
