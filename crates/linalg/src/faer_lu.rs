@@ -73,8 +73,8 @@ enum FaerKernel {
 }
 
 impl LinearSolver for FaerLu {
-    fn name(&self) -> &'static str {
-        FaerKernel::NAME
+    fn backend(&self) -> crate::Backend {
+        crate::Backend::FaerLu
     }
 
     fn supports(&self, _precision: Precision) -> bool {

@@ -18,8 +18,8 @@ enum NalgebraKernel {
 }
 
 impl LinearSolver for NalgebraLu {
-    fn name(&self) -> &'static str {
-        NalgebraKernel::NAME
+    fn backend(&self) -> crate::Backend {
+        crate::Backend::NalgebraLu
     }
 
     fn supports(&self, _precision: Precision) -> bool {

@@ -55,8 +55,8 @@ struct LuFactors<A> {
 }
 
 impl LinearSolver for OpenblasLu {
-    fn name(&self) -> &'static str {
-        OpenblasKernel::NAME
+    fn backend(&self) -> crate::Backend {
+        crate::Backend::OpenblasLu
     }
 
     fn supports(&self, _precision: Precision) -> bool {

@@ -90,8 +90,12 @@ pub struct FactorCost {
 
 /// A linear backend: factorizes a bordered system once.
 pub trait LinearSolver: Send + Sync + Debug {
-    /// The run-time name (`faer-lu`, `nalgebra-lu`, `openblas-lu`, `structured`).
-    fn name(&self) -> &'static str;
+    /// Which backend this is.
+    fn backend(&self) -> crate::Backend;
+    /// The backend's run-time name (`faer-lu`, `nalgebra-lu`, `openblas-lu`, `structured`).
+    fn name(&self) -> &'static str {
+        crate::Choice::name(self.backend())
+    }
     /// Whether this backend can factor in the given precision.
     fn supports(&self, precision: Precision) -> bool;
     /// Factorizes `a`. Singular or non-finite input is an error naming the pivot or entry.

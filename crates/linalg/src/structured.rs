@@ -108,8 +108,8 @@ struct StructuredFactorization {
 }
 
 impl LinearSolver for Structured {
-    fn name(&self) -> &'static str {
-        "structured"
+    fn backend(&self) -> crate::Backend {
+        crate::Backend::Structured
     }
 
     fn supports(&self, _precision: Precision) -> bool {
