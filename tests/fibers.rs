@@ -169,7 +169,7 @@ fn projected_fibers_follow_a_rigid_rotation_in_nonlinear_mode() {
     let run = |fibers: &str, mode: fibfluid::Mode| {
         let mut sc = scene(dir.path(), &sphere, "above = 0.8", fibers, "");
         sc.model.load.gravity = [0.0; 3];
-        sc.model.material.density = 0.0;
+        sc.model.material.set_density(0.0).unwrap();
         sc.model.load.steps = 20;
         sc.model.solver.mode = mode;
         let rest = sc.rest_positions();
@@ -211,7 +211,7 @@ fn a_steeper_kernel_brings_the_fibers_closer_to_the_fem() {
     let sphere = mesh("icosphere-3.obj");
     let error = |fibers: &str, p: f64| {
         let mut s = scene(dir.path(), &sphere, "above = 0.8", fibers, "");
-        s.model.material.kernel_exponent = p;
+        s.model.material.set_kernel_exponent(p).unwrap();
         shape_error(s, "sphere-gravity.txt").0
     };
     let (paper1, paper3) = (error("paper", 1.0), error("paper", 3.0));
@@ -302,7 +302,7 @@ fn measure_fiber_models_against_the_fem() {
                 .iter()
                 .map(|(_, file, fix, g)| {
                     let mut s = scene(dir.path(), &mesh(file), fix, fibers, "");
-                    s.model.material.kernel_exponent = p;
+                    s.model.material.set_kernel_exponent(p).unwrap();
                     format!("{:.3}", shape_error(s, g).0)
                 })
                 .collect()

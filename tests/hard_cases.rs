@@ -168,7 +168,7 @@ fn extreme_material_ratios_and_densities() {
             // Y / gamma = ratio, with loads scaled so the deformation stays moderate.
             // Y / gamma = ratio; whichever dominates is sized for a moderate sag, and the
             // acceleration is scaled so rho * g stays the same.
-            let base = moderate(2.0 * 3f64.sqrt(), 1000.0).fiber_modulus[0];
+            let base = moderate(2.0 * 3f64.sqrt(), 1000.0).fiber_modulus()[0];
             let (young, gamma) = if ratio >= 1.0 { (base, base / ratio) } else { (base * ratio, base) };
             let material = Material::isotropic(young, gamma, density);
             let mut scene = hanging(file_of(icosphere(2, 1.0)), material, 0.2, 3);
@@ -198,7 +198,7 @@ fn metres_and_millimetres_give_the_same_deformation() {
     )
     .unwrap();
     let m_mat = moderate(0.1 * 3f64.sqrt(), 1000.0);
-    let (y, g) = (m_mat.fiber_modulus[0], m_mat.surface_tension);
+    let (y, g) = (m_mat.fiber_modulus()[0], m_mat.surface_tension());
     let mm_mat = Material::isotropic(y / (l * l), g / l, 1000.0 / (l * l * l));
     let a = hanging(file_of(metres), m_mat, 0.01, 5);
     let b = hanging(file_of(mm), mm_mat, 0.01 * l, 5);

@@ -177,7 +177,7 @@ fn state_force(sim: &Simulation, plate: usize) -> f64 {
     let loads = Loads {
         acceleration: model.load.gravity,
         down: None,
-        density: model.material.density,
+        density: model.material.density(),
         forces: &forces,
     };
     let now_areas = body.boundary.vertex_area_vectors(now);

@@ -173,7 +173,7 @@ fn the_plan_runs_only_the_stages_a_scene_needs() {
     assert!(sim.fibers().kept() < sim.fibers().total());
     // Anisotropic material: three blocks.
     let mut aniso = sphere();
-    aniso.material.fiber_modulus = [3000.0, 4000.0, 5000.0];
+    aniso.material.set_fiber_modulus([3000.0, 4000.0, 5000.0]).unwrap();
     aniso.load.steps = 1;
     let sim = run(aniso);
     assert_eq!(sim.system().stats.blocks, 3);
@@ -426,7 +426,7 @@ fn settings_that_cannot_act_are_found_and_really_do_nothing() {
     };
     // sphere.toml: gravity [0, -10, 0], density 1000, a force on vertex 3, paper mode.
     let mut s = sphere();
-    s.material.density = 0.0;
+    s.material.set_density(0.0).unwrap();
     assert_eq!(ineffective(&s), vec![Ineffective::GravityWithoutDensity { acceleration: [0.0, -10.0, 0.0] }]);
     let mut without = s.clone();
     without.load.gravity = [0.0; 3];
@@ -436,20 +436,20 @@ fn settings_that_cannot_act_are_found_and_really_do_nothing() {
     s.load.gravity = [0.0; 3];
     assert_eq!(ineffective(&s), vec![Ineffective::DensityWithoutGravity { density: 1000.0 }]);
     let mut without = s.clone();
-    without.material.density = 0.0;
+    without.material.set_density(0.0).unwrap();
     same(s, without, "density without gravity");
     // A density calibrated fibers took from [tissue] describes the tissue: not reported.
     let mut s = Scene::load("fixtures/scenes/sphere-tissue.toml").unwrap();
-    assert!(s.ffm.calibrate && s.material.density > 0.0);
+    assert!(s.ffm.calibrate && s.material.density() > 0.0);
     s.load.gravity = [0.0; 3];
     assert_eq!(ineffective(&s), vec![]);
 
     let mut s = sphere();
-    s.material.law = StiffnessLaw::Quadratic { c: 50.0 };
+    s.material.set_law(StiffnessLaw::Quadratic { c: 50.0 }).unwrap();
     s.solver.mode = Mode::Refresh;
     assert_eq!(ineffective(&s), vec![Ineffective::StiffeningOutsideNonlinear { mode: Mode::Refresh }]);
     let mut linear = s.clone();
-    linear.material.law = StiffnessLaw::Linear;
+    linear.material.set_law(StiffnessLaw::Linear).unwrap();
     same(s.clone(), linear.clone(), "stiffening in refresh mode");
     // In nonlinear mode it acts: not reported, and the run differs.
     s.solver.mode = Mode::Nonlinear;

@@ -23,7 +23,7 @@ fn soft_liver(young: f64, mode: Mode, stepping: Stepping) -> Scene {
         .unwrap();
     s.shape = liver.model.shape;
     s.constraints = constraints;
-    s.material.fiber_modulus = [young; 3];
+    s.material.set_fiber_modulus([young; 3]).unwrap();
     s.solver.mode = mode;
     s.solver.stepping = stepping;
     s

@@ -272,13 +272,13 @@ fn ffm_fibers_come_from_ffm_or_material_not_both() {
         Scene::load(dir.path().join("s.toml"))
     };
     let s = write("[ffm]\nyoung = 3000.0\nsurface_tension = 5.0\nfibers = \"projected\"\n").unwrap();
-    assert_eq!((s.material.fiber_modulus[0], s.material.surface_tension), (3000.0, 5.0));
+    assert_eq!((s.material.fiber_modulus()[0], s.material.surface_tension()), (3000.0, 5.0));
     assert_eq!(s.ffm.fibers, fibfluid::sim::FiberModel::Projected);
     assert!(!s.ffm.calibrate);
     let old = write("[material]\nyoung = 3000.0\nsurface_tension = 5.0\n").unwrap();
     assert_eq!(
-        (old.material.fiber_modulus, old.material.surface_tension),
-        (s.material.fiber_modulus, s.material.surface_tension)
+        (old.material.fiber_modulus(), old.material.surface_tension()),
+        (s.material.fiber_modulus(), s.material.surface_tension())
     );
     let e = write("[material]\nyoung = 1.0\n[ffm]\nyoung = 2.0\n").unwrap_err().to_string();
     assert!(e.contains("[ffm].young") && e.contains("not both"), "{e}");

@@ -82,7 +82,7 @@ pub(crate) fn fill_block(pairs: &PairData, spec: &BlockSpec) -> Result<BlockFill
 fn fill_column(pairs: &PairData, spec: &BlockSpec, j: usize, col: &mut [f64]) -> ColumnOut {
     let mut out = ColumnOut::default();
     pulp::Arch::new().dispatch(Weights { pairs, fiber_modulus: spec.fiber_modulus, j, col });
-    if !pairs.material.law.is_linear() {
+    if !pairs.material.law().is_linear() {
         for (i, v) in col.iter_mut().enumerate() {
             *v = if i == j { 0.0 } else { -(spec.fiber_modulus * pairs.bulk(i, j).0) };
         }
@@ -106,7 +106,7 @@ fn fill_column(pairs: &PairData, spec: &BlockSpec, j: usize, col: &mut [f64]) ->
         }
     }
     if let Some(nbrs) = pairs.neighbors.get(j) {
-        let gamma = pairs.material.surface_tension;
+        let gamma = pairs.material.surface_tension();
         for &i in nbrs {
             let i = i as usize;
             let d = dist(pairs.body.positions[i], pairs.body.positions[j]);
@@ -226,7 +226,7 @@ impl pulp::WithSimd for Weights<'_, '_> {
 
 /// The kernel of [`PairData::kernel`]: `None` for the paper's exponent.
 fn kernel(body: &Body, material: &Material) -> Option<(f64, f64)> {
-    let p = material.kernel_exponent;
+    let p = material.kernel_exponent();
     if p == crate::PAPER_KERNEL_EXPONENT {
         return None;
     }
@@ -259,8 +259,8 @@ impl<'a> PairData<'a> {
         let n = body.positions.len();
         let coord = |c: usize| body.positions.iter().map(|p| p[c]).collect();
         let mut neighbors: Vec<Vec<u32>> =
-            vec![Vec::new(); if material.surface_tension > 0.0 { n } else { 0 }];
-        if material.surface_tension > 0.0 {
+            vec![Vec::new(); if material.surface_tension() > 0.0 { n } else { 0 }];
+        if material.surface_tension() > 0.0 {
             for e in body.edges {
                 neighbors[e[0] as usize].push(e[1]);
                 neighbors[e[1] as usize].push(e[0]);
@@ -292,10 +292,10 @@ impl<'a> PairData<'a> {
         if let Some((length, power)) = self.kernel {
             w *= (length / d).powf(power);
         }
-        if !self.material.law.is_linear() {
+        if !self.material.law().is_linear() {
             let rest = self.body.rest_positions.unwrap_or(self.body.positions);
             let d0 = dist(rest[i], rest[j]);
-            w *= self.material.law.factor((d - d0) / d0);
+            w *= self.material.law().factor((d - d0) / d0);
         }
         (w, d)
     }

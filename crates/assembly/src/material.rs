@@ -46,22 +46,16 @@ impl fmt::Debug for StiffnessLaw {
     }
 }
 
-/// Material of the body: fibers and fluid.
+/// Material of the body: fibers and fluid. Its fields are private and every way to make or
+/// change one checks the ranges of [`MaterialParameter`] (the one place they are written), so
+/// a `Material` is valid by construction.
 #[derive(Clone, Debug)]
 pub struct Material {
-    /// FFM's fiber modulus per axis (Yx, Yy, Yz), N/m^2 per unit fiber weight; isotropic
-    /// when equal. A model parameter, not a tissue's Young's modulus.
-    pub fiber_modulus: [f64; 3],
-    /// Surface tension gamma; 0 switches surface fibers off.
-    pub surface_tension: f64,
-    /// Fluid density rho.
-    pub density: f64,
-    /// Strain dependence of the bulk modulus.
-    pub law: StiffnessLaw,
-    /// How a bulk fiber's weight falls with its length d: `w = (|S_i| + |S_j|) / (2 n d)
-    /// (l / d)^(p - 1)` with `l` the rest shape's bounding-box diagonal (so the modulus keeps
-    /// its unit and a body in mm and in m agree). 1 is the paper's `1 / d`.
-    pub kernel_exponent: f64,
+    fiber_modulus: [f64; 3],
+    surface_tension: f64,
+    density: f64,
+    law: StiffnessLaw,
+    kernel_exponent: f64,
 }
 
 /// The paper's kernel exponent: bulk weights fall as `1 / d`.
@@ -83,16 +77,94 @@ impl Default for Material {
 }
 
 impl Material {
+    /// A material with a fiber modulus per axis (Yx, Yy, Yz), a surface tension and a fluid
+    /// density; linear fibers with the paper's kernel. Each value is checked
+    /// ([`MaterialParameter::check`]).
+    pub fn new(fiber_modulus: [f64; 3], surface_tension: f64, density: f64) -> Result<Self> {
+        let mut m = Self::default();
+        m.set_fiber_modulus(fiber_modulus)?;
+        m.set_surface_tension(surface_tension)?;
+        m.set_density(density)?;
+        Ok(m)
+    }
+
     /// An isotropic material: one fiber modulus on every axis (not a Young's modulus; see
     /// [`Material::fiber_modulus`]).
+    ///
+    /// # Panics
+    /// On a value out of its range (a programming error: values from users go through
+    /// [`Material::new`] or the setters, which return the error).
+    #[track_caller]
     pub fn isotropic(fiber_modulus: f64, surface_tension: f64, density: f64) -> Self {
-        Self {
-            fiber_modulus: [fiber_modulus; 3],
-            surface_tension,
-            density,
-            law: StiffnessLaw::Linear,
-            kernel_exponent: PAPER_KERNEL_EXPONENT,
+        match Self::new([fiber_modulus; 3], surface_tension, density) {
+            Ok(m) => m,
+            Err(e) => panic!("Material::isotropic: {e}"),
         }
+    }
+
+    /// FFM's fiber modulus per axis (Yx, Yy, Yz), N/m^2 per unit fiber weight; isotropic
+    /// when equal. A model parameter, not a tissue's Young's modulus.
+    pub fn fiber_modulus(&self) -> [f64; 3] {
+        self.fiber_modulus
+    }
+
+    /// Surface tension gamma (N/m); 0 switches surface fibers off.
+    pub fn surface_tension(&self) -> f64 {
+        self.surface_tension
+    }
+
+    /// Fluid density rho (kg/m^3).
+    pub fn density(&self) -> f64 {
+        self.density
+    }
+
+    /// Strain dependence of the bulk modulus.
+    pub fn law(&self) -> &StiffnessLaw {
+        &self.law
+    }
+
+    /// How a bulk fiber's weight falls with its length d: `w = (|S_i| + |S_j|) / (2 n d)
+    /// (l / d)^(p - 1)` with `l` the rest shape's bounding-box diagonal (so the modulus keeps
+    /// its unit and a body in mm and in m agree). 1 is the paper's `1 / d`.
+    pub fn kernel_exponent(&self) -> f64 {
+        self.kernel_exponent
+    }
+
+    /// Sets the fiber modulus per axis, checked on every axis.
+    pub fn set_fiber_modulus(&mut self, fiber_modulus: [f64; 3]) -> Result<()> {
+        for (axis, y) in fiber_modulus.iter().enumerate() {
+            MaterialParameter::FiberModulus { axis }.check(*y)?;
+        }
+        self.fiber_modulus = fiber_modulus;
+        Ok(())
+    }
+
+    /// Sets the surface tension, checked.
+    pub fn set_surface_tension(&mut self, surface_tension: f64) -> Result<()> {
+        self.surface_tension = MaterialParameter::SurfaceTension.check(surface_tension)?;
+        Ok(())
+    }
+
+    /// Sets the fluid density, checked.
+    pub fn set_density(&mut self, density: f64) -> Result<()> {
+        self.density = MaterialParameter::Density.check(density)?;
+        Ok(())
+    }
+
+    /// Sets the stiffness law (a quadratic coefficient is checked; a custom law must keep
+    /// its factor positive, which cannot be checked here).
+    pub fn set_law(&mut self, law: StiffnessLaw) -> Result<()> {
+        if let StiffnessLaw::Quadratic { c } = law {
+            MaterialParameter::Stiffening.check(c)?;
+        }
+        self.law = law;
+        Ok(())
+    }
+
+    /// Sets the kernel exponent, checked against [`KERNEL_EXPONENT_RANGE`].
+    pub fn set_kernel_exponent(&mut self, exponent: f64) -> Result<()> {
+        self.kernel_exponent = MaterialParameter::KernelExponent.check(exponent)?;
+        Ok(())
     }
 
     /// Whether Yx = Yy = Yz.

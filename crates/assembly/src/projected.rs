@@ -78,7 +78,7 @@ pub fn projected_stiffness(body: &Body, material: &Material) -> Result<Mat<f64>>
     let spec = ColumnSpec {
         pairs: &pairs,
         axes: body.axes,
-        fiber_modulus: material.fiber_modulus[0],
+        fiber_modulus: material.fiber_modulus()[0],
         fixed: Vec::new(),
         method: ConstraintMethod::Eliminate,
         keep: Vec::new(),
@@ -114,7 +114,7 @@ pub fn assemble_projected(
     let spec = ColumnSpec {
         pairs: &pairs,
         axes,
-        fiber_modulus: material.fiber_modulus[0],
+        fiber_modulus: material.fiber_modulus()[0],
         fixed,
         method: opts.method,
         keep,
@@ -122,7 +122,7 @@ pub fn assemble_projected(
     let (stiffness, diag_scale, kept) = fill(&spec)?;
     let lifts = kept.into_iter().map(|(k, column)| (k, prescribed(k).expect("kept"), column)).collect();
     let border = border_of(body.vertex_areas, constraints, opts.method, axes);
-    let gamma = material.surface_tension;
+    let gamma = material.surface_tension();
     let stats = AssemblyStats {
         bulk_fibers: body.fibers.kept(),
         surface_fibers: if gamma > 0.0 { body.edges.len() } else { 0 },
@@ -224,7 +224,7 @@ fn fill_column(spec: &ColumnSpec, col: usize, v: &mut [f64]) -> ColumnOut {
         }
         add(i, spec.fiber_modulus * w, d, v);
     }
-    let gamma = pairs.material.surface_tension;
+    let gamma = pairs.material.surface_tension();
     for &i in pairs.neighbors.get(j).map(Vec::as_slice).unwrap_or(&[]) {
         let i = i as usize;
         let d = pairs.bulk(i, j).1;

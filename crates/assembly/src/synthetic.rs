@@ -23,7 +23,8 @@ pub fn synthetic_system(n: usize, method: ConstraintMethod) -> Result<System> {
         fibers: &fibers,
         rest_positions: None,
     };
-    let material = Material { surface_tension: 0.0, ..Material::default() };
+    let mut material = Material::default();
+    material.set_surface_tension(0.0).expect("0 is a surface tension");
     let mut c = Constraints::new(n);
     for (i, p) in pos.iter().enumerate() {
         if p[1] > 0.8 {

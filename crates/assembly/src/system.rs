@@ -100,7 +100,7 @@ pub fn assemble(
     for c in 0..nblocks {
         let served: Vec<usize> = if shared { (0..axes).collect() } else { vec![c] };
         let spec = BlockSpec {
-            fiber_modulus: material.fiber_modulus[c],
+            fiber_modulus: material.fiber_modulus()[c],
             fixed: (0..n).map(|i| constraints.get(i, c).is_some()).collect(),
             method: opts.method,
             // Free border components of the served axes, for the automatic pressure scale.
@@ -143,7 +143,7 @@ pub fn assemble(
         }
         PressureScaling::Factor(f) => f,
     };
-    let gamma = material.surface_tension;
+    let gamma = material.surface_tension();
     let mut system = System {
         matrix: BorderedMatrix::new(blocks, vec![vec![0.0; n]; axes], scale),
         stats: AssemblyStats {

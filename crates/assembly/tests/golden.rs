@@ -22,8 +22,7 @@ fn rectangle() -> (Polygon, fibfluid_assembly::System) {
         fibers: &fibers,
         rest_positions: None,
     };
-    let material =
-        Material { fiber_modulus: [360.0; 3], surface_tension: 0.0, density: 0.0, ..Material::default() };
+    let material = Material::new([360.0; 3], 0.0, 0.0).unwrap();
     let mut c = Constraints::new(4);
     c.fix(2, [true, true, false]).unwrap(); // lower left: x and y
     c.fix(1, [false, true, false]).unwrap(); // lower right: y only
@@ -123,8 +122,7 @@ fn rectangle_eliminate_gives_exact_fixed_dofs() {
         fibers: &fibers,
         rest_positions: None,
     };
-    let material =
-        Material { fiber_modulus: [360.0; 3], surface_tension: 0.0, density: 0.0, ..Material::default() };
+    let material = Material::new([360.0; 3], 0.0, 0.0).unwrap();
     let mut c = Constraints::new(4);
     c.fix(2, [true, true, false]).unwrap();
     c.fix(1, [false, true, false]).unwrap();

@@ -249,8 +249,8 @@ fn check_penalty_blocks(shape: &Shape, material: &Material, c: &Constraints) -> 
         let reference = independent_block(
             &shape.pos,
             &shape.tris,
-            material.fiber_modulus[axis],
-            material.surface_tension,
+            material.fiber_modulus()[axis],
+            material.surface_tension(),
         );
         let fixed = fixed_vertices(c, axis);
         for i in 0..n {
@@ -311,8 +311,8 @@ fn check_eliminated_blocks(shape: &Shape, material: &Material, c: &Constraints) 
         let reference = independent_block(
             &shape.pos,
             &shape.tris,
-            material.fiber_modulus[axis],
-            material.surface_tension,
+            material.fiber_modulus()[axis],
+            material.surface_tension(),
         );
         let fixed = fixed_vertices(c, axis);
         for i in (0..n).filter(|&i| !fixed[i]) {
@@ -388,9 +388,7 @@ fn volume_tol(dim: usize) -> f64 {
 fn sphere_matrix_is_symmetric_to_the_last_bit() {
     let shape = sphere();
     let c = paper_constraints(&shape);
-    for material in
-        [paper_material(), Material { fiber_modulus: [3000.0, 1000.0, 7000.0], ..paper_material() }]
-    {
+    for material in [paper_material(), with_modulus(paper_material(), [3000.0, 1000.0, 7000.0])] {
         for (method, scaling) in [
             (PENALTY, PressureScaling::None),
             (PENALTY, PressureScaling::Auto),
@@ -415,8 +413,7 @@ fn sphere_blocks_are_the_formulas_laplacians() {
     one.fix(57, [true; 3]).unwrap();
     check_penalty_blocks(&shape, &paper_material(), &one).unwrap();
     check_eliminated_blocks(&shape, &paper_material(), &one).unwrap();
-    let aniso =
-        Material { fiber_modulus: [500.0, 3000.0, 9000.0], surface_tension: 10.0, ..paper_material() };
+    let aniso = Material::new([500.0, 3000.0, 9000.0], 10.0, paper_material().density()).unwrap();
     check_penalty_blocks(&shape, &aniso, &c).unwrap();
     check_eliminated_blocks(&shape, &aniso, &c).unwrap();
 }
@@ -424,7 +421,7 @@ fn sphere_blocks_are_the_formulas_laplacians() {
 #[test]
 fn with_any_one_vertex_fixed_every_block_is_positive_definite() {
     let shape = sphere();
-    let aniso = Material { fiber_modulus: [3000.0, 800.0, 5000.0], ..paper_material() };
+    let aniso = with_modulus(paper_material(), [3000.0, 800.0, 5000.0]);
     for v in 0..shape.n() {
         let mut c = Constraints::new(shape.n());
         c.fix(v, [true; 3]).unwrap();
@@ -512,7 +509,8 @@ fn bulk_and_surface_terms_add_on_edges() {
     assert_eq!(on_edges, 2 * 480);
     assert_eq!(on_edges + off_edges, n * (n - 1));
     // Without surface tension the edge entries are the bulk term alone.
-    let no_gamma = Material { surface_tension: 0.0, ..m };
+    let mut no_gamma = m.clone();
+    no_gamma.set_surface_tension(0.0).unwrap();
     let k0 = shape.assemble(&no_gamma, &c, PENALTY, PressureScaling::None).unwrap().matrix.block(0).clone();
     let (i, j) = edges.iter().copied().next().unwrap();
     let d = norm(sub(shape.pos[i], shape.pos[j]));
@@ -584,7 +582,7 @@ fn penalty_and_elimination_agree_and_scaling_fixes_conditioning() {
     // (maximum principle of the Laplacian). A priori bound on the relative difference:
     // PENALTY_C * max diag K / big, the factor 2 leaving room for the |S_i P| and |b_i| terms.
     const PENALTY_C: f64 = 2.0;
-    let kx = independent_block(&shape.pos, &shape.tris, m.fiber_modulus[0], m.surface_tension);
+    let kx = independent_block(&shape.pos, &shape.tris, m.fiber_modulus()[0], m.surface_tension());
     let max_diag = (0..shape.n()).map(|i| kx[i * shape.n() + i]).fold(0.0, f64::max);
     for big in [1e9, 1e11, 1e13] {
         let method = ConstraintMethod::Penalty { big };
@@ -646,7 +644,7 @@ fn auto_pressure_scale_is_near_the_best_factor() {
         (
             "level 2, Y = (1e3, 5e4, 2e5), gamma = 10",
             &level2,
-            Material { fiber_modulus: [1e3, 5e4, 2e5], surface_tension: 10.0, ..paper_material() },
+            Material::new([1e3, 5e4, 2e5], 10.0, paper_material().density()).unwrap(),
         ),
         ("level 1, Y = gamma = 3000", &level1, paper_material()),
         ("level 2, Y = gamma = 3 (kN, m)", &level2, Material::isotropic(3.0, 3.0, 1000.0)),
@@ -757,7 +755,7 @@ fn arb_material() -> impl Strategy<Value = Material> {
     (1.0f64..1e4, prop::bool::ANY, prop::array::uniform3(0.2f64..5.0), prop_oneof![Just(0.0), 1.0f64..1e4])
         .prop_map(|(y, aniso, ratio, gamma)| {
             let young = if aniso { ratio.map(|r| y * r) } else { [y; 3] };
-            Material { fiber_modulus: young, surface_tension: gamma, density: 1000.0, ..Material::default() }
+            Material::new(young, gamma, 1000.0).unwrap()
         })
 }
 
@@ -830,7 +828,7 @@ proptest! {
 
         // Every solve satisfies the volume row.
         let g = [accel_dir[0] * accel, accel_dir[1] * accel, accel_dir[2] * accel];
-        let b = load_vector(3, &shape.pos, &shape.s, &Loads { acceleration: g, down: None, density: material.density, forces: &[(41, [1.0, -2.0, 0.5])] }).unwrap();
+        let b = load_vector(3, &shape.pos, &shape.s, &Loads { acceleration: g, down: None, density: material.density(), forces: &[(41, [1.0, -2.0, 0.5])] }).unwrap();
         for (method, scaling) in [(PENALTY, PressureScaling::None), (ConstraintMethod::Eliminate, PressureScaling::Auto)] {
             let sys = shape.assemble(&material, &c, method, scaling).unwrap();
             let vol = check_volume_row(&shape, &sys, &b, target);
@@ -869,4 +867,10 @@ fn stiffness_force_is_the_row_before_elimination() {
             assert!((penalty - expected).abs() <= 1e-12 * k[(i, i)], "vertex {i} axis {a} (penalty)");
         }
     }
+}
+
+/// `m` with another fiber modulus per axis.
+fn with_modulus(mut m: Material, fiber_modulus: [f64; 3]) -> Material {
+    m.set_fiber_modulus(fiber_modulus).unwrap();
+    m
 }

@@ -152,8 +152,7 @@ pub fn grab_scene(scene: &Scene, calibrations: &[Calibration]) -> crate::Result<
             Some(c) => *c,
             None => fibfluid::sim::calibration::calibrate(&s.model, None)?,
         };
-        s.model.material.fiber_modulus = [c.fiber_modulus; 3];
-        s.model.material.surface_tension = c.surface_tension;
+        c.apply(&mut s.model.material).expect("a calibration's fibers are in range (positive modulus)");
         s.model.ffm.calibrate = false;
     }
     s.model.load.gravity = [0.0; 3];

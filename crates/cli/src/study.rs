@@ -354,8 +354,7 @@ fn physical_axis(scene: &Scene, fibers: &[FiberModel], grab: bool) -> crate::Res
 /// Sets the scene's fiber modulus from the calibration of its fiber model, if any.
 fn apply_calibration(s: &mut Scene, calibrations: &[fibfluid::sim::calibration::Calibration]) {
     if let Some(c) = calibrations.iter().find(|c| c.fibers == s.ffm.fibers) {
-        s.material.fiber_modulus = [c.fiber_modulus; 3];
-        s.material.surface_tension = c.surface_tension;
+        c.apply(&mut s.material).expect("a calibration's fibers are in range (positive modulus)");
     }
 }
 

@@ -36,12 +36,7 @@ mod tools;
 fn sphere(method: ConstraintMethod) -> Model {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/meshes/icosphere-2.obj");
     let file = load_mesh(path).expect("the sphere mesh loads");
-    let material = Material {
-        fiber_modulus: [3000.0; 3],
-        surface_tension: 3000.0,
-        density: 1000.0,
-        ..Material::default()
-    };
+    let material = Material::new([3000.0; 3], 3000.0, 1000.0).unwrap();
     let mut scene = Model::from_mesh("sphere", file, material);
     let rest = scene.rest_positions();
     scene.constraints.fix_selected(&Selector::Above { axis: 1, value: 0.8 }, &rest, [true; 3]).unwrap();

@@ -54,7 +54,8 @@ fn system(pos: &[Vec3], areas: &[Vec3], edges: &[[u32; 2]], gamma: f64) -> (Syst
     let fibers = FiberSet::all(n);
     let body =
         Body { axes: 3, positions: pos, vertex_areas: areas, edges, fibers: &fibers, rest_positions: None };
-    let material = Material { surface_tension: gamma, ..Material::default() };
+    let mut material = Material::default();
+    material.set_surface_tension(gamma).unwrap();
     let mut c = Constraints::new(n);
     c.fix_selected(&Selector::Above { axis: 1, value: 0.8 }, pos, [true; 3]).expect("a cap");
     let opts =

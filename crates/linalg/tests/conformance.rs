@@ -623,8 +623,7 @@ fn sphere_system(
         fibers: &fibers,
         rest_positions: None,
     };
-    let material =
-        Material { fiber_modulus: young, surface_tension: 3000.0, density: 1000.0, ..Material::default() };
+    let material = Material::new(young, 3000.0, 1000.0).unwrap();
     let mut c = Constraints::new(n);
     c.fix_selected(&Selector::Above { axis: 1, value: 0.8 }, pos, [true; 3]).unwrap();
     let sys = assemble(&body, &material, &c, &AssemblyOptions { method, pressure_scaling }).unwrap();

@@ -45,20 +45,20 @@ pub(crate) fn get(py: Python<'_>, scene: &Scene, name: &str) -> PyResult<Py<PyAn
         "steps" => scene.load.steps.into_py_any(py),
         "tolerance" => scene.load.tolerance.into_py_any(py),
         "gravity" => (scene.load.gravity[0], scene.load.gravity[1], scene.load.gravity[2]).into_py_any(py),
-        "young" if m.fiber_modulus.iter().all(|&y| y == m.fiber_modulus[0]) => {
-            m.fiber_modulus[0].into_py_any(py)
+        "young" if m.fiber_modulus().iter().all(|&y| y == m.fiber_modulus()[0]) => {
+            m.fiber_modulus()[0].into_py_any(py)
         }
-        "young" => (m.fiber_modulus[0], m.fiber_modulus[1], m.fiber_modulus[2]).into_py_any(py),
-        "surface_tension" => m.surface_tension.into_py_any(py),
-        "density" => m.density.into_py_any(py),
-        "stiffening" => match m.law {
+        "young" => (m.fiber_modulus()[0], m.fiber_modulus()[1], m.fiber_modulus()[2]).into_py_any(py),
+        "surface_tension" => m.surface_tension().into_py_any(py),
+        "density" => m.density().into_py_any(py),
+        "stiffening" => match m.law() {
             StiffnessLaw::Linear => None::<f64>.into_py_any(py),
             StiffnessLaw::Quadratic { c } => c.into_py_any(py),
             // Not from a scene file: a law given in code has no number to show.
             StiffnessLaw::Custom(_) => "custom".into_py_any(py),
         },
         "fibers" => scene.ffm.fibers.name().into_py_any(py),
-        "kernel_exponent" => m.kernel_exponent.into_py_any(py),
+        "kernel_exponent" => m.kernel_exponent().into_py_any(py),
         "backend" => s.backend.name().into_py_any(py),
         "mode" => s.mode.name().into_py_any(py),
         "stepping" => s.stepping.name().into_py_any(py),
@@ -134,28 +134,38 @@ pub(crate) fn set(scene: &mut Scene, name: &str, v: &Bound<'_, PyAny>) -> PyResu
                     return Err(error(format!("young: must be {}, got {y} along {axis}", parameter.rule())));
                 }
             }
-            scene.material.fiber_modulus = young;
+            scene.material.set_fiber_modulus(young).map_err(|e| error(format!("young: {e}")))?;
         }
         "surface_tension" => {
             let g = number(v, name)?;
-            scene.material.surface_tension = material_value(name, g, MaterialParameter::SurfaceTension)?;
+            scene
+                .material
+                .set_surface_tension(material_value(name, g, MaterialParameter::SurfaceTension)?)
+                .map_err(|e| error(format!("{name}: {e}")))?;
         }
         "density" => {
             let d = number(v, name)?;
-            scene.material.density = material_value(name, d, MaterialParameter::Density)?;
+            scene
+                .material
+                .set_density(material_value(name, d, MaterialParameter::Density)?)
+                .map_err(|e| error(format!("{name}: {e}")))?;
         }
         "stiffening" => {
-            scene.material.law = if v.is_none() {
+            let law = if v.is_none() {
                 StiffnessLaw::Linear
             } else {
                 let c = number(v, name)?;
                 StiffnessLaw::Quadratic { c: material_value(name, c, MaterialParameter::Stiffening)? }
             };
+            scene.material.set_law(law).map_err(|e| error(format!("{name}: {e}")))?;
         }
         "fibers" => scene.ffm.fibers = choice::<FiberModel>(v, name)?,
         "kernel_exponent" => {
             let p = number(v, name)?;
-            scene.material.kernel_exponent = material_value(name, p, MaterialParameter::KernelExponent)?;
+            scene
+                .material
+                .set_kernel_exponent(material_value(name, p, MaterialParameter::KernelExponent)?)
+                .map_err(|e| error(format!("{name}: {e}")))?;
         }
         "backend" => {
             let b: Backend = choice(v, name)?;

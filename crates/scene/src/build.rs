@@ -3,7 +3,8 @@
 use std::path::Path;
 
 use fibfluid_assembly::{
-    Constraints, DEFAULT_PENALTY, Material, MaterialParameter, PAPER_KERNEL_EXPONENT, Selector, StiffnessLaw,
+    AssemblyError, Constraints, DEFAULT_PENALTY, Material, MaterialParameter, PAPER_KERNEL_EXPONENT,
+    Selector, StiffnessLaw,
 };
 use fibfluid_fem::TissueParameter;
 use fibfluid_geometry::{MeshFile, Polygon, ReadOptions, load_mesh_with};
@@ -174,7 +175,10 @@ fn ffm_material(
     let mut settings = FfmSettings { fibers, calibrate: false };
     let kernel = ffm.as_ref().and_then(|f| f.kernel_exponent).unwrap_or(PAPER_KERNEL_EXPONENT);
     let kernel = checked("[ffm].kernel_exponent", MaterialParameter::KernelExponent, kernel)?;
-    let with_kernel = |m: Material| Material { kernel_exponent: kernel, ..m };
+    let with_kernel = |mut m: Material| {
+        m.set_kernel_exponent(kernel).expect("checked above");
+        m
+    };
     let new = ffm.and_then(|f| {
         f.young.map(|young| MaterialToml {
             young,
@@ -209,7 +213,7 @@ fn ffm_material(
                 MaterialToml { young: Young::One(t.young()), surface_tension: 0.0, stiffening: None };
             let mut m = material(placeholder, Some(FluidToml { density }), axes)?;
             if method == Method::Fem {
-                m = Material { density: 0.0, surface_tension: 0.0, ..Material::default() };
+                m = Material::new(Material::default().fiber_modulus(), 0.0, 0.0).expect("in range");
             }
             Ok((with_kernel(m), settings))
         }
@@ -244,13 +248,16 @@ fn material(m: MaterialToml, fluid: Option<FluidToml>, axes: usize) -> Result<Ma
     };
     let density =
         checked("[fluid].density", MaterialParameter::Density, fluid.map(|f| f.density).unwrap_or(0.0))?;
-    Ok(Material {
-        fiber_modulus: young,
-        surface_tension: gamma,
-        density,
-        law,
-        kernel_exponent: PAPER_KERNEL_EXPONENT,
-    })
+    let mut material = Material::new(young, gamma, density).map_err(|e| match e {
+        // A 2D body's unused z modulus must be valid too.
+        AssemblyError::InvalidMaterial { parameter: MaterialParameter::FiberModulus { axis }, value } => {
+            let value = format!("{value} along {}", fibfluid_geometry::AXES[axis]);
+            range("[material].young", MaterialParameter::FiberModulus { axis }.rule(), value)
+        }
+        other => invalid("[material]", SceneProblem::Constraint(other)),
+    })?;
+    material.set_law(law).expect("stiffening checked above");
+    Ok(material)
 }
 
 /// `value` when `parameter` accepts it (the material's own rule), else a range error on `key`.

@@ -44,8 +44,8 @@ pub fn calibrate(model: &Model, max_memory: Option<u64>) -> Result<Calibration> 
     ffm.load.tolerance = None;
     // The probe run: a fiber modulus numerically equal to E (the answer scales with its
     // inverse, so any value would do).
-    ffm.material.fiber_modulus = [tissue.young(); 3];
-    ffm.material.surface_tension = 0.0;
+    ffm.material.set_fiber_modulus([tissue.young(); 3])?;
+    ffm.material.set_surface_tension(0.0)?;
     let setup = SetupOptions { max_memory, ..Default::default() };
     let mut sim = Simulation::setup(ffm, None, &setup, StageLog::default(), Instant::now())?;
     sim.run(&RunOptions::default())?;

@@ -100,7 +100,8 @@ pub fn ineffective(scene: &Model) -> Vec<Ineffective> {
     let has_gravity = scene.load.gravity.iter().any(|&g| g != 0.0);
     let fem = scene.solver.method == Method::Fem;
     // FFM's gravity acts through the fluid's density, the FEM's through the tissue's.
-    let density = if fem { scene.tissue.map(|t| t.density()).unwrap_or(0.0) } else { scene.material.density };
+    let density =
+        if fem { scene.tissue.map(|t| t.density()).unwrap_or(0.0) } else { scene.material.density() };
     if has_gravity && density == 0.0 {
         found.push(if fem {
             Ineffective::GravityWithoutTissueDensity { acceleration: scene.load.gravity }
@@ -114,7 +115,7 @@ pub fn ineffective(scene: &Model) -> Vec<Ineffective> {
     if !has_gravity && density > 0.0 && !fem && !from_tissue {
         found.push(Ineffective::DensityWithoutGravity { density });
     }
-    let stiffens = match &scene.material.law {
+    let stiffens = match &scene.material.law() {
         StiffnessLaw::Linear => false,
         StiffnessLaw::Quadratic { c } => *c != 0.0,
         StiffnessLaw::Custom(_) => true,

@@ -6,6 +6,8 @@
 use fibfluid_geometry::Vec3;
 use serde::Serialize;
 
+use fibfluid_assembly::Material;
+
 use crate::choices::FiberModel;
 
 /// The FEM's resolution for a calibration: coarse enough to take seconds, within ~5 % of
@@ -63,4 +65,13 @@ pub fn best_scale(u_ffm: &[Vec3], u_fem: &[Vec3]) -> (f64, f64) {
     let diff: f64 =
         u_ffm.iter().zip(u_fem).map(|(a, b)| (0..3).map(|c| (a[c] / s - b[c]).powi(2)).sum::<f64>()).sum();
     (s, (diff / bb).sqrt())
+}
+
+impl Calibration {
+    /// Puts the calibrated fibers (its fiber modulus on every axis and its surface tension)
+    /// in `material`.
+    pub fn apply(&self, material: &mut Material) -> Result<(), fibfluid_assembly::AssemblyError> {
+        material.set_fiber_modulus([self.fiber_modulus; 3])?;
+        material.set_surface_tension(self.surface_tension)
+    }
 }

@@ -40,8 +40,7 @@ impl Simulation {
         let mut log = StageLog::default();
         let calibration = if scene.ffm.calibrate {
             let c = log.time(names::CALIBRATION, || calibrate(&scene, opts.max_memory))?;
-            scene.material.fiber_modulus = [c.fiber_modulus; 3];
-            scene.material.surface_tension = c.surface_tension;
+            c.apply(&mut scene.material)?;
             scene.ffm.calibrate = false;
             Some(c)
         } else {

@@ -226,7 +226,7 @@ fn setup_stages(scene: &Model, size: &Size, c: &Costs) -> Vec<PlannedStage> {
         )
     });
     st.push(stage(names::AREAS, true, "vertex area vectors S (Eq. 2)", 0.0, 30.0 * faces));
-    let gamma = scene.material.surface_tension > 0.0;
+    let gamma = scene.material.surface_tension() > 0.0;
     let projected = projected_side(scene, size);
     let assembly_bytes =
         (1.0 + if gamma { 1.0 } else { 0.0 }) * n * n * 8.0 + block_bytes + projected * projected * 8.0;
@@ -322,7 +322,7 @@ fn load_stages(scene: &Model, c: &Costs) -> Vec<PlannedStage> {
     let Costs { n, faces, d, steps, evaluations, block_bytes, dense, .. } = *c;
     let solver = &scene.solver;
     let mut st = Vec::new();
-    let hydrostatic = scene.material.density > 0.0 && scene.load.gravity != [0.0; 3];
+    let hydrostatic = scene.material.density() > 0.0 && scene.load.gravity != [0.0; 3];
     let forces = !scene.load.forces.is_empty();
     let loads_reason = match (hydrostatic, forces) {
         (true, true) => format!("hydrostatic pressure and {} point force(s)", scene.load.forces.len()),

@@ -208,7 +208,7 @@ impl Report {
             body: BodyFacts { vertices: rest.len(), faces, convex: sim.convex() },
             ffm: FfmFacts {
                 fibers: scene.ffm.fibers,
-                kernel_exponent: scene.material.kernel_exponent,
+                kernel_exponent: scene.material.kernel_exponent(),
                 fibers_total: sim.fibers().total(),
                 fibers_kept: sim.fibers().kept(),
             },

@@ -68,7 +68,7 @@ impl Simulation {
         let loads = Loads {
             acceleration: scale(self.model.load.gravity, lambda),
             down: Some(self.model.load.gravity),
-            density: self.model.material.density,
+            density: self.model.material.density(),
             forces: &forces,
         };
         let f = load_vector(axes, s, &current, &loads)?;

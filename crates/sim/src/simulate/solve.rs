@@ -146,7 +146,7 @@ impl Simulation {
         let loads = Loads {
             acceleration: da,
             down: Some(self.model.load.gravity),
-            density: self.model.material.density,
+            density: self.model.material.density(),
             forces,
         };
         let computed;

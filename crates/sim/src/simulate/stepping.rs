@@ -169,7 +169,7 @@ impl Simulation {
         let step = self.stats.taken + 1;
         let from = self.state.load_factor;
         let moves_prescribed = inc.prescribed != 0.0 && self.model.constraints.has_nonzero();
-        let acts = inc.da != [0.0; 3] && self.model.material.density > 0.0;
+        let acts = inc.da != [0.0; 3] && self.model.material.density() > 0.0;
         let plates_move = from != inc.to && self.model.plates.iter().any(|p| p.travel != 0.0);
         if !acts && inc.forces.is_empty() && !moves_prescribed && !plates_move {
             self.state.load_factor = inc.to;
