@@ -107,6 +107,9 @@ impl FemBody {
         fixed: &[[bool; 3]],
         options: &FemOptions,
     ) -> Result<Self> {
+        if fixed.len() == positions.len() {
+            crate::rigid::check_rigid_modes(positions, fixed)?;
+        }
         let grid = SparseGrid::from_surface(positions, triangles, options.resolution)?;
         Self::with_element(grid, tissue, fixed, options.element)
     }
@@ -119,7 +122,7 @@ impl FemBody {
     /// Assembles K over the free dofs (`fixed[v][a]`: surface vertex `v` fixed along axis
     /// `a`, see the type's docs for the rule) and factors it.
     ///
-    /// Errors: an invalid tissue, `fixed` not one entry per surface vertex, every dof fixed
+    /// Errors: `fixed` not one entry per surface vertex, every dof fixed
     /// ([`FemError::NothingFree`]), too few fixed to stop rigid motion
     /// ([`FemError::NotPositiveDefinite`]).
     pub fn with_element(

@@ -83,6 +83,17 @@ pub enum FemError {
     /// singular.
     #[error("the stiffness matrix is not positive definite (too few fixed vertices to stop rigid motion?)")]
     NotPositiveDefinite,
+    /// The fixed vertices leave the body free to move rigidly (found from the constraints
+    /// before anything is assembled).
+    #[error(
+        "the fixed vertices ({fixed_vertices} of them) leave the body free to move: {mode} costs no energy (fix vertices that do not all lie on one line, or more axes)"
+    )]
+    RigidModeFree {
+        /// The first free rigid motion found.
+        mode: crate::RigidMode,
+        /// Vertices with at least one fixed axis.
+        fixed_vertices: usize,
+    },
     /// Every node is fixed: nothing to solve.
     #[error("every degree of freedom is fixed")]
     NothingFree,

@@ -49,6 +49,7 @@ mod error;
 mod grid;
 mod held;
 mod ordering;
+mod rigid;
 mod tissue;
 
 pub use body::{FemBody, FemSolution, FemStats, Loads, RESIDUAL_LIMIT};
@@ -61,4 +62,5 @@ pub use grid::{
 };
 pub use held::{FemHold, HeldResponse};
 pub use ordering::{ND_LEAF, Ordering};
+pub use rigid::{RIGID_MODE_TOLERANCE, RigidMode, check_rigid_modes, free_rigid_modes};
 pub use tissue::{Tissue, TissueParameter};

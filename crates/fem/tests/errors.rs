@@ -49,9 +49,10 @@ fn bad_constraints_and_loads_are_refused() {
     let tissue = Tissue::new(1e4, 0.45, 1000.0).unwrap();
     let opts = FemOptions { resolution: 4, ..Default::default() };
     let none = vec![[false; 3]; pos.len()];
+    // Nothing fixed: refused from the constraints, before the (singular) factorization.
     assert!(matches!(
         FemBody::from_surface(&pos, &tris, &tissue, &none, &opts),
-        Err(FemError::NotPositiveDefinite)
+        Err(FemError::RigidModeFree { fixed_vertices: 0, .. })
     ));
     assert!(matches!(
         FemBody::from_surface(&pos, &tris, &tissue, &none[1..], &opts),
@@ -77,4 +78,61 @@ fn bad_constraints_and_loads_are_refused() {
         body.respond_held(&Loads::default(), &[(clamped, [0.1, 0.0, 0.0])]),
         Err(FemError::HeldOnFixed { axis: 0, .. })
     ));
+}
+
+/// Constraints that leave a rigid motion free are refused before anything is built, with
+/// the motion named: two fixed vertices leave the rotation about the line through them
+/// (the direction checked against the line, an independent computation), one vertex all
+/// three rotations, nothing at all every motion. A fixed face, or rollers that stop each
+/// motion, hold the body.
+#[test]
+fn constraints_that_leave_a_rigid_motion_free_are_refused() {
+    let (pos, tris) = box_surface([0.0; 3], [4, 2, 2], 0.25);
+    let tissue = Tissue::new(5e4, 0.45, 1000.0).unwrap();
+    let far = (0..pos.len())
+        .max_by(|&a, &b| norm(sub(pos[a], pos[0])).total_cmp(&norm(sub(pos[b], pos[0]))))
+        .unwrap();
+    let mut two = vec![[false; 3]; pos.len()];
+    two[0] = [true; 3];
+    two[far] = [true; 3];
+    let modes = fibfluid_fem::free_rigid_modes(&pos, &two);
+    assert_eq!(modes.len(), 1, "{modes:?}");
+    let line = sub(pos[far], pos[0]);
+    match modes[0] {
+        fibfluid_fem::RigidMode::Rotation { axis, through } => {
+            // Parallel to the line, and the line passes through `through`.
+            assert!(norm(cross(axis, line)) < 1e-9 * norm(line), "{axis:?} against {line:?}");
+            assert!(norm(cross(sub(through, pos[0]), line)) < 1e-9 * norm(line) * norm(line), "{through:?}");
+        }
+        other => panic!("{other:?}"),
+    }
+    let options = FemOptions::default();
+    match FemBody::from_surface(&pos, &tris, &tissue, &two, &options) {
+        Err(FemError::RigidModeFree { fixed_vertices: 2, .. }) => {}
+        other => panic!("{:?}", other.map(|_| ())),
+    }
+    let mut one = vec![[false; 3]; pos.len()];
+    one[0] = [true; 3];
+    assert_eq!(fibfluid_fem::free_rigid_modes(&pos, &one).len(), 3);
+    assert_eq!(fibfluid_fem::free_rigid_modes(&pos, &vec![[false; 3]; pos.len()]).len(), 6);
+    // The face x = 0 fixed: held.
+    let face: Vec<[bool; 3]> = pos.iter().map(|p| [p[0] == 0.0; 3]).collect();
+    assert!(fibfluid_fem::free_rigid_modes(&pos, &face).is_empty());
+    // Rollers: y fixed on the face y = 0, x on its edge z = 0, z on two of its corners.
+    let rollers: Vec<[bool; 3]> = pos
+        .iter()
+        .map(|p| {
+            let bottom = p[1] == 0.0;
+            [bottom && p[2] == 0.0, bottom, bottom && p[2] == 0.0 && (p[0] == 0.0 || p[0] == 1.0)]
+        })
+        .collect();
+    assert!(fibfluid_fem::free_rigid_modes(&pos, &rollers).is_empty());
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
