@@ -542,6 +542,8 @@ fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> 
     let opts = RunOptions { progress: progress(steps, "run") };
     sim.run(&opts).map_err(in_scene(path))?;
     print_step_notes(&sim);
+    // A non-finite answer stops here, before anything is written.
+    print_result_warnings(&sim.answer_guards().map_err(in_scene(path))?);
     let start = Instant::now();
     let mut report = Report::of(&sim, std::slice::from_ref(&load), notes);
     let written = fibfluid_cli::write_outputs(out, &sim, &report)?;
@@ -593,6 +595,7 @@ fn run_fem(
 ) -> Result<(), CliError> {
     let path = scene.source.clone().unwrap_or_default();
     let run = fibfluid::sim::fem_run::FemRun::new(scene, over.max_memory).map_err(in_scene(&path))?;
+    print_result_warnings(&run.warnings);
     let start = Instant::now();
     let mut report = fibfluid::sim::fem_run::FemReport::of(&run, std::slice::from_ref(&load), notes);
     let written = fibfluid_cli::write_fem_outputs(out, &run, &report)?;
@@ -608,9 +611,9 @@ fn run_fem(
         report.fem.dofs,
         num(report.tissue.young()),
         report.tissue.poisson(),
-        num(report.max_displacement * to_unit),
-        num(report.volume_initial),
-        num(report.volume_final),
+        num(report.result.max_displacement * to_unit),
+        num(report.result.volume_initial),
+        num(report.result.volume_final),
         report.residual,
         report.seconds_total
     );
@@ -642,6 +645,13 @@ fn print_step_notes(sim: &Simulation) {
         tell!(
             "note: {skipped} load steps changed no load (a force applied at the last step only) and were skipped without a solve"
         );
+    }
+}
+
+/// The result guards that fired, one line each on stderr (they are in report.json too).
+fn print_result_warnings(warnings: &[fibfluid::sim::result_guards::ResultWarning]) {
+    for w in warnings {
+        tell!("warning: {w}");
     }
 }
 

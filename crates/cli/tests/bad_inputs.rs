@@ -106,6 +106,14 @@ const EXPECTED: &[(&str, &str)] = &[
         "scene-plate-zero-normal.toml",
         "scene-plate-zero-normal.toml:14: [[plate]] #1.normal: must be finite and non-zero",
     ),
+    (
+        "scene-fem-fixed-on-a-line.toml",
+        "scene-fem-fixed-on-a-line.toml: fem: the fixed vertices (2 of them) leave the body free to move: a rotation about the axis",
+    ),
+    (
+        "scene-tissue-young-1e-300.toml",
+        "scene-tissue-young-1e-300.toml: fem: the answer is not finite at vertex",
+    ),
     ("scene-steps-zero.toml", "scene-steps-zero.toml:10: [load].steps: must be between 1 and 1000000, got 0"),
     (
         "scene-unknown-backend.toml",

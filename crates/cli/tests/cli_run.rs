@@ -659,6 +659,47 @@ fn run_with_the_fem_writes_its_report_and_mesh_in_the_file_unit() {
     assert!(stdout.contains(" cm,") && stdout.contains("Pa"), "{stdout}");
 }
 
+/// A physically impossible FEM answer never leaves without a warning: a floor plate driven 5 m
+/// up into a hanging 2 m sphere turns its surface inside out (a negative volume). The run
+/// ends (exit 0), with the result guards on stderr and in report.json; the same scene with
+/// a 1 cm push passes them (no warning, an empty list).
+#[test]
+fn fem_answers_beyond_the_possible_are_flagged() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mesh = root().join("fixtures/meshes/icosphere-2.obj");
+    let scene_with = |travel: f64| {
+        format!(
+            "[mesh]\npath = \"{}\"\n\n[tissue]\nyoung = 3000.0\npoisson = 0.45\ndensity = 1000.0\n\n\
+             [[fix]]\naxis = \"y\"\nabove = 0.8\n\n\
+             [[plate]]\npoint = [0.0, -1.0, 0.0]\nnormal = [0.0, 1.0, 0.0]\ntravel = {travel}\n\n\
+             [solver]\nmethod = \"fem\"\n\n[fem]\nresolution = 8\n",
+            mesh.display()
+        )
+    };
+    for (travel, impossible) in [(5.0, true), (0.01, false)] {
+        let scene = tmp.path().join(format!("plate-{travel}.toml"));
+        std::fs::write(&scene, scene_with(travel)).unwrap();
+        let out = tmp.path().join(format!("out-{travel}"));
+        let o = bin().arg("run").arg(&scene).arg("--out").arg(&out).output().unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{stderr}");
+        let report = read_json(&out.join("report.json"));
+        let warnings = report["warnings"].as_array().unwrap();
+        let volume = warnings.iter().find(|w| w["guard"] == "volume");
+        if impossible {
+            let ratio =
+                volume.unwrap_or_else(|| panic!("no volume warning: {report}"))["value"].as_f64().unwrap();
+            let (v0, v1) =
+                (report["volume_initial"].as_f64().unwrap(), report["volume_final"].as_f64().unwrap());
+            assert!(v1 <= 0.0 && (ratio - v1 / v0).abs() <= 1e-9 * ratio.abs(), "{ratio} vs {v1} / {v0}");
+            assert!(stderr.contains("warning: result guard `volume`"), "{stderr}");
+        } else {
+            assert!(warnings.is_empty(), "{warnings:?}");
+            assert!(!stderr.contains("result guard"), "{stderr}");
+        }
+    }
+}
+
 /// `bench --stages`: every stage beside a positive, finite limit measured in the same run.
 #[test]
 fn bench_stages_json() {

@@ -90,6 +90,18 @@ pub enum Error {
         /// The tolerance asked for.
         tolerance: f64,
     },
+    /// The answer has a non-finite position: nothing is written from it.
+    #[error(
+        "{scene}: {method}: the answer is not finite at vertex {vertex}: the tissue (or fiber modulus) is far too soft for its loads, or the constraints do not hold the body"
+    )]
+    NonFiniteAnswer {
+        /// The scene.
+        scene: String,
+        /// The method that gave it.
+        method: crate::Method,
+        /// The first vertex whose position is not finite.
+        vertex: usize,
+    },
     /// The contact active set kept changing.
     #[error(
         "step {step}: the plate contacts did not settle after {iterations} active-set iterations; take more load steps"

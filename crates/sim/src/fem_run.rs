@@ -15,11 +15,12 @@
 use std::time::Instant;
 
 use fibfluid_fem::{FemBody, FemHold, FemOptions, FemStats, GridEstimate, Loads, Tissue};
-use fibfluid_geometry::Vec3;
+use fibfluid_geometry::{Boundary, Vec3};
 use serde::Serialize;
 
 use crate::choices::{LengthUnit, Method};
 use crate::model::{Model, Shape};
+use crate::result_guards::{ResultChecks, ResultWarning, check_answer};
 use crate::stages::{StageLog, StageRecord, names};
 use crate::{Error, Result};
 
@@ -119,6 +120,8 @@ pub struct FemRun {
     pub residual: f64,
     /// Each plate's contact (empty without plates).
     pub plates: Vec<FemPlate>,
+    /// The result guards that fired ([`crate::result_guards`]).
+    pub warnings: Vec<ResultWarning>,
     /// Stage times.
     pub log: StageLog,
     /// Wall-clock seconds.
@@ -141,9 +144,11 @@ impl FemRun {
         } else {
             log.time(names::SOLVE, || solve_with_plates(&model, &mut body, &loads, &rest))?
         };
-        let positions =
+        let positions: Vec<Vec3> =
             rest.iter().zip(&displacements).map(|(p, u)| [p[0] + u[0], p[1] + u[1], p[2] + u[2]]).collect();
+        let warnings = answer_guards(&model, &rest, &positions, residual)?;
         Ok(Self {
+            warnings,
             tissue: *body.tissue(),
             stats: body.stats(),
             residual,
@@ -155,6 +160,24 @@ impl FemRun {
             model,
         })
     }
+}
+
+/// The result guards of a finite-element answer (every one of them: the FEM has no step
+/// guards); a non-finite position is [`Error::NonFiniteAnswer`].
+pub fn answer_guards(
+    model: &Model,
+    rest: &[Vec3],
+    positions: &[Vec3],
+    residual: f64,
+) -> Result<Vec<ResultWarning>> {
+    let Shape::Surface(file) = &model.shape else { return Ok(vec![]) };
+    let boundary = Boundary::Surface { triangles: file.mesh.triangles().to_vec() };
+    let checks = ResultChecks { inverted: true, residual: Some(residual) };
+    check_answer(&boundary, rest, positions, checks).map_err(|e| Error::NonFiniteAnswer {
+        scene: model.display_name(),
+        method: Method::Fem,
+        vertex: e.vertex,
+    })
 }
 
 /// Refuses a model with plates for an interactive finite-element body (its base state is
@@ -282,6 +305,19 @@ impl Units {
     }
 }
 
+/// The deformed body of a finite-element run.
+#[derive(Clone, Debug, Serialize)]
+pub struct FemResultFacts {
+    /// Largest displacement (m).
+    pub max_displacement: f64,
+    /// Mean displacement (m).
+    pub mean_displacement: f64,
+    /// Volume enclosed by the surface before (m^3).
+    pub volume_initial: f64,
+    /// Volume after (m^3).
+    pub volume_final: f64,
+}
+
 /// `report.json` of a finite-element run.
 #[derive(Clone, Debug, Serialize)]
 pub struct FemReport {
@@ -297,19 +333,16 @@ pub struct FemReport {
     pub vertices: usize,
     /// Grid, sizes and timings.
     pub fem: FemStats,
-    /// Largest displacement (m).
-    pub max_displacement: f64,
-    /// Mean displacement (m).
-    pub mean_displacement: f64,
-    /// Volume enclosed by the surface before (m^3).
-    pub volume_initial: f64,
-    /// Volume after (m^3).
-    pub volume_final: f64,
+    /// Displacements and volumes (flattened into `report.json`).
+    #[serde(flatten)]
+    pub result: FemResultFacts,
     /// The solve's measured relative residual `|K u - f| / |f|`.
     pub residual: f64,
     /// Each plate's contact at its final position (omitted without plates).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub plates: Vec<FemPlate>,
+    /// The result guards that fired (empty: the answer passed them).
+    pub warnings: Vec<ResultWarning>,
     /// Stages with their seconds.
     pub stages: Vec<StageRecord>,
     /// Notes (mesh warnings, etc.).
@@ -340,12 +373,15 @@ impl FemReport {
             tissue: run.tissue,
             vertices: run.rest.len(),
             fem: run.stats,
-            max_displacement: disp.iter().copied().fold(0.0, f64::max),
-            mean_displacement: disp.iter().sum::<f64>() / disp.len().max(1) as f64,
-            volume_initial,
-            volume_final,
+            result: FemResultFacts {
+                max_displacement: disp.iter().copied().fold(0.0, f64::max),
+                mean_displacement: disp.iter().sum::<f64>() / disp.len().max(1) as f64,
+                volume_initial,
+                volume_final,
+            },
             residual: run.residual,
             plates: run.plates.clone(),
+            warnings: run.warnings.clone(),
             stages,
             notes,
             seconds_total: run.seconds + extra_stages.iter().map(|s| s.seconds).sum::<f64>(),

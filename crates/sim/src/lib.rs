@@ -31,6 +31,7 @@ mod model;
 mod pipeline;
 pub mod plan;
 mod report;
+pub mod result_guards;
 pub mod samples;
 mod simulate;
 pub mod stages;

@@ -131,6 +131,8 @@ pub struct GuardFacts {
     pub warnings: Vec<crate::guards::GuardWarning>,
     /// Faces inverted against the rest shape at the end.
     pub inverted_faces: usize,
+    /// The result guards that fired on the final answer ([`crate::result_guards`]).
+    pub result_warnings: Vec<crate::result_guards::ResultWarning>,
 }
 
 /// The deformed body: volume, displacements, pressure. (flattened into `report.json`).
@@ -226,6 +228,7 @@ impl Report {
             guards: GuardFacts {
                 warnings: sim.warnings().to_vec(),
                 inverted_faces: crate::guards::inverted_faces(&sim.body().boundary, rest, sim.positions()),
+                result_warnings: sim.answer_guards().unwrap_or_default(),
             },
             plates: sim.plate_records().to_vec(),
             calibration: sim.calibration().copied(),

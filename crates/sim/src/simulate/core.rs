@@ -150,4 +150,22 @@ impl Simulation {
     pub fn plate_records(&self) -> &[PlateRecord] {
         &self.plate_records
     }
+
+    /// The result guards of the current answer ([`crate::result_guards`]: volume and
+    /// displacement; the step guards watch inverted faces and residuals); a non-finite
+    /// position is [`crate::Error::NonFiniteAnswer`].
+    pub fn answer_guards(&self) -> crate::Result<Vec<crate::result_guards::ResultWarning>> {
+        let checks = crate::result_guards::ResultChecks { inverted: false, residual: None };
+        crate::result_guards::check_answer(
+            &self.body.boundary,
+            &self.body.rest,
+            &self.state.positions,
+            checks,
+        )
+        .map_err(|e| crate::Error::NonFiniteAnswer {
+            scene: self.model.display_name(),
+            method: crate::Method::Ffm,
+            vertex: e.vertex,
+        })
+    }
 }
