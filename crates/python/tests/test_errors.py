@@ -170,3 +170,24 @@ def test_a_body_refuses_what_the_probe_refuses(scene):
 def test_a_polygon_scene_has_no_body():
     with pytest.raises(fibfluid.Error, match="2D polygon"):
         fibfluid.Body(fibfluid.Scene.load(SCENES / "rectangle.toml"))
+
+
+def test_integers_out_of_every_range_are_fibfluid_errors():
+    """Vertex numbers beyond 64 bits and a negative memory limit are refusals
+    (fibfluid.Error), not OverflowError; vertex -1 and N stay refusals too."""
+    scene = fibfluid.Scene.load(SCENES / "sphere.toml")
+    body = fibfluid.Body(scene)
+    n = scene.n_vertices
+    cases = [
+        lambda: body.grab(2**70, [0.0, 0.0, 0.0]),
+        lambda: body.grasp(np.uint64(2**64 - 1), 0.1, [0.0, 0.0, 0.0]),
+        lambda: body.release(-(2**63) - 1),
+        lambda: body.grab(-1, [0.0, 0.0, 0.0]),
+        lambda: body.grab(n, [0.0, 0.0, 0.0]),
+        lambda: fibfluid.run(scene, max_memory=-1),
+        lambda: fibfluid.run(scene, max_memory=2**64),
+        lambda: fibfluid.Body(scene, max_memory=-1),
+    ]
+    for case in cases:
+        with pytest.raises(fibfluid.Error):
+            case()

@@ -299,7 +299,7 @@ def run(scene: Scene, method: Optional[str] = None, progress: Progress = None,
         warnings.warn(w, stacklevel=2)
     callback, close = _progress_callback(progress)
     try:
-        out = _native.run(scene._native, callback, max_memory)
+        out = _native.run(scene._native, callback, _memory(max_memory))
     finally:
         close()
     return Result(
@@ -329,7 +329,7 @@ class Body:
             raise Error("Body needs a fibfluid.Scene (Scene.load)")
         if not isinstance(method, str):
             raise Error(f"method must be a string, one of: {', '.join(METHODS)}")
-        self._native = _native.NativeBody(scene._native, method, max_memory)
+        self._native = _native.NativeBody(scene._native, method, _memory(max_memory))
 
     def grab(self, vertex: int, to: Vector) -> None:
         """Holds ``vertex`` at its rest position plus ``to`` (3 floats) from the next step."""
@@ -441,10 +441,31 @@ def _radius(r: Any) -> float:
     return float(r)
 
 
+# The native layer takes vertices as signed 64-bit integers and memory limits as unsigned
+# ones; a Python integer outside those ranges is refused here as fibfluid.Error (PyO3 would
+# raise OverflowError).
+_I64 = range(-(2**63), 2**63)
+_U64 = range(0, 2**64)
+
+
 def _index(v: Any) -> int:
     if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
         raise Error(f"a vertex must be an integer, got {type(v).__name__}")
-    return int(v)
+    i = int(v)
+    if i not in _I64:
+        raise Error(f"vertex {i} is out of range")
+    return i
+
+
+def _memory(m: Any) -> Optional[int]:
+    if m is None:
+        return None
+    if isinstance(m, bool) or not isinstance(m, (int, np.integer)):
+        raise Error(f"max_memory must be a number of bytes (an integer), got {type(m).__name__}")
+    b = int(m)
+    if b not in _U64:
+        raise Error(f"max_memory must be a number of bytes between 0 and 2^64 - 1, got {b}")
+    return b
 
 
 def _vector(v: Any, what: str) -> List[float]:
