@@ -337,3 +337,26 @@ fn concave_and_genus_one_bodies_and_a_single_fixed_vertex() {
         run_checked(s, &format!("single fixed vertex {backend}"));
     }
 }
+
+/// A vertex left with no fiber inside the body after culling (SOFA's Armadillo: vertices 0
+/// and 57) is named, with what would hold it, instead of a factorization failure that
+/// blames the constraints. Surface fibers (a surface tension) hold every vertex.
+#[test]
+fn vertices_that_keep_no_fiber_are_named() {
+    let mut scene = fibfluid::Scene::load("fixtures/scenes/sphere.toml").unwrap();
+    let n = scene.n_vertices();
+    let lonely = [0usize, 57];
+    let rows: Vec<Vec<u32>> = (0..n)
+        .map(|i| {
+            ((i + 1)..n).filter(|&j| !lonely.contains(&i) && !lonely.contains(&j)).map(|j| j as u32).collect()
+        })
+        .collect();
+    let fibers = fibfluid::geometry::FiberSet::from_rows(n, &rows);
+    assert!(fibfluid::sim::check_every_vertex_is_held(&scene, &fibers).is_ok(), "surface fibers hold them");
+    scene.material.set_surface_tension(0.0).unwrap();
+    let e = fibfluid::sim::check_every_vertex_is_held(&scene, &fibers).unwrap_err().to_string();
+    assert!(e.contains("2 vertices keep no fiber") && e.contains("file vertices 0, 57"), "{e}");
+    assert!(!e.contains("fix at least one vertex"), "{e}");
+    let all = fibfluid::geometry::FiberSet::all(n);
+    assert!(fibfluid::sim::check_every_vertex_is_held(&scene, &all).is_ok());
+}

@@ -261,6 +261,34 @@ fn a_tissue_only_scene_calibrates_ffm_against_the_fem() {
     assert_eq!(json["calibration"]["fem_resolution"], 16);
 }
 
+/// A thin slab (1 x 1 x 0.02 m) calibrates: at the calibration's usual resolution (16) its
+/// 2 cm are thinner than a cell (the FEM refuses it, checked here), so the calibration takes
+/// the coarsest resolution with a cell across the thickness (51) instead of failing with
+/// advice about a resolution it would not use.
+#[test]
+fn a_thin_slab_calibrates_at_a_resolution_that_fits_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let slab = std::fs::canonicalize("fixtures/meshes/slab.obj").unwrap();
+    let toml = format!(
+        "[mesh]\npath = \"{}\"\n\n[tissue]\nyoung = 5000.0\npoisson = 0.45\ndensity = 1000.0\n\n\
+         [gravity]\nacceleration = [0.0, 0.0, -9.81]\n\n[[fix]]\naxis = \"y\"\nbelow = 0.01\n\n\
+         [solver]\nmode = \"paper\"\n",
+        slab.display()
+    );
+    std::fs::write(dir.path().join("slab.toml"), toml).unwrap();
+    let scene = Scene::load(dir.path().join("slab.toml")).unwrap();
+    let mut at_16 = scene.clone();
+    at_16.solver.method = fibfluid::sim::Method::Fem;
+    at_16.fem.resolution = fibfluid::sim::calibration::CALIBRATION_RESOLUTION;
+    let refused = FemRun::new(at_16, None).unwrap_err().to_string();
+    assert!(refused.contains("thinner than a cell"), "{refused}");
+    let mut sim = Simulation::new(scene).unwrap();
+    sim.run(&RunOptions::default()).unwrap();
+    let cal = sim.calibration().expect("a calibration");
+    assert_eq!(cal.fem_resolution, 51);
+    assert!(cal.fiber_modulus.is_finite() && cal.fiber_modulus > 0.0, "{cal:?}");
+}
+
 #[test]
 fn ffm_fibers_come_from_ffm_or_material_not_both() {
     let dir = tempfile::tempdir().unwrap();

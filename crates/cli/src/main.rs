@@ -539,7 +539,7 @@ fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> 
     }
     let steps = scene.load.steps;
     let mut sim = Simulation::with_options(scene, &over.setup()).map_err(in_scene(path))?;
-    let opts = RunOptions { progress: progress(steps, "run") };
+    let opts = RunOptions { progress: progress(steps, "run"), ..Default::default() };
     sim.run(&opts).map_err(in_scene(path))?;
     print_step_notes(&sim);
     // A non-finite answer stops here, before anything is written.
@@ -670,7 +670,8 @@ fn roundtrip(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> 
         });
         both_ways
     });
-    let rt = fibfluid::roundtrip(scene, &RunOptions { progress }).map_err(in_scene(path))?;
+    let rt =
+        fibfluid::roundtrip(scene, &RunOptions { progress, ..Default::default() }).map_err(in_scene(path))?;
     if json {
         say!("{}", serde_json::to_string(&rt)?);
     } else {

@@ -43,8 +43,9 @@ struct Done {
 
 /// Runs a scene as `fibfluid run` does (the same stages and the same report, without the
 /// output files), with the GIL released. `progress(step, total)` is called after each
-/// step with the GIL held; an exception it raises is raised when the run ends (a run
-/// cannot be stopped half-way). `max_memory` is the command line's `--max-memory`.
+/// step with the GIL held; an exception it raises, or Ctrl-C, stops the run before its next
+/// load step and is raised (the scene is unchanged: runs work on a copy). `max_memory` is
+/// the command line's `--max-memory`.
 #[pyfunction]
 #[pyo3(signature = (scene, progress=None, max_memory=None))]
 pub(crate) fn run(
@@ -55,15 +56,21 @@ pub(crate) fn run(
 ) -> PyResult<RunOutput> {
     guard(|| {
         let failed: Arc<Mutex<Option<PyErr>>> = Arc::new(Mutex::new(None));
-        let opts = RunOptions { progress: progress.map(|cb| callback(cb, failed.clone())) };
+        let opts = RunOptions {
+            progress: progress.map(|cb| callback(cb, failed.clone())),
+            cancel: Some(interrupted(failed.clone())),
+        };
         let setup = SetupOptions { max_memory, ..Default::default() };
         let load =
             StageRecord { name: names::LOAD_SCENE, parent: None, seconds: scene.load_seconds, count: 1 };
         let model = scene.scene.clone();
-        let done = py.detach(move || solve(model, &setup, &opts, load)).map_err(lib_error)?;
+        let done = py.detach(move || solve(model, &setup, &opts, load));
+        // A pending exception (Ctrl-C, or the progress callback's) goes first: the run
+        // stopped because of it.
         if let Some(e) = failed.lock().map_err(|_| error("the progress callback failed"))?.take() {
             return Err(e);
         }
+        let done = done.map_err(lib_error)?;
         Ok(RunOutput {
             positions: points_array(py, &done.positions).unbind(),
             displacement: points_array(py, &done.displacement).unbind(),
@@ -86,6 +93,22 @@ fn callback(cb: Py<PyAny>, failed: Arc<Mutex<Option<PyErr>>>) -> Arc<dyn Fn(usiz
             if let Err(e) = py.check_signals().and_then(|()| cb.call1(py, (k, n)).map(drop)) {
                 *slot = Some(e);
             }
+        })
+    })
+}
+
+/// Asked before each load step: a pending signal (Ctrl-C) or an exception of the progress
+/// callback stops the run there. The GIL is taken for the check (microseconds per step).
+fn interrupted(failed: Arc<Mutex<Option<PyErr>>>) -> Arc<dyn Fn() -> bool + Send + Sync> {
+    Arc::new(move || {
+        Python::attach(|py| {
+            let Ok(mut slot) = failed.lock() else { return true };
+            if slot.is_none()
+                && let Err(e) = py.check_signals()
+            {
+                *slot = Some(e);
+            }
+            slot.is_some()
         })
     })
 }

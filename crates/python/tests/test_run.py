@@ -156,3 +156,27 @@ def test_a_kernel_exponent_set_in_python_is_the_scene_files(cli, tmp_path, py_ru
     assert np.array_equal(result.positions, np.array(read_obj_vertices(out / "deformed.obj")))
     assert json.loads((out / "report.json").read_text())["kernel_exponent"] == 3.0
     assert not np.allclose(result.positions, py_run.positions), "the exponent must change the run"
+
+
+def test_ctrl_c_stops_a_long_run_between_load_steps():
+    """Ctrl-C (an interrupt of the main thread) during a run stops it before its next load
+    step, within a second, as KeyboardInterrupt; the scene stays usable. The run asked for
+    (100,000 steps of the paper's sphere) takes far longer than the bound."""
+    import _thread
+    import threading
+    import time
+
+    scene = fibfluid.Scene.load(SCENES / "sphere.toml")
+    scene.steps = 100_000
+    timer = threading.Timer(0.5, _thread.interrupt_main)
+    start = time.monotonic()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            fibfluid.run(scene)
+    finally:
+        timer.cancel()
+    elapsed = time.monotonic() - start
+    assert elapsed < 0.5 + 1.5, f"stopped {elapsed:.2f} s after the start"
+    scene.steps = 1
+    assert np.all(np.isfinite(fibfluid.run(scene).positions))

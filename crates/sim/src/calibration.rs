@@ -5,7 +5,8 @@
 //! depends on the body (1x to 72x measured across the fixtures). So on the scene's own body,
 //! clamps and loads:
 //!
-//! 1. the FEM runs at [`CALIBRATION_RESOLUTION`] (coarse: seconds) with the tissue: `u_fem`;
+//! 1. the FEM runs at [`CALIBRATION_RESOLUTION`] (coarse: seconds), or at the scene's
+//!    `[fem] resolution` when that is higher, with the tissue: `u_fem`;
 //! 2. FFM runs in paper mode, one step, with fiber modulus E and no surface tension:
 //!    `u_ffm` (linear in the loads and in 1 / modulus, so one run gives every modulus);
 //! 3. the fiber modulus becomes `s E` with the best scale `s = (u_ffm . u_ffm) / (u_ffm .
@@ -19,12 +20,31 @@ use std::time::Instant;
 
 use crate::choices::{Method, Mode};
 use crate::fem_run::FemRun;
-use crate::model::Model;
+use crate::model::{Model, Shape};
 use crate::simulate::{RunOptions, SetupOptions, Simulation};
 use crate::stages::StageLog;
 use crate::{Error, Result};
 
 pub use crate::fit::{CALIBRATION_RESOLUTION, Calibration, best_scale, displacements, relative_l2};
+
+/// The FEM resolution of a calibration: [`CALIBRATION_RESOLUTION`], or the coarsest that
+/// puts a cell across the body's thinnest extent (`longest / thinnest` cells along the
+/// longest side, so a thin slab calibrates instead of failing with advice about a
+/// resolution the calibration would not use), whichever is finer, at most
+/// [`fibfluid_fem::MAX_RESOLUTION`].
+pub fn calibration_resolution(model: &Model) -> usize {
+    let Shape::Surface(file) = &model.shape else { return CALIBRATION_RESOLUTION };
+    let (lo, hi) = fibfluid_geometry::bounding_box(file.mesh.positions());
+    let extent: [f64; 3] = std::array::from_fn(|a| hi[a] - lo[a]);
+    let longest = extent.iter().fold(0.0_f64, |m, &e| m.max(e));
+    let thinnest = extent.iter().fold(f64::INFINITY, |m, &e| m.min(e));
+    let needed = longest / thinnest;
+    if !(needed.is_finite() && needed > CALIBRATION_RESOLUTION as f64) {
+        return CALIBRATION_RESOLUTION;
+    }
+    // One more cell than the ratio asks: the grid check allows no body thinner than a cell.
+    (needed.ceil() as usize + 1).min(fibfluid_fem::MAX_RESOLUTION)
+}
 
 /// Calibrates the model's fiber modulus against the FEM (see the module docs). The model
 /// needs a `[tissue]`.
@@ -33,7 +53,8 @@ pub fn calibrate(model: &Model, max_memory: Option<u64>) -> Result<Calibration> 
     let tissue = crate::fem_run::tissue_of(model)?;
     let mut fem = model.clone();
     fem.solver.method = Method::Fem;
-    fem.fem.resolution = CALIBRATION_RESOLUTION;
+    let resolution = calibration_resolution(model);
+    fem.fem.resolution = resolution;
     let fem_run = FemRun::new(fem, max_memory)?;
     let u_fem = displacements(&fem_run.positions, &fem_run.rest);
     let mut ffm = model.clone();
@@ -65,7 +86,7 @@ pub fn calibrate(model: &Model, max_memory: Option<u64>) -> Result<Calibration> 
         surface_tension: 0.0,
         scale,
         error_vs_fem,
-        fem_resolution: CALIBRATION_RESOLUTION,
+        fem_resolution: resolution,
         seconds: start.elapsed().as_secs_f64(),
     })
 }

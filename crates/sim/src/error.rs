@@ -102,6 +102,25 @@ pub enum Error {
         /// The first vertex whose position is not finite.
         vertex: usize,
     },
+    /// Vertices that keep no fiber inside the body after culling, with no surface fibers
+    /// to hold them instead.
+    #[error(
+        "{scene}: ffm: {count} vertices keep no fiber inside the body after culling, so nothing holds them (file vertices {vertices}): give [ffm] surface_tension > 0 (surface fibers hold every vertex), or use a coarser or smoothed mesh; `fibfluid mesh-info --fibers` shows the kept fibers"
+    )]
+    UnheldVertices {
+        /// The scene.
+        scene: String,
+        /// The first vertices (file order), listed.
+        vertices: String,
+        /// How many.
+        count: usize,
+    },
+    /// The caller stopped the run ([`crate::RunOptions::cancel`]) before a load step.
+    #[error("stopped at load factor {load_factor:.4} (interrupted)")]
+    Cancelled {
+        /// The load factor of the last finished step.
+        load_factor: f64,
+    },
     /// The contact active set kept changing.
     #[error(
         "step {step}: the plate contacts did not settle after {iterations} active-set iterations; take more load steps"

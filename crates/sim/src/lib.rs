@@ -50,7 +50,7 @@ pub use report::{
 };
 pub use simulate::{
     BodyShape, Counters, Direction, MIN_ADAPTIVE_STEP, Response, RunOptions, SetupOptions, Simulation, State,
-    StepStats,
+    StepStats, check_every_vertex_is_held,
 };
 pub use stages::{Stage, StageLog, StageRecord};
 

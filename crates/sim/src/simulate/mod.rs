@@ -17,6 +17,7 @@ mod state;
 mod stepping;
 
 pub use self::core::Simulation;
+pub use setup::check_every_vertex_is_held;
 pub(crate) use setup::refuse_projected;
 pub use state::{
     BodyShape, Counters, Direction, MIN_ADAPTIVE_STEP, Response, RunOptions, SetupOptions, State, StepStats,

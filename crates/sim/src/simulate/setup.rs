@@ -63,6 +63,7 @@ impl Simulation {
             }
             Shape::Polygon(p) => (Boundary::Polygon, p.edges(), FiberSet::all(n)),
         };
+        check_every_vertex_is_held(&scene, &fibers)?;
         let convex = !plan.runs(names::VISIBILITY);
         let areas = log.time(names::AREAS, || boundary.vertex_area_vectors(&rest));
         let volume0 = boundary.volume(&rest);
@@ -135,4 +136,30 @@ pub(crate) fn refuse_projected(scene: &Model) -> Result<()> {
         return Ok(());
     };
     Err(Error::MethodNeeds { scene: scene.display_name(), method: Method::Ffm, problem })
+}
+
+/// Refuses fibers that leave a vertex with nothing to hold it: no bulk fiber kept inside the
+/// body after culling (a vertex in a deep crevice of a concave mesh) and no surface fibers
+/// (surface tension 0). Its stiffness row would be empty and the factorization would blame
+/// the constraints; this names the vertices (file order) and what would hold them.
+pub fn check_every_vertex_is_held(scene: &Model, fibers: &FiberSet) -> Result<()> {
+    if scene.material.surface_tension() > 0.0 {
+        return Ok(());
+    }
+    let lonely: Vec<usize> =
+        fibers.per_vertex().iter().enumerate().filter(|(_, c)| **c == 0).map(|(v, _)| v).collect();
+    if lonely.is_empty() {
+        return Ok(());
+    }
+    let file = |v: usize| match &scene.shape {
+        Shape::Surface(m) => m.to_file.get(v).map(|&f| f as usize).unwrap_or(v),
+        Shape::Polygon(_) => v,
+    };
+    let named: Vec<String> = lonely.iter().take(5).map(|&v| file(v).to_string()).collect();
+    let more = if lonely.len() > 5 { format!(" and {} more", lonely.len() - 5) } else { String::new() };
+    Err(Error::UnheldVertices {
+        scene: scene.display_name(),
+        vertices: named.join(", ") + &more,
+        count: lonely.len(),
+    })
 }

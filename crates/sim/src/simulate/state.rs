@@ -11,11 +11,25 @@ use crate::contact::Contact;
 pub struct RunOptions {
     /// Called after each step with (step, total).
     pub progress: Option<std::sync::Arc<dyn Fn(usize, usize) + Send + Sync>>,
+    /// Asked before each load step (fixed or adaptive): `true` stops the run with
+    /// [`crate::Error::Cancelled`], the simulation left at the last step it finished (an
+    /// interrupt from the user, a deadline).
+    pub cancel: Option<std::sync::Arc<dyn Fn() -> bool + Send + Sync>>,
+}
+
+impl RunOptions {
+    /// Whether the caller asked the run to stop.
+    pub fn cancelled(&self) -> bool {
+        self.cancel.as_ref().is_some_and(|c| c())
+    }
 }
 
 impl std::fmt::Debug for RunOptions {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("RunOptions").field("progress", &self.progress.is_some()).finish()
+        f.debug_struct("RunOptions")
+            .field("progress", &self.progress.is_some())
+            .field("cancel", &self.cancel.is_some())
+            .finish()
     }
 }
 

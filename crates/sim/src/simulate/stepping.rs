@@ -24,6 +24,9 @@ impl Simulation {
     /// Runs `steps` equal load steps in one direction.
     pub fn run_steps(&mut self, steps: usize, direction: Direction, opts: &RunOptions) -> Result<()> {
         for k in 0..steps {
+            if opts.cancelled() {
+                return Err(Error::Cancelled { load_factor: self.state.load_factor });
+            }
             let done = (k + 1) as f64 / steps as f64;
             let to = match direction {
                 Direction::Load => done,
@@ -91,6 +94,9 @@ impl Simulation {
             let (lambda0, last0) = (self.state.load_factor, self.state.last_forces);
             let mut done = 0.0;
             while done < 1.0 {
+                if opts.cancelled() {
+                    return Err(Error::Cancelled { load_factor: self.state.load_factor });
+                }
                 h = h.min(1.0 - done);
                 if h < MIN_ADAPTIVE_STEP {
                     return Err(Error::StepTooSmall { load_factor: self.state.load_factor, tolerance });
