@@ -16,13 +16,25 @@
 //! `crate::PrescribedSet`; its vertex holds, `crate::HeldCapacitance`; the finite-element
 //! holds of `fibfluid-fem`):
 //!
-//! - [`ComplianceSource`]: where the columns `W` come from (a dense or structured
+//! - [`CapacitanceSource`]: how `C = E' W` is formed, `E' x` read and `x -= W r` applied
+//!   for rows of the source's own type, in whatever compact form it keeps `W`. Two
+//!   implementations: dense compliance columns (`[W]`, one column of every unknown per
+//!   sparse row, [`SparseRow`]), and the vertex holds of the bordered system
+//!   (`crate::VertexSource` over a `crate::VertexResponse`: one N-length compliance column
+//!   per distinct block and held vertex plus the shared `w` and `s`, so a hold costs N
+//!   values per block instead of a `dN + 1` column, and the correction is a point-force
+//!   field);
+//! - [`ComplianceSource`]: where dense columns `W` come from (a dense or structured
 //!   factorization of the bordered system, a sparse Cholesky factor);
 //! - [`CapacitanceFactor`]: the Cholesky factor of a k x k capacitance and its solves, the
-//!   one small dense factor-and-solve; a pivot that is not positive is
-//!   [`LinalgError::CapacitanceNotPositiveDefinite`] naming the constraint;
-//! - [`RowCapacitance`]: `C = E' W` formed from sparse rows and their columns, factored,
-//!   and the correction `x = y - W r`.
+//!   one small dense factor-and-solve; a pivot that is not positive (or below an optional
+//!   tolerance) is [`LinalgError::CapacitanceNotPositiveDefinite`] naming the constraint,
+//!   which each user maps to its own error (`DependentConstraints`, `SingularHold`,
+//!   `DependentHolds`);
+//! - [`RowCapacitance`]: `C` formed from a source ([`RowCapacitance::from_source`], with
+//!   an optional ridge and pivot tolerance), factored, the multipliers
+//!   ([`RowCapacitance::multipliers`]) and the correction `x = y - W r`
+//!   ([`RowCapacitance::correct_with`]): the one code path of every user.
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{LltError, cholesky_in_place, cholesky_in_place_scratch};
@@ -165,9 +177,59 @@ impl CapacitanceFactor {
     }
 }
 
-/// The capacitance `C = E' W` of sparse rows and their compliance columns, factored (see
-/// the module docs). The rows and columns stay with the caller and are passed again to
-/// [`correct`](Self::correct).
+/// Where a capacitance update reads `C = E' W` and applies `x -= W r` for constraint rows
+/// of type `Row`, in whatever form the source keeps `W` (see the module docs).
+///
+/// Dense compliance columns (`[W]` for `W: AsRef<[f64]>`, one column of every unknown per
+/// row) implement it for sparse rows; the vertex holds of the bordered system
+/// (`crate::VertexSource`) from one N-length compliance column per distinct block and the
+/// shared `w` and `s`, without forming the `dN + 1` columns.
+pub trait CapacitanceSource<Row> {
+    /// `C = E' W` of `rows` (k x k, symmetric).
+    fn capacitance(&self, rows: &[Row]) -> Mat<f64>;
+
+    /// `E' x`: each row applied to the unknowns `x`.
+    fn row_values(&self, rows: &[Row], x: &[f64]) -> Vec<f64>;
+
+    /// `x -= W r` (one multiplier per row).
+    fn correct(&self, rows: &[Row], r: &[f64], x: &mut [f64]);
+}
+
+/// Dense compliance columns, one per sparse row: `C[i, j] = (row_i . W_j + row_j . W_i) / 2`
+/// (symmetric to rounding) and `x -= W r` column after column.
+impl<R: AsRef<SparseRow>, W: AsRef<[f64]>> CapacitanceSource<R> for [W] {
+    #[track_caller]
+    fn capacitance(&self, rows: &[R]) -> Mat<f64> {
+        let k = rows.len();
+        assert_eq!(self.len(), k, "one compliance column per row");
+        let entry = |i: usize, j: usize| row_dot(rows[i].as_ref(), self[j].as_ref());
+        Mat::from_fn(k, k, |i, j| 0.5 * (entry(i, j) + entry(j, i)))
+    }
+
+    fn row_values(&self, rows: &[R], x: &[f64]) -> Vec<f64> {
+        rows.iter().map(|row| row_dot(row.as_ref(), x)).collect()
+    }
+
+    #[track_caller]
+    fn correct(&self, rows: &[R], r: &[f64], x: &mut [f64]) {
+        assert!(
+            rows.len() == self.len() && r.len() == self.len(),
+            "one row, column and multiplier per constraint"
+        );
+        for (w, &ri) in self.iter().zip(r) {
+            let w = w.as_ref();
+            assert_eq!(w.len(), x.len(), "a column per unknown");
+            for (xi, wi) in x.iter_mut().zip(w) {
+                *xi -= wi * ri;
+            }
+        }
+    }
+}
+
+/// The factored capacitance `C = E' W` of a set of constraint rows (see the module docs),
+/// read from any [`CapacitanceSource`]. The rows and the source stay with the caller and
+/// are passed again to [`correct`](Self::correct) /
+/// [`correct_with`](Self::correct_with).
 #[derive(Clone, Debug)]
 pub struct RowCapacitance {
     /// `C` itself (without any ridge).
@@ -176,24 +238,34 @@ pub struct RowCapacitance {
 }
 
 impl RowCapacitance {
-    /// Forms `C[i, j] = (row_i . W_j + row_j . W_i) / 2` (symmetric to rounding) and
-    /// factors `C + ridge * max_i C_ii * I` (`ridge = 0`: `C` itself). Errors as
-    /// [`CapacitanceFactor::new`] without a pivot tolerance.
+    /// Forms `C[i, j] = (row_i . W_j + row_j . W_i) / 2` (symmetric to rounding) from sparse
+    /// rows and their dense compliance columns and factors `C + ridge * max_i C_ii * I`
+    /// (`ridge = 0`: `C` itself). Errors as [`CapacitanceFactor::new`] without a pivot
+    /// tolerance.
     ///
     /// # Panics
     /// If there are not as many columns as rows.
     #[track_caller]
     pub fn new<R: AsRef<SparseRow>, W: AsRef<[f64]>>(rows: &[R], columns: &[W], ridge: f64) -> Result<Self> {
-        let k = rows.len();
-        assert_eq!(columns.len(), k, "one compliance column per row");
-        let entry = |i: usize, j: usize| row_dot(rows[i].as_ref(), columns[j].as_ref());
-        let matrix = Mat::from_fn(k, k, |i, j| 0.5 * (entry(i, j) + entry(j, i)));
+        Self::from_source(columns, rows, ridge, None)
+    }
+
+    /// Forms `C` of `rows` with `source` and factors `C + ridge * max_i C_ii * I`, with the
+    /// pivot tolerance of [`CapacitanceFactor::new`]; errors as it does.
+    pub fn from_source<Row, S: CapacitanceSource<Row> + ?Sized>(
+        source: &S,
+        rows: &[Row],
+        ridge: f64,
+        pivot_tolerance: Option<f64>,
+    ) -> Result<Self> {
+        let matrix = source.capacitance(rows);
+        let k = matrix.nrows();
         let shift = ridge * (0..k).map(|i| matrix[(i, i)]).fold(0.0, f64::max);
         let factor = if shift == 0.0 {
-            CapacitanceFactor::new(matrix.as_ref(), None)?
+            CapacitanceFactor::new(matrix.as_ref(), pivot_tolerance)?
         } else {
             let shifted = Mat::from_fn(k, k, |i, j| matrix[(i, j)] + if i == j { shift } else { 0.0 });
-            CapacitanceFactor::new(shifted.as_ref(), None)?
+            CapacitanceFactor::new(shifted.as_ref(), pivot_tolerance)?
         };
         Ok(Self { matrix, factor })
     }
@@ -208,8 +280,17 @@ impl RowCapacitance {
         &self.factor
     }
 
-    /// Imposes `row_i . x = values[i]` on `y = A^-1 b` in place: solves
-    /// `C r = E' y - values` and sets `y -= W r`. Returns the multipliers `r`.
+    /// The multipliers `r` of `C r = gap` (`gap = E' y - g`, one entry per constraint).
+    ///
+    /// # Panics
+    /// If `gap` does not have one entry per constraint.
+    #[track_caller]
+    pub fn multipliers(&self, gap: &[f64]) -> Vec<f64> {
+        self.factor.solve(gap)
+    }
+
+    /// Imposes `row_i . x = values[i]` on `y = A^-1 b` in place with dense compliance
+    /// columns: [`correct_with`](Self::correct_with) the columns as the source.
     ///
     /// # Panics
     /// If the rows, columns and values do not match the factored capacitance, or a column
@@ -222,20 +303,30 @@ impl RowCapacitance {
         values: &[f64],
         y: &mut [f64],
     ) -> Vec<f64> {
+        assert_eq!(columns.len(), self.factor.len(), "one row, column and value per constraint");
+        self.correct_with(columns, rows, values, y)
+    }
+
+    /// Imposes `row_i . x = values[i]` on `y = A^-1 b` in place: solves
+    /// `C r = E' y - values` and sets `y -= W r`, both through `source`. Returns the
+    /// multipliers `r`.
+    ///
+    /// # Panics
+    /// If the rows and values do not match the factored capacitance, or the source refuses
+    /// `y` (a length that is not its unknowns').
+    #[track_caller]
+    pub fn correct_with<Row, S: CapacitanceSource<Row> + ?Sized>(
+        &self,
+        source: &S,
+        rows: &[Row],
+        values: &[f64],
+        y: &mut [f64],
+    ) -> Vec<f64> {
         let k = self.factor.len();
-        assert!(
-            rows.len() == k && columns.len() == k && values.len() == k,
-            "one row, column and value per constraint"
-        );
-        let gap: Vec<f64> = (0..k).map(|i| row_dot(rows[i].as_ref(), y) - values[i]).collect();
+        assert!(rows.len() == k && values.len() == k, "one row, column and value per constraint");
+        let gap: Vec<f64> = source.row_values(rows, y).iter().zip(values).map(|(e, v)| e - v).collect();
         let r = self.factor.solve(&gap);
-        for (w, &ri) in columns.iter().zip(&r) {
-            let w = w.as_ref();
-            assert_eq!(w.len(), y.len(), "a column per unknown");
-            for (yi, wi) in y.iter_mut().zip(w) {
-                *yi -= wi * ri;
-            }
-        }
+        source.correct(rows, &r, y);
         r
     }
 }

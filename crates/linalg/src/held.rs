@@ -32,15 +32,25 @@
 //! - the full inverse (`fibfluid_interact::Compliance` with the full precompute), every
 //!   column at once, for haptic devices that need any vertex without a first-touch cost.
 //!
-//! [`HeldCapacitance`] factors `G` for a held set (with [`crate::CapacitanceFactor`], the
-//! one small dense factor of every capacitance update); the field of the reactions is then an
-//! ordinary point-force field ([`VertexResponse::add_field_axes`]).
+//! The held rows are one capacitance update (`capacitance.rs`), the one every other user runs:
+//! [`VertexSource`] is the [`CapacitanceSource`] of a [`VertexResponse`] (`C = E' W` is
+//! `G`, read from the entries above; `x -= W r` is the point-force field of the reactions,
+//! [`VertexResponse::add_field_axes`], one N-length column per force and axis), and
+//! [`HeldCapacitance`] is the shared [`RowCapacitance`] over it, typed by its rows and
+//! mapping a refused pivot to [`LinalgError::SingularHold`]. The dense `dN + 1` columns of
+//! the dense-column source are never formed, so a hold keeps its cost: `N` values per
+//! distinct block and vertex, `O(m^2)` entries for `G`, `O(k N)` per correction.
+//! [`HeldCapacitance::impose`] corrects a whole solution (`Simulation::respond_held`); the
+//! interactive body instead reads the gaps at the held vertices alone
+//! ([`VertexResponse::displacement_at`]) and adds the reactions
+//! ([`HeldCapacitance::reactions`], the same factor's solve) to its pushes' field in one
+//! pass.
 
 use std::sync::Arc;
 
 use faer::Mat;
 
-use crate::capacitance::CapacitanceFactor;
+use crate::capacitance::{CapacitanceSource, RowCapacitance};
 use crate::{Factorization, FactorizationExt, LinalgError, Result};
 
 /// A point force (or a reaction) at a vertex: (vertex, components; unused axes zero).
@@ -166,33 +176,46 @@ impl HeldRow {
     }
 }
 
-/// The factored capacitance `G` of one held set (see the module docs): built from `O(m^2)`
-/// compliance entries for `m` held rows and factored by Cholesky (`m^3 / 3` flops) when the
-/// held set changes, reused while the holds only move. A row is a vertex's displacement
-/// along a direction ([`HeldRow`]): a full hold is one row per axis, a frictionless
-/// contact one row along its normal. For rows `i`, `j` at vertices `v`, `u` with directions
-/// `n`, `m`: `G[i,j] = sum_a n_a m_a C_a[v,u] - (n . w[v]) (m . w[u]) / s`.
-#[derive(Clone, Debug)]
-pub struct HeldCapacitance {
-    rows: Vec<HeldRow>,
-    vertices: Vec<usize>,
-    /// The Cholesky factor of G.
-    factor: CapacitanceFactor,
+/// A [`VertexResponse`] read as the [`CapacitanceSource`] of held rows ([`HeldRow`]) on the
+/// bordered system (see the module docs): `C = E' W` is `G`, formed from `O(m^2)` compliance
+/// entries, and `x -= W r` is the point-force field of the reactions `-r` along their
+/// directions ([`VertexResponse::add_field_axes`], one N-length column per force and axis),
+/// never a dense `dN + 1` column per row.
+///
+/// The vectors it corrects are the displacements stored axis by axis (`axes * N` entries,
+/// [`field`](Self::field)) or the bordered system's unknowns (`axes * N + 1`, the last the
+/// pressure unknown `P / lambda`, [`bordered`](Self::bordered)).
+#[derive(Clone, Copy, Debug)]
+pub struct VertexSource<'a, R: ?Sized> {
+    response: &'a R,
+    /// `lambda` when the corrected vectors end with the pressure unknown.
+    pressure_scale: Option<f64>,
 }
 
-impl HeldCapacitance {
-    /// Builds and factors `G` for `vertices` held along every axis, whose columns must be
-    /// available in `r`. A pivot at most [`CAPACITANCE_PIVOT_FACTOR`] `* dim * epsilon`
-    /// times its diagonal entry is [`LinalgError::SingularHold`] (the held set
-    /// over-determines the body).
-    pub fn new<R: VertexResponse + ?Sized>(r: &R, vertices: &[usize]) -> Result<Self> {
-        let rows: Vec<HeldRow> = vertices.iter().flat_map(|&v| HeldRow::all_axes(v, r.axes())).collect();
-        Self::from_rows(r, &rows)
+impl<'a, R: VertexResponse + ?Sized> VertexSource<'a, R> {
+    /// Corrects displacement fields of `axes * N` entries (the pressure change is not
+    /// stored).
+    pub fn field(response: &'a R) -> Self {
+        Self { response, pressure_scale: None }
     }
 
-    /// Builds and factors `G` for arbitrary held rows (directions with components only on
-    /// the body's axes); errors as [`new`](Self::new).
-    pub fn from_rows<R: VertexResponse + ?Sized>(r: &R, rows: &[HeldRow]) -> Result<Self> {
+    /// Corrects the bordered system's unknowns: `axes * N` displacements and the pressure
+    /// unknown `P / pressure_scale`.
+    pub fn bordered(response: &'a R, pressure_scale: f64) -> Self {
+        Self { response, pressure_scale: Some(pressure_scale) }
+    }
+
+    /// The response read.
+    pub fn response(&self) -> &'a R {
+        self.response
+    }
+}
+
+impl<R: VertexResponse + ?Sized> CapacitanceSource<HeldRow> for VertexSource<'_, R> {
+    /// `G[i,j] = sum_a n_a m_a C_a[v,u] - (n . w[v]) (m . w[u]) / s` (the lower triangle
+    /// computed, mirrored). Every row's vertex must have its columns available.
+    fn capacitance(&self, rows: &[HeldRow]) -> Mat<f64> {
+        let r = self.response;
         let (d, dim) = (r.axes(), rows.len());
         let s = r.schur();
         let nw = |row: &HeldRow| (0..d).map(|a| row.direction[a] * r.w(a)[row.vertex]).sum::<f64>();
@@ -211,18 +234,103 @@ impl HeldCapacitance {
                 g[(j, i)] = e;
             }
         }
+        g
+    }
+
+    /// `n . u_v` for each row, `u` read axis by axis from `x`.
+    fn row_values(&self, rows: &[HeldRow], x: &[f64]) -> Vec<f64> {
+        let n = self.response.n_vertices();
+        let d = self.response.axes();
+        rows.iter()
+            .map(|row| {
+                (0..d)
+                    .filter(|&a| row.direction[a] != 0.0)
+                    .map(|a| row.direction[a] * x[a * n + row.vertex])
+                    .sum()
+            })
+            .collect()
+    }
+
+    /// Adds the field of the reactions `-r` (and, for [`bordered`](Self::bordered) vectors,
+    /// their pressure unknown).
+    ///
+    /// # Panics
+    /// If `x` does not have the length its layout says, or `r` one entry per row.
+    #[track_caller]
+    fn correct(&self, rows: &[HeldRow], r: &[f64], x: &mut [f64]) {
+        assert_eq!(r.len(), rows.len(), "one multiplier per held row");
+        let resp = self.response;
+        let dn = resp.axes() * resp.n_vertices();
+        let expected = dn + usize::from(self.pressure_scale.is_some());
+        assert_eq!(x.len(), expected, "vector length of the source's layout");
+        let forces = row_forces(rows, r.iter().map(|ri| -ri));
+        let p = resp.pressure_of(&forces);
+        resp.add_field_axes(&forces, p, &mut x[..dn]);
+        if let Some(lambda) = self.pressure_scale {
+            x[dn] += p / lambda;
+        }
+    }
+}
+
+/// The forces of row multipliers: per vertex (consecutive rows of one vertex summed, in
+/// the rows' order), the multipliers times their directions.
+fn row_forces(rows: &[HeldRow], multipliers: impl Iterator<Item = f64>) -> Vec<VertexForce> {
+    let mut out: Vec<VertexForce> = Vec::new();
+    for (row, l) in rows.iter().zip(multipliers) {
+        if out.last().is_none_or(|last| last.0 != row.vertex) {
+            out.push((row.vertex, [0.0; 3]));
+        }
+        let f = &mut out.last_mut().expect("pushed above").1;
+        for a in 0..3 {
+            f[a] += l * row.direction[a];
+        }
+    }
+    out
+}
+
+/// The factored capacitance `G` of one held set (see the module docs): the shared
+/// [`RowCapacitance`] over a [`VertexSource`], built from `O(m^2)` compliance entries for
+/// `m` held rows and factored by Cholesky (`m^3 / 3` flops) when the held set changes,
+/// reused while the holds only move. A row is a vertex's displacement along a direction
+/// ([`HeldRow`]): a full hold is one row per axis, a frictionless contact one row along its
+/// normal. For rows `i`, `j` at vertices `v`, `u` with directions `n`, `m`:
+/// `G[i,j] = sum_a n_a m_a C_a[v,u] - (n . w[v]) (m . w[u]) / s`.
+#[derive(Clone, Debug)]
+pub struct HeldCapacitance {
+    rows: Vec<HeldRow>,
+    vertices: Vec<usize>,
+    /// `G` and its Cholesky factor.
+    capacitance: RowCapacitance,
+}
+
+impl HeldCapacitance {
+    /// Builds and factors `G` for `vertices` held along every axis, whose columns must be
+    /// available in `r`. A pivot at most [`CAPACITANCE_PIVOT_FACTOR`] `* dim * epsilon`
+    /// times its diagonal entry is [`LinalgError::SingularHold`] (the held set
+    /// over-determines the body).
+    pub fn new<R: VertexResponse + ?Sized>(r: &R, vertices: &[usize]) -> Result<Self> {
+        let rows: Vec<HeldRow> = vertices.iter().flat_map(|&v| HeldRow::all_axes(v, r.axes())).collect();
+        Self::from_rows(r, &rows)
+    }
+
+    /// Builds and factors `G` for arbitrary held rows (directions with components only on
+    /// the body's axes); errors as [`new`](Self::new).
+    pub fn from_rows<R: VertexResponse + ?Sized>(r: &R, rows: &[HeldRow]) -> Result<Self> {
         let mut vertices: Vec<usize> = rows.iter().map(|row| row.vertex).collect();
         vertices.dedup();
-        let tol = CAPACITANCE_PIVOT_FACTOR * dim as f64 * r.epsilon();
-        let factor = CapacitanceFactor::new(g.as_ref(), Some(tol)).map_err(|e| match e {
-            LinalgError::CapacitanceNotPositiveDefinite { constraint: i, .. } => LinalgError::SingularHold {
-                held: vertices.len(),
-                vertex: rows[i].vertex,
-                axis: rows[i].main_axis(),
-            },
-            other => other,
-        })?;
-        Ok(Self { rows: rows.to_vec(), vertices, factor })
+        let tol = CAPACITANCE_PIVOT_FACTOR * rows.len() as f64 * r.epsilon();
+        let capacitance = RowCapacitance::from_source(&VertexSource::field(r), rows, 0.0, Some(tol))
+            .map_err(|e| match e {
+                LinalgError::CapacitanceNotPositiveDefinite { constraint: i, .. } => {
+                    LinalgError::SingularHold {
+                        held: vertices.len(),
+                        vertex: rows[i].vertex,
+                        axis: rows[i].main_axis(),
+                    }
+                }
+                other => other,
+            })?;
+        Ok(Self { rows: rows.to_vec(), vertices, capacitance })
     }
 
     /// The held vertices, in the order of the reactions (a vertex with several consecutive
@@ -236,9 +344,14 @@ impl HeldCapacitance {
         &self.rows
     }
 
+    /// The shared capacitance: `G` and its factor.
+    pub fn capacitance(&self) -> &RowCapacitance {
+        &self.capacitance
+    }
+
     /// Bytes of the factor.
     pub fn memory_bytes(&self) -> usize {
-        self.factor.memory_bytes()
+        self.capacitance.factor().memory_bytes()
     }
 
     /// The reaction multipliers that close `gap` (one value per row, in the order of
@@ -252,11 +365,7 @@ impl HeldCapacitance {
     pub fn multipliers(&self, gap: &[f64]) -> Result<Vec<f64>> {
         let m = self.rows.len();
         assert_eq!(gap.len(), m, "one gap per held row");
-        let lambda = self.factor.solve(gap);
-        match lambda.iter().position(|x| !x.is_finite()) {
-            Some(index) => Err(LinalgError::NonFiniteSolution { index }),
-            None => Ok(lambda),
-        }
+        finite_multipliers(self.capacitance.multipliers(gap))
     }
 
     /// The reactions that close `gap` (see [`multipliers`](Self::multipliers)) as forces,
@@ -268,17 +377,34 @@ impl HeldCapacitance {
     #[track_caller]
     pub fn reactions(&self, gap: &[f64]) -> Result<Vec<VertexForce>> {
         let lambda = self.multipliers(gap)?;
-        let mut out: Vec<VertexForce> = Vec::with_capacity(self.vertices.len());
-        for (row, l) in self.rows.iter().zip(lambda) {
-            if out.last().is_none_or(|last| last.0 != row.vertex) {
-                out.push((row.vertex, [0.0; 3]));
-            }
-            let f = &mut out.last_mut().expect("pushed above").1;
-            for a in 0..3 {
-                f[a] += l * row.direction[a];
-            }
-        }
-        Ok(out)
+        Ok(row_forces(&self.rows, lambda.into_iter()))
+    }
+
+    /// Imposes the held rows at `targets` (one per row) on `x` in place, by the shared
+    /// [`RowCapacitance::correct_with`] over `source` (the response this was built from, in
+    /// the layout of `x`): `x` enters as the solution without holds and leaves with the
+    /// reactions' field added. Returns the reactions as [`reactions`](Self::reactions) does;
+    /// a non-finite multiplier is [`LinalgError::NonFiniteSolution`] with its row.
+    ///
+    /// # Panics
+    /// If `targets` does not have one entry per row or `x` the source's length.
+    #[track_caller]
+    pub fn impose<R: VertexResponse + ?Sized>(
+        &self,
+        source: &VertexSource<'_, R>,
+        targets: &[f64],
+        x: &mut [f64],
+    ) -> Result<Vec<VertexForce>> {
+        let r = finite_multipliers(self.capacitance.correct_with(source, &self.rows, targets, x))?;
+        Ok(row_forces(&self.rows, r.into_iter().map(|ri| -ri)))
+    }
+}
+
+/// `v`, or [`LinalgError::NonFiniteSolution`] at its first non-finite entry.
+fn finite_multipliers(v: Vec<f64>) -> Result<Vec<f64>> {
+    match v.iter().position(|x| !x.is_finite()) {
+        Some(index) => Err(LinalgError::NonFiniteSolution { index }),
+        None => Ok(v),
     }
 }
 

@@ -37,9 +37,11 @@
 //!
 //! Constraints imposed on a kept factorization instead of refactoring (held vertices,
 //! contact rows, the finite-element holds) share one capacitance (Sherman–Morrison–Woodbury)
-//! update: [`ComplianceSource`] gives the columns `W = A^-1 E` from any kept factorization,
-//! [`RowCapacitance`] forms, factors and applies `E' W`, and [`CapacitanceFactor`] is the
-//! one small dense Cholesky ([`HeldCapacitance`] and [`PrescribedSet`] build on them).
+//! update: [`RowCapacitance`] forms `E' W` through a [`CapacitanceSource`], factors it
+//! with [`CapacitanceFactor`] (the one small dense Cholesky) and applies `x -= W r` through
+//! the source; the sources are dense columns `W = A^-1 E` ([`ComplianceSource`], from any
+//! kept factorization: [`PrescribedSet`], the finite-element holds) and the vertex
+//! compliance columns ([`VertexSource`] over a [`VertexResponse`]: [`HeldCapacitance`]).
 
 // Without a dense backend the shared dense helpers are unused.
 #![cfg_attr(not(any(feature = "faer-lu", feature = "nalgebra-lu", feature = "openblas")), allow(dead_code))]
@@ -68,13 +70,15 @@ mod nalgebra_lu;
 #[cfg(feature = "openblas")]
 mod openblas_lu;
 
-pub use capacitance::{CapacitanceFactor, ComplianceSource, RowCapacitance, SparseRow, row_dot};
+pub use capacitance::{
+    CapacitanceFactor, CapacitanceSource, ComplianceSource, RowCapacitance, SparseRow, row_dot,
+};
 pub use choice::{Choice, ParseChoiceError};
 pub use coupled::CoupledCholesky;
 pub use error::{LinalgError, Result};
 pub use held::{
     CAPACITANCE_PIVOT_FACTOR, HeldCapacitance, HeldRow, VertexColumns, VertexForce, VertexResponse,
-    add_field_by_columns,
+    VertexSource, add_field_by_columns,
 };
 pub use matrix::{Blocks, BorderedMatrix};
 pub use memory::{

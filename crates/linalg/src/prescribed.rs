@@ -31,10 +31,10 @@
 //! constraint instead. What stays on it are the plate contacts: a contact row is not a hold
 //! but a plate normal spread over a vertex's free axes (`n . u_v = g`), whose column could
 //! be assembled from vertex columns (`W = sum_c n_c W_(c,v)`) but is not yet. Both are the
-//! same Sherman–Morrison–Woodbury update, and share its code: the columns come from
-//! [`crate::ComplianceSource`], the capacitance is formed, factored and applied by
-//! [`crate::RowCapacitance`] (as the finite-element holds do), and its k x k Cholesky is
-//! [`crate::CapacitanceFactor`] (as [`crate::HeldCapacitance`]'s is).
+//! same Sherman–Morrison–Woodbury update and run the same code: [`crate::RowCapacitance`]
+//! forms, factors and applies the capacitance through a [`crate::CapacitanceSource`],
+//! here the dense columns of [`crate::ComplianceSource`] (as the finite-element holds do),
+//! there [`crate::VertexSource`].
 
 use crate::capacitance::{ComplianceSource, RowCapacitance, SparseRow};
 use crate::{Factorization, FactorizationExt, LinalgError, Result};

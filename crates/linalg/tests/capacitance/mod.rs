@@ -11,6 +11,8 @@ use fibfluid_linalg::{
 
 use crate::sparse::{SIDE, grid_pattern, rhs, spd_on};
 
+mod vertex;
+
 /// Constraint rows on the grid's unknowns: a held unknown, a combination of three, a
 /// difference of two.
 fn rows() -> Vec<Vec<(usize, f64)>> {

@@ -4,7 +4,7 @@ use std::time::Instant;
 
 use fibfluid_assembly::{Loads, load_vector};
 use fibfluid_geometry::Vec3;
-use fibfluid_linalg::{FactorizationExt, HeldCapacitance, VertexColumns, VertexResponse};
+use fibfluid_linalg::{FactorizationExt, HeldCapacitance, VertexColumns, VertexSource};
 
 use super::core::Simulation;
 use super::state::*;
@@ -75,15 +75,9 @@ impl Simulation {
                 f.held.capacitance = Some(HeldCapacitance::new(&*columns, &vertices)?);
             }
             let cap = f.held.capacitance.as_ref().expect("built above");
-            let gap: Vec<f64> = targets
-                .iter()
-                .flat_map(|&(v, d)| (0..axes).map(move |c| (v, c, d[c])))
-                .map(|(v, c, d)| d - x[c * n + v])
-                .collect();
-            reactions = cap.reactions(&gap)?;
-            let p = columns.pressure_of(&reactions);
-            columns.add_field_axes(&reactions, p, &mut x[..axes * n]);
-            x[axes * n] += p / f.system.matrix.pressure_scale();
+            let values: Vec<f64> = targets.iter().flat_map(|&(_, d)| d.into_iter().take(axes)).collect();
+            let source = VertexSource::bordered(&*columns, f.system.matrix.pressure_scale());
+            reactions = cap.impose(&source, &values, &mut x)?;
         }
         self.log.add(names::SOLVE, start.elapsed().as_secs_f64());
         self.counters.solves += 1;
