@@ -77,6 +77,18 @@ pub(super) struct Holds {
     pub(super) capacitance: Option<HeldCapacitance>,
 }
 
+/// The body's fibers and edges on a shape (its positions and vertex area vectors).
+fn body_on<'a>(body: &'a BodyShape, positions: &'a [Vec3], areas: &'a [Vec3]) -> Body<'a> {
+    Body {
+        axes: body.boundary.axes(),
+        positions,
+        vertex_areas: areas,
+        edges: &body.edges,
+        fibers: &body.fibers,
+        rest_positions: Some(&body.rest),
+    }
+}
+
 /// The projected fibers' system on `positions` (the paper's constraint method).
 pub(super) fn assemble_projected_on(
     scene: &Model,
@@ -84,33 +96,21 @@ pub(super) fn assemble_projected_on(
     positions: &[Vec3],
     areas: &[Vec3],
 ) -> Result<ProjectedSystem> {
-    let shape = Body {
-        axes: body.boundary.axes(),
-        positions,
-        vertex_areas: areas,
-        edges: &body.edges,
-        fibers: &body.fibers,
-        rest_positions: Some(&body.rest),
-    };
+    let shape = body_on(body, positions, areas);
     let opts =
         AssemblyOptions { method: scene.solver.constraint_method(), pressure_scaling: PressureScaling::None };
     Ok(assemble_projected(&shape, &scene.material, &scene.constraints, &opts)?)
 }
 
+/// The paper's per-axis system on `positions` (pressure scaled unless the penalty is asked
+/// for).
 pub(super) fn assemble_on(
     scene: &Model,
     body: &BodyShape,
     positions: &[Vec3],
     areas: &[Vec3],
 ) -> Result<System> {
-    let shape = Body {
-        axes: body.boundary.axes(),
-        positions,
-        vertex_areas: areas,
-        edges: &body.edges,
-        fibers: &body.fibers,
-        rest_positions: Some(&body.rest),
-    };
+    let shape = body_on(body, positions, areas);
     let method = scene.solver.constraint_method();
     let scaling = match method {
         // The paper's form is kept as published (Eq. 8) when its penalty is asked for.
