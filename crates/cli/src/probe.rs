@@ -60,6 +60,9 @@ pub fn run(args: &ProbeArgs) -> Result<(), crate::CliError> {
     let path = load_tool_path(&args.path)?;
     let opts = args.response.options();
     let report = run_probe_with(&scene, &path, &args.out, &opts, args.method)?;
+    for w in &report.warnings {
+        tell!("warning: {w}");
+    }
     let l = report.probe.latency_us;
     say!(
         "{} ({}): {} vertices, {} frames ({} path, {} probed), precompute {:.3} s, {:.1} MiB ({}), frame latency p50 {:.1} us, p99 {:.1} us, max {:.1} us",

@@ -5,11 +5,12 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use fibfluid::fem::FemStats;
-use fibfluid::geometry::{MeshFile, Vec3};
+use fibfluid::geometry::{Boundary, MeshFile, Vec3};
 use fibfluid::interact::{
     FrameRow, Latency, Method, MethodBody, PathKind, ProbeError, ProbeOptions, Storage, ToolPath,
     check_method, check_path, replay,
 };
+use fibfluid::sim::result_guards::{ResultChecks, ResultWarning, check_answer};
 use fibfluid::{ConstraintKind, Scene, Shape};
 use serde::Serialize;
 
@@ -68,12 +69,36 @@ pub struct ProbeReport {
     /// The finite-element grid (absent for the other methods).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fem: Option<FemStats>,
+    /// The result guards that fired on the state after the last frame
+    /// ([`fibfluid::sim::result_guards`]).
+    pub warnings: Vec<ResultWarning>,
     /// Wall-clock seconds of the whole probe run.
     pub seconds_total: f64,
 }
 
 fn max_norm(v: &[Vec3]) -> f64 {
     v.iter().map(|u| (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt()).fold(0.0, f64::max)
+}
+
+/// The result guards of the state after the last frame (every method; a non-finite state is
+/// an error naming the scene, before anything is written).
+fn final_state_guards(
+    scene: &Scene,
+    file: &MeshFile,
+    field: &[Vec3],
+    method: Method,
+) -> Result<Vec<ResultWarning>> {
+    let rest = file.mesh.positions();
+    let positions: Vec<Vec3> =
+        rest.iter().zip(field).map(|(r, u)| std::array::from_fn(|a| r[a] + u[a])).collect();
+    let boundary = Boundary::Surface { triangles: file.mesh.triangles().to_vec() };
+    let checks = ResultChecks { inverted: true, residual: None, linear: method == Method::Fem };
+    check_answer(&boundary, rest, &positions, checks).map_err(|e| {
+        Error::Fibfluid(
+            fibfluid::sim::Error::NonFiniteAnswer { scene: scene.display_name(), method, vertex: e.vertex }
+                .into(),
+        )
+    })
 }
 
 /// `frames.csv`: `frame,vertex,fx,fy,fz,ux,uy,uz`, every value in shortest round-trip
@@ -240,6 +265,7 @@ pub fn run_probe_with(
         final_pressure: d.final_pressure,
         chainmail: d.chainmail,
         fem: d.fem,
+        warnings: final_state_guards(scene, file, body.field(), method)?,
         seconds_total: 0.0,
     };
     let png = if forces {

@@ -661,8 +661,9 @@ fn run_with_the_fem_writes_its_report_and_mesh_in_the_file_unit() {
 
 /// A physically impossible FEM answer never leaves without a warning: a floor plate driven 5 m
 /// up into a hanging 2 m sphere turns its surface inside out (a negative volume). The run
-/// ends (exit 0), with the result guards on stderr and in report.json; the same scene with
-/// a 1 cm push passes them (no warning, an empty list).
+/// ends (exit 0), with the result guards on stderr and in report.json; a 50 cm push is
+/// possible but past the linear model's validity (only `linear` fires); a 1 cm push passes
+/// them all (an empty list).
 #[test]
 fn fem_answers_beyond_the_possible_are_flagged() {
     let tmp = tempfile::tempdir().unwrap();
@@ -676,7 +677,9 @@ fn fem_answers_beyond_the_possible_are_flagged() {
             mesh.display()
         )
     };
-    for (travel, impossible) in [(5.0, true), (0.01, false)] {
+    // travel (m), then whether the answer is impossible, and whether it is past the linear
+    // model's validity (a tenth of the body's size, 3.46 m) without being impossible.
+    for (travel, impossible, beyond_linear) in [(5.0, true, false), (0.5, false, true), (0.01, false, false)] {
         let scene = tmp.path().join(format!("plate-{travel}.toml"));
         std::fs::write(&scene, scene_with(travel)).unwrap();
         let out = tmp.path().join(format!("out-{travel}"));
@@ -693,6 +696,13 @@ fn fem_answers_beyond_the_possible_are_flagged() {
                 (report["volume_initial"].as_f64().unwrap(), report["volume_final"].as_f64().unwrap());
             assert!(v1 <= 0.0 && (ratio - v1 / v0).abs() <= 1e-9 * ratio.abs(), "{ratio} vs {v1} / {v0}");
             assert!(stderr.contains("warning: result guard `volume`"), "{stderr}");
+        } else if beyond_linear {
+            let guards: Vec<&str> = warnings.iter().map(|w| w["guard"].as_str().unwrap()).collect();
+            assert_eq!(guards, ["linear"], "{warnings:?}");
+            let size = 2.0 * 3f64.sqrt();
+            let expected = report["max_displacement"].as_f64().unwrap() / size;
+            assert!((warnings[0]["value"].as_f64().unwrap() - expected).abs() <= 1e-9 * expected);
+            assert!(stderr.contains("warning: result guard `linear`"), "{stderr}");
         } else {
             assert!(warnings.is_empty(), "{warnings:?}");
             assert!(!stderr.contains("result guard"), "{stderr}");

@@ -172,7 +172,7 @@ pub fn answer_guards(
 ) -> Result<Vec<ResultWarning>> {
     let Shape::Surface(file) = &model.shape else { return Ok(vec![]) };
     let boundary = Boundary::Surface { triangles: file.mesh.triangles().to_vec() };
-    let checks = ResultChecks { inverted: true, residual: Some(residual) };
+    let checks = ResultChecks { inverted: true, residual: Some(residual), linear: true };
     check_answer(&boundary, rest, positions, checks).map_err(|e| Error::NonFiniteAnswer {
         scene: model.display_name(),
         method: Method::Fem,

@@ -8,6 +8,12 @@
 //! | `displacement` | largest `|u|` over the rest bounding-box diagonal | above [`DISPLACEMENT_LIMIT`] |
 //! | `inverted` | faces whose normal turned against the rest shape's | any (methods without step guards) |
 //! | `residual` | the solve's relative residual | above [`RESULT_RESIDUAL_LIMIT`] |
+//! | `linear` | largest `|u|` over the diagonal, for a small-strain (linear) FEM answer | above [`LINEAR_DISPLACEMENT_LIMIT`] |
+//!
+//! The `linear` guard is the small-strain model's own validity, estimated from the answer:
+//! a displacement of a tenth of the body's size means strains of that order or more where
+//! the body is held, where a linear answer is off by 10-20 % or more against a
+//! large-deformation model (it neither stiffens nor keeps its volume; `docs/stability.md`).
 //!
 //! Soft tissue keeps its volume within a few per cent (Poisson's ratio near 0.5) and a body
 //! held by part of itself does not move further than its own size under the loads of a
@@ -27,6 +33,9 @@ pub const VOLUME_RATIO_LIMIT: f64 = 2.0;
 /// The largest displacement may be at most this many times the body's size (its rest
 /// bounding-box diagonal).
 pub const DISPLACEMENT_LIMIT: f64 = 1.0;
+/// The largest displacement, over the body's size, below which a small-strain answer is
+/// taken as valid.
+pub const LINEAR_DISPLACEMENT_LIMIT: f64 = 0.1;
 /// The largest relative residual `|K u - f| / |f|` an answer may have.
 pub const RESULT_RESIDUAL_LIMIT: f64 = 1e-8;
 
@@ -41,18 +50,27 @@ pub enum ResultGuard {
     Inverted,
     /// The solve's residual is above [`RESULT_RESIDUAL_LIMIT`].
     Residual,
+    /// A small-strain answer moved a vertex more than [`LINEAR_DISPLACEMENT_LIMIT`] times
+    /// the body's size: outside the linear model's validity.
+    Linear,
 }
 
 impl Choice for ResultGuard {
     const WHAT: &'static str = "result guard";
-    const ALL: &'static [Self] =
-        &[ResultGuard::Volume, ResultGuard::Displacement, ResultGuard::Inverted, ResultGuard::Residual];
+    const ALL: &'static [Self] = &[
+        ResultGuard::Volume,
+        ResultGuard::Displacement,
+        ResultGuard::Inverted,
+        ResultGuard::Residual,
+        ResultGuard::Linear,
+    ];
     fn name(self) -> &'static str {
         match self {
             ResultGuard::Volume => "volume",
             ResultGuard::Displacement => "displacement",
             ResultGuard::Inverted => "inverted",
             ResultGuard::Residual => "residual",
+            ResultGuard::Linear => "linear",
         }
     }
 }
@@ -88,6 +106,10 @@ impl std::fmt::Display for ResultWarning {
                 "the solve's relative residual is {value} (limit {limit})",
                 "the system is ill-conditioned: check the constraints and the tissue's values",
             ),
+            ResultGuard::Linear => (
+                "the largest displacement is {value} of the body's size (limit {limit})",
+                "a small-strain (linear) model is off at this deformation: it neither stiffens nor keeps its volume; read the answer as qualitative",
+            ),
         };
         let what = what
             .replace("{value}", &format!("{:.3e}", self.value))
@@ -111,6 +133,8 @@ pub struct ResultChecks {
     pub inverted: bool,
     /// The solve's relative residual, when the method measures one.
     pub residual: Option<f64>,
+    /// Check the small-strain model's validity (a linear FEM answer).
+    pub linear: bool,
 }
 
 /// The result guards of an answer: `positions` against `rest` on `boundary` (see the module
@@ -143,6 +167,13 @@ pub fn check_answer(
             guard: ResultGuard::Displacement,
             value: largest / size,
             limit: DISPLACEMENT_LIMIT,
+        });
+    }
+    if checks.linear && largest > LINEAR_DISPLACEMENT_LIMIT * size && largest <= DISPLACEMENT_LIMIT * size {
+        out.push(ResultWarning {
+            guard: ResultGuard::Linear,
+            value: largest / size,
+            limit: LINEAR_DISPLACEMENT_LIMIT,
         });
     }
     if checks.inverted {

@@ -155,7 +155,7 @@ impl Simulation {
     /// displacement; the step guards watch inverted faces and residuals); a non-finite
     /// position is [`crate::Error::NonFiniteAnswer`].
     pub fn answer_guards(&self) -> crate::Result<Vec<crate::result_guards::ResultWarning>> {
-        let checks = crate::result_guards::ResultChecks { inverted: false, residual: None };
+        let checks = crate::result_guards::ResultChecks { inverted: false, residual: None, linear: false };
         crate::result_guards::check_answer(
             &self.body.boundary,
             &self.body.rest,
