@@ -679,7 +679,8 @@ fn fem_answers_beyond_the_possible_are_flagged() {
     };
     // travel (m), then whether the answer is impossible, and whether it is past the linear
     // model's validity (a tenth of the body's size, 3.46 m) without being impossible.
-    for (travel, impossible, beyond_linear) in [(5.0, true, false), (0.5, false, true), (0.01, false, false)] {
+    for (travel, impossible, beyond_linear) in [(5.0, true, false), (0.5, false, true), (0.01, false, false)]
+    {
         let scene = tmp.path().join(format!("plate-{travel}.toml"));
         std::fs::write(&scene, scene_with(travel)).unwrap();
         let out = tmp.path().join(format!("out-{travel}"));

@@ -18,11 +18,11 @@ impl Simulation {
     /// the plate's normal) and the normal displacement that puts each vertex on its
     /// plate at load factor `to`.
     pub(super) fn set_contacts(&mut self, active: &[Contact], to: f64) {
-        self.contact_values = active
+        self.contact.values = active
             .iter()
             .map(|c| -self.model.plates[c.plate].gap(self.state.positions[c.vertex], to))
             .collect();
-        self.contact_active = active.iter().map(|c| (c.plate, c.vertex)).collect();
+        self.contact.active = active.iter().map(|c| (c.plate, c.vertex)).collect();
     }
 
     /// Sets each contact's force from the current state: the force on the body at the
@@ -129,7 +129,7 @@ impl Simulation {
                     h.iter().copied().fold(f64::MIN, f64::max) - h.iter().copied().fold(f64::MAX, f64::min)
                 }
             };
-            let r = &mut self.plate_records[k];
+            let r = &mut self.contact.records[k];
             r.force.push(mine.iter().fold(0.0, |f, c| f + c.force));
             r.contact_area.push(mine.iter().fold(0.0, |a, c| a + norm(areas[c.vertex])));
             r.contact_vertices.push(mine.len());
@@ -142,14 +142,15 @@ impl Simulation {
     pub(super) fn sync_contact_set(&mut self) -> Result<()> {
         let n = self.state.positions.len();
         let axes = self.axes();
-        let wanted: Vec<u64> = self.contact_active.iter().map(|&(p, v)| Contact::key(p, v)).collect();
+        let wanted: Vec<u64> = self.contact.active.iter().map(|&(p, v)| Contact::key(p, v)).collect();
         let f = &mut self.factored;
         for key in f.contact.keys().to_vec().into_iter().filter(|k| !wanted.contains(k)) {
             f.contact.remove_key(key)?;
         }
         let start = Instant::now();
         let rows: Vec<(u64, Vec<(usize, f64)>)> = self
-            .contact_active
+            .contact
+            .active
             .iter()
             .map(|&(p, v)| {
                 let normal = self.model.plates[p].normal;

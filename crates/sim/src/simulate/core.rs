@@ -24,11 +24,8 @@ pub struct Simulation {
     pub(super) counters: Counters,
     pub(super) stats: StepStats,
     pub(super) warnings: Vec<GuardWarning>,
-    /// Contacts of the current solves: (plate, vertex) and the step's normal motion onto
-    /// the plate.
-    pub(super) contact_active: Vec<(usize, usize)>,
-    pub(super) contact_values: Vec<f64>,
-    pub(super) plate_records: Vec<PlateRecord>,
+    /// Plate contact: the active contacts of the current solves and each plate's record.
+    pub(super) contact: PlateContact,
     pub(super) calibration: Option<crate::fit::Calibration>,
     pub(super) log: StageLog,
     pub(super) started: Instant,
@@ -148,7 +145,7 @@ impl Simulation {
 
     /// Each plate's force, contact area, contacts and gap after every step.
     pub fn plate_records(&self) -> &[PlateRecord] {
-        &self.plate_records
+        &self.contact.records
     }
 
     /// The result guards of the current answer ([`crate::result_guards`]: volume and

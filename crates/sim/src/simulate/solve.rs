@@ -171,7 +171,7 @@ impl Simulation {
         prescribed_scale: f64,
         step: bool,
     ) -> Result<Vec<f64>> {
-        if !self.contact_active.is_empty() {
+        if !self.contact.active.is_empty() {
             self.sync_contact_set()?;
         }
         let f = &self.factored;
@@ -187,7 +187,7 @@ impl Simulation {
         }
         let rhs = f.system.rhs(b, target, &f.border_areas, prescribed_scale);
         let start = Instant::now();
-        let x = if self.contact_active.is_empty() {
+        let x = if self.contact.active.is_empty() {
             let sol = f.factorization.solve(&rhs)?;
             self.counters.residual_max = self.counters.residual_max.max(sol.relative_residual);
             self.counters.refinement_steps_max = self.counters.refinement_steps_max.max(sol.refinement_steps);
@@ -196,14 +196,15 @@ impl Simulation {
             // The set's order is its insertion order; the values follow it.
             let keys = f.contact.keys();
             let order: Vec<usize> = self
-                .contact_active
+                .contact
+                .active
                 .iter()
                 .map(|&(p, v)| keys.iter().position(|&k| k == Contact::key(p, v)).expect("synced"))
                 .collect();
             let mut values = vec![0.0; keys.len()];
             if step {
                 for (i, &j) in order.iter().enumerate() {
-                    values[j] = self.contact_values[i];
+                    values[j] = self.contact.values[i];
                 }
             }
             let sol = f.contact.solve(f.factorization.as_ref(), &rhs, &values)?;

@@ -1,5 +1,6 @@
 //! The data of a simulation: options, the body, the state that steps change, counters.
 
+use crate::contact::PlateRecord;
 use fibfluid_geometry::{Boundary, FiberSet, Vec3};
 use fibfluid_linalg::FactorOptions;
 use serde::Serialize;
@@ -78,7 +79,7 @@ pub struct State {
     pub positions: Vec<Vec3>,
     /// Accumulated pressure change.
     pub pressure: f64,
-    /// Fraction of the scene's load applied (0 at rest, 1 after [`Simulation::run`]).
+    /// Fraction of the scene's load applied (0 at rest, 1 after [`Simulation::run`](crate::Simulation::run)).
     pub load_factor: f64,
     /// Fraction of the forces applied at the last step (`at = "last"`) now acting.
     pub last_forces: f64,
@@ -154,4 +155,14 @@ pub struct Response {
     pub pressure: f64,
     /// The force each held vertex needs to stay where it is held, in the order given.
     pub reactions: Vec<(usize, Vec3)>,
+}
+
+/// Plate contact, the contact stage's state: the contacts of the current solves, (plate,
+/// vertex) with the step's normal motion onto the plate, and each plate's record after every
+/// step.
+#[derive(Clone, Debug, Default)]
+pub(super) struct PlateContact {
+    pub(super) active: Vec<(usize, usize)>,
+    pub(super) values: Vec<f64>,
+    pub(super) records: Vec<PlateRecord>,
 }

@@ -112,8 +112,12 @@ impl Simulation {
                         last_to: last0 + sign * next,
                     },
                 };
-                let saved =
-                    (self.state.clone(), self.stats.clone(), self.warnings.len(), self.plate_records.clone());
+                let saved = (
+                    self.state.clone(),
+                    self.stats.clone(),
+                    self.warnings.len(),
+                    self.contact.records.clone(),
+                );
                 let outcome = self.take_step(&inc, true)?;
                 let estimate = outcome.estimate.unwrap_or(0.0);
                 let allowed = tolerance * self.body.diagonal;
@@ -130,7 +134,7 @@ impl Simulation {
                     self.stats = saved.1;
                     self.warnings.truncate(saved.2);
                     // A rejected step leaves no plate record either.
-                    self.plate_records = saved.3;
+                    self.contact.records = saved.3;
                     self.stats.rejected += 1;
                     h *= 0.5;
                 }
