@@ -358,3 +358,17 @@ fn binding_anything_but_loopback_warns() {
     let bound = fibfluid_viewer::Server::bind(test_options()).unwrap();
     assert!(bound.warnings().is_empty(), "127.0.0.1 is quiet");
 }
+
+#[test]
+fn a_non_finite_tip_centre_is_named_as_the_tip_centre() {
+    let server = server(test_options());
+    let mut c = Client::connect(server.local_addr(), "");
+    for msg in [r#"{"press": [0, "NaN", 0], "radius": 0.3}"#, r#"{"press": [null, 0, 0], "radius": 0.3}"#] {
+        c.send(msg);
+        let e = c.error();
+        assert!(e.contains("the tip's centre has a non-finite component"), "{msg}: {e}");
+        assert!(!e.contains("vertex"), "{msg}: no vertex is involved: {e}");
+    }
+    c.send(r#"{"reset": true}"#);
+    assert!(c.frame().tools.is_empty(), "the refused presses left no tip");
+}
