@@ -97,6 +97,12 @@ pub enum InteractError {
         /// Vertices still inside.
         inside: usize,
     },
+    /// A tip centre with a NaN or infinite component.
+    #[error("the tip's centre has a non-finite component ({value})")]
+    NonFiniteCentre {
+        /// The offending component.
+        value: f64,
+    },
     /// Inputs of inconsistent sizes (rest positions, base state) or non-finite system data.
     #[error("{0}")]
     Invalid(String),

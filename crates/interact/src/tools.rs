@@ -259,15 +259,11 @@ impl Press {
     }
 
     /// Moves the tip's centre to `centre` (metres, absolute) and updates the body until the
-    /// contact set settles. Errors: a non-finite centre, a body that refuses a frame, and
-    /// [`InteractError::PressUnsettled`] when vertices are still inside the tip after
-    /// [`MAX_PRESS_ITERATIONS`].
+    /// contact set settles. Errors: a non-finite centre ([`InteractError::NonFiniteCentre`]),
+    /// a body that refuses a frame, and [`InteractError::PressUnsettled`] when vertices are
+    /// still inside the tip after [`MAX_PRESS_ITERATIONS`].
     pub fn place(&mut self, body: &mut dyn Interactive, centre: Vec3) -> Result<PressReport> {
-        if let Some(&value) = centre.iter().find(|c| !c.is_finite()) {
-            return Err(InteractError::Invalid(format!(
-                "the tip's centre has a non-finite component ({value})"
-            )));
-        }
+        check_centre(centre)?;
         let forces = body.supports_forces();
         if !forces {
             // Without forces nothing pulls a held vertex back: start from a free surface.
@@ -359,6 +355,14 @@ impl Press {
     }
 }
 
+/// Refuses a tip centre with a NaN or infinite component.
+fn check_centre(centre: Vec3) -> Result<()> {
+    match centre.iter().find(|c| !c.is_finite()) {
+        Some(&value) => Err(InteractError::NonFiniteCentre { value }),
+        None => Ok(()),
+    }
+}
+
 /// The unit direction from the tip's centre to a vertex at `x` (from its rest position `p`,
 /// then straight up, when `x` is the centre).
 fn outward(x: Vec3, centre: Vec3, p: Vec3) -> Vec3 {
@@ -409,13 +413,16 @@ impl ToolSet {
         }
     }
 
-    /// Places the tip (a new radius makes a new tip).
+    /// Places the tip (a new radius makes a new tip). The centre and the radius are checked
+    /// first: a refused tip changes nothing (the tip in place, if any, stays).
     pub fn press(&mut self, body: &mut dyn Interactive, centre: Vec3, radius: f64) -> Result<()> {
+        check_centre(centre)?;
         match &mut self.tip {
             Some((p, c)) if p.radius() == radius => *c = centre,
             _ => {
+                let tip = Press::new(&*body, radius)?;
                 self.lift(body)?;
-                self.tip = Some((Press::new(&*body, radius)?, centre));
+                self.tip = Some((tip, centre));
             }
         }
         Ok(())

@@ -359,6 +359,15 @@ fn binding_anything_but_loopback_warns() {
     assert!(bound.warnings().is_empty(), "127.0.0.1 is quiet");
 }
 
+/// A press from below the sphere's lowest vertex, `depth` into it (radius 0.6).
+fn press_from_below(body: &FfmBody, depth: f64) -> String {
+    use fibfluid_interact::Interactive;
+    let r = body.rest_positions();
+    let low = r.iter().copied().min_by(|a, b| a[1].total_cmp(&b[1])).unwrap();
+    let c = [low[0], low[1] - 0.6 + depth, low[2]];
+    format!(r#"{{"press": [{:e}, {:e}, {:e}], "radius": 0.6}}"#, c[0], c[1], c[2])
+}
+
 #[test]
 fn a_non_finite_tip_centre_is_named_as_the_tip_centre() {
     let server = server(test_options());
@@ -371,4 +380,36 @@ fn a_non_finite_tip_centre_is_named_as_the_tip_centre() {
     }
     c.send(r#"{"reset": true}"#);
     assert!(c.frame().tools.is_empty(), "the refused presses left no tip");
+}
+
+#[test]
+fn a_refused_press_keeps_the_working_tip() {
+    let (scene, body) = sphere();
+    let server = serve_with(&scene, &body, test_options());
+    let mut c = Client::connect(server.local_addr(), "");
+    let press = press_from_below(&body, 0.1);
+    c.send(&press);
+    let working = c.frame();
+    assert_eq!(working.tools.len(), 1, "{:?}", working.tools);
+    assert!(working.tools[0]["contacts"].as_u64().unwrap() > 0, "{:?}", working.tools);
+    for bad in [r#"{"press": [0, -1, 0], "radius": 50}"#, r#"{"press": [0, -1, 0], "radius": 1e308}"#] {
+        c.send(bad);
+        let e = c.error();
+        assert!(e.contains("radius"), "{bad}: {e}");
+    }
+    // A message that changes no tool brings the next frame (the release of a free vertex
+    // at the top, far from the tip, that nothing holds): the tip is still there.
+    let top = {
+        use fibfluid_interact::Interactive;
+        let r = body.rest_positions();
+        (0..r.len()).filter(|&v| !body.is_fixed(v)).max_by(|&a, &b| r[a][1].total_cmp(&r[b][1])).unwrap()
+    };
+    c.send(&format!(r#"{{"release": {top}}}"#));
+    let after = c.frame();
+    assert_eq!(after.tools.len(), 1, "the refused presses removed the tip: {:?}", after.tools);
+    for key in ["press", "radius", "contacts"] {
+        assert_eq!(after.tools[0][key], working.tools[0][key], "{key}");
+    }
+    let moved = crate::common::max_dist(&after.positions, &working.positions);
+    assert!(moved <= 1e-6, "the surface moved by {moved:e} after refused presses");
 }
