@@ -87,6 +87,23 @@ pub enum InteractError {
         /// How many patch vertices are fixed.
         count: usize,
     },
+    /// A tip that reaches vertices the scene fixes: it cannot move them.
+    #[error(
+        "the tip of radius {radius} m centred at [{}, {}, {}] reaches {count} vertices the scene fixes (vertex {fixed} first); a tool cannot move them",
+        centre[0],
+        centre[1],
+        centre[2]
+    )]
+    TipReachesFixed {
+        /// The tip's radius (metres).
+        radius: f64,
+        /// The tip's centre (metres).
+        centre: [f64; 3],
+        /// The first fixed vertex inside the tip.
+        fixed: usize,
+        /// How many fixed vertices are inside the tip.
+        count: usize,
+    },
     /// A press whose contact set did not settle.
     #[error(
         "the tip's contact set did not settle in {iterations} iterations ({inside} vertices still inside the tip)"
@@ -94,7 +111,8 @@ pub enum InteractError {
     PressUnsettled {
         /// Iterations made.
         iterations: usize,
-        /// Vertices still inside.
+        /// Free vertices still inside (neither fixed nor held by another tool; at least
+        /// one).
         inside: usize,
     },
     /// A tip centre with a NaN or infinite component.

@@ -413,3 +413,16 @@ fn a_refused_press_keeps_the_working_tip() {
     let moved = crate::common::max_dist(&after.positions, &working.positions);
     assert!(moved <= 1e-6, "the surface moved by {moved:e} after refused presses");
 }
+
+#[test]
+fn a_tip_in_the_fixed_cap_names_the_fixed_vertices() {
+    let server = server(test_options());
+    let mut c = Client::connect(server.local_addr(), "");
+    // The scene fixes the cap y > 0.8: a tip at the top reaches only fixed vertices.
+    c.send(r#"{"press": [0, 1, 0], "radius": 0.3}"#);
+    let e = c.error();
+    assert!(e.contains("vertices the scene fixes (vertex "), "{e}");
+    assert!(!e.contains("did not settle") && !e.contains(" 0 vertices"), "{e}");
+    c.send(r#"{"reset": true}"#);
+    assert!(c.frame().tools.is_empty(), "the refused tip was not kept");
+}
