@@ -429,6 +429,11 @@ const BAD_PATHS: &[(&str, &str, &str)] = &[
     ),
     ("path-values-without-vertex.csv", "frame,vertex,ux,uy,uz\n0,,1,0,0\n", ":2: a row without a vertex"),
     (
+        "path-overlapping-grasps.csv",
+        "frame,vertex,ux,uy,uz,radius\n0,36,0,-0.1,0,0.3\n0,122,0,-0.1,0,0.3\n",
+        ":3: frame 0: the grasps around vertices 36 (line 2) and 122 both hold vertex",
+    ),
+    (
         "path-huge-frame.csv",
         "frame,vertex,ux,uy,uz\n99999999999,36,0,0,0\n",
         ":2: frame 99999999999 is beyond the largest allowed frame number",

@@ -104,6 +104,19 @@ pub enum InteractError {
         /// How many fixed vertices are inside the tip.
         count: usize,
     },
+    /// Two grasps whose patches share a vertex: each patch moves rigidly with its own tool,
+    /// so no vertex can follow both.
+    #[error(
+        "the grasps around vertices {first} and {second} both hold vertex {shared}; a vertex can be held by one grasp only"
+    )]
+    GraspsOverlap {
+        /// The picked vertex of the grasp already in place.
+        first: usize,
+        /// The picked vertex of the new grasp.
+        second: usize,
+        /// A vertex both patches hold.
+        shared: usize,
+    },
     /// A press whose contact set did not settle.
     #[error(
         "the tip's contact set did not settle in {iterations} iterations ({inside} vertices still inside the tip)"

@@ -117,6 +117,26 @@ fn check_radius(body: &dyn Interactive, radius: f64) -> Result<f64> {
     Ok(size)
 }
 
+/// The patch of a grasp of `radius` around `vertex`: every vertex whose rest position is
+/// within the radius of the vertex's, ascending (empty for an unknown vertex).
+pub(crate) fn patch_around(rest: &[Vec3], vertex: usize, radius: f64) -> Vec<usize> {
+    let Some(&centre) = rest.get(vertex) else { return Vec::new() };
+    (0..rest.len()).filter(|&v| dist(rest[v], centre) <= radius).collect()
+}
+
+/// The first vertex two ascending lists share.
+pub(crate) fn shared_vertex(a: &[usize], b: &[usize]) -> Option<usize> {
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() && j < b.len() {
+        match a[i].cmp(&b[j]) {
+            std::cmp::Ordering::Less => i += 1,
+            std::cmp::Ordering::Greater => j += 1,
+            std::cmp::Ordering::Equal => return Some(a[i]),
+        }
+    }
+    None
+}
+
 /// A grasp: a patch of the surface held rigidly by the tool (see the module docs).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Grasp {
@@ -137,7 +157,7 @@ impl Grasp {
             return Err(InteractError::UnknownVertex { vertex, vertices: rest.len() });
         };
         check_radius(body, radius)?;
-        let patch: Vec<usize> = (0..rest.len()).filter(|&v| dist(rest[v], centre) <= radius).collect();
+        let patch = patch_around(rest, vertex, radius);
         let fixed: Vec<usize> = patch.iter().copied().filter(|&v| body.is_fixed(v)).collect();
         if let Some(&first) = fixed.first() {
             return Err(InteractError::PatchHoldsFixed { vertex, radius, fixed: first, count: fixed.len() });
@@ -441,7 +461,9 @@ pub struct ToolSet {
 
 impl ToolSet {
     /// Holds the patch of `radius` around body vertex `vertex`, moved by `motion` (a later
-    /// grasp of the same vertex moves it; a new radius rebuilds the patch).
+    /// grasp of the same vertex moves it; a new radius rebuilds the patch). A patch that
+    /// shares a vertex with another grasp's is refused ([`InteractError::GraspsOverlap`]);
+    /// a refused grasp changes nothing.
     pub fn grasp(
         &mut self,
         body: &mut dyn Interactive,
@@ -453,6 +475,13 @@ impl ToolSet {
             Some((g, _)) if g.radius() == radius => g.clone(),
             _ => Grasp::new(&*body, vertex, radius)?,
         };
+        let overlap =
+            self.grasps.values().filter(|(g, _)| g.vertex() != vertex).find_map(|(g, _)| {
+                shared_vertex(g.patch(), grasp.patch()).map(|shared| (g.vertex(), shared))
+            });
+        if let Some((first, shared)) = overlap {
+            return Err(InteractError::GraspsOverlap { first, second: vertex, shared });
+        }
         if let Some((old, _)) = self.grasps.remove(&vertex) {
             old.release(body)?;
         }

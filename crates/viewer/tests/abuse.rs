@@ -426,3 +426,36 @@ fn a_tip_in_the_fixed_cap_names_the_fixed_vertices() {
     c.send(r#"{"reset": true}"#);
     assert!(c.frame().tools.is_empty(), "the refused tip was not kept");
 }
+
+#[test]
+fn overlapping_grasps_are_refused_with_both_named() {
+    use fibfluid_interact::Interactive;
+    let (scene, body) = sphere();
+    let server = serve_with(&scene, &body, test_options());
+    let mut c = Client::connect(server.local_addr(), "");
+    let r = body.rest_positions();
+    let dist = |a: [f64; 3], b: [f64; 3]| {
+        ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+    };
+    let v = (0..r.len()).min_by(|&a, &b| r[a][1].total_cmp(&r[b][1])).unwrap();
+    let u = (0..r.len()).find(|&u| (0.2..0.5).contains(&dist(r[u], r[v]))).unwrap();
+    let grasp = |w: usize, dy: f64| {
+        format!(
+            r#"{{"grasp": {w}, "radius": 0.3, "to": [{:e}, {:e}, {:e}]}}"#,
+            r[w][0],
+            r[w][1] + dy,
+            r[w][2]
+        )
+    };
+    c.send(&grasp(v, -0.05));
+    assert_eq!(c.frame().tools.len(), 1);
+    c.send(&grasp(u, -0.1));
+    let e = c.error();
+    assert!(e.contains(&format!("the grasps around vertices {v} and {u} both hold vertex ")), "{e}");
+    let top =
+        (0..r.len()).filter(|&w| !body.is_fixed(w)).max_by(|&a, &b| r[a][1].total_cmp(&r[b][1])).unwrap();
+    c.send(&format!(r#"{{"release": {top}}}"#));
+    let f = c.frame();
+    assert_eq!(f.tools.len(), 1, "only the first grasp: {:?}", f.tools);
+    assert_eq!(f.tools[0]["grasp"].as_u64(), Some(v as u64));
+}

@@ -1,11 +1,16 @@
 //! The promises of the tools that a refusal or a second tool must not break: a refused
-//! request changes nothing, and a tip leaves alone what it cannot move (fixed vertices, a
-//! grasp's patch) and says so.
+//! request changes nothing, a tip leaves alone what it cannot move (fixed vertices, a
+//! grasp's patch) and says so, and two grasps never share a vertex.
+
+use std::path::PathBuf;
 
 use fibfluid_geometry::Vec3;
 use fibfluid_geometry::vec3::{add, dist};
-use fibfluid_interact::{Grasp, InteractError, Interactive, Press, RigidMotion, Storage, ToolLoad, ToolSet};
-use fibfluid_sim::ConstraintKind;
+use fibfluid_interact::{
+    Grasp, InteractError, Interactive, PathKind, PathProblem, PathRow, Press, ProbeError, RigidMotion,
+    Storage, ToolLoad, ToolPath, ToolSet, check_path,
+};
+use fibfluid_sim::{ConstraintKind, Model, Shape};
 
 use super::{body, sphere};
 
@@ -148,5 +153,83 @@ fn lifting_a_tip_leaves_the_grasp_holding_its_patch() {
         assert_patch_held(&b, &g, &m, &format!("tip first: {tip_first}: after the lift"));
         let held: Vec<usize> = b.holds().iter().map(|h| h.0).collect();
         assert_eq!(held, g.patch(), "tip first: {tip_first}: the body holds the patch and nothing else");
+    }
+}
+
+#[test]
+fn overlapping_grasps_are_refused_and_change_nothing() {
+    let scene = sphere(ConstraintKind::Eliminate);
+    let mut b = body(&scene, Storage::F64);
+    let to_file = identity(&b);
+    let rest = b.rest_positions().to_vec();
+    let v = lowest(&b);
+    // A free neighbour 0.2 to 0.5 away: patches of radius 0.3 around both share vertices.
+    let u = (0..rest.len())
+        .find(|&u| !b.is_fixed(u) && (0.2..0.5).contains(&dist(rest[u], rest[v])))
+        .expect("a neighbour");
+    let first = Grasp::new(&b, v, 0.3).unwrap();
+    let second = Grasp::new(&b, u, 0.3).unwrap();
+    let common: Vec<usize> = first.patch().iter().copied().filter(|w| second.patch().contains(w)).collect();
+    assert!(!common.is_empty());
+    let m = RigidMotion::translation([0.0, -0.05, 0.0]);
+    let mut tools = ToolSet::default();
+    tools.grasp(&mut b, v, 0.3, m).unwrap();
+    let e = tools.grasp(&mut b, u, 0.3, RigidMotion::translation([0.05, 0.0, 0.0])).unwrap_err();
+    match &e {
+        InteractError::GraspsOverlap { first, second, shared } => {
+            assert_eq!((*first, *second), (v, u), "{e}");
+            assert!(common.contains(shared), "{e}");
+        }
+        other => panic!("expected the overlap named, got: {other}"),
+    }
+    assert!(!e.to_string().contains('\n'));
+    let loads = tools.frame(&mut b, &to_file).unwrap();
+    assert_eq!(loads.len(), 1, "only the first grasp: {loads:?}");
+    assert_patch_held(&b, &first, &m, "after the refused grasp");
+}
+
+/// The mesh vertex -> file vertex map of a surface model.
+fn file_vertices(scene: &Model) -> Vec<usize> {
+    let Shape::Surface(file) = &scene.shape else { panic!("a surface") };
+    let mut to_file = vec![0; file.mesh.n_vertices()];
+    for (fv, v) in file.file_to_mesh().iter().enumerate() {
+        if let Some(v) = v {
+            to_file[*v] = fv;
+        }
+    }
+    to_file
+}
+
+fn grasp_row(line: usize, vertex: usize, radius: f64) -> PathRow {
+    PathRow { line, frame: 0, vertex: Some(vertex), value: [0.0, -0.05, 0.0], radius: Some(radius) }
+}
+
+#[test]
+fn overlapping_grasps_in_a_frame_of_a_path_are_refused() {
+    let scene = sphere(ConstraintKind::Eliminate);
+    let Shape::Surface(file) = &scene.shape else { panic!("a surface") };
+    let rest = file.mesh.positions().to_vec();
+    let to_file = file_vertices(&scene);
+    let v = (0..rest.len()).min_by(|&a, &c| rest[a][1].total_cmp(&rest[c][1])).unwrap();
+    let u = (0..rest.len()).find(|&u| (0.2..0.5).contains(&dist(rest[u], rest[v]))).unwrap();
+    let overlapping = ToolPath {
+        source: PathBuf::from("tool.csv"),
+        kind: PathKind::Grasp,
+        rows: vec![grasp_row(2, to_file[v], 0.3), grasp_row(3, to_file[u], 0.3)],
+    };
+    match check_path(&overlapping, &scene) {
+        Err(ProbeError::Path {
+            line: 3,
+            problem: PathProblem::GraspsOverlap { frame, first, first_line, second, shared },
+            ..
+        }) => {
+            assert_eq!((frame, first, first_line, second), (0, to_file[v], 2, to_file[u]));
+            let m = (0..rest.len()).find(|&m| to_file[m] == shared).unwrap();
+            assert!(
+                dist(rest[m], rest[v]) <= 0.3 && dist(rest[m], rest[u]) <= 0.3,
+                "vertex {shared} is in both patches"
+            );
+        }
+        other => panic!("expected the overlap refused, got {other:?}"),
     }
 }
