@@ -87,6 +87,36 @@ pub enum InteractError {
         /// How many patch vertices are fixed.
         count: usize,
     },
+    /// A tip that reaches vertices the scene fixes: it cannot move them.
+    #[error(
+        "the tip of radius {radius} m centred at [{}, {}, {}] reaches {count} vertices the scene fixes (vertex {fixed} first); a tool cannot move them",
+        centre[0],
+        centre[1],
+        centre[2]
+    )]
+    TipReachesFixed {
+        /// The tip's radius (metres).
+        radius: f64,
+        /// The tip's centre (metres).
+        centre: [f64; 3],
+        /// The first fixed vertex inside the tip.
+        fixed: usize,
+        /// How many fixed vertices are inside the tip.
+        count: usize,
+    },
+    /// Two grasps whose patches share a vertex: each patch moves rigidly with its own tool,
+    /// so no vertex can follow both.
+    #[error(
+        "the grasps around vertices {first} and {second} both hold vertex {shared}; a vertex can be held by one grasp only"
+    )]
+    GraspsOverlap {
+        /// The picked vertex of the grasp already in place.
+        first: usize,
+        /// The picked vertex of the new grasp.
+        second: usize,
+        /// A vertex both patches hold.
+        shared: usize,
+    },
     /// A press whose contact set did not settle.
     #[error(
         "the tip's contact set did not settle in {iterations} iterations ({inside} vertices still inside the tip)"
@@ -94,8 +124,15 @@ pub enum InteractError {
     PressUnsettled {
         /// Iterations made.
         iterations: usize,
-        /// Vertices still inside.
+        /// Free vertices still inside (neither fixed nor held by another tool; at least
+        /// one).
         inside: usize,
+    },
+    /// A tip centre with a NaN or infinite component.
+    #[error("the tip's centre has a non-finite component ({value})")]
+    NonFiniteCentre {
+        /// The offending component.
+        value: f64,
     },
     /// Inputs of inconsistent sizes (rest positions, base state) or non-finite system data.
     #[error("{0}")]

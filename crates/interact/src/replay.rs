@@ -279,6 +279,36 @@ pub enum PathProblem {
         /// The diagonal of the body's bounding box.
         size: f64,
     },
+    /// A tool at least as large as the body (the diagonal of its bounding box at rest),
+    /// refused before the body is built.
+    #[error(
+        "frame {frame}: a tool of radius {radius} m is larger than the body (its bounding-box diagonal is {size} m)"
+    )]
+    ToolTooLarge {
+        /// The frame.
+        frame: usize,
+        /// The radius (metres).
+        radius: f64,
+        /// The body's size (metres).
+        size: f64,
+    },
+    /// Two grasps of one frame whose patches share a vertex (each patch moves rigidly with
+    /// its own tool: no vertex can follow both).
+    #[error(
+        "frame {frame}: the grasps around vertices {first} (line {first_line}) and {second} both hold vertex {shared}; a vertex can be held by one grasp only"
+    )]
+    GraspsOverlap {
+        /// The frame.
+        frame: usize,
+        /// The picked vertex of the first grasp (file order).
+        first: usize,
+        /// The line of the first grasp.
+        first_line: usize,
+        /// The picked vertex of the second grasp (file order).
+        second: usize,
+        /// A vertex both patches hold (file order).
+        shared: usize,
+    },
     /// The same vertex twice in one frame.
     #[error("vertex {vertex} appears twice in frame {frame} (first on line {first})")]
     Duplicate {
@@ -380,7 +410,8 @@ pub struct PathHold {
 }
 
 /// Checks a path against a model (vertices exist, are used, are not fixed, appear once per
-/// frame, grabs stay within [`MAX_REACH`] of the body's size, one tip per frame) and groups
+/// frame, grabs stay within [`MAX_REACH`] of the body's size, tools are smaller than the
+/// body, the grasps of a frame share no vertex, one tip per frame) and groups
 /// its rows by frame. Lengths (displacements, centres, radii) are in the mesh's unit in the
 /// file and in metres in the result.
 pub fn check_path(path: &ToolPath, scene: &Model) -> std::result::Result<CheckedPath, ProbeError> {
@@ -402,13 +433,16 @@ pub fn check_path(path: &ToolPath, scene: &Model) -> std::result::Result<Checked
         origin: None,
     };
     let metres = scene.unit.metres();
-    let (lo, hi) = fibfluid_geometry::bounding_box(file.mesh.positions());
+    let rest = file.mesh.positions();
+    let (lo, hi) = fibfluid_geometry::bounding_box(rest);
     let size = fibfluid_geometry::vec3::dist(lo, hi);
+    let mut patches = PatchCache::default();
     for row in &path.rows {
         if path.kind == PathKind::Press {
             let Some(radius) = row.radius else { continue };
             let tip =
                 TipHold { line: row.line, centre: row.value.map(|c| c * metres), radius: radius * metres };
+            check_tool(path, row, rest, tip.radius)?;
             match &checked.tips[row.frame] {
                 Some(first) => {
                     let problem = PathProblem::TwoTips { frame: row.frame, first: first.line };
@@ -423,10 +457,75 @@ pub fn check_path(path: &ToolPath, scene: &Model) -> std::result::Result<Checked
                     PathProblem::Duplicate { vertex: hold.file_vertex, frame: row.frame, first: first.line };
                 return Err(ProbeError::Path { path: path.source.clone(), line: row.line, problem });
             }
+            if path.kind == PathKind::Grasp {
+                check_tool(path, row, rest, hold.radius)?;
+                patches.check_apart(path, row, rest, &hold, frame, &checked.file_vertex)?;
+            }
             frame.push(hold);
         }
     }
     Ok(checked)
+}
+
+/// Checks a tool's radius (metres) on a row against the rest shape: a tool at least as
+/// large as the body is refused here, before anything is built.
+fn check_tool(
+    path: &ToolPath,
+    row: &PathRow,
+    rest: &[Vec3],
+    radius: f64,
+) -> std::result::Result<(), ProbeError> {
+    let problem = match crate::tools::check_tool_radius(rest, radius) {
+        Ok(_) => return Ok(()),
+        Err(InteractError::ToolTooLarge { radius, size }) => {
+            PathProblem::ToolTooLarge { frame: row.frame, radius, size }
+        }
+        Err(_) => PathProblem::BadRadius { value: radius },
+    };
+    Err(ProbeError::Path { path: path.source.clone(), line: row.line, problem })
+}
+
+/// The patches of a grasp path's grasps, by picked vertex and radius (computed from the rest
+/// shape once each).
+#[derive(Default)]
+struct PatchCache(std::collections::HashMap<(usize, u64), Vec<usize>>);
+
+impl PatchCache {
+    fn patch(&mut self, rest: &[Vec3], vertex: usize, radius: f64) -> &[usize] {
+        self.0
+            .entry((vertex, radius.to_bits()))
+            .or_insert_with(|| crate::tools::patch_around(rest, vertex, radius))
+    }
+
+    /// Refuses a grasp whose patch shares a vertex with a grasp already in its frame.
+    fn check_apart(
+        &mut self,
+        path: &ToolPath,
+        row: &PathRow,
+        rest: &[Vec3],
+        hold: &PathHold,
+        frame: &[PathHold],
+        file_vertex: &[usize],
+    ) -> std::result::Result<(), ProbeError> {
+        if frame.is_empty() {
+            return Ok(());
+        }
+        let patch = self.patch(rest, hold.vertex, hold.radius).to_vec();
+        for first in frame {
+            let other = self.patch(rest, first.vertex, first.radius);
+            if let Some(shared) = crate::tools::shared_vertex(other, &patch) {
+                let problem = PathProblem::GraspsOverlap {
+                    frame: row.frame,
+                    first: first.file_vertex,
+                    first_line: first.line,
+                    second: hold.file_vertex,
+                    shared: file_vertex[shared],
+                };
+                return Err(ProbeError::Path { path: path.source.clone(), line: row.line, problem });
+            }
+        }
+        Ok(())
+    }
 }
 
 /// One row of a grab, force or grasp path as a hold (`None` for an empty frame).

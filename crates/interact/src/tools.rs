@@ -19,12 +19,12 @@
 //!   sum of the contact forces (all along their normals: frictionless). A method without
 //!   forces (ChainMail) moves each vertex found inside onto the tangent plane.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 use fibfluid_geometry::Vec3;
 use fibfluid_geometry::vec3::{add, cross, dist, dot, norm, scale, sub};
 
-use crate::{InteractError, Interactive, Result};
+use crate::{Hold, InteractError, Interactive, Result};
 
 /// Active-set iterations of one [`Press::place`] before it gives up.
 pub const MAX_PRESS_ITERATIONS: usize = 60;
@@ -100,21 +100,44 @@ pub struct Wrench {
     pub moment: Vec3,
 }
 
-/// The bounding-box diagonal of a body's rest shape (the size a tool is checked against).
-fn body_size(body: &dyn Interactive) -> f64 {
-    let (lo, hi) = fibfluid_geometry::bounding_box(body.rest_positions());
-    dist(lo, hi)
-}
-
-fn check_radius(body: &dyn Interactive, radius: f64) -> Result<f64> {
+/// Checks a tool's radius against a body's rest shape `rest` (known before the body is
+/// assembled): positive and finite ([`InteractError::BadRadius`]) and smaller than the
+/// body's size, the diagonal of its bounding box ([`InteractError::ToolTooLarge`]).
+/// Returns the size.
+pub(crate) fn check_tool_radius(rest: &[Vec3], radius: f64) -> Result<f64> {
     if !(radius > 0.0 && radius.is_finite()) {
         return Err(InteractError::BadRadius { radius });
     }
-    let size = body_size(body);
+    let (lo, hi) = fibfluid_geometry::bounding_box(rest);
+    let size = dist(lo, hi);
     if radius >= size {
         return Err(InteractError::ToolTooLarge { radius, size });
     }
     Ok(size)
+}
+
+fn check_radius(body: &dyn Interactive, radius: f64) -> Result<f64> {
+    check_tool_radius(body.rest_positions(), radius)
+}
+
+/// The patch of a grasp of `radius` around `vertex`: every vertex whose rest position is
+/// within the radius of the vertex's, ascending (empty for an unknown vertex).
+pub(crate) fn patch_around(rest: &[Vec3], vertex: usize, radius: f64) -> Vec<usize> {
+    let Some(&centre) = rest.get(vertex) else { return Vec::new() };
+    (0..rest.len()).filter(|&v| dist(rest[v], centre) <= radius).collect()
+}
+
+/// The first vertex two ascending lists share.
+pub(crate) fn shared_vertex(a: &[usize], b: &[usize]) -> Option<usize> {
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() && j < b.len() {
+        match a[i].cmp(&b[j]) {
+            std::cmp::Ordering::Less => i += 1,
+            std::cmp::Ordering::Greater => j += 1,
+            std::cmp::Ordering::Equal => return Some(a[i]),
+        }
+    }
+    None
 }
 
 /// A grasp: a patch of the surface held rigidly by the tool (see the module docs).
@@ -137,7 +160,7 @@ impl Grasp {
             return Err(InteractError::UnknownVertex { vertex, vertices: rest.len() });
         };
         check_radius(body, radius)?;
-        let patch: Vec<usize> = (0..rest.len()).filter(|&v| dist(rest[v], centre) <= radius).collect();
+        let patch = patch_around(rest, vertex, radius);
         let fixed: Vec<usize> = patch.iter().copied().filter(|&v| body.is_fixed(v)).collect();
         if let Some(&first) = fixed.first() {
             return Err(InteractError::PatchHoldsFixed { vertex, radius, fixed: first, count: fixed.len() });
@@ -221,13 +244,19 @@ pub struct PressReport {
 
 /// A rigid spherical tip pressing the surface (see the module docs). Keeps its active set
 /// from one placement to the next.
+///
+/// The tip leaves alone what it cannot move: a vertex the scene fixes (one inside the tip
+/// is an error, [`InteractError::TipReachesFixed`]) and a vertex another tool holds (a
+/// grasp's patch, a grabbed vertex: that tool keeps it, and lifting the tip never releases
+/// it; it may lie inside the tip).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Press {
     radius: f64,
     /// Active contacts and their normals.
     active: BTreeMap<usize, Vec3>,
-    /// The vertices whose contact holds the body has (released when they leave the set).
-    applied: Vec<usize>,
+    /// The holds the tip has put on the body, as the body reports them (released when they
+    /// leave the set; a vertex whose hold is not this one any more belongs to another tool).
+    applied: BTreeMap<usize, Hold>,
 }
 
 impl Press {
@@ -235,7 +264,7 @@ impl Press {
     /// [`InteractError::ToolTooLarge`] (at least the body's size).
     pub fn new(body: &dyn Interactive, radius: f64) -> Result<Self> {
         check_radius(body, radius)?;
-        Ok(Self { radius, active: BTreeMap::new(), applied: Vec::new() })
+        Ok(Self { radius, active: BTreeMap::new(), applied: BTreeMap::new() })
     }
 
     /// The radius, metres.
@@ -248,9 +277,16 @@ impl Press {
         self.active.keys().copied().collect()
     }
 
-    /// Releases the tip's contacts (from the next update on).
+    /// Releases the tip's contacts (from the next update on); a vertex another tool has
+    /// taken over since (a grasp's patch) keeps that tool's hold.
     pub fn lift(&mut self, body: &mut dyn Interactive) -> Result<()> {
-        for &v in &self.applied {
+        let own: Vec<usize> = body
+            .holds()
+            .into_iter()
+            .filter(|(v, h)| self.applied.get(v) == Some(h))
+            .map(|(v, _)| v)
+            .collect();
+        for v in own {
             body.release(v)?;
         }
         self.active.clear();
@@ -259,25 +295,26 @@ impl Press {
     }
 
     /// Moves the tip's centre to `centre` (metres, absolute) and updates the body until the
-    /// contact set settles. Errors: a non-finite centre, a body that refuses a frame, and
-    /// [`InteractError::PressUnsettled`] when vertices are still inside the tip after
-    /// [`MAX_PRESS_ITERATIONS`].
+    /// contact set settles. Errors: a non-finite centre ([`InteractError::NonFiniteCentre`]),
+    /// a tip that reaches vertices the scene fixes ([`InteractError::TipReachesFixed`], before
+    /// anything changes), a body that refuses a frame, and [`InteractError::PressUnsettled`]
+    /// when vertices are still inside the tip after [`MAX_PRESS_ITERATIONS`].
     pub fn place(&mut self, body: &mut dyn Interactive, centre: Vec3) -> Result<PressReport> {
-        if let Some(&value) = centre.iter().find(|c| !c.is_finite()) {
-            return Err(InteractError::Invalid(format!(
-                "the tip's centre has a non-finite component ({value})"
-            )));
-        }
+        check_centre(centre)?;
+        self.check_fixed(&*body, centre)?;
         let forces = body.supports_forces();
         if !forces {
             // Without forces nothing pulls a held vertex back: start from a free surface.
             self.lift(body)?;
             body.update()?;
         }
+        let others = self.others(&*body);
+        self.active.retain(|v, _| !others.contains(v));
+        self.applied.retain(|v, _| !others.contains(v));
         let mut iterations = 0;
         let limit = if forces { MAX_PRESS_ITERATIONS } else { MAX_SHAPE_ITERATIONS };
         loop {
-            let changed = self.refresh(body, centre, forces);
+            let changed = self.refresh(body, centre, forces, &others);
             if (!changed && iterations > 0) || iterations == limit {
                 break;
             }
@@ -285,10 +322,13 @@ impl Press {
             body.update()?;
             iterations += 1;
         }
-        let penetration = body.positions().iter().map(|x| self.radius - dist(*x, centre)).fold(0.0, f64::max);
-        if forces && penetration > INSIDE_TOLERANCE * self.radius {
-            let inside = self.inside(body, centre).len();
-            return Err(InteractError::PressUnsettled { iterations, inside });
+        self.check_fixed(&*body, centre)?;
+        let inside = self.inside(&*body, centre, &others);
+        let positions = body.positions();
+        let penetration =
+            inside.iter().map(|(v, _)| self.radius - dist(positions[*v], centre)).fold(0.0, f64::max);
+        if forces && !inside.is_empty() {
+            return Err(InteractError::PressUnsettled { iterations, inside: inside.len() });
         }
         let mut force = [0.0; 3];
         for &(v, f) in body.reactions() {
@@ -299,22 +339,39 @@ impl Press {
         Ok(PressReport { force, contacts: self.contacts(), iterations, penetration })
     }
 
+    /// Refuses a tip that reaches vertices the scene fixes (it cannot move them).
+    fn check_fixed(&self, body: &dyn Interactive, centre: Vec3) -> Result<()> {
+        check_reach(body, centre, self.radius)
+    }
+
+    /// The vertices another tool holds: every pending hold the tip did not put there.
+    fn others(&self, body: &dyn Interactive) -> BTreeSet<usize> {
+        body.holds().into_iter().filter(|(v, h)| self.applied.get(v) != Some(h)).map(|(v, _)| v).collect()
+    }
+
     /// Vertices closer to `centre` than the tip's radius allows, with their outward normals
     /// (active ones too: a method without forces may leave a held vertex short of its
-    /// target).
-    fn inside(&self, body: &dyn Interactive, centre: Vec3) -> Vec<(usize, Vec3)> {
+    /// target), except those the tip leaves alone: fixed ones and those in `others`.
+    fn inside(&self, body: &dyn Interactive, centre: Vec3, others: &BTreeSet<usize>) -> Vec<(usize, Vec3)> {
         let limit = self.radius * (1.0 - INSIDE_TOLERANCE);
         body.positions()
             .iter()
             .enumerate()
-            .filter(|(v, x)| dist(**x, centre) < limit && !body.is_fixed(*v))
+            .filter(|(v, x)| dist(**x, centre) < limit && !body.is_fixed(*v) && !others.contains(v))
             .map(|(v, x)| (v, outward(*x, centre, body.rest_positions()[v])))
             .collect()
     }
 
     /// Updates the active set from the last frame: releases pulling contacts, turns normals
-    /// toward the vertices, adds vertices inside. Returns whether anything changed.
-    fn refresh(&mut self, body: &dyn Interactive, centre: Vec3, forces: bool) -> bool {
+    /// toward the vertices, adds vertices inside (but none of `others`). Returns whether
+    /// anything changed.
+    fn refresh(
+        &mut self,
+        body: &dyn Interactive,
+        centre: Vec3,
+        forces: bool,
+        others: &BTreeSet<usize>,
+    ) -> bool {
         let mut changed = false;
         if forces {
             let reactions: BTreeMap<usize, Vec3> = body.reactions().iter().copied().collect();
@@ -338,24 +395,50 @@ impl Press {
                 }
             }
         }
-        let inside = self.inside(body, centre);
+        let inside = self.inside(body, centre, others);
         changed |= !inside.is_empty();
         self.active.extend(inside);
         changed
     }
 
-    /// Holds each active vertex on the plane tangent to the tip along its normal.
+    /// Holds each active vertex on the plane tangent to the tip along its normal, releases
+    /// the tip's holds of vertices that left the set, and records the holds it put.
     fn apply(&mut self, body: &mut dyn Interactive, centre: Vec3) -> Result<()> {
-        for &v in self.applied.iter().filter(|v| !self.active.contains_key(v)) {
+        for &v in self.applied.keys().filter(|v| !self.active.contains_key(v)) {
             body.release(v)?;
         }
-        self.applied = self.active.keys().copied().collect();
-        for (&v, &n) in &self.active {
+        let radius = self.radius;
+        let placed = self.active.iter().try_for_each(|(&v, &n)| {
             let p = body.rest_positions()[v];
             // n . (p + u) = n . centre + radius
-            body.contact(v, n, dot(n, sub(centre, p)) + self.radius)?;
+            body.contact(v, n, dot(n, sub(centre, p)) + radius)
+        });
+        // Recorded even when a contact was refused, so that a lift releases what was put.
+        self.applied = body.holds().into_iter().filter(|(v, _)| self.active.contains_key(v)).collect();
+        placed
+    }
+}
+
+/// Refuses a tip of `radius` at `centre` that reaches vertices the scene fixes (at their
+/// current positions): it cannot move them.
+fn check_reach(body: &dyn Interactive, centre: Vec3, radius: f64) -> Result<()> {
+    let limit = radius * (1.0 - INSIDE_TOLERANCE);
+    let positions = body.positions();
+    let fixed: Vec<usize> =
+        (0..positions.len()).filter(|&v| body.is_fixed(v) && dist(positions[v], centre) < limit).collect();
+    match fixed.first() {
+        Some(&first) => {
+            Err(InteractError::TipReachesFixed { radius, centre, fixed: first, count: fixed.len() })
         }
-        Ok(())
+        None => Ok(()),
+    }
+}
+
+/// Refuses a tip centre with a NaN or infinite component.
+fn check_centre(centre: Vec3) -> Result<()> {
+    match centre.iter().find(|c| !c.is_finite()) {
+        Some(&value) => Err(InteractError::NonFiniteCentre { value }),
+        None => Ok(()),
     }
 }
 
@@ -381,7 +464,9 @@ pub struct ToolSet {
 
 impl ToolSet {
     /// Holds the patch of `radius` around body vertex `vertex`, moved by `motion` (a later
-    /// grasp of the same vertex moves it; a new radius rebuilds the patch).
+    /// grasp of the same vertex moves it; a new radius rebuilds the patch). A patch that
+    /// shares a vertex with another grasp's is refused ([`InteractError::GraspsOverlap`]);
+    /// a refused grasp changes nothing.
     pub fn grasp(
         &mut self,
         body: &mut dyn Interactive,
@@ -393,6 +478,13 @@ impl ToolSet {
             Some((g, _)) if g.radius() == radius => g.clone(),
             _ => Grasp::new(&*body, vertex, radius)?,
         };
+        let overlap =
+            self.grasps.values().filter(|(g, _)| g.vertex() != vertex).find_map(|(g, _)| {
+                shared_vertex(g.patch(), grasp.patch()).map(|shared| (g.vertex(), shared))
+            });
+        if let Some((first, shared)) = overlap {
+            return Err(InteractError::GraspsOverlap { first, second: vertex, shared });
+        }
         if let Some((old, _)) = self.grasps.remove(&vertex) {
             old.release(body)?;
         }
@@ -409,13 +501,19 @@ impl ToolSet {
         }
     }
 
-    /// Places the tip (a new radius makes a new tip).
+    /// Places the tip (a new radius makes a new tip). The centre, the radius and the fixed
+    /// vertices the tip would reach ([`InteractError::TipReachesFixed`]) are checked first:
+    /// a refused tip changes nothing (the tip in place, if any, stays).
     pub fn press(&mut self, body: &mut dyn Interactive, centre: Vec3, radius: f64) -> Result<()> {
+        check_centre(centre)?;
+        check_radius(&*body, radius)?;
+        check_reach(&*body, centre, radius)?;
         match &mut self.tip {
             Some((p, c)) if p.radius() == radius => *c = centre,
             _ => {
+                let tip = Press::new(&*body, radius)?;
                 self.lift(body)?;
-                self.tip = Some((Press::new(&*body, radius)?, centre));
+                self.tip = Some((tip, centre));
             }
         }
         Ok(())

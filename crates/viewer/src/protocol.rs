@@ -61,6 +61,12 @@ pub enum MessageError {
         /// The component as sent.
         value: String,
     },
+    /// A tip centre with a NaN, infinite or null component.
+    #[error("the tip's centre has a non-finite component ({value})")]
+    NonFiniteCentre {
+        /// The component as sent.
+        value: String,
+    },
     /// A vertex beyond the mesh.
     #[error("vertex {vertex} does not exist (the mesh has {count} vertices, 0-based)")]
     UnknownVertex {
@@ -108,8 +114,9 @@ fn sorted<'a>(keys: &[&'a str]) -> Vec<&'a str> {
     k
 }
 
-/// A point `[x, y, z]` of finite numbers (`vertex` names it in the error).
-fn point_of(v: &Value, key: &str, vertex: usize) -> Result<Vec3, MessageError> {
+/// A point `[x, y, z]` of finite numbers; `non_finite` makes the error of a NaN, infinite
+/// or null component from the component as sent.
+fn point_of(v: &Value, key: &str, non_finite: impl Fn(String) -> MessageError) -> Result<Vec3, MessageError> {
     let Some(arr) = v.as_array().filter(|a| a.len() == 3) else {
         return Err(malformed(format!("`{key}` must be [x, y, z], found {v}")));
     };
@@ -128,7 +135,7 @@ fn point_of(v: &Value, key: &str, vertex: usize) -> Result<Vec3, MessageError> {
             other => return Err(malformed(format!("`{key}`: {other} is not a number"))),
         };
         if !to[c].is_finite() {
-            return Err(MessageError::NonFinite { vertex, value: x.to_string() });
+            return Err(non_finite(x.to_string()));
         }
     }
     Ok(to)
@@ -152,16 +159,16 @@ pub fn parse_message(text: &str) -> Result<ClientMessage, MessageError> {
     match keys.as_slice() {
         ["grab", "to"] | ["to", "grab"] => {
             let vertex = vertex_of(&obj["grab"], "grab")?;
-            let to = point_of(&obj["to"], "to", vertex)?;
+            let to = point_of(&obj["to"], "to", |value| MessageError::NonFinite { vertex, value })?;
             Ok(ClientMessage::Grab { vertex, to })
         }
         _ if sorted(&keys) == ["grasp", "radius", "to"] => {
             let vertex = vertex_of(&obj["grasp"], "grasp")?;
-            let to = point_of(&obj["to"], "to", vertex)?;
+            let to = point_of(&obj["to"], "to", |value| MessageError::NonFinite { vertex, value })?;
             Ok(ClientMessage::Grasp { vertex, radius: radius_of(&obj["radius"])?, to })
         }
         _ if sorted(&keys) == ["press", "radius"] => {
-            let centre = point_of(&obj["press"], "press", 0)?;
+            let centre = point_of(&obj["press"], "press", |value| MessageError::NonFiniteCentre { value })?;
             Ok(ClientMessage::Press { centre, radius: radius_of(&obj["radius"])? })
         }
         ["lift"] => match obj["lift"] {

@@ -358,3 +358,104 @@ fn binding_anything_but_loopback_warns() {
     let bound = fibfluid_viewer::Server::bind(test_options()).unwrap();
     assert!(bound.warnings().is_empty(), "127.0.0.1 is quiet");
 }
+
+/// A press from below the sphere's lowest vertex, `depth` into it (radius 0.6).
+fn press_from_below(body: &FfmBody, depth: f64) -> String {
+    use fibfluid_interact::Interactive;
+    let r = body.rest_positions();
+    let low = r.iter().copied().min_by(|a, b| a[1].total_cmp(&b[1])).unwrap();
+    let c = [low[0], low[1] - 0.6 + depth, low[2]];
+    format!(r#"{{"press": [{:e}, {:e}, {:e}], "radius": 0.6}}"#, c[0], c[1], c[2])
+}
+
+#[test]
+fn a_non_finite_tip_centre_is_named_as_the_tip_centre() {
+    let server = server(test_options());
+    let mut c = Client::connect(server.local_addr(), "");
+    for msg in [r#"{"press": [0, "NaN", 0], "radius": 0.3}"#, r#"{"press": [null, 0, 0], "radius": 0.3}"#] {
+        c.send(msg);
+        let e = c.error();
+        assert!(e.contains("the tip's centre has a non-finite component"), "{msg}: {e}");
+        assert!(!e.contains("vertex"), "{msg}: no vertex is involved: {e}");
+    }
+    c.send(r#"{"reset": true}"#);
+    assert!(c.frame().tools.is_empty(), "the refused presses left no tip");
+}
+
+#[test]
+fn a_refused_press_keeps_the_working_tip() {
+    let (scene, body) = sphere();
+    let server = serve_with(&scene, &body, test_options());
+    let mut c = Client::connect(server.local_addr(), "");
+    let press = press_from_below(&body, 0.1);
+    c.send(&press);
+    let working = c.frame();
+    assert_eq!(working.tools.len(), 1, "{:?}", working.tools);
+    assert!(working.tools[0]["contacts"].as_u64().unwrap() > 0, "{:?}", working.tools);
+    for bad in [r#"{"press": [0, -1, 0], "radius": 50}"#, r#"{"press": [0, -1, 0], "radius": 1e308}"#] {
+        c.send(bad);
+        let e = c.error();
+        assert!(e.contains("radius"), "{bad}: {e}");
+    }
+    // A message that changes no tool brings the next frame (the release of a free vertex
+    // at the top, far from the tip, that nothing holds): the tip is still there.
+    let top = {
+        use fibfluid_interact::Interactive;
+        let r = body.rest_positions();
+        (0..r.len()).filter(|&v| !body.is_fixed(v)).max_by(|&a, &b| r[a][1].total_cmp(&r[b][1])).unwrap()
+    };
+    c.send(&format!(r#"{{"release": {top}}}"#));
+    let after = c.frame();
+    assert_eq!(after.tools.len(), 1, "the refused presses removed the tip: {:?}", after.tools);
+    for key in ["press", "radius", "contacts"] {
+        assert_eq!(after.tools[0][key], working.tools[0][key], "{key}");
+    }
+    let moved = crate::common::max_dist(&after.positions, &working.positions);
+    assert!(moved <= 1e-6, "the surface moved by {moved:e} after refused presses");
+}
+
+#[test]
+fn a_tip_in_the_fixed_cap_names_the_fixed_vertices() {
+    let server = server(test_options());
+    let mut c = Client::connect(server.local_addr(), "");
+    // The scene fixes the cap y > 0.8: a tip at the top reaches only fixed vertices.
+    c.send(r#"{"press": [0, 1, 0], "radius": 0.3}"#);
+    let e = c.error();
+    assert!(e.contains("vertices the scene fixes (vertex "), "{e}");
+    assert!(!e.contains("did not settle") && !e.contains(" 0 vertices"), "{e}");
+    c.send(r#"{"reset": true}"#);
+    assert!(c.frame().tools.is_empty(), "the refused tip was not kept");
+}
+
+#[test]
+fn overlapping_grasps_are_refused_with_both_named() {
+    use fibfluid_interact::Interactive;
+    let (scene, body) = sphere();
+    let server = serve_with(&scene, &body, test_options());
+    let mut c = Client::connect(server.local_addr(), "");
+    let r = body.rest_positions();
+    let dist = |a: [f64; 3], b: [f64; 3]| {
+        ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+    };
+    let v = (0..r.len()).min_by(|&a, &b| r[a][1].total_cmp(&r[b][1])).unwrap();
+    let u = (0..r.len()).find(|&u| (0.2..0.5).contains(&dist(r[u], r[v]))).unwrap();
+    let grasp = |w: usize, dy: f64| {
+        format!(
+            r#"{{"grasp": {w}, "radius": 0.3, "to": [{:e}, {:e}, {:e}]}}"#,
+            r[w][0],
+            r[w][1] + dy,
+            r[w][2]
+        )
+    };
+    c.send(&grasp(v, -0.05));
+    assert_eq!(c.frame().tools.len(), 1);
+    c.send(&grasp(u, -0.1));
+    let e = c.error();
+    assert!(e.contains(&format!("the grasps around vertices {v} and {u} both hold vertex ")), "{e}");
+    let top =
+        (0..r.len()).filter(|&w| !body.is_fixed(w)).max_by(|&a, &b| r[a][1].total_cmp(&r[b][1])).unwrap();
+    c.send(&format!(r#"{{"release": {top}}}"#));
+    let f = c.frame();
+    assert_eq!(f.tools.len(), 1, "only the first grasp: {:?}", f.tools);
+    assert_eq!(f.tools[0]["grasp"].as_u64(), Some(v as u64));
+}
