@@ -59,7 +59,9 @@ pub fn run(args: &ProbeArgs) -> Result<(), crate::CliError> {
     let scene = Scene::load(&args.scene)?;
     let path = load_tool_path(&args.path)?;
     let opts = args.response.options();
-    let report = run_probe_with(&scene, &path, &args.out, &opts, args.method)?;
+    // Long replays report their progress with an estimate of the time left.
+    let progress = crate::progress(path.frames(), "probe");
+    let report = run_probe_with(&scene, &path, &args.out, &opts, args.method, progress.as_deref())?;
     for w in &report.warnings {
         tell!("warning: {w}");
     }

@@ -8,7 +8,7 @@ use fibfluid::fem::FemStats;
 use fibfluid::geometry::{Boundary, MeshFile, Vec3};
 use fibfluid::interact::{
     FrameRow, Latency, Method, MethodBody, PathKind, ProbeError, ProbeOptions, Storage, ToolPath,
-    check_method, check_path, replay,
+    check_method, check_path, replay_observed,
 };
 use fibfluid::sim::result_guards::{ResultChecks, ResultWarning, check_answer};
 use fibfluid::{ConstraintKind, Scene, Shape};
@@ -35,6 +35,9 @@ pub struct ProbeStats {
     pub memory_bytes: usize,
     /// Latency of the full-field frame update.
     pub latency_us: Latency,
+    /// Frames the body computed; a frame that asks exactly what the last one asked costs
+    /// none on a body whose answer depends only on its holds (FFM, the FEM).
+    pub updates: u64,
 }
 
 /// `report.json` of a probe run.
@@ -202,19 +205,21 @@ pub struct ChainmailStats {
 /// Probes a scene along a path with the fiber–fluid method and writes [`PROBE_FILES`] into
 /// `out` (all or nothing). See [`run_probe_with`].
 pub fn run_probe(scene: &Scene, path: &ToolPath, out: &Path, opts: &ProbeOptions) -> Result<ProbeReport> {
-    run_probe_with(scene, path, out, opts, Method::Ffm)
+    run_probe_with(scene, path, out, opts, Method::Ffm, None)
 }
 
 /// Probes a scene along a path with `method` and writes [`PROBE_FILES`] into `out` (all or
 /// nothing). The path is checked against the scene before anything is assembled. A method
 /// without forces (ChainMail) leaves the force fields of `frames.csv` empty, and its
 /// `probe.png` charts the displacement of the probed vertices instead of the force.
+/// `progress(frame, frames)` is called after each frame.
 pub fn run_probe_with(
     scene: &Scene,
     path: &ToolPath,
     out: &Path,
     opts: &ProbeOptions,
     method: Method,
+    progress: Option<&(dyn Fn(usize, usize) + Send + Sync)>,
 ) -> Result<ProbeReport> {
     let start = Instant::now();
     let Shape::Surface(file) = &scene.shape else {
@@ -234,7 +239,12 @@ pub fn run_probe_with(
         MethodBody::Chainmail(_) => 0.0,
         MethodBody::Fem(b) => max_norm(fibfluid::interact::Interactive::field(b.as_ref())),
     };
-    let mut replay = replay(mb.interactive(), &checked)?;
+    let frames = checked.frames.len().max(checked.tips.len());
+    let mut replay = replay_observed(mb.interactive(), &checked, |k, _| {
+        if let Some(p) = progress {
+            p(k + 1, frames);
+        }
+    })?;
     // Displacements go out in the mesh's unit, like the mesh (forces stay in newtons).
     let to_unit = 1.0 / scene.unit.metres();
     replay.rows.iter_mut().for_each(|r| r.displacement = r.displacement.map(|c| c * to_unit));
@@ -258,6 +268,7 @@ pub fn run_probe_with(
             precompute_seconds: d.precompute_seconds,
             memory_bytes: body.memory_bytes(),
             latency_us: Latency::of(&replay.latency_us),
+            updates: body.frame(),
         },
         base_seconds: d.base_seconds,
         base_max_displacement: base_max,

@@ -711,6 +711,60 @@ fn fem_answers_beyond_the_possible_are_flagged() {
     }
 }
 
+/// A two-line path that declares frame 1,000,000: the frames between ask what the frame
+/// before them asked (nothing), so a body whose answer depends only on its holds computes
+/// three frames (0, the release at 1, and 1,000,000), for FFM and the FEM alike, and the
+/// replay keeps one row per listed hold.
+#[test]
+fn a_long_idle_path_costs_only_the_frames_that_change() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("long.csv");
+    std::fs::write(&path, "frame,vertex,ux,uy,uz\n0,36,0.01,0,0\n1000000,36,0.02,0,0\n").unwrap();
+    for (scene, method) in [("sphere.toml", "ffm"), ("sphere-tissue.toml", "fem")] {
+        let out = tmp.path().join(method);
+        let o = bin()
+            .arg("probe")
+            .arg(root().join("fixtures/scenes").join(scene))
+            .args(["--method", method, "--path"])
+            .arg(&path)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{method}: {}", String::from_utf8_lossy(&o.stderr));
+        let report = read_json(&out.join("report.json"));
+        assert_eq!(report["probe"]["frames"], 1_000_001, "{method}");
+        assert_eq!(report["probe"]["updates"], 3, "{method}");
+        let rows = std::fs::read_to_string(out.join("frames.csv")).unwrap();
+        assert_eq!(rows.lines().count(), 3, "{method}: {rows}");
+    }
+}
+
+/// `compare` keeps the reference's displacement once per run of frames that ask the same
+/// thing: a two-line path that declares frame 2,000 keeps three fields (0.01 MB on the
+/// 162-vertex sphere), so it fits a 4 MB budget that 2,001 kept frames (7.8 MB) would
+/// not; the memory check counts what is kept.
+#[test]
+fn compare_keeps_one_field_per_run_of_identical_frames() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("idle.csv");
+    std::fs::write(&path, "frame,vertex,ux,uy,uz\n0,36,0.01,0,0\n2000,36,0.02,0,0\n").unwrap();
+    let out = tmp.path().join("cmp");
+    let o = bin()
+        .arg("compare")
+        .arg(root().join("fixtures/scenes/sphere.toml"))
+        .arg("--path")
+        .arg(&path)
+        .args(["--max-memory", "4000000", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let json = read_json(&out.join("compare.json"));
+    assert_eq!(json["frames"], 2001);
+    assert_eq!(json["methods"]["ffm"]["error_vs_reference"], 0.0);
+}
+
 /// `bench --stages`: every stage beside a positive, finite limit measured in the same run.
 #[test]
 fn bench_stages_json() {

@@ -237,6 +237,11 @@ impl FfmBody {
 }
 
 impl Interactive for FfmBody {
+    /// A linear response on the kept factorization: the holds decide the frame.
+    fn answers_from_holds(&self) -> bool {
+        true
+    }
+
     fn method(&self) -> Method {
         Method::Ffm
     }

@@ -95,6 +95,11 @@ fn add(a: Vec3, b: Vec3) -> Vec3 {
 }
 
 impl Interactive for FemInteractive {
+    /// A linear response on the kept factorization: the holds decide the frame.
+    fn answers_from_holds(&self) -> bool {
+        true
+    }
+
     fn method(&self) -> Method {
         Method::Fem
     }

@@ -106,6 +106,13 @@ pub trait Interactive {
     /// The pending holds (what the next [`update`](Self::update) applies), by vertex.
     fn holds(&self) -> Vec<(usize, Hold)>;
 
+    /// Whether a frame's answer depends only on the holds it applies (a linear response on a
+    /// kept factorization: FFM, the FEM), so that a frame asking exactly what the last one
+    /// asked needs no update. ChainMail, whose lattice carries its last frame, says no.
+    fn answers_from_holds(&self) -> bool {
+        false
+    }
+
     /// Applies the pending holds and computes the frame: positions, field and reactions.
     /// Returns the reactions (see [`reactions`](Self::reactions)).
     ///

@@ -52,6 +52,27 @@ pub struct TipHold {
     pub radius: f64,
 }
 
+impl CheckedPath {
+    /// Whether frame `k` asks exactly what frame `k - 1` asked: the same holds (vertex,
+    /// value, radius, in order) or the same tip; the file lines aside. Frame 0 never does.
+    pub fn repeats_previous(&self, k: usize) -> bool {
+        if k == 0 {
+            return false;
+        }
+        match self.kind {
+            PathKind::Press => {
+                let tip = |t: Option<TipHold>| t.map(|t| (t.centre, t.radius));
+                tip(self.tips[k]) == tip(self.tips[k - 1])
+            }
+            _ => {
+                let holds =
+                    |f: &[PathHold]| f.iter().map(|h| (h.vertex, h.value, h.radius)).collect::<Vec<_>>();
+                holds(&self.frames[k]) == holds(&self.frames[k - 1])
+            }
+        }
+    }
+}
+
 /// What can go wrong while probing: a bad tool path (file and line), a refused body.
 #[derive(Debug, thiserror::Error)]
 pub enum ProbeError {
@@ -594,8 +615,10 @@ pub struct Replay {
 }
 
 /// Replays a checked path on a body: in each frame every vertex is released, the frame's
-/// holds are applied and the frame is updated. A refused hold or frame names the path
-/// file, the line and the frame.
+/// holds are applied and the frame is updated. A frame that asks exactly what the last one
+/// asked ([`CheckedPath::repeats_previous`]) on a body whose answer depends only on its
+/// holds ([`Interactive::answers_from_holds`]) costs no update: its rows repeat the last
+/// frame's. A refused hold or frame names the path file, the line and the frame.
 pub fn replay(body: &mut dyn Interactive, path: &CheckedPath) -> std::result::Result<Replay, ProbeError> {
     replay_observed(body, path, |_, _| {})
 }
@@ -613,6 +636,13 @@ pub fn replay_observed(
     let mut tools = ToolCache::default();
     for k in 0..frames {
         let start = Instant::now();
+        if body.answers_from_holds() && path.repeats_previous(k) {
+            // The same question as the last frame: the same answer, without an update.
+            repeat_last_frame(&mut rows, k);
+            latency_us.push(start.elapsed().as_secs_f64() * 1e6);
+            observe(k, &*body);
+            continue;
+        }
         let line = match path.kind {
             PathKind::Press => path.tips[k].map(|t| t.line),
             _ => path.frames[k].first().map(|h| h.line),
@@ -632,6 +662,14 @@ pub fn replay_observed(
         observe(k, &*body);
     }
     Ok(Replay { rows, latency_us, frames })
+}
+
+/// Appends frame `k`'s rows as a copy of frame `k - 1`'s (the rows of a frame are
+/// contiguous, at the end).
+fn repeat_last_frame(rows: &mut Vec<FrameRow>, k: usize) {
+    let from = rows.iter().rposition(|r| r.frame != k - 1).map_or(0, |i| i + 1);
+    let last: Vec<FrameRow> = rows[from..].iter().filter(|r| r.frame == k - 1).cloned().collect();
+    rows.extend(last.into_iter().map(|r| FrameRow { frame: k, ..r }));
 }
 
 /// The tools of a replay, kept from frame to frame.
