@@ -279,6 +279,19 @@ pub enum PathProblem {
         /// The diagonal of the body's bounding box.
         size: f64,
     },
+    /// A tool at least as large as the body (the diagonal of its bounding box at rest),
+    /// refused before the body is built.
+    #[error(
+        "frame {frame}: a tool of radius {radius} m is larger than the body (its bounding-box diagonal is {size} m)"
+    )]
+    ToolTooLarge {
+        /// The frame.
+        frame: usize,
+        /// The radius (metres).
+        radius: f64,
+        /// The body's size (metres).
+        size: f64,
+    },
     /// Two grasps of one frame whose patches share a vertex (each patch moves rigidly with
     /// its own tool: no vertex can follow both).
     #[error(
@@ -397,8 +410,8 @@ pub struct PathHold {
 }
 
 /// Checks a path against a model (vertices exist, are used, are not fixed, appear once per
-/// frame, grabs stay within [`MAX_REACH`] of the body's size, the grasps of a frame share
-/// no vertex, one tip per frame) and groups
+/// frame, grabs stay within [`MAX_REACH`] of the body's size, tools are smaller than the
+/// body, the grasps of a frame share no vertex, one tip per frame) and groups
 /// its rows by frame. Lengths (displacements, centres, radii) are in the mesh's unit in the
 /// file and in metres in the result.
 pub fn check_path(path: &ToolPath, scene: &Model) -> std::result::Result<CheckedPath, ProbeError> {
@@ -429,6 +442,7 @@ pub fn check_path(path: &ToolPath, scene: &Model) -> std::result::Result<Checked
             let Some(radius) = row.radius else { continue };
             let tip =
                 TipHold { line: row.line, centre: row.value.map(|c| c * metres), radius: radius * metres };
+            check_tool(path, row, rest, tip.radius)?;
             match &checked.tips[row.frame] {
                 Some(first) => {
                     let problem = PathProblem::TwoTips { frame: row.frame, first: first.line };
@@ -444,12 +458,31 @@ pub fn check_path(path: &ToolPath, scene: &Model) -> std::result::Result<Checked
                 return Err(ProbeError::Path { path: path.source.clone(), line: row.line, problem });
             }
             if path.kind == PathKind::Grasp {
+                check_tool(path, row, rest, hold.radius)?;
                 patches.check_apart(path, row, rest, &hold, frame, &checked.file_vertex)?;
             }
             frame.push(hold);
         }
     }
     Ok(checked)
+}
+
+/// Checks a tool's radius (metres) on a row against the rest shape: a tool at least as
+/// large as the body is refused here, before anything is built.
+fn check_tool(
+    path: &ToolPath,
+    row: &PathRow,
+    rest: &[Vec3],
+    radius: f64,
+) -> std::result::Result<(), ProbeError> {
+    let problem = match crate::tools::check_tool_radius(rest, radius) {
+        Ok(_) => return Ok(()),
+        Err(InteractError::ToolTooLarge { radius, size }) => {
+            PathProblem::ToolTooLarge { frame: row.frame, radius, size }
+        }
+        Err(_) => PathProblem::BadRadius { value: radius },
+    };
+    Err(ProbeError::Path { path: path.source.clone(), line: row.line, problem })
 }
 
 /// The patches of a grasp path's grasps, by picked vertex and radius (computed from the rest

@@ -100,21 +100,24 @@ pub struct Wrench {
     pub moment: Vec3,
 }
 
-/// The bounding-box diagonal of a body's rest shape (the size a tool is checked against).
-fn body_size(body: &dyn Interactive) -> f64 {
-    let (lo, hi) = fibfluid_geometry::bounding_box(body.rest_positions());
-    dist(lo, hi)
-}
-
-fn check_radius(body: &dyn Interactive, radius: f64) -> Result<f64> {
+/// Checks a tool's radius against a body's rest shape `rest` (known before the body is
+/// assembled): positive and finite ([`InteractError::BadRadius`]) and smaller than the
+/// body's size, the diagonal of its bounding box ([`InteractError::ToolTooLarge`]).
+/// Returns the size.
+pub(crate) fn check_tool_radius(rest: &[Vec3], radius: f64) -> Result<f64> {
     if !(radius > 0.0 && radius.is_finite()) {
         return Err(InteractError::BadRadius { radius });
     }
-    let size = body_size(body);
+    let (lo, hi) = fibfluid_geometry::bounding_box(rest);
+    let size = dist(lo, hi);
     if radius >= size {
         return Err(InteractError::ToolTooLarge { radius, size });
     }
     Ok(size)
+}
+
+fn check_radius(body: &dyn Interactive, radius: f64) -> Result<f64> {
+    check_tool_radius(body.rest_positions(), radius)
 }
 
 /// The patch of a grasp of `radius` around `vertex`: every vertex whose rest position is

@@ -1,6 +1,7 @@
 //! The promises of the tools that a refusal or a second tool must not break: a refused
 //! request changes nothing, a tip leaves alone what it cannot move (fixed vertices, a
-//! grasp's patch) and says so, and two grasps never share a vertex.
+//! grasp's patch) and says so, two grasps never share a vertex, and a path's tools are
+//! checked against the body's size before anything is built.
 
 use std::path::PathBuf;
 
@@ -231,5 +232,42 @@ fn overlapping_grasps_in_a_frame_of_a_path_are_refused() {
             );
         }
         other => panic!("expected the overlap refused, got {other:?}"),
+    }
+}
+
+#[test]
+fn a_tool_larger_than_the_body_is_refused_from_the_rest_shape() {
+    // check_path sees the model only (no assembly, no factorization): a refusal there comes
+    // before anything is built.
+    let scene = sphere(ConstraintKind::Eliminate);
+    let Shape::Surface(file) = &scene.shape else { panic!("a surface") };
+    let rest = file.mesh.positions().to_vec();
+    let (lo, hi) = fibfluid_geometry::bounding_box(&rest);
+    let body_size = dist(lo, hi);
+    let to_file = file_vertices(&scene);
+    let v = (0..rest.len()).min_by(|&a, &c| rest[a][1].total_cmp(&rest[c][1])).unwrap();
+    let source = PathBuf::from("tool.csv");
+    let press = PathRow { line: 2, frame: 0, vertex: None, value: [0.0, -1.5, 0.0], radius: Some(5.0) };
+    let too_large = [
+        ToolPath { source: source.clone(), kind: PathKind::Grasp, rows: vec![grasp_row(2, to_file[v], 5.0)] },
+        ToolPath { source, kind: PathKind::Press, rows: vec![press] },
+    ];
+    for path in &too_large {
+        match check_path(path, &scene) {
+            Err(ProbeError::Path {
+                line: 2,
+                problem: PathProblem::ToolTooLarge { frame: 0, radius, size },
+                ..
+            }) => {
+                assert_eq!(radius, 5.0);
+                assert!((size - body_size).abs() <= 1e-12 * body_size, "{size} vs {body_size}");
+            }
+            other => panic!("{:?}: expected the tool refused as too large, got {other:?}", path.kind),
+        }
+        let text = check_path(path, &scene).unwrap_err().to_string();
+        assert!(
+            text.starts_with("tool.csv:2: frame 0: a tool of radius 5 m is larger than the body"),
+            "{text}"
+        );
     }
 }
