@@ -26,6 +26,11 @@ pub fn run(args: &CompareArgs) -> Result<(), crate::CliError> {
     let path = load_tool_path(&args.path)?;
     let opts = args.response.options();
     let report = run_compare(&scene, &path, &args.out, &opts)?;
+    for (method, m) in &report.methods {
+        for w in &m.warnings {
+            tell!("warning: {method}: {w}");
+        }
+    }
     say!(
         "{}: {} vertices, {} frames; {} against {}",
         report.scene,

@@ -65,6 +65,9 @@ pub struct MethodMetrics {
     pub volume_change_max: f64,
     /// Largest vertex distance from the base state after the last frame, over the diagonal.
     pub rest_distance_after_release: f64,
+    /// The result guards that fired on the state after the last frame
+    /// ([`fibfluid::sim::result_guards`]).
+    pub warnings: Vec<fibfluid::sim::result_guards::ResultWarning>,
 }
 
 /// `compare.json`.
@@ -231,6 +234,7 @@ fn replay_method(
         worst_vertex_error: tally.worst(),
         volume_change_max: tally.volume_change_max,
         rest_distance_after_release: after / diagonal,
+        warnings: crate::probe_run::final_state_guards(scene, file, b.field(), method)?,
     };
     Ok(Run { metrics, shown: std::mem::take(&mut tally.shown) })
 }

@@ -85,7 +85,7 @@ fn max_norm(v: &[Vec3]) -> f64 {
 
 /// The result guards of the state after the last frame (every method; a non-finite state is
 /// an error naming the scene, before anything is written).
-fn final_state_guards(
+pub(crate) fn final_state_guards(
     scene: &Scene,
     file: &MeshFile,
     field: &[Vec3],
