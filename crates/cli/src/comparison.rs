@@ -121,6 +121,10 @@ fn methods_of(scene: &Scene) -> (Vec<Method>, BTreeMap<String, String>) {
     (methods, skipped)
 }
 
+/// The most frames a comparison replays with ChainMail (its lattice updates at every frame,
+/// even one that asks what the last asked; FFM and the FEM answer repeated frames for free).
+pub const MAX_CHAINMAIL_FRAMES: usize = 100_000;
+
 /// Refuses, from counts, a path whose reference displacements would not fit.
 fn check_size(path: &ToolPath, frames: usize, vertices: usize, opts: &ProbeOptions) -> Result<()> {
     let bytes = frames as u128 * vertices as u128 * BYTES_PER_FRAME_VERTEX;
@@ -157,6 +161,10 @@ pub fn run_compare(scene: &Scene, path: &ToolPath, out: &Path, opts: &ProbeOptio
             path: blocked,
             problem: "is a directory, where an output file would go (nothing was written)",
         });
+    }
+    let frames = checked.frames.len();
+    if frames > MAX_CHAINMAIL_FRAMES && methods.iter().any(|m| m.is_chainmail()) {
+        return Err(Error::CompareTooLong { path: path.source.clone(), frames, limit: MAX_CHAINMAIL_FRAMES });
     }
     let rest = file.mesh.positions().to_vec();
     // The reference keeps one displacement per run of frames that ask the same thing.

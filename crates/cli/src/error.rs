@@ -30,6 +30,19 @@ pub enum Error {
     /// Serializing a report failed.
     #[error("writing JSON: {0}")]
     Json(#[from] serde_json::Error),
+    /// A comparison whose ChainMail replays would update the lattice at too many frames.
+    #[error(
+        "{}: {frames} frames: a comparison replays every frame with ChainMail, whose lattice carries each frame to the next (no frame comes free), and takes at most {limit}; use fewer frames",
+        path.display()
+    )]
+    CompareTooLong {
+        /// The path file.
+        path: PathBuf,
+        /// Frames the path declares.
+        frames: usize,
+        /// The most frames a comparison with ChainMail replays.
+        limit: usize,
+    },
     /// The accuracy study's grab comparison has no vertex to grab: every vertex is fixed.
     #[error("{scene}: every vertex is fixed along some axis, so the grab comparison has no vertex to grab")]
     NoFreeVertex {
