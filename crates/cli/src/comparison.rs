@@ -261,7 +261,7 @@ impl Reference {
     /// its field is the last one kept.
     fn record(&mut self, k: usize, repeats: bool, d: &[Vec3]) {
         debug_assert_eq!(k, self.slots.len(), "frames come in order");
-        if !(repeats && !self.fields.is_empty()) {
+        if !repeats || self.fields.is_empty() {
             self.fields.push(d.to_vec());
         }
         self.slots.push(self.fields.len() - 1);
