@@ -13,6 +13,7 @@
 
 use faer::{Mat, Side};
 use fibfluid_geometry::Vec3;
+use fibfluid_geometry::vec3::{cross, norm};
 
 use crate::error::{FemError, Result};
 
@@ -131,14 +132,6 @@ pub fn check_rigid_modes(rest: &[Vec3], fixed: &[[bool; 3]]) -> Result<()> {
             Err(FemError::RigidModeFree { mode, fixed_vertices })
         }
     }
-}
-
-fn cross(a: Vec3, b: Vec3) -> Vec3 {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-
-fn norm(a: Vec3) -> f64 {
-    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
 
 fn unit(a: Vec3) -> Vec3 {

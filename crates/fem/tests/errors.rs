@@ -2,6 +2,7 @@
 
 use crate::common::*;
 use fibfluid_fem::{FemBody, FemError, FemOptions, GridEstimate, Loads, SparseGrid, Tissue};
+use fibfluid_geometry::vec3::{cross, sub};
 
 #[test]
 fn bad_tissue_is_refused() {
@@ -127,12 +128,4 @@ fn constraints_that_leave_a_rigid_motion_free_are_refused() {
         })
         .collect();
     assert!(fibfluid_fem::free_rigid_modes(&pos, &rollers).is_empty());
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }

@@ -146,22 +146,23 @@ pub fn check_answer(
     checks: ResultChecks,
 ) -> Result<Vec<ResultWarning>, NonFiniteAnswer> {
     // Positions, displacements (a difference of two huge positions overflows) and the volume.
-    let finite = |p: &Vec3, r: &Vec3| p.iter().all(|x| x.is_finite()) && norm(sub(*p, *r)).is_finite();
-    if let Some(vertex) = positions.iter().zip(rest).position(|(p, r)| !finite(p, r)) {
+    let lengths: Vec<f64> = positions.iter().zip(rest).map(|(p, r)| norm(sub(*p, *r))).collect();
+    let finite = |v: usize| positions[v].iter().all(|x| x.is_finite()) && lengths[v].is_finite();
+    if let Some(vertex) = (0..lengths.len()).find(|&v| !finite(v)) {
         return Err(NonFiniteAnswer { vertex });
     }
-    if !boundary.volume(positions).is_finite() {
+    let (v0, v1) = (boundary.volume(rest), boundary.volume(positions));
+    if !v1.is_finite() {
         return Err(NonFiniteAnswer { vertex: 0 });
     }
     let mut out = vec![];
-    let (v0, v1) = (boundary.volume(rest), boundary.volume(positions));
     let ratio = v1 / v0;
     if !(v1 > 0.0 && (1.0 / VOLUME_RATIO_LIMIT..=VOLUME_RATIO_LIMIT).contains(&ratio)) {
         out.push(ResultWarning { guard: ResultGuard::Volume, value: ratio, limit: VOLUME_RATIO_LIMIT });
     }
     let (lo, hi) = fibfluid_geometry::bounding_box(rest);
     let size = dist(lo, hi);
-    let largest = positions.iter().zip(rest).map(|(p, r)| norm(sub(*p, *r))).fold(0.0, f64::max);
+    let largest = lengths.iter().copied().fold(0.0, f64::max);
     if largest > DISPLACEMENT_LIMIT * size {
         out.push(ResultWarning {
             guard: ResultGuard::Displacement,
