@@ -44,7 +44,7 @@ fn node_neighbours(grid: &SparseGrid) -> Vec<Vec<usize>> {
 
 /// The symbolic lower triangle of K over the free dofs: column `f` holds every free row
 /// `g >= f` whose node shares a cell with `f`'s node.
-fn lower_pattern(grid: &SparseGrid, free: &[usize], n_free: usize) -> SymbolicSparseColMat<usize> {
+pub(crate) fn lower_pattern(grid: &SparseGrid, free: &[usize], n_free: usize) -> SymbolicSparseColMat<usize> {
     let nb = node_neighbours(grid);
     let mut col_ptr = Vec::with_capacity(n_free + 1);
     let mut row_idx = Vec::new();

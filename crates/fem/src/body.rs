@@ -279,46 +279,55 @@ impl FemBody {
             .collect()
     }
 
-    /// The free-dof force vector of `loads`: `rho g fill h^3 / 8` on each node of each
-    /// cell, point forces spread to their cell's nodes by the trilinear weights (the
-    /// virtual-work-consistent loads); components on fixed dofs go to the supports.
+    /// The free-dof force vector of `loads` ([`load_vector`]).
     pub(crate) fn load_vector(&self, loads: &Loads) -> Result<Vec<f64>> {
-        if loads.gravity.iter().any(|v| !v.is_finite()) {
-            return Err(FemError::NonFinite { what: "gravity" });
-        }
-        let mut f = vec![0.0; self.n_free];
-        let node_mass = self.tissue.density() * self.grid.cell_size().powi(3) / 8.0;
-        if loads.gravity != [0.0; 3] {
-            for (nodes, fill) in self.grid.cell_nodes().iter().zip(self.grid.fill()) {
-                for &n in nodes {
-                    for a in 0..3 {
-                        self.add(&mut f, n, a, fill * node_mass * loads.gravity[a]);
-                    }
-                }
-            }
-        }
-        for &(v, force) in &loads.point_forces {
-            let e = self
-                .grid
-                .embedding()
-                .get(v)
-                .ok_or(FemError::VertexOutOfRange { vertex: v, vertices: self.grid.n_vertices() })?;
-            if force.iter().any(|x| !x.is_finite()) {
-                return Err(FemError::NonFinite { what: "point force" });
-            }
-            for b in 0..8 {
-                for a in 0..3 {
-                    self.add(&mut f, e.nodes[b], a, e.weights[b] * force[a]);
-                }
-            }
-        }
-        Ok(f)
+        load_vector(&self.grid, &self.tissue, &self.free, self.n_free, loads)
     }
+}
 
-    fn add(&self, f: &mut [f64], node: usize, axis: usize, value: f64) {
-        let i = self.free[3 * node + axis];
+/// The free-dof force vector of `loads`: `rho g fill h^3 / 8` on each node of each
+/// cell, point forces spread to their cell's nodes by the trilinear weights (the
+/// virtual-work-consistent loads); components on fixed dofs go to the supports.
+pub(crate) fn load_vector(
+    grid: &SparseGrid,
+    tissue: &Tissue,
+    free: &[usize],
+    n_free: usize,
+    loads: &Loads,
+) -> Result<Vec<f64>> {
+    if loads.gravity.iter().any(|v| !v.is_finite()) {
+        return Err(FemError::NonFinite { what: "gravity" });
+    }
+    let mut f = vec![0.0; n_free];
+    let mut add = |node: usize, axis: usize, value: f64| {
+        let i = free[3 * node + axis];
         if i != FIXED {
             f[i] += value;
         }
+    };
+    let node_mass = tissue.density() * grid.cell_size().powi(3) / 8.0;
+    if loads.gravity != [0.0; 3] {
+        for (nodes, fill) in grid.cell_nodes().iter().zip(grid.fill()) {
+            for &n in nodes {
+                for a in 0..3 {
+                    add(n, a, fill * node_mass * loads.gravity[a]);
+                }
+            }
+        }
     }
+    for &(v, force) in &loads.point_forces {
+        let e = grid
+            .embedding()
+            .get(v)
+            .ok_or(FemError::VertexOutOfRange { vertex: v, vertices: grid.n_vertices() })?;
+        if force.iter().any(|x| !x.is_finite()) {
+            return Err(FemError::NonFinite { what: "point force" });
+        }
+        for b in 0..8 {
+            for a in 0..3 {
+                add(e.nodes[b], a, e.weights[b] * force[a]);
+            }
+        }
+    }
+    Ok(f)
 }

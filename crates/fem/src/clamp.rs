@@ -63,7 +63,7 @@ fn area(c: [Vec3; 3]) -> f64 {
 /// Quadrature weights (shares of the triangle's area) of the lattice points of
 /// [`fixed_surface_samples`] at `k` subdivisions: each of the `k^2` sub-triangles gives a
 /// third of its area to each of its corners (exact for linear functions, sums to 1).
-fn lattice_shares(k: usize) -> Vec<f64> {
+pub(crate) fn lattice_shares(k: usize) -> Vec<f64> {
     // Points are produced in the order (i, j) for i in 0..=k, j in 0..=k-i.
     let mut offset = Vec::with_capacity(k + 2);
     let mut acc = 0;

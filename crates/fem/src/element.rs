@@ -16,7 +16,7 @@ pub(crate) const CELL_DOFS: usize = 24;
 pub(crate) type CellMatrix = [[f64; CELL_DOFS]; CELL_DOFS];
 
 /// Gradients of the eight trilinear shape functions at a point `x` of the unit cube.
-fn gradients(x: [f64; 3]) -> [[f64; 3]; 8] {
+pub(crate) fn gradients(x: [f64; 3]) -> [[f64; 3]; 8] {
     std::array::from_fn(|b| {
         let f = |a: usize| if (b >> a) & 1 == 1 { x[a] } else { 1.0 - x[a] };
         let df = |a: usize| if (b >> a) & 1 == 1 { 1.0 } else { -1.0 };
@@ -25,7 +25,7 @@ fn gradients(x: [f64; 3]) -> [[f64; 3]; 8] {
 }
 
 /// The 2x2x2 Gauss points of the unit cube (each of weight 1/8).
-fn gauss_points() -> [[f64; 3]; 8] {
+pub(crate) fn gauss_points() -> [[f64; 3]; 8] {
     let g = 0.5 / 3f64.sqrt();
     std::array::from_fn(|p| std::array::from_fn(|a| 0.5 + if (p >> a) & 1 == 1 { g } else { -g }))
 }

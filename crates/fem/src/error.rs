@@ -120,6 +120,18 @@ pub enum FemError {
         /// The limit.
         limit: f64,
     },
+    /// Newton's method could not reach a load: the increment was cut below its minimum.
+    #[error(
+        "Newton's method did not converge at load step {step} (load factor {load:.4}): relative residual {residual:.3e}; the body may be inverting or the load too large"
+    )]
+    NotConverged {
+        /// The load step (1-based) that failed.
+        step: usize,
+        /// The load factor it aimed for (1: the full load).
+        load: f64,
+        /// The relative residual when it stopped.
+        residual: f64,
+    },
     /// The sparse factorization could not allocate or failed for a non-numerical reason.
     #[error("sparse factorization failed: {reason}")]
     Factorization {

@@ -48,6 +48,7 @@ mod element;
 mod error;
 mod grid;
 mod held;
+pub mod hyper;
 mod ordering;
 mod rigid;
 mod tissue;

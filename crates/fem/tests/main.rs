@@ -6,6 +6,7 @@ mod common;
 mod errors;
 mod golden;
 mod held;
+mod hyper;
 mod ordering;
 mod patch;
 mod point_force;

@@ -1,0 +1,260 @@
+//! The hyperelastic body: its grid, clamp, contact samples, tangent pattern and kept
+//! symbolic factorization; the solution and statistics types.
+
+use std::sync::Arc;
+
+use faer::sparse::SparseColMat;
+use fibfluid_geometry::Vec3;
+use fibfluid_linalg::{SparseOrdering, SparseSymbolic};
+use serde::Serialize;
+
+use super::cell::{CellState, HyperCell};
+use super::contact::{ContactSample, surface_samples};
+use crate::assemble::{lower_pattern, number_free_dofs};
+use crate::clamp::{Clamp, ClampPoint, clamp_stiffness};
+use crate::error::{FemError, Result};
+use crate::grid::{FemOptions, SparseGrid};
+use crate::ordering::{Ordering, dof_permutation, nested_dissection};
+use crate::tissue::Tissue;
+
+/// Newton's method and its load stepping.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct NewtonSettings {
+    /// Converged when `|r| <= tolerance * max(|t f|, |f_int|)` (relative residual).
+    pub tolerance: f64,
+    /// Newton iterations allowed per load step before the step is cut.
+    pub max_iterations: usize,
+    /// The first load increment (a fraction of the full load).
+    pub first_increment: f64,
+    /// The smallest increment before the solve gives up.
+    pub min_increment: f64,
+    /// A step that converged in at most this many iterations doubles the next increment.
+    pub easy_iterations: usize,
+}
+
+impl Default for NewtonSettings {
+    fn default() -> Self {
+        Self {
+            tolerance: 1e-8,
+            max_iterations: 25,
+            first_increment: 1.0,
+            min_increment: 1.0 / 1024.0,
+            easy_iterations: 5,
+        }
+    }
+}
+
+/// One converged load step.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LoadStep {
+    /// The load factor reached (1: the full load).
+    pub load: f64,
+    /// The contact augmentation this solve belongs to (0: the load stepping itself).
+    pub augmentation: usize,
+    /// Newton iterations (linear solves) it took.
+    pub iterations: usize,
+    /// The relative residual before each iteration and at convergence.
+    pub residuals: Vec<f64>,
+}
+
+/// Extremes of the deformed cells.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct StrainSummary {
+    /// Smallest `J = det F` over every cell's Gauss points.
+    pub j_min: f64,
+    /// Largest `J`.
+    pub j_max: f64,
+    /// Largest principal Green–Lagrange strain over the cells (at their centres).
+    pub max_principal_strain: f64,
+    /// Largest von Mises Cauchy stress over the cells (Pa).
+    pub max_von_mises: f64,
+}
+
+/// Counts and timings of a hyperelastic solve.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct HyperStats {
+    /// Newton iterations in all (each one assembly, one numeric factorization, one solve).
+    pub newton_iterations: usize,
+    /// Load steps that converged.
+    pub load_steps: usize,
+    /// Load steps cut after a failed Newton solve.
+    pub cut_steps: usize,
+    /// Contact augmentations.
+    pub augmentations: usize,
+    /// Seconds assembling gradients and tangents.
+    pub assembly_seconds: f64,
+    /// Seconds of numeric factorizations.
+    pub factor_seconds: f64,
+    /// Seconds of triangular solves and line searches.
+    pub solve_seconds: f64,
+}
+
+/// The converged large-deformation answer.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HyperSolution {
+    /// Displacement of every grid node (m).
+    pub node_displacements: Vec<Vec3>,
+    /// Displacement of every surface vertex (m).
+    pub surface_displacements: Vec<Vec3>,
+    /// The final relative residual.
+    pub residual: f64,
+    /// Every converged load step with its residual history.
+    pub steps: Vec<LoadStep>,
+    /// Per plate, the contact force it puts on the body along its normal (N).
+    pub plate_forces: Vec<f64>,
+    /// Per plate, the surface samples in contact.
+    pub plate_contacts: Vec<usize>,
+    /// Per plate, the deepest remaining penetration (m).
+    pub plate_penetration: Vec<f64>,
+    /// Each cell's strain, stress and `J`.
+    pub cells: Vec<CellState>,
+    /// Extremes over the cells.
+    pub summary: StrainSummary,
+    /// Counts and timings.
+    pub stats: HyperStats,
+}
+
+/// A sparse-grid body of compressible neo-Hookean tissue (see the module docs).
+pub struct HyperBody {
+    pub(crate) grid: SparseGrid,
+    pub(crate) tissue: Tissue,
+    pub(crate) free: Vec<usize>,
+    pub(crate) n_free: usize,
+    pub(crate) clamp: Vec<ClampPoint>,
+    pub(crate) clamp_beta: f64,
+    pub(crate) samples: Vec<ContactSample>,
+    pub(crate) cell: HyperCell,
+    pub(crate) tangent: SparseColMat<usize, f64>,
+    pub(crate) symbolic: Arc<SparseSymbolic>,
+    pub(crate) settings: NewtonSettings,
+}
+
+impl std::fmt::Debug for HyperBody {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("HyperBody").field("tissue", &self.tissue).field("dofs", &self.n_free).finish()
+    }
+}
+
+impl HyperBody {
+    /// Voxelizes the surface at `options.resolution` and prepares the body: the clamp of
+    /// `fixed` (as [`crate::FemBody`]'s), the tangent's pattern and its symbolic
+    /// factorization. Nothing is factored numerically until a solve.
+    ///
+    /// Errors: those of [`crate::FemBody::from_surface`] that come from the input.
+    pub fn from_surface(
+        positions: &[Vec3],
+        triangles: &[[u32; 3]],
+        tissue: &Tissue,
+        fixed: &[[bool; 3]],
+        options: &FemOptions,
+    ) -> Result<Self> {
+        if fixed.len() == positions.len() {
+            crate::rigid::check_rigid_modes(positions, fixed)?;
+        }
+        let grid = SparseGrid::from_surface(positions, triangles, options.resolution)?;
+        Self::new(grid, tissue, fixed, Ordering::default())
+    }
+
+    /// Prepares the body on a grid (see [`HyperBody::from_surface`]).
+    pub fn new(grid: SparseGrid, tissue: &Tissue, fixed: &[[bool; 3]], ordering: Ordering) -> Result<Self> {
+        if fixed.len() != grid.n_vertices() {
+            return Err(FemError::LengthMismatch {
+                what: "fixed",
+                expected: grid.n_vertices(),
+                found: fixed.len(),
+            });
+        }
+        let clamp = Clamp::new(&grid, fixed);
+        let (free, n_free) = number_free_dofs(&clamp.eliminated);
+        if n_free == 0 {
+            return Err(FemError::NothingFree);
+        }
+        let pattern = lower_pattern(&grid, &free, n_free);
+        let symbolic = Arc::new(match ordering {
+            Ordering::Amd => SparseSymbolic::new(pattern.as_ref(), SparseOrdering::Amd)?,
+            Ordering::NestedDissection => {
+                let nodes = nested_dissection(grid.node_coords());
+                let (fwd, inv) = dof_permutation(&nodes, &free, n_free);
+                SparseSymbolic::new(pattern.as_ref(), SparseOrdering::Custom { fwd: &fwd, inv: &inv })?
+            }
+        });
+        let nnz = pattern.row_idx().len();
+        let tangent = SparseColMat::new(pattern, vec![0.0; nnz]);
+        let h = grid.cell_size();
+        Ok(Self {
+            samples: surface_samples(&grid),
+            cell: HyperCell::new(tissue.shear_modulus(), tissue.bulk_modulus(), h),
+            clamp_beta: clamp_stiffness(tissue, h),
+            clamp: clamp.points,
+            grid,
+            tissue: *tissue,
+            free,
+            n_free,
+            tangent,
+            symbolic,
+            settings: NewtonSettings::default(),
+        })
+    }
+
+    /// The same body with other Newton settings.
+    pub fn with_settings(mut self, settings: NewtonSettings) -> Self {
+        self.settings = settings;
+        self
+    }
+
+    /// The grid.
+    pub fn grid(&self) -> &SparseGrid {
+        &self.grid
+    }
+
+    /// The tissue.
+    pub fn tissue(&self) -> &Tissue {
+        &self.tissue
+    }
+
+    /// Unknowns (free degrees of freedom).
+    pub fn dofs(&self) -> usize {
+        self.n_free
+    }
+
+    /// Stored nonzeros of the tangent's lower triangle.
+    pub fn nonzeros(&self) -> usize {
+        self.tangent.val().len()
+    }
+
+    /// Stored values of the tangent's Cholesky factor.
+    pub fn factor_nonzeros(&self) -> usize {
+        self.symbolic.factor_len()
+    }
+
+    /// Node displacements from a free-dof vector (0 on fixed dofs).
+    pub(crate) fn node_field(&self, x: &[f64]) -> Vec<Vec3> {
+        (0..self.grid.n_nodes())
+            .map(|n| {
+                std::array::from_fn(|a| match self.free[3 * n + a] {
+                    crate::assemble::FIXED => 0.0,
+                    f => x[f],
+                })
+            })
+            .collect()
+    }
+
+    /// Each cell's state and their extremes for node displacements `u`.
+    pub(crate) fn cell_states(&self, u: &[Vec3]) -> (Vec<CellState>, StrainSummary) {
+        let cells: Vec<CellState> =
+            self.grid.cell_nodes().iter().map(|nodes| self.cell.state(&nodes.map(|n| u[n]))).collect();
+        let mut s = StrainSummary {
+            j_min: f64::INFINITY,
+            j_max: f64::NEG_INFINITY,
+            max_principal_strain: f64::NEG_INFINITY,
+            max_von_mises: 0.0,
+        };
+        for c in &cells {
+            s.j_min = s.j_min.min(c.j_min);
+            s.j_max = s.j_max.max(c.j_max);
+            s.max_principal_strain = s.max_principal_strain.max(c.max_principal_strain);
+            s.max_von_mises = s.max_von_mises.max(c.von_mises);
+        }
+        (cells, s)
+    }
+}

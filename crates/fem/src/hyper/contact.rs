@@ -1,0 +1,99 @@
+//! Frictionless rigid plates as unilateral contact on the embedded surface, sampled over
+//! the surface's triangles (not at vertices only).
+//!
+//! Every surface triangle is sampled at most `h / 2` apart (the clamp's sampling,
+//! [`crate::fixed_surface_samples`]), each sample standing for its share of the triangle's
+//! area `a_s`. A sample at current position `x_s = X_s + sum_b w_b u_b` has the gap
+//! `g_s = n . (x_s - p(t))` to a plate through `p(t)` with unit normal `n` (the body on the
+//! side `g > 0`). Contact is an augmented Lagrangian (Uzawa) term per sample and plate:
+//! `a_s / (2 beta) (max(0, lambda_s - beta g_s)^2 - lambda_s^2)` with
+//! `beta = CONTACT_PENALTY * E / h` per unit area and `lambda_s` the contact pressure kept
+//! from the previous augmentation. With `lambda = 0` it is a penalty; after each converged
+//! solve `lambda_s <- max(0, lambda_s - beta g_s)`, which drives the penetration to zero.
+
+use fibfluid_geometry::Vec3;
+use fibfluid_geometry::vec3::{cross, dot, norm, sub};
+
+use crate::clamp::{fixed_surface_samples, lattice_shares};
+use crate::grid::SparseGrid;
+
+/// The contact penalty, in units of `E / h` per unit area (as the clamp's,
+/// [`crate::CLAMP_PENALTY`]); the augmentations remove the penetration it leaves.
+pub const CONTACT_PENALTY: f64 = 100.0;
+
+/// Augmentations stop when the deepest penetration is below this fraction of a cell.
+pub const CONTACT_GAP_TOLERANCE: f64 = 1e-4;
+
+/// Augmentations at most (each one a converged Newton solve at the full load).
+pub const MAX_AUGMENTATIONS: usize = 12;
+
+/// A rigid, frictionless plane that moves with the load factor `t` from `start` (t = 0) to
+/// `end` (t = 1); the body lies on the side its unit `normal` points to.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RigidPlate {
+    /// A point of the plane at load factor 0 (m).
+    pub start: Vec3,
+    /// The same point at load factor 1 (m).
+    pub end: Vec3,
+    /// Unit normal, pointing into the body's side.
+    pub normal: Vec3,
+}
+
+impl RigidPlate {
+    /// The plane's point at load factor `t`.
+    pub fn point_at(&self, t: f64) -> Vec3 {
+        std::array::from_fn(|a| self.start[a] + t * (self.end[a] - self.start[a]))
+    }
+
+    /// The signed distance of `x` from the plane at load factor `t` (positive on the body's
+    /// side).
+    pub fn gap(&self, x: Vec3, t: f64) -> f64 {
+        dot(self.normal, sub(x, self.point_at(t)))
+    }
+}
+
+/// One surface sample: rest position, embedding and the area it stands for.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct ContactSample {
+    pub(crate) rest: Vec3,
+    pub(crate) nodes: [usize; 8],
+    pub(crate) weights: [f64; 8],
+    pub(crate) area: f64,
+}
+
+impl ContactSample {
+    /// The sample's current position for node displacements `u`.
+    pub(crate) fn position(&self, u: &[Vec3]) -> Vec3 {
+        let mut x = self.rest;
+        for b in 0..8 {
+            for a in 0..3 {
+                x[a] += self.weights[b] * u[self.nodes[b]][a];
+            }
+        }
+        x
+    }
+}
+
+/// The samples of every surface triangle of `grid` (see the module docs).
+pub(crate) fn surface_samples(grid: &SparseGrid) -> Vec<ContactSample> {
+    let pos = grid.surface_positions();
+    let h = grid.cell_size();
+    let mut out = Vec::new();
+    for t in grid.surface_triangles() {
+        let c = t.map(|v| pos[v as usize]);
+        let area = 0.5 * norm(cross(sub(c[1], c[0]), sub(c[2], c[0])));
+        let samples = fixed_surface_samples(c, h);
+        let k = ((((8 * samples.len() + 1) as f64).sqrt() - 3.0) / 2.0).round() as usize;
+        for (p, share) in samples.into_iter().zip(lattice_shares(k)) {
+            if let Some(e) = grid.locate(p) {
+                out.push(ContactSample { rest: p, nodes: e.nodes, weights: e.weights, area: share * area });
+            }
+        }
+    }
+    out
+}
+
+/// The contact pressure `max(0, lambda - beta g)` of a sample (Pa), 0 out of contact.
+pub(crate) fn pressure(multiplier: f64, beta: f64, gap: f64) -> f64 {
+    (multiplier - beta * gap).max(0.0)
+}

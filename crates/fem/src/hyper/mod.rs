@@ -1,0 +1,25 @@
+//! Large deformation: the compressible neo-Hookean tissue on the same sparse grid and
+//! embedding as the linear body, solved by Newton's method with load stepping.
+//!
+//! - Energy: [`material`]'s uncoupled neo-Hookean `W = mu / 2 (J^(-2/3) I1 - 3) +
+//!   kappa / 2 (ln J)^2`, total Lagrangian, the volumetric part on each cell's mean
+//!   dilatation (the nonlinear counterpart of the linear body's B-bar, [`cell`]).
+//! - Loads: gravity and point forces are dead loads (fixed in direction and size) scaled by
+//!   the load factor `t` in `[0, 1]`; [`RigidPlate`]s move with `t`; the clamp is the
+//!   linear body's penalty on the fixed part of the surface (it holds the rest position).
+//! - Newton: the consistent tangent (the energy's Hessian, symmetric), factored by the kept
+//!   symbolic analysis (numeric refactorization only); a backtracking line search on the
+//!   energy; load increments that halve when Newton fails and double after an easy step
+//!   ([`NewtonSettings`]). A load that cannot be reached fails with the step, the load
+//!   and the residual ([`crate::FemError::NotConverged`]).
+
+mod body;
+mod cell;
+mod contact;
+mod material;
+mod newton;
+mod solve;
+
+pub use body::{HyperBody, HyperSolution, HyperStats, LoadStep, NewtonSettings, StrainSummary};
+pub use cell::{CellState, CellTangent, HyperCell};
+pub use contact::{CONTACT_GAP_TOLERANCE, CONTACT_PENALTY, MAX_AUGMENTATIONS, RigidPlate};

@@ -1,0 +1,187 @@
+//! The load stepping of a hyperelastic solve and its contact augmentations.
+
+use fibfluid_linalg::SparseCholesky;
+
+use super::body::{HyperBody, HyperSolution, HyperStats, LoadStep};
+use super::contact::{CONTACT_GAP_TOLERANCE, MAX_AUGMENTATIONS, RigidPlate, pressure};
+use super::newton::LoadState;
+use crate::body::{Loads, load_vector};
+use crate::error::{FemError, Result};
+
+/// The state of a solve between load steps.
+struct Progress {
+    x: Vec<f64>,
+    t: f64,
+    steps: Vec<LoadStep>,
+    stats: HyperStats,
+    factor: Option<SparseCholesky>,
+}
+
+impl HyperBody {
+    /// The static large-deformation response to `loads` (dead loads, scaled by the load
+    /// factor) and the `plates` (moving with it).
+    ///
+    /// Errors: a vertex out of range or a non-finite load or plate; a load step that
+    /// cannot converge ([`FemError::NotConverged`], with the step, the load factor and the
+    /// residual).
+    pub fn solve(&mut self, loads: &Loads, plates: &[RigidPlate]) -> Result<HyperSolution> {
+        if plates.iter().any(|p| p.start.iter().chain(&p.end).chain(&p.normal).any(|v| !v.is_finite())) {
+            return Err(FemError::NonFinite { what: "plate" });
+        }
+        let external = load_vector(&self.grid, &self.tissue, &self.free, self.n_free, loads)?;
+        let mut multipliers = vec![vec![0.0; self.samples.len()]; plates.len()];
+        let mut run = Progress {
+            x: vec![0.0; self.n_free],
+            t: 0.0,
+            steps: Vec::new(),
+            stats: HyperStats::default(),
+            factor: None,
+        };
+        self.step_to_full_load(&mut run, &external, plates, &multipliers)?;
+        for augmentation in 1..=MAX_AUGMENTATIONS {
+            if self
+                .deepest_penetration(&run.x, plates)
+                .iter()
+                .all(|&d| d <= CONTACT_GAP_TOLERANCE * self.grid.cell_size())
+            {
+                break;
+            }
+            self.augment(&run.x, plates, &mut multipliers);
+            let state = LoadState { t: 1.0, external: &external, plates, multipliers: &multipliers };
+            let mut history = Vec::new();
+            match self.newton(&mut run.x, &state, &mut run.factor, &mut history, &mut run.stats)? {
+                Ok(iterations) => {
+                    run.stats.augmentations += 1;
+                    run.steps.push(LoadStep { load: 1.0, augmentation, iterations, residuals: history });
+                }
+                Err(f) => {
+                    return Err(FemError::NotConverged {
+                        step: run.steps.len() + 1,
+                        load: 1.0,
+                        residual: f.residual,
+                    });
+                }
+            }
+        }
+        Ok(self.finish(run, plates, &multipliers))
+    }
+
+    /// Load steps from 0 to 1: an increment halves when Newton fails and doubles after an
+    /// easy step.
+    fn step_to_full_load(
+        &mut self,
+        run: &mut Progress,
+        external: &[f64],
+        plates: &[RigidPlate],
+        multipliers: &[Vec<f64>],
+    ) -> Result<()> {
+        let mut increment = self.settings.first_increment.clamp(self.settings.min_increment, 1.0);
+        // The last converged increment (load and displacement), for the secant predictor.
+        let mut last: Option<(f64, Vec<f64>)> = None;
+        while run.t < 1.0 {
+            let target = (run.t + increment).min(1.0);
+            let state = LoadState { t: target, external, plates, multipliers };
+            let mut trial = self.predict(&run.x, last.as_ref(), target - run.t, &state);
+            let mut history = Vec::new();
+            match self.newton(&mut trial, &state, &mut run.factor, &mut history, &mut run.stats)? {
+                Ok(iterations) => {
+                    let step: Vec<f64> = trial.iter().zip(&run.x).map(|(a, b)| a - b).collect();
+                    last = Some((target - run.t, step));
+                    run.x = trial;
+                    run.t = target;
+                    run.stats.load_steps += 1;
+                    run.steps.push(LoadStep {
+                        load: target,
+                        augmentation: 0,
+                        iterations,
+                        residuals: history,
+                    });
+                    if iterations <= self.settings.easy_iterations {
+                        increment = (2.0 * increment).min(1.0);
+                    }
+                }
+                Err(f) => {
+                    run.stats.cut_steps += 1;
+                    increment *= 0.5;
+                    if increment < self.settings.min_increment {
+                        return Err(FemError::NotConverged {
+                            step: run.steps.len() + 1,
+                            load: target,
+                            residual: f.residual,
+                        });
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The secant predictor: the last converged increment scaled to this one, when the
+    /// cells stay uninverted there; the current state otherwise.
+    fn predict(
+        &self,
+        x: &[f64],
+        last: Option<&(f64, Vec<f64>)>,
+        increment: f64,
+        state: &LoadState<'_>,
+    ) -> Vec<f64> {
+        if let Some((dt, dx)) = last {
+            let ratio = increment / dt;
+            let guess: Vec<f64> = x.iter().zip(dx).map(|(a, d)| a + ratio * d).collect();
+            if self.energy(&guess, state).is_some() {
+                return guess;
+            }
+        }
+        x.to_vec()
+    }
+
+    /// Per plate, the deepest penetration (m, 0 when none) at the full load.
+    fn deepest_penetration(&self, x: &[f64], plates: &[RigidPlate]) -> Vec<f64> {
+        let u = self.node_field(x);
+        plates
+            .iter()
+            .map(|p| self.samples.iter().map(|s| -p.gap(s.position(&u), 1.0)).fold(0.0, f64::max))
+            .collect()
+    }
+
+    /// Uzawa's update of the contact pressures: `lambda <- max(0, lambda - beta g)`.
+    fn augment(&self, x: &[f64], plates: &[RigidPlate], multipliers: &mut [Vec<f64>]) {
+        let u = self.node_field(x);
+        let beta = self.beta_contact();
+        for (p, m) in plates.iter().zip(multipliers) {
+            for (s, lambda) in self.samples.iter().zip(m.iter_mut()) {
+                *lambda = pressure(*lambda, beta, p.gap(s.position(&u), 1.0));
+            }
+        }
+    }
+
+    /// The solution record of a converged solve.
+    fn finish(&self, run: Progress, plates: &[RigidPlate], multipliers: &[Vec<f64>]) -> HyperSolution {
+        let u = self.node_field(&run.x);
+        let beta = self.beta_contact();
+        let mut plate_forces = vec![0.0; plates.len()];
+        let mut plate_contacts = vec![0; plates.len()];
+        for (k, p) in plates.iter().enumerate() {
+            for (s, sample) in self.samples.iter().enumerate() {
+                let pr = pressure(multipliers[k][s], beta, p.gap(sample.position(&u), 1.0));
+                plate_forces[k] += sample.area * pr;
+                plate_contacts[k] += usize::from(pr > 0.0);
+            }
+        }
+        let plate_penetration = self.deepest_penetration(&run.x, plates);
+        let (cells, summary) = self.cell_states(&u);
+        let residual = run.steps.last().and_then(|s| s.residuals.last().copied()).unwrap_or(0.0);
+        HyperSolution {
+            surface_displacements: self.grid.interpolate(&u),
+            node_displacements: u,
+            residual,
+            steps: run.steps,
+            plate_forces,
+            plate_contacts,
+            plate_penetration,
+            cells,
+            summary,
+            stats: run.stats,
+        }
+    }
+}

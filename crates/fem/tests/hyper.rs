@@ -1,0 +1,224 @@
+//! The hyperelastic (neo-Hookean) body: its tangent against finite differences, rigid
+//! rotations, the small-load limit against the linear body, uniaxial compression against
+//! the closed form, near-incompressibility and Newton's convergence.
+
+use crate::common::*;
+use fibfluid_fem::hyper::{HyperBody, HyperCell, NewtonSettings, RigidPlate};
+use fibfluid_fem::{FemBody, FemError, FemOptions, Loads, Tissue};
+
+/// A smooth, non-trivial displacement of a cell of edge `h` (stretch, shear and twist of
+/// about 20 %).
+fn sample_displacement(h: f64) -> [[f64; 3]; 8] {
+    std::array::from_fn(|b| {
+        let x = [(b & 1) as f64, ((b >> 1) & 1) as f64, ((b >> 2) & 1) as f64];
+        [
+            h * (0.15 * x[0] + 0.1 * x[1] * x[2] - 0.05 * x[2]),
+            h * (-0.12 * x[1] + 0.08 * x[0] + 0.04 * x[0] * x[2]),
+            h * (0.2 * x[2] - 0.07 * x[0] * x[1] + 0.03 * x[1]),
+        ]
+    })
+}
+
+/// The gradient and Hessian of one cell match central finite differences of the energy and
+/// of the gradient to 1e-6 relative (the independent check: only the energy is trusted).
+#[test]
+fn tangent_matches_finite_differences() {
+    let h = 0.01;
+    let cell = HyperCell::new(1500.0, 40000.0, h);
+    let u = sample_displacement(h);
+    let t = cell.tangent(&u, 0.8, true).unwrap();
+    let k = t.hessian.unwrap();
+    let eps = 1e-6 * h;
+    let shifted = |l: usize, s: f64| {
+        let mut v = u;
+        v[l / 3][l % 3] += s;
+        v
+    };
+    let gnorm = t.gradient.iter().map(|g| g * g).sum::<f64>().sqrt();
+    let knorm = k.iter().flatten().map(|g| g * g).sum::<f64>().sqrt();
+    let (mut gerr, mut kerr) = (0.0_f64, 0.0_f64);
+    for l in 0..24 {
+        let (plus, minus) = (shifted(l, eps), shifted(l, -eps));
+        let fd = (cell.energy(&plus, 0.8).unwrap() - cell.energy(&minus, 0.8).unwrap()) / (2.0 * eps);
+        gerr = gerr.max((fd - t.gradient[l]).abs() / gnorm);
+        let gp = cell.tangent(&plus, 0.8, false).unwrap().gradient;
+        let gm = cell.tangent(&minus, 0.8, false).unwrap().gradient;
+        for r in 0..24 {
+            kerr = kerr.max(((gp[r] - gm[r]) / (2.0 * eps) - k[r][l]).abs() / knorm);
+        }
+    }
+    eprintln!("finite differences: gradient {gerr:.2e}, tangent {kerr:.2e} relative");
+    assert!(gerr < 1e-6 && kerr < 1e-6, "gradient {gerr:e}, tangent {kerr:e}");
+    // The Hessian of a potential is symmetric.
+    let asym = (0..24)
+        .flat_map(|r| (0..24).map(move |c| (r, c)))
+        .map(|(r, c)| (k[r][c] - k[c][r]).abs())
+        .fold(0.0, f64::max);
+    assert!(asym < 1e-12 * knorm, "asymmetry {asym:e}");
+}
+
+/// A rigid rotation by 90 degrees about z costs the neo-Hookean cell no energy and no force;
+/// the linear model (the same cell's tangent at rest, which is the linear element) gives it
+/// an energy of the order of `E h^3` and forces of the order of `E h^2`.
+#[test]
+fn rigid_rotation_costs_nothing() {
+    let (h, e, nu) = (0.02, 3000.0, 0.45);
+    let tissue = Tissue::new(e, nu, 1000.0).unwrap();
+    let cell = HyperCell::new(tissue.shear_modulus(), tissue.bulk_modulus(), h);
+    let u: [[f64; 3]; 8] = std::array::from_fn(|b| {
+        let x = [(b & 1) as f64 * h, ((b >> 1) & 1) as f64 * h, ((b >> 2) & 1) as f64 * h];
+        [-x[1] - x[0], x[0] - x[1], 0.0]
+    });
+    let energy = cell.energy(&u, 1.0).unwrap();
+    let force = cell.tangent(&u, 1.0, false).unwrap().gradient.iter().fold(0.0_f64, |m, g| m.max(g.abs()));
+    let k0 = cell.tangent(&[[0.0; 3]; 8], 1.0, true).unwrap().hessian.unwrap();
+    let flat: Vec<f64> = u.iter().flatten().copied().collect();
+    let ku: Vec<f64> = (0..24).map(|r| (0..24).map(|c| k0[r][c] * flat[c]).sum()).collect();
+    let linear_energy = 0.5 * flat.iter().zip(&ku).map(|(a, b)| a * b).sum::<f64>();
+    let linear_force = ku.iter().fold(0.0_f64, |m, g| m.max(g.abs()));
+    eprintln!(
+        "90 deg rotation: neo-Hookean energy {energy:.2e} J, force {force:.2e} N; linear {linear_energy:.2e} J, {linear_force:.2e} N"
+    );
+    let (energy_scale, force_scale) = (e * h.powi(3), e * h * h);
+    assert!(energy.abs() < 1e-12 * energy_scale && force < 1e-12 * force_scale);
+    assert!(linear_energy > 0.1 * energy_scale && linear_force > 0.1 * force_scale);
+}
+
+/// The 1 m cube of `n^3` surface squares, held by frictionless symmetry planes (x on x = 0,
+/// y on y = 0, z on z = 0) and pressed by a frictionless plate from z = 1 down to `stretch`.
+fn compressed_cube(n: usize, resolution: usize, stretch: f64, tissue: &Tissue) -> (f64, f64, Vec<f64>) {
+    let (pos, tris) = box_surface([0.0; 3], [n; 3], 1.0 / n as f64);
+    let fixed: Vec<[bool; 3]> = pos.iter().map(|p| [p[0] == 0.0, p[1] == 0.0, p[2] == 0.0]).collect();
+    let options = FemOptions { resolution, ..FemOptions::default() };
+    let mut body = HyperBody::from_surface(&pos, &tris, tissue, &fixed, &options).unwrap();
+    let plate = RigidPlate { start: [0.0, 0.0, 1.0], end: [0.0, 0.0, stretch], normal: [0.0, 0.0, -1.0] };
+    let sol = body.solve(&Loads::default(), &[plate]).unwrap();
+    let corner = pos.iter().position(|p| *p == [1.0, 1.0, 1.0]).unwrap();
+    let lateral = 1.0 + sol.surface_displacements[corner][0];
+    let residuals: Vec<f64> = sol.steps.iter().flat_map(|s| s.residuals.clone()).collect();
+    eprintln!(
+        "cube n {n} res {resolution} stretch {stretch}: iterations {}, force {:.6} N, lateral {lateral:.6}, penetration {:.2e} m, steps {:?}",
+        sol.stats.newton_iterations,
+        sol.plate_forces[0],
+        sol.plate_penetration[0],
+        sol.steps.iter().map(|s| (s.load, s.iterations)).collect::<Vec<_>>()
+    );
+    (sol.plate_forces[0], lateral, residuals)
+}
+
+/// The closed form of uniaxial stress for `W = mu / 2 (J^(-2/3) I1 - 3) + kappa / 2 (ln J)^2`
+/// at axial stretch `l`: the lateral stretch `s` solves `dW/ds = 0` (bisection), and the
+/// nominal stress is `dW/dl`. Returns `(nominal stress, s)`.
+fn uniaxial_closed_form(tissue: &Tissue, l: f64) -> (f64, f64) {
+    let (mu, kappa) = (tissue.shear_modulus(), tissue.bulk_modulus());
+    let dw = |s: f64| {
+        let (j, i1) = (s * s * l, 2.0 * s * s + l * l);
+        let ds =
+            0.5 * mu * (-2.0 / 3.0 * j.powf(-5.0 / 3.0) * 2.0 * s * l * i1 + j.powf(-2.0 / 3.0) * 4.0 * s)
+                + kappa * j.ln() / j * 2.0 * s * l;
+        let dl = 0.5 * mu * (-2.0 / 3.0 * j.powf(-5.0 / 3.0) * s * s * i1 + j.powf(-2.0 / 3.0) * 2.0 * l)
+            + kappa * j.ln() / j * s * s;
+        (ds, dl)
+    };
+    let (mut lo, mut hi) = (0.5, 3.0);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if dw(mid).0 > 0.0 { hi = mid } else { lo = mid }
+    }
+    let s = 0.5 * (lo + hi);
+    (dw(s).1, s)
+}
+
+/// Uniaxial compression of the unit cube between frictionless plates to stretch 0.9, 0.7
+/// and 0.5: the plate force (the nominal stress on 1 m^2) and the lateral stretch within 1 %
+/// of the closed form. The deformation is homogeneous, so a coarse grid is exact up to the
+/// contact's remaining penetration; the top face has 9 x 9 vertices over 4 x 4 cells, so
+/// most of them sit between nodes.
+#[test]
+fn uniaxial_compression_matches_closed_form() {
+    let tissue = Tissue::new(5000.0, 0.45, 0.0).unwrap();
+    for stretch in [0.9, 0.7, 0.5] {
+        let (force, lateral, _) = compressed_cube(8, 4, stretch, &tissue);
+        let (stress, s) = uniaxial_closed_form(&tissue, stretch);
+        eprintln!("  closed form: nominal stress {stress:.6} Pa, lateral {s:.6}");
+        assert!(((-force) / stress - 1.0).abs() < 0.01, "stretch {stretch}: force {force} against {stress}");
+        assert!((lateral / s - 1.0).abs() < 0.01, "stretch {stretch}: lateral {lateral} against {s}");
+    }
+}
+
+/// Newton converges quadratically near the solution: in the last load step, each residual
+/// below 1e-3 is followed by one below 100 times its square (or by rounding, 1e-13).
+#[test]
+fn newton_converges_quadratically() {
+    let tissue = Tissue::new(5000.0, 0.45, 0.0).unwrap();
+    let (_, _, residuals) = compressed_cube(4, 4, 0.7, &tissue);
+    let mut checked = 0;
+    for w in residuals.windows(2) {
+        if w[0] < 1e-3 && w[0] > 1e-12 && w[1] < w[0] {
+            assert!(w[1] < 100.0 * w[0] * w[0] || w[1] < 1e-13, "{residuals:?}");
+            checked += 1;
+        }
+    }
+    eprintln!("residuals {residuals:?}");
+    assert!(checked >= 1, "no pair near the solution: {residuals:?}");
+}
+
+/// Mean tip deflection of the 4 x 1 x 1 cantilever (clamped at x = 0) under gravity `g`.
+fn cantilever(tissue: &Tissue, g: f64, linear: bool) -> Vec<[f64; 3]> {
+    let (pos, tris) = box_surface([0.0; 3], [16, 4, 4], 0.25);
+    let fixed: Vec<[bool; 3]> = pos.iter().map(|p| [p[0] == 0.0; 3]).collect();
+    let options = FemOptions { resolution: 16, ..FemOptions::default() };
+    let loads = Loads { gravity: [0.0, 0.0, -g], ..Default::default() };
+    if linear {
+        let mut body = FemBody::from_surface(&pos, &tris, tissue, &fixed, &options).unwrap();
+        body.solve(&loads).unwrap().surface_displacements
+    } else {
+        let mut body = HyperBody::from_surface(&pos, &tris, tissue, &fixed, &options).unwrap();
+        body.solve(&loads, &[]).unwrap().surface_displacements
+    }
+}
+
+fn relative_l2(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+    let d: f64 = a.iter().zip(b).flat_map(|(x, y)| (0..3).map(move |k| (x[k] - y[k]).powi(2))).sum();
+    let n: f64 = b.iter().flat_map(|y| y.iter().map(|v| v * v)).sum();
+    (d / n).sqrt()
+}
+
+/// Small load (tip sag ~1e-4 of the length): the neo-Hookean answer equals the linear
+/// body's within 0.5 %, at nu = 0.3 and at nu = 0.49 (where a locking element would differ
+/// from the B-bar linear body, itself checked against beam theory in `beam.rs`). A large
+/// load (sag ~ a quarter of the length) separates them by more than 0.5 %.
+#[test]
+fn small_load_matches_linear_and_does_not_lock() {
+    for nu in [0.3, 0.49] {
+        let tissue = Tissue::new(1e6, nu, 1000.0).unwrap();
+        let small = relative_l2(&cantilever(&tissue, 0.01, false), &cantilever(&tissue, 0.01, true));
+        eprintln!("nu {nu}: small load, neo-Hookean against linear {small:.2e}");
+        assert!(small < 0.005, "nu {nu}: {small}");
+    }
+    let tissue = Tissue::new(1e6, 0.45, 1000.0).unwrap();
+    let large = relative_l2(&cantilever(&tissue, 300.0, false), &cantilever(&tissue, 300.0, true));
+    eprintln!("large load, neo-Hookean against linear {large:.2e}");
+    assert!(large > 0.005, "{large}");
+}
+
+/// A load that cannot be reached within the allowed increments fails with the step, the
+/// load factor and the residual, never an answer.
+#[test]
+fn unreachable_load_is_an_error() {
+    let (pos, tris) = box_surface([0.0; 3], [4, 4, 4], 0.25);
+    let fixed: Vec<[bool; 3]> = pos.iter().map(|p| [p[0] == 0.0, p[1] == 0.0, p[2] == 0.0]).collect();
+    let tissue = Tissue::new(5000.0, 0.45, 0.0).unwrap();
+    let options = FemOptions { resolution: 4, ..FemOptions::default() };
+    let settings = NewtonSettings { max_iterations: 1, min_increment: 0.5, ..NewtonSettings::default() };
+    let mut body =
+        HyperBody::from_surface(&pos, &tris, &tissue, &fixed, &options).unwrap().with_settings(settings);
+    let plate = RigidPlate { start: [0.0, 0.0, 1.0], end: [0.0, 0.0, 0.4], normal: [0.0, 0.0, -1.0] };
+    match body.solve(&Loads::default(), &[plate]) {
+        Err(e @ FemError::NotConverged { step: 1, .. }) => {
+            let text = e.to_string();
+            assert!(text.contains("load step 1") && text.contains("residual"), "{text}");
+        }
+        other => panic!("{:?}", other.map(|s| s.steps.len())),
+    }
+}
