@@ -64,4 +64,4 @@ pub use grid::{
 pub use held::{FemHold, HeldResponse};
 pub use ordering::{ND_LEAF, Ordering};
 pub use rigid::{RIGID_MODE_TOLERANCE, RigidMode, check_rigid_modes, free_rigid_modes};
-pub use tissue::{Tissue, TissueParameter};
+pub use tissue::{Tissue, TissueModel, TissueParameter};

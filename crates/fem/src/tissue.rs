@@ -32,13 +32,38 @@ impl std::fmt::Display for TissueParameter {
     }
 }
 
-/// An isotropic linear-elastic material, SI units. Its fields are private: a `Tissue` is
+/// The constitutive model of a [`Tissue`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum TissueModel {
+    /// Small-strain linear elasticity (`FemBody`): one solve, valid for small strains.
+    #[default]
+    Linear,
+    /// Compressible neo-Hookean hyperelasticity (`hyper::HyperBody`), with the same
+    /// `mu = E / (2 (1 + nu))` and `kappa = E / (3 (1 - 2 nu))`: large deformation by Newton's
+    /// method.
+    NeoHookean,
+}
+
+impl fibfluid_linalg::Choice for TissueModel {
+    const WHAT: &'static str = "tissue model";
+    const ALL: &'static [Self] = &[TissueModel::Linear, TissueModel::NeoHookean];
+    fn name(self) -> &'static str {
+        match self {
+            TissueModel::Linear => "linear",
+            TissueModel::NeoHookean => "neo-hookean",
+        }
+    }
+}
+fibfluid_linalg::impl_choice!(TissueModel);
+
+/// An isotropic elastic material, SI units. Its fields are private: a `Tissue` is
 /// valid by construction ([`Tissue::new`] is the one place its ranges are checked).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Tissue {
     young: f64,
     poisson: f64,
     density: f64,
+    model: TissueModel,
 }
 
 impl Tissue {
@@ -48,7 +73,7 @@ impl Tissue {
     /// the open interval (-1, 0.5) (so 0.5, the incompressible limit, is refused), `density`
     /// not finite or `< 0`.
     pub fn new(young: f64, poisson: f64, density: f64) -> Result<Self> {
-        let t = Self { young, poisson, density };
+        let t = Self { young, poisson, density, model: TissueModel::Linear };
         t.validate()?;
         Ok(t)
     }
@@ -68,9 +93,19 @@ impl Tissue {
         self.density
     }
 
+    /// The constitutive model (linear unless [`Tissue::with_model`] says otherwise).
+    pub fn model(&self) -> TissueModel {
+        self.model
+    }
+
+    /// The same tissue with another constitutive model.
+    pub fn with_model(&self, model: TissueModel) -> Self {
+        Self { model, ..*self }
+    }
+
     /// The same tissue with another density (validated as [`Tissue::new`] does).
     pub fn with_density(&self, density: f64) -> Result<Self> {
-        Self::new(self.young, self.poisson, density)
+        Ok(Self::new(self.young, self.poisson, density)?.with_model(self.model))
     }
 
     fn validate(&self) -> Result<()> {

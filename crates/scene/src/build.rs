@@ -95,7 +95,8 @@ pub(crate) fn build(
 /// `[tissue]`: what the tissue is, in SI units, checked by the FEM's own rule.
 fn tissue(t: TissueToml) -> Result<Tissue, Invalid> {
     let density = t.density.unwrap_or(0.0);
-    Tissue::new(t.young, t.poisson, density).map_err(|e| match e {
+    let model = choice("[tissue].model", t.model, fibfluid_fem::TissueModel::Linear)?;
+    let tissue = Tissue::new(t.young, t.poisson, density).map_err(|e| match e {
         fibfluid_fem::FemError::InvalidTissue { name, value, .. } => {
             let rule = match name {
                 TissueParameter::Young => "finite and > 0 (Pa)",
@@ -107,7 +108,8 @@ fn tissue(t: TissueToml) -> Result<Tissue, Invalid> {
             range(format!("[tissue].{name}"), rule, value)
         }
         other => invalid("[tissue]", SceneProblem::Tissue(other)),
-    })
+    })?;
+    Ok(tissue.with_model(model))
 }
 
 /// `[fem]`.

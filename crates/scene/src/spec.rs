@@ -49,6 +49,7 @@ pub(crate) struct TissueToml {
     pub(crate) young: f64,
     pub(crate) poisson: f64,
     pub(crate) density: Option<f64>,
+    pub(crate) model: Option<String>,
 }
 
 #[derive(Deserialize)]

@@ -14,7 +14,10 @@
 
 use std::time::Instant;
 
-use fibfluid_fem::{FemBody, FemHold, FemOptions, FemStats, GridEstimate, Loads, Tissue};
+use fibfluid_fem::hyper::{StrainSummary, cell_states};
+use fibfluid_fem::{
+    FemBody, FemHold, FemOptions, FemStats, GridEstimate, Loads, SparseGrid, Tissue, TissueModel,
+};
 use fibfluid_geometry::{Boundary, Vec3};
 use serde::Serialize;
 
@@ -110,16 +113,26 @@ pub struct FemRun {
     pub model: Model,
     /// Rest positions (metres).
     pub rest: Vec<Vec3>,
-    /// Deformed positions (metres).
+    /// Deformed positions (metres); a fixed axis of a fixed vertex is exactly at rest (the
+    /// clamp's penalty slip, [`fibfluid_fem::CLAMP_PENALTY`], is an error inside the body).
     pub positions: Vec<Vec3>,
     /// The tissue.
     pub tissue: Tissue,
     /// The body's sizes and timings.
     pub stats: FemStats,
-    /// The solve's measured relative residual.
+    /// The solve's measured relative residual (the last Newton residual for a
+    /// hyperelastic tissue).
     pub residual: f64,
     /// Each plate's contact (empty without plates).
     pub plates: Vec<FemPlate>,
+    /// Largest strain, `J` extremes and stress of the answer's cells.
+    pub strain: StrainSummary,
+    /// Newton's record (hyperelastic tissue only).
+    pub newton: Option<crate::hyper_run::NewtonRecord>,
+    /// The grid the answer lives on.
+    pub grid: SparseGrid,
+    /// The displacement of every grid node (m).
+    pub node_displacements: Vec<Vec3>,
     /// The result guards that fired ([`crate::result_guards`]).
     pub warnings: Vec<ResultWarning>,
     /// Stage times.
@@ -135,24 +148,47 @@ impl FemRun {
         let start = Instant::now();
         let limit = fibfluid_linalg::memory_budget(max_memory);
         let mut log = StageLog::default();
-        let mut body = build_body(&model, limit, &mut log)?;
+        let tissue = tissue_of(&model)?;
         let rest = model.rest_positions();
-        let loads = full_loads(&model);
-        let (displacements, residual, plates) = if model.plates.is_empty() {
-            let s = log.time(names::SOLVE, || body.solve(&loads)).map_err(failed(&model))?;
-            (s.surface_displacements, s.residual, Vec::new())
-        } else {
-            log.time(names::SOLVE, || solve_with_plates(&model, &mut body, &loads, &rest))?
+        let answer = match tissue.model() {
+            TissueModel::Linear => solve_linear(&model, limit, &mut log)?,
+            TissueModel::NeoHookean => {
+                let (body, sol, stats) = crate::hyper_run::solve(&model, &tissue, limit, &mut log)?;
+                FemAnswer {
+                    plates: crate::hyper_run::plate_records(&sol),
+                    newton: Some(crate::hyper_run::NewtonRecord {
+                        steps: sol.steps.clone(),
+                        stats: sol.stats,
+                    }),
+                    strain: sol.summary,
+                    residual: sol.residual,
+                    stats,
+                    grid: body.grid().clone(),
+                    node_displacements: sol.node_displacements,
+                    surface_displacements: sol.surface_displacements,
+                }
+            }
         };
-        let positions: Vec<Vec3> =
-            rest.iter().zip(&displacements).map(|(p, u)| [p[0] + u[0], p[1] + u[1], p[2] + u[2]]).collect();
-        let warnings = answer_guards(&model, &rest, &positions, residual)?;
+        let positions: Vec<Vec3> = rest
+            .iter()
+            .zip(&answer.surface_displacements)
+            .enumerate()
+            .map(|(v, (p, u))| {
+                std::array::from_fn(|a| p[a] + if model.constraints.get(v, a).is_some() { 0.0 } else { u[a] })
+            })
+            .collect();
+        let small_strain = tissue.model() == TissueModel::Linear;
+        let warnings = answer_guards(&model, &rest, &positions, answer.residual, small_strain)?;
         Ok(Self {
             warnings,
-            tissue: *body.tissue(),
-            stats: body.stats(),
-            residual,
-            plates,
+            tissue,
+            stats: answer.stats,
+            residual: answer.residual,
+            plates: answer.plates,
+            strain: answer.strain,
+            newton: answer.newton,
+            grid: answer.grid,
+            node_displacements: answer.node_displacements,
             rest,
             positions,
             log,
@@ -162,17 +198,55 @@ impl FemRun {
     }
 }
 
+/// What a solve of either model hands to [`FemRun`].
+struct FemAnswer {
+    surface_displacements: Vec<Vec3>,
+    node_displacements: Vec<Vec3>,
+    grid: SparseGrid,
+    residual: f64,
+    plates: Vec<FemPlate>,
+    strain: StrainSummary,
+    newton: Option<crate::hyper_run::NewtonRecord>,
+    stats: FemStats,
+}
+
+/// The linear run: one factorization and one solve (an active set for plates).
+fn solve_linear(model: &Model, limit: u64, log: &mut StageLog) -> Result<FemAnswer> {
+    let mut body = build_body(model, limit, log)?;
+    let rest = model.rest_positions();
+    let loads = full_loads(model);
+    let (surface, nodes, residual, plates) = if model.plates.is_empty() {
+        let s = log.time(names::SOLVE, || body.solve(&loads)).map_err(failed(model))?;
+        (s.surface_displacements, s.node_displacements, s.residual, Vec::new())
+    } else {
+        log.time(names::SOLVE, || solve_with_plates(model, &mut body, &loads, &rest))?
+    };
+    let (_, strain) = cell_states(body.grid(), body.tissue(), &nodes);
+    Ok(FemAnswer {
+        surface_displacements: surface,
+        node_displacements: nodes,
+        grid: body.grid().clone(),
+        residual,
+        plates,
+        strain,
+        newton: None,
+        stats: body.stats(),
+    })
+}
+
 /// The result guards of a finite-element answer (every one of them: the FEM has no step
-/// guards); a non-finite position is [`Error::NonFiniteAnswer`].
+/// guards; the small-strain validity guard only for a linear answer, `small_strain`); a
+/// non-finite position is [`Error::NonFiniteAnswer`].
 pub fn answer_guards(
     model: &Model,
     rest: &[Vec3],
     positions: &[Vec3],
     residual: f64,
+    small_strain: bool,
 ) -> Result<Vec<ResultWarning>> {
     let Shape::Surface(file) = &model.shape else { return Ok(vec![]) };
     let boundary = Boundary::Surface { triangles: file.mesh.triangles().to_vec() };
-    let checks = ResultChecks { inverted: true, residual: Some(residual), linear: true };
+    let checks = ResultChecks { inverted: true, residual: Some(residual), linear: small_strain };
     check_answer(&boundary, rest, positions, checks).map_err(|e| Error::NonFiniteAnswer {
         scene: model.display_name(),
         method: Method::Fem,
@@ -219,7 +293,7 @@ pub fn solve_with_plates(
     body: &mut FemBody,
     loads: &Loads,
     rest: &[Vec3],
-) -> Result<(Vec<Vec3>, f64, Vec<FemPlate>)> {
+) -> Result<(Vec<Vec3>, Vec<Vec3>, f64, Vec<FemPlate>)> {
     use std::collections::BTreeMap;
     let (lo, hi) = fibfluid_geometry::bounding_box(rest);
     let tol = PLATE_GAP_TOLERANCE * fibfluid_geometry::vec3::dist(lo, hi);
@@ -277,7 +351,7 @@ pub fn solve_with_plates(
                 out[k].force += f;
                 out[k].contact_vertices += 1;
             }
-            return Ok((r.surface_displacements, r.residual, out));
+            return Ok((r.surface_displacements, r.node_displacements, r.residual, out));
         }
     }
     Err(needs(model, "plate contact did not settle (the active set kept changing)"))
@@ -336,8 +410,14 @@ pub struct FemReport {
     /// Displacements and volumes (flattened into `report.json`).
     #[serde(flatten)]
     pub result: FemResultFacts,
-    /// The solve's measured relative residual `|K u - f| / |f|`.
+    /// The solve's measured relative residual `|K u - f| / |f|` (the last Newton residual
+    /// for a hyperelastic tissue).
     pub residual: f64,
+    /// The answer's largest strain, `J` extremes and largest von Mises stress.
+    pub strain: StrainSummary,
+    /// Newton's steps, residual histories, counts and times (hyperelastic tissue only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub newton: Option<crate::hyper_run::NewtonRecord>,
     /// Each plate's contact at its final position (omitted without plates).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub plates: Vec<FemPlate>,
@@ -380,6 +460,8 @@ impl FemReport {
                 volume_final,
             },
             residual: run.residual,
+            strain: run.strain,
+            newton: run.newton.clone(),
             plates: run.plates.clone(),
             warnings: run.warnings.clone(),
             stages,

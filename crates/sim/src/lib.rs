@@ -27,6 +27,7 @@ mod error;
 pub mod fem_run;
 mod fit;
 pub mod guards;
+pub mod hyper_run;
 mod model;
 mod pipeline;
 pub mod plan;

@@ -66,6 +66,8 @@ pub struct StrainSummary {
     pub j_max: f64,
     /// Largest principal Green–Lagrange strain over the cells (at their centres).
     pub max_principal_strain: f64,
+    /// Largest absolute principal Green–Lagrange strain over the cells (at their centres).
+    pub max_strain_magnitude: f64,
     /// Largest von Mises Cauchy stress over the cells (Pa).
     pub max_von_mises: f64,
 }
@@ -182,7 +184,7 @@ impl HyperBody {
         let tangent = SparseColMat::new(pattern, vec![0.0; nnz]);
         let h = grid.cell_size();
         Ok(Self {
-            samples: surface_samples(&grid),
+            samples: surface_samples(&grid, fixed),
             cell: HyperCell::new(tissue.shear_modulus(), tissue.bulk_modulus(), h),
             clamp_beta: clamp_stiffness(tissue, h),
             clamp: clamp.points,
@@ -241,20 +243,35 @@ impl HyperBody {
 
     /// Each cell's state and their extremes for node displacements `u`.
     pub(crate) fn cell_states(&self, u: &[Vec3]) -> (Vec<CellState>, StrainSummary) {
-        let cells: Vec<CellState> =
-            self.grid.cell_nodes().iter().map(|nodes| self.cell.state(&nodes.map(|n| u[n]))).collect();
-        let mut s = StrainSummary {
-            j_min: f64::INFINITY,
-            j_max: f64::NEG_INFINITY,
-            max_principal_strain: f64::NEG_INFINITY,
-            max_von_mises: 0.0,
-        };
-        for c in &cells {
-            s.j_min = s.j_min.min(c.j_min);
-            s.j_max = s.j_max.max(c.j_max);
-            s.max_principal_strain = s.max_principal_strain.max(c.max_principal_strain);
-            s.max_von_mises = s.max_von_mises.max(c.von_mises);
-        }
-        (cells, s)
+        cell_states(&self.grid, &self.tissue, u)
     }
+}
+
+/// Each cell's strain, `J` and (neo-Hookean) stress for node displacements `u` on `grid`,
+/// and their extremes: the large-strain measures of any answer, a linear one included
+/// (whose Green–Lagrange strain then shows the rotations it cannot represent).
+///
+/// # Panics
+/// When `u` does not have one entry per grid node.
+#[track_caller]
+pub fn cell_states(grid: &SparseGrid, tissue: &Tissue, u: &[Vec3]) -> (Vec<CellState>, StrainSummary) {
+    assert_eq!(u.len(), grid.n_nodes(), "one displacement per node");
+    let cell = HyperCell::new(tissue.shear_modulus(), tissue.bulk_modulus(), grid.cell_size());
+    let cells: Vec<CellState> =
+        grid.cell_nodes().iter().map(|nodes| cell.state(&nodes.map(|n| u[n]))).collect();
+    let mut s = StrainSummary {
+        j_min: f64::INFINITY,
+        j_max: f64::NEG_INFINITY,
+        max_principal_strain: f64::NEG_INFINITY,
+        max_strain_magnitude: 0.0,
+        max_von_mises: 0.0,
+    };
+    for c in &cells {
+        s.j_min = s.j_min.min(c.j_min);
+        s.j_max = s.j_max.max(c.j_max);
+        s.max_principal_strain = s.max_principal_strain.max(c.max_principal_strain);
+        s.max_strain_magnitude = s.max_strain_magnitude.max(c.strain_magnitude);
+        s.max_von_mises = s.max_von_mises.max(c.von_mises);
+    }
+    (cells, s)
 }

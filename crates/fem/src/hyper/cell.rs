@@ -49,6 +49,8 @@ pub struct CellState {
     pub dilatation: f64,
     /// Largest principal Green–Lagrange strain at the centre.
     pub max_principal_strain: f64,
+    /// Largest absolute principal Green–Lagrange strain at the centre.
+    pub strain_magnitude: f64,
     /// Von Mises equivalent of the Cauchy stress at the centre, Pa.
     pub von_mises: f64,
 }
@@ -149,13 +151,14 @@ impl HyperCell {
                 0.5 * ((0..3).map(|k| f[k][i] * f[k][j]).sum::<f64>() - if i == j { 1.0 } else { 0.0 })
             })
         });
-        let strain = super::material::symmetric_eigenvalues(&green)[2];
+        let eig = super::material::symmetric_eigenvalues(&green);
         let von_mises = if det(&f) > 0.0 { isochoric_von_mises(&f, self.mu) } else { f64::NAN };
         CellState {
             j_min: js.iter().copied().fold(f64::INFINITY, f64::min),
             j_max: js.iter().copied().fold(f64::NEG_INFINITY, f64::max),
             dilatation: theta,
-            max_principal_strain: strain,
+            max_principal_strain: eig[2],
+            strain_magnitude: eig[2].abs().max(eig[0].abs()),
             von_mises,
         }
     }

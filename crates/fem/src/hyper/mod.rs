@@ -20,6 +20,6 @@ mod material;
 mod newton;
 mod solve;
 
-pub use body::{HyperBody, HyperSolution, HyperStats, LoadStep, NewtonSettings, StrainSummary};
+pub use body::{HyperBody, HyperSolution, HyperStats, LoadStep, NewtonSettings, StrainSummary, cell_states};
 pub use cell::{CellState, CellTangent, HyperCell};
 pub use contact::{CONTACT_GAP_TOLERANCE, CONTACT_PENALTY, MAX_AUGMENTATIONS, RigidPlate};

@@ -197,13 +197,13 @@ impl HyperBody {
     }
 
     /// Factors the assembled tangent; a tangent that is not positive definite (far from
-    /// equilibrium) is shifted by a growing multiple of its largest diagonal entry, up to
-    /// 1e-4 of it; beyond that the load step is cut instead.
+    /// equilibrium) is shifted by a growing multiple of its largest diagonal entry (up to the
+    /// entry itself: a scaled gradient step); beyond that the load step is cut.
     fn factor_tangent(&self, factor: &mut Option<SparseCholesky>) -> Result<()> {
         let mut matrix = self.tangent.clone();
         let diagonal: Vec<usize> = (0..self.n_free).map(|j| matrix.symbolic().col_ptr()[j]).collect();
         let largest = diagonal.iter().map(|&p| matrix.val()[p].abs()).fold(0.0, f64::max);
-        for shift in [0.0, 1e-8, 1e-6, 1e-4] {
+        for shift in [0.0, 1e-8, 1e-6, 1e-4, 1e-2, 1.0] {
             if shift > 0.0 {
                 let values = matrix.val_mut();
                 for &p in &diagonal {

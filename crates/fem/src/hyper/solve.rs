@@ -3,7 +3,9 @@
 use fibfluid_linalg::SparseCholesky;
 
 use super::body::{HyperBody, HyperSolution, HyperStats, LoadStep};
-use super::contact::{CONTACT_GAP_TOLERANCE, MAX_AUGMENTATIONS, RigidPlate, pressure};
+use super::contact::{
+    CONTACT_FORCE_TOLERANCE, CONTACT_GAP_TOLERANCE, MAX_AUGMENTATIONS, RigidPlate, pressure,
+};
 use super::newton::LoadState;
 use crate::body::{Loads, load_vector};
 use crate::error::{FemError, Result};
@@ -38,12 +40,10 @@ impl HyperBody {
             factor: None,
         };
         self.step_to_full_load(&mut run, &external, plates, &multipliers)?;
+        let mut force = self.plate_forces(&run.x, plates, &multipliers);
         for augmentation in 1..=MAX_AUGMENTATIONS {
-            if self
-                .deepest_penetration(&run.x, plates)
-                .iter()
-                .all(|&d| d <= CONTACT_GAP_TOLERANCE * self.grid.cell_size())
-            {
+            let tolerance = CONTACT_GAP_TOLERANCE * self.grid.cell_size();
+            if self.deepest_penetration(&run.x, plates).iter().all(|&d| d <= tolerance) {
                 break;
             }
             self.augment(&run.x, plates, &mut multipliers);
@@ -53,6 +53,13 @@ impl HyperBody {
                 Ok(iterations) => {
                     run.stats.augmentations += 1;
                     run.steps.push(LoadStep { load: 1.0, augmentation, iterations, residuals: history });
+                    let next = self.plate_forces(&run.x, plates, &multipliers);
+                    let change = next.iter().zip(&force).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+                    let largest = next.iter().fold(0.0_f64, |m, f| m.max(f.abs()));
+                    force = next;
+                    if change <= CONTACT_FORCE_TOLERANCE * largest {
+                        break;
+                    }
                 }
                 Err(f) => {
                     return Err(FemError::NotConverged {
@@ -141,6 +148,23 @@ impl HyperBody {
         plates
             .iter()
             .map(|p| self.samples.iter().map(|s| -p.gap(s.position(&u), 1.0)).fold(0.0, f64::max))
+            .collect()
+    }
+
+    /// Per plate, the contact force on the body along its normal (N) at the full load.
+    fn plate_forces(&self, x: &[f64], plates: &[RigidPlate], multipliers: &[Vec<f64>]) -> Vec<f64> {
+        let u = self.node_field(x);
+        let beta = self.beta_contact();
+        plates
+            .iter()
+            .zip(multipliers)
+            .map(|(p, m)| {
+                self.samples
+                    .iter()
+                    .zip(m)
+                    .map(|(s, &l)| s.area * pressure(l, beta, p.gap(s.position(&u), 1.0)))
+                    .sum()
+            })
             .collect()
     }
 

@@ -1,0 +1,84 @@
+//! The finite-element run of a neo-Hookean tissue (`[tissue] model = "neo-hookean"`): the
+//! same grid, clamp and loads as the linear run, solved by Newton's method with load steps
+//! (`fibfluid_fem::hyper`); plates are frictionless unilateral contact inside the Newton
+//! loop, sampled over the surface's triangles, moving from their rest position (load
+//! factor 0) to their final one (load factor 1).
+
+use std::time::Instant;
+
+use fibfluid_fem::hyper::{HyperBody, HyperSolution, HyperStats, LoadStep, RigidPlate};
+use fibfluid_fem::{FemOptions, FemStats, Tissue};
+use serde::Serialize;
+
+use crate::fem_run::{FemPlate, estimate, fixed_axes, full_loads};
+use crate::model::{Model, Shape};
+use crate::stages::{StageLog, names};
+use crate::{Error, Result};
+
+/// Newton's record in `report.json`: every load step with its residual history, and the
+/// counts and times.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct NewtonRecord {
+    /// Each converged load step (and contact augmentation) with its relative residuals.
+    pub steps: Vec<LoadStep>,
+    /// Iterations, steps, cuts, augmentations and seconds.
+    pub stats: HyperStats,
+}
+
+/// The plates of a model as the hyperelastic body takes them.
+pub fn rigid_plates(model: &Model) -> Vec<RigidPlate> {
+    model
+        .plates
+        .iter()
+        .map(|p| RigidPlate { start: p.point_at(0.0), end: p.point_at(1.0), normal: p.normal })
+        .collect()
+}
+
+/// Builds the model's hyperelastic body (refused from counts first, as the linear one)
+/// and solves it; returns the grid's body, its solution and its stats.
+pub fn solve(
+    model: &Model,
+    tissue: &Tissue,
+    limit: u64,
+    log: &mut StageLog,
+) -> Result<(HyperBody, HyperSolution, FemStats)> {
+    estimate(model, limit)?;
+    let fixed = fixed_axes(model)?;
+    let Shape::Surface(file) = &model.shape else { unreachable!("estimate refused a polygon") };
+    let failed = |source| Error::Fem { scene: model.display_name(), source };
+    let options = FemOptions { resolution: model.fem.resolution, ..FemOptions::default() };
+    let start = Instant::now();
+    let mut body =
+        HyperBody::from_surface(file.mesh.positions(), file.mesh.triangles(), tissue, &fixed, &options)
+            .map_err(failed)?;
+    log.add(names::VOXELIZATION, start.elapsed().as_secs_f64());
+    let plates = rigid_plates(model);
+    let solution = log.time(names::SOLVE, || body.solve(&full_loads(model), &plates)).map_err(failed)?;
+    let grid = body.grid();
+    let stats = FemStats {
+        resolution: grid.resolution(),
+        cells: grid.n_cells(),
+        nodes: grid.n_nodes(),
+        dofs: body.dofs(),
+        nonzeros: body.nonzeros(),
+        factor_nonzeros: body.factor_nonzeros(),
+        assembly_seconds: solution.stats.assembly_seconds,
+        factor_seconds: solution.stats.factor_seconds,
+        solve_seconds: solution.stats.solve_seconds,
+    };
+    Ok((body, solution, stats))
+}
+
+/// Each plate's contact from a hyperelastic solution (contacts counted in surface samples).
+pub fn plate_records(solution: &HyperSolution) -> Vec<FemPlate> {
+    solution
+        .plate_forces
+        .iter()
+        .zip(&solution.plate_contacts)
+        .map(|(&force, &contacts)| FemPlate {
+            force,
+            contact_vertices: contacts,
+            active_set_iterations: solution.stats.augmentations,
+        })
+        .collect()
+}
