@@ -1,22 +1,22 @@
 //! The finite-element method as a batch run: a model's surface voxelized into a sparse
-//! grid of B-bar hexahedra (`fibfluid-fem`), its clamps, gravity and point forces applied in
-//! full, one factorization and one solve (linear elasticity needs no load steps).
+//! grid of hexahedra (`fibfluid-fem`), its clamps, gravity and point forces. A linear
+//! tissue without plates is one factorization and one solve of the B-bar body; a
+//! neo-Hookean tissue, or any tissue pressed by plates, is solved by Newton's method with
+//! load steps ([`crate::hyper_run`]).
 //!
 //! The model's `[tissue]` (Young's modulus in Pa, Poisson's ratio, density in kg/m^3) is the
 //! material; positions are in metres (the scene converts the mesh's declared unit). A
 //! vertex fixed along an axis holds the grid nodes that carry it (`fibfluid_fem::FemBody`
 //! states the rule); a prescribed non-zero displacement is not carried yet and is refused by
-//! name. Plates are rigid, frictionless and unilateral at their final position (load factor
-//! 1): a surface vertex that would pass through a plate is held on its plane along its
-//! normal and free across it ([`FemHold::Along`], a capacitance update of the kept factor),
-//! a contact whose force pulls is released, until the contact set settles (see
-//! [`solve_with_plates`]).
+//! name. Plates are rigid, frictionless and unilateral, moving with the load factor; their
+//! contact is sampled over the surface's triangles inside the Newton loop
+//! (`fibfluid_fem::hyper`'s contact, an augmented Lagrangian), for both laws.
 
 use std::time::Instant;
 
-use fibfluid_fem::hyper::{StrainSummary, cell_states};
+use fibfluid_fem::hyper::{CellMaterial, StrainSummary, cell_states};
 use fibfluid_fem::{
-    FemBody, FemHold, FemOptions, FemStats, GridEstimate, Loads, SparseGrid, Tissue, TissueModel,
+    FemBody, FemOptions, FemStats, GridEstimate, Loads, SparseGrid, Tissue, TissueModel,
 };
 use fibfluid_geometry::{Boundary, Vec3};
 use serde::Serialize;
@@ -150,9 +150,11 @@ impl FemRun {
         let mut log = StageLog::default();
         let tissue = tissue_of(&model)?;
         let rest = model.rest_positions();
+        // Plates need contact inside the solve (sampled over the surface): the Newton solver
+        // carries it, for the linear law too (one iteration per change of the contact set).
         let answer = match tissue.model() {
-            TissueModel::Linear => solve_linear(&model, limit, &mut log)?,
-            TissueModel::NeoHookean => {
+            TissueModel::Linear if model.plates.is_empty() => solve_linear(&model, limit, &mut log)?,
+            TissueModel::Linear | TissueModel::NeoHookean => {
                 let (body, sol, stats) = crate::hyper_run::solve(&model, &tissue, limit, &mut log)?;
                 FemAnswer {
                     plates: crate::hyper_run::plate_records(&sol),
@@ -210,18 +212,14 @@ struct FemAnswer {
     stats: FemStats,
 }
 
-/// The linear run: one factorization and one solve (an active set for plates).
+/// The linear run without plates: one factorization and one solve.
 fn solve_linear(model: &Model, limit: u64, log: &mut StageLog) -> Result<FemAnswer> {
     let mut body = build_body(model, limit, log)?;
-    let rest = model.rest_positions();
     let loads = full_loads(model);
-    let (surface, nodes, residual, plates) = if model.plates.is_empty() {
-        let s = log.time(names::SOLVE, || body.solve(&loads)).map_err(failed(model))?;
-        (s.surface_displacements, s.node_displacements, s.residual, Vec::new())
-    } else {
-        log.time(names::SOLVE, || solve_with_plates(model, &mut body, &loads, &rest))?
-    };
-    let (_, strain) = cell_states(body.grid(), body.tissue(), &nodes);
+    let s = log.time(names::SOLVE, || body.solve(&loads)).map_err(failed(model))?;
+    let (surface, nodes, residual, plates) = (s.surface_displacements, s.node_displacements, s.residual, Vec::new());
+    let materials = vec![CellMaterial::of(body.tissue()); body.grid().n_cells()];
+    let (_, strain) = cell_states(body.grid(), &materials, &nodes);
     Ok(FemAnswer {
         surface_displacements: surface,
         node_displacements: nodes,
@@ -272,89 +270,6 @@ pub struct FemPlate {
     pub contact_vertices: usize,
     /// Active-set iterations (shared by all plates).
     pub active_set_iterations: usize,
-}
-
-/// A vertex counts as through a plate when its gap is below `-PLATE_GAP_TOLERANCE` times the
-/// body's size.
-pub const PLATE_GAP_TOLERANCE: f64 = 1e-10;
-
-/// A contact whose force along the normal is below `-PLATE_PULL_TOLERANCE` times the
-/// largest contact force pulls and is released.
-pub const PLATE_PULL_TOLERANCE: f64 = 1e-9;
-
-/// Solves the model's loads with its plates as frictionless unilateral contacts at load
-/// factor 1: the active set starts empty, each iteration holds the active vertices on their
-/// plate's plane along its normal (free across it), releases contacts that pull, adds the
-/// vertices that passed through a plate (each to the plate it is deepest through), until
-/// nothing changes ([`crate::contact::MAX_ACTIVE_SET_ITERATIONS`] at most). Returns the
-/// surface displacements, the residual and each plate's contact.
-pub fn solve_with_plates(
-    model: &Model,
-    body: &mut FemBody,
-    loads: &Loads,
-    rest: &[Vec3],
-) -> Result<(Vec<Vec3>, Vec<Vec3>, f64, Vec<FemPlate>)> {
-    use std::collections::BTreeMap;
-    let (lo, hi) = fibfluid_geometry::bounding_box(rest);
-    let tol = PLATE_GAP_TOLERANCE * fibfluid_geometry::vec3::dist(lo, hi);
-    let plates = &model.plates;
-    let mut active: BTreeMap<usize, usize> = BTreeMap::new();
-    for iteration in 1..=crate::contact::MAX_ACTIVE_SET_ITERATIONS {
-        let holds: Vec<(usize, FemHold)> = active
-            .iter()
-            .map(|(&v, &k)| {
-                let p = &plates[k];
-                let along = fibfluid_geometry::vec3::dot(
-                    p.normal,
-                    fibfluid_geometry::vec3::sub(p.point_at(1.0), rest[v]),
-                );
-                (v, FemHold::Along { normal: p.normal, along })
-            })
-            .collect();
-        let r = body.respond_holds(loads, &holds).map_err(failed(model))?;
-        let along: Vec<f64> = holds
-            .iter()
-            .zip(&r.reactions)
-            .map(|((_, h), f)| match h {
-                FemHold::Along { normal, .. } => fibfluid_geometry::vec3::dot(*normal, *f),
-                FemHold::At(_) => 0.0,
-            })
-            .collect();
-        let largest = along.iter().fold(0.0_f64, |a, b| a.max(b.abs()));
-        let mut changed = false;
-        for ((v, _), f) in holds.iter().zip(&along) {
-            if *f < -PLATE_PULL_TOLERANCE * largest {
-                active.remove(v);
-                changed = true;
-            }
-        }
-        for (v, (p, u)) in rest.iter().zip(&r.surface_displacements).enumerate() {
-            let x = [p[0] + u[0], p[1] + u[1], p[2] + u[2]];
-            let deepest = (0..plates.len())
-                .map(|k| (k, plates[k].gap(x, 1.0)))
-                .filter(|&(_, g)| g < -tol)
-                .min_by(|a, b| a.1.total_cmp(&b.1));
-            if let Some((k, _)) = deepest
-                && !active.contains_key(&v)
-                && (0..3).all(|a| model.constraints.get(v, a).is_none())
-            {
-                active.insert(v, k);
-                changed = true;
-            }
-        }
-        if !changed {
-            let mut out: Vec<FemPlate> = (0..plates.len())
-                .map(|_| FemPlate { force: 0.0, contact_vertices: 0, active_set_iterations: iteration })
-                .collect();
-            for ((v, _), f) in holds.iter().zip(&along) {
-                let k = active[v];
-                out[k].force += f;
-                out[k].contact_vertices += 1;
-            }
-            return Ok((r.surface_displacements, r.node_displacements, r.residual, out));
-        }
-    }
-    Err(needs(model, "plate contact did not settle (the active set kept changing)"))
 }
 
 /// The units every number of a report is in.

@@ -8,7 +8,7 @@ use fibfluid_geometry::Vec3;
 use fibfluid_linalg::{SparseOrdering, SparseSymbolic};
 use serde::Serialize;
 
-use super::cell::{CellState, HyperCell};
+use super::cell::{CellMaterial, CellState, HyperCell};
 use super::contact::{ContactSample, surface_samples};
 use crate::assemble::{lower_pattern, number_free_dofs};
 use crate::clamp::{Clamp, ClampPoint, clamp_stiffness};
@@ -126,6 +126,8 @@ pub struct HyperBody {
     pub(crate) clamp_beta: f64,
     pub(crate) samples: Vec<ContactSample>,
     pub(crate) cell: HyperCell,
+    /// Each cell's law and moduli.
+    pub(crate) materials: Vec<CellMaterial>,
     pub(crate) tangent: SparseColMat<usize, f64>,
     pub(crate) symbolic: Arc<SparseSymbolic>,
     pub(crate) settings: NewtonSettings,
@@ -185,7 +187,8 @@ impl HyperBody {
         let h = grid.cell_size();
         Ok(Self {
             samples: surface_samples(&grid, fixed),
-            cell: HyperCell::new(tissue.shear_modulus(), tissue.bulk_modulus(), h),
+            cell: HyperCell::new(h),
+            materials: vec![CellMaterial::of(tissue); grid.n_cells()],
             clamp_beta: clamp_stiffness(tissue, h),
             clamp: clamp.points,
             grid,
@@ -243,22 +246,28 @@ impl HyperBody {
 
     /// Each cell's state and their extremes for node displacements `u`.
     pub(crate) fn cell_states(&self, u: &[Vec3]) -> (Vec<CellState>, StrainSummary) {
-        cell_states(&self.grid, &self.tissue, u)
+        cell_states(&self.grid, &self.materials, u)
+    }
+
+    /// Each cell's law and moduli.
+    pub fn materials(&self) -> &[CellMaterial] {
+        &self.materials
     }
 }
 
-/// Each cell's strain, `J` and (neo-Hookean) stress for node displacements `u` on `grid`,
+/// Each cell's strain, `J` and stress (of its own law) for node displacements `u` on `grid`,
 /// and their extremes: the large-strain measures of any answer, a linear one included
 /// (whose Green–Lagrange strain then shows the rotations it cannot represent).
 ///
 /// # Panics
-/// When `u` does not have one entry per grid node.
+/// When `u` does not have one entry per grid node or `materials` one per cell.
 #[track_caller]
-pub fn cell_states(grid: &SparseGrid, tissue: &Tissue, u: &[Vec3]) -> (Vec<CellState>, StrainSummary) {
+pub fn cell_states(grid: &SparseGrid, materials: &[CellMaterial], u: &[Vec3]) -> (Vec<CellState>, StrainSummary) {
     assert_eq!(u.len(), grid.n_nodes(), "one displacement per node");
-    let cell = HyperCell::new(tissue.shear_modulus(), tissue.bulk_modulus(), grid.cell_size());
+    assert_eq!(materials.len(), grid.n_cells(), "one material per cell");
+    let cell = HyperCell::new(grid.cell_size());
     let cells: Vec<CellState> =
-        grid.cell_nodes().iter().map(|nodes| cell.state(&nodes.map(|n| u[n]))).collect();
+        grid.cell_nodes().iter().zip(materials).map(|(nodes, m)| cell.state(m, &nodes.map(|n| u[n]))).collect();
     let mut s = StrainSummary {
         j_min: f64::INFINITY,
         j_max: f64::NEG_INFINITY,

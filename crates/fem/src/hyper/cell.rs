@@ -11,7 +11,27 @@
 use fibfluid_geometry::Vec3;
 
 use super::material::{M3, cofactor, det, isochoric_energy, isochoric_stress_tangent, volumetric};
-use crate::element::{CELL_DOFS, CellMatrix, gauss_points, gradients};
+use crate::element::{CELL_DOFS, CellMatrix, gauss_points, gradients, unit_cell_matrices};
+use crate::grid::Element;
+use crate::tissue::{Tissue, TissueModel};
+
+/// A cell's constitutive law and moduli (a region's tissue, or a blend of tissues).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CellMaterial {
+    /// Linear (the B-bar element's quadratic energy) or neo-Hookean.
+    pub model: TissueModel,
+    /// Shear modulus `mu`, Pa.
+    pub mu: f64,
+    /// Bulk modulus `kappa`, Pa.
+    pub kappa: f64,
+}
+
+impl CellMaterial {
+    /// The law and moduli of a tissue.
+    pub fn of(tissue: &Tissue) -> Self {
+        Self { model: tissue.model(), mu: tissue.shear_modulus(), kappa: tissue.bulk_modulus() }
+    }
+}
 
 /// Gauss weight of each of the eight points (fractions of the cell's volume).
 const W: f64 = 1.0 / 8.0;
@@ -20,9 +40,10 @@ const W: f64 = 1.0 / 8.0;
 /// Corner `b` sits at `(b & 1, (b >> 1) & 1, (b >> 2) & 1) * h`; `u[b]` is its displacement.
 #[derive(Debug, Clone)]
 pub struct HyperCell {
-    mu: f64,
-    kappa: f64,
+    h: f64,
     volume: f64,
+    /// The linear element's unit-cube, unit-moduli matrices `(deviatoric, volumetric)`.
+    linear: Box<(CellMatrix, CellMatrix)>,
     /// Physical gradients `grad N_b` at each Gauss point (1/m).
     grads: [[[f64; 3]; 8]; 8],
     /// Physical gradients at the cell's centre.
@@ -64,36 +85,54 @@ fn deformation_gradient(u: &[Vec3; 8], g: &[[f64; 3]; 8]) -> M3 {
 }
 
 impl HyperCell {
-    /// The element of edge `h` (m) for shear modulus `mu` and bulk modulus `kappa` (Pa).
-    pub fn new(mu: f64, kappa: f64, h: f64) -> Self {
+    /// The element of edge `h` (m).
+    pub fn new(h: f64) -> Self {
         let scale = |g: [[f64; 3]; 8]| g.map(|v| v.map(|x| x / h));
         let points = gauss_points();
         Self {
-            mu,
-            kappa,
+            h,
+            linear: Box::new(unit_cell_matrices(Element::BBar)),
             volume: h * h * h,
             grads: std::array::from_fn(|p| scale(gradients(points[p]))),
             centre: scale(gradients([0.5; 3])),
         }
     }
 
-    /// The cell's energy (J) at node displacements `u`, times `fill`; `None` when a Gauss
-    /// point or the cell has `J <= 0`.
-    pub fn energy(&self, u: &[Vec3; 8], fill: f64) -> Option<f64> {
+    /// The linear element's stiffness `h (mu D + kappa V)` times `fill`.
+    fn linear_matrix(&self, m: &CellMaterial, fill: f64) -> CellMatrix {
+        let (dev, vol) = &*self.linear;
+        let c = fill * self.h;
+        std::array::from_fn(|r| std::array::from_fn(|s| c * (m.mu * dev[r][s] + m.kappa * vol[r][s])))
+    }
+
+    /// The cell's energy (J) at node displacements `u`, times `fill`; `None` when a
+    /// neo-Hookean Gauss point or cell has `J <= 0`.
+    pub fn energy(&self, m: &CellMaterial, u: &[Vec3; 8], fill: f64) -> Option<f64> {
+        if m.model == TissueModel::Linear {
+            let k = self.linear_matrix(m, fill);
+            let x: Vec<f64> = u.iter().flatten().copied().collect();
+            return Some(0.5 * (0..CELL_DOFS).map(|r| x[r] * (0..CELL_DOFS).map(|c| k[r][c] * x[c]).sum::<f64>()).sum::<f64>());
+        }
         let mut iso = 0.0;
         let mut theta = 0.0;
         for g in &self.grads {
             let f = deformation_gradient(u, g);
-            iso += W * isochoric_energy(&f, self.mu)?;
+            iso += W * isochoric_energy(&f, m.mu)?;
             theta += W * det(&f);
         }
-        let [vol, _, _] = volumetric(theta, self.kappa)?;
+        let [vol, _, _] = volumetric(theta, m.kappa)?;
         Some(fill * self.volume * (iso + vol))
     }
 
     /// The gradient and (with `hessian`) the Hessian of [`HyperCell::energy`]; `None` when
-    /// a Gauss point or the cell has `J <= 0`.
-    pub fn tangent(&self, u: &[Vec3; 8], fill: f64, hessian: bool) -> Option<CellTangent> {
+    /// a neo-Hookean Gauss point or cell has `J <= 0`.
+    pub fn tangent(&self, m: &CellMaterial, u: &[Vec3; 8], fill: f64, hessian: bool) -> Option<CellTangent> {
+        if m.model == TissueModel::Linear {
+            let k = self.linear_matrix(m, fill);
+            let x: Vec<f64> = u.iter().flatten().copied().collect();
+            let gradient = std::array::from_fn(|r| (0..CELL_DOFS).map(|c| k[r][c] * x[c]).sum());
+            return Some(CellTangent { gradient, hessian: hessian.then(|| Box::new(k)) });
+        }
         let scale = fill * self.volume;
         let fs: [M3; 8] = std::array::from_fn(|p| deformation_gradient(u, &self.grads[p]));
         let js = fs.map(|f| det(&f));
@@ -101,14 +140,14 @@ impl HyperCell {
             return None;
         }
         let theta: f64 = js.iter().map(|j| W * j).sum();
-        let [_, du, ddu] = volumetric(theta, self.kappa)?;
+        let [_, du, ddu] = volumetric(theta, m.kappa)?;
         let mut gradient = [0.0; CELL_DOFS];
         let mut dtheta = [0.0; CELL_DOFS];
         let mut k = hessian.then(|| Box::new([[0.0; CELL_DOFS]; CELL_DOFS]));
         for p in 0..8 {
             let g = &self.grads[p];
             let cof = cofactor(&fs[p]);
-            let (stress, a) = isochoric_stress_tangent(&fs[p], self.mu);
+            let (stress, a) = isochoric_stress_tangent(&fs[p], m.mu);
             for b in 0..8 {
                 for i in 0..3 {
                     let dot = |m: &M3| (0..3).map(|jj| m[i][jj] * g[b][jj]).sum::<f64>();
@@ -141,8 +180,8 @@ impl HyperCell {
         Some(CellTangent { gradient, hessian: k })
     }
 
-    /// Strain, stress and `J` of a deformed cell.
-    pub fn state(&self, u: &[Vec3; 8]) -> CellState {
+    /// Strain, stress (of the cell's own law) and `J` of a deformed cell.
+    pub fn state(&self, m: &CellMaterial, u: &[Vec3; 8]) -> CellState {
         let js: Vec<f64> = self.grads.iter().map(|g| det(&deformation_gradient(u, g))).collect();
         let theta: f64 = js.iter().map(|j| W * j).sum();
         let f = deformation_gradient(u, &self.centre);
@@ -152,7 +191,11 @@ impl HyperCell {
             })
         });
         let eig = super::material::symmetric_eigenvalues(&green);
-        let von_mises = if det(&f) > 0.0 { isochoric_von_mises(&f, self.mu) } else { f64::NAN };
+        let von_mises = match m.model {
+            TissueModel::Linear => linear_von_mises(&f, m.mu),
+            TissueModel::NeoHookean if det(&f) > 0.0 => isochoric_von_mises(&f, m.mu),
+            TissueModel::NeoHookean => f64::NAN,
+        };
         CellState {
             j_min: js.iter().copied().fold(f64::INFINITY, f64::min),
             j_max: js.iter().copied().fold(f64::NEG_INFINITY, f64::max),
@@ -162,6 +205,15 @@ impl HyperCell {
             von_mises,
         }
     }
+}
+
+/// The von Mises stress of the small-strain stress `2 mu dev eps` (`eps` the symmetric
+/// part of `F - I`).
+fn linear_von_mises(f: &M3, mu: f64) -> f64 {
+    let eps: M3 = std::array::from_fn(|i| std::array::from_fn(|k| 0.5 * (f[i][k] + f[k][i]) - if i == k { 1.0 } else { 0.0 }));
+    let mean = (eps[0][0] + eps[1][1] + eps[2][2]) / 3.0;
+    let dev2: f64 = (0..9).map(|r| { let (i, k) = (r / 3, r % 3); (eps[i][k] - if i == k { mean } else { 0.0 }).powi(2) }).sum();
+    2.0 * mu * (1.5 * dev2).sqrt()
 }
 
 /// The von Mises stress of the Cauchy stress `sigma = P F^T / J` (the volumetric part is a

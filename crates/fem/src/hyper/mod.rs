@@ -21,5 +21,5 @@ mod newton;
 mod solve;
 
 pub use body::{HyperBody, HyperSolution, HyperStats, LoadStep, NewtonSettings, StrainSummary, cell_states};
-pub use cell::{CellState, CellTangent, HyperCell};
+pub use cell::{CellMaterial, CellState, CellTangent, HyperCell};
 pub use contact::{CONTACT_GAP_TOLERANCE, CONTACT_PENALTY, MAX_AUGMENTATIONS, RigidPlate};

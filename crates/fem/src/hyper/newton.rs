@@ -111,8 +111,9 @@ impl HyperBody {
             let fill = self.grid.fill()[c];
             let local = nodes.map(|n| u[n]);
             let dofs = self.cell_dofs(&nodes);
-            elastic += self.cell.energy(&local, fill)?;
-            let t = self.cell.tangent(&local, fill, tangent)?;
+            let material = self.materials[c];
+            elastic += self.cell.energy(&material, &local, fill)?;
+            let t = self.cell.tangent(&material, &local, fill, tangent)?;
             for (l, &g) in dofs.iter().enumerate() {
                 if g != FIXED {
                     gradient[g] += t.gradient[l];
@@ -296,8 +297,8 @@ impl HyperBody {
     pub(super) fn energy(&self, x: &[f64], state: &LoadState<'_>) -> Option<f64> {
         let u = self.node_field(x);
         let mut e = 0.0;
-        for (nodes, &fill) in self.grid.cell_nodes().iter().zip(self.grid.fill()) {
-            e += self.cell.energy(&nodes.map(|n| u[n]), fill)?;
+        for ((nodes, &fill), m) in self.grid.cell_nodes().iter().zip(self.grid.fill()).zip(&self.materials) {
+            e += self.cell.energy(m, &nodes.map(|n| u[n]), fill)?;
         }
         for p in &self.clamp {
             let d: f64 = (0..8).map(|b| p.weights[b] * u[p.nodes[b]][p.axis]).sum();
