@@ -160,7 +160,9 @@ fn cube_obj(side: f64, n: usize) -> String {
 
 /// Analytic: a cube of side L clamped on its bottom face and pressed by a frictionless plate
 /// by `d` on its top face; with Poisson's ratio 0 the exact field is uniaxial (`u_y = -d y /
-/// L`, which trilinear elements reproduce) and the plate's force is `E A d / L`.
+/// L`, which trilinear elements reproduce) and the plate's force is `E A d / L`. The contact
+/// (an augmented Lagrangian on surface samples) leaves a penetration it reports; the force
+/// is within 1 % and the penetration below 1 % of `d`.
 #[test]
 fn a_fem_plate_compressing_a_cube_pushes_with_e_a_d_over_l() {
     let dir = tempfile::tempdir().unwrap();
@@ -179,28 +181,34 @@ fn a_fem_plate_compressing_a_cube_pushes_with_e_a_d_over_l() {
     let expected = young * side * side * d / side;
     let plate = &run.plates[0];
     println!(
-        "plate force {} N (analytic {expected} N), {} contacts, {} iterations",
-        plate.force, plate.contact_vertices, plate.active_set_iterations
+        "plate force {} N (analytic {expected} N), {} samples in contact, penetration {:e} m, {} augmentations",
+        plate.force, plate.contact_samples, plate.penetration, plate.augmentations
     );
-    assert!((plate.force - expected).abs() <= 1e-6 * expected, "{} vs {expected}", plate.force);
-    assert_eq!(plate.contact_vertices, 81, "every vertex of the top face");
-    // No vertex passes the plate; the top face sits on it.
+    assert!((plate.force - expected).abs() <= 1e-2 * expected, "{} vs {expected}", plate.force);
+    assert!(plate.penetration <= 1e-2 * d, "penetration {:e}", plate.penetration);
+    // No vertex passes the plate by more than the reported penetration; the top face sits
+    // on it.
     let top = side - d;
+    let mut on_top = 0;
     for (p, r) in run.positions.iter().zip(&run.rest) {
-        assert!(p[1] <= top + 1e-12, "{p:?}");
+        assert!(p[1] <= top + plate.penetration + 1e-12, "{p:?}");
         if (r[1] - side).abs() < 1e-12 {
-            assert!((p[1] - top).abs() <= 1e-9 * side, "{p:?}");
+            assert!((p[1] - top).abs() <= plate.penetration + 1e-12, "{p:?}");
+            on_top += 1;
         }
     }
+    assert_eq!(on_top, 81, "every vertex of the top face");
 }
 
 /// A hanging sphere (radius 2 cm, cap fixed) pushed up by a floor plate: no vertex ends
-/// below the plate, only some vertices touch it, and a plate that travels farther pushes
-/// harder.
+/// below the plate by more than the contact's reported penetration (itself below 1 % of the
+/// travel), only some vertices touch it, and a plate that travels farther pushes harder.
 #[test]
 fn a_fem_floor_plate_is_unilateral_and_pushes_harder_when_it_travels_farther() {
     let dir = tempfile::tempdir().unwrap();
-    let base = scene_in(dir.path(), "m", 1.0, "fem");
+    let mut base = scene_in(dir.path(), "m", 1.0, "fem");
+    // A coarse grid: each contact change refactors the tangent.
+    base.fem.resolution = 12;
     let sag = {
         let run = FemRun::new(base.clone(), None).unwrap();
         run.positions.iter().map(|p| p[1]).fold(f64::MAX, f64::min)
@@ -213,9 +221,11 @@ fn a_fem_floor_plate_is_unilateral_and_pushes_harder_when_it_travels_farther() {
         let run = FemRun::new(scene, None).unwrap();
         let floor = sag + travel;
         let lowest = run.positions.iter().map(|p| p[1]).fold(f64::MAX, f64::min);
-        assert!(lowest >= floor - 1e-9 * 0.04, "a vertex {:e} m through the plate", floor - lowest);
         let p = &run.plates[0];
-        assert!(p.contact_vertices > 0 && p.contact_vertices < run.rest.len() / 2, "{p:?}");
+        assert!(p.penetration <= 1e-2 * travel, "{p:?}");
+        assert!(lowest >= floor - p.penetration - 1e-12, "a vertex {:e} m through the plate", floor - lowest);
+        let touching = run.positions.iter().filter(|x| x[1] <= floor + p.penetration).count();
+        assert!(p.contact_samples > 0 && touching > 0 && touching < run.rest.len() / 2, "{p:?}, {touching}");
         forces.push(p.force);
     }
     println!("floor plate forces {forces:?} N");

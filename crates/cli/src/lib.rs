@@ -12,6 +12,7 @@ pub mod output;
 pub mod probe_run;
 pub mod study;
 mod study_grid;
+pub mod vtu;
 
 pub use error::{Error, Result};
 pub use info::{FiberCounts, MeshInfo, SurfaceMeasures, SurfaceTopology};

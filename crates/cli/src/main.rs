@@ -619,11 +619,12 @@ fn run_fem(
     );
     for (k, p) in report.plates.iter().enumerate() {
         say!(
-            "  plate {}: force {} N, {} vertices in contact, {} active-set iterations",
+            "  plate {}: force {} N, {} surface samples in contact, deepest {} {unit}, {} augmentations",
             k + 1,
             num(p.force),
-            p.contact_vertices,
-            p.active_set_iterations
+            p.contact_samples,
+            num(p.penetration * to_unit),
+            p.augmentations
         );
     }
     for w in written {

@@ -281,13 +281,17 @@ pub fn write_outputs(dir: &Path, sim: &Simulation, report: &Report) -> Result<Ve
     write_surface(dir, &SurfaceResult::of_simulation(sim), json, png, extra)
 }
 
-/// Writes every output of a finite-element run into `dir`.
+/// Writes every output of a finite-element run into `dir`, the cells' volume file
+/// ([`crate::vtu::VOLUME_FILE`]) included.
 pub fn write_fem_outputs(dir: &Path, run: &FemRun, report: &FemReport) -> Result<Vec<PathBuf>> {
     let surface = SurfaceResult::of_fem(run);
     let json = serde_json::to_string_pretty(report)? + "\n";
     let title = format!("deformed (fem, resolution {})", run.stats.resolution);
     let png = render_rest_and_deformed(&surface, &title)?;
-    write_surface(dir, &surface, json, png, vec![])
+    let mut vtu = Vec::new();
+    crate::vtu::write_vtu(&mut vtu, run)
+        .map_err(|source| Error::Io { path: dir.join(crate::vtu::VOLUME_FILE), source })?;
+    write_surface(dir, &surface, json, png, vec![(crate::vtu::VOLUME_FILE, vtu)])
 }
 
 /// `deformed.obj` and `deformed.vtk` (file order, the mesh's unit), `report.json`,

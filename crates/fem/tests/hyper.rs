@@ -72,7 +72,8 @@ fn rigid_rotation_costs_nothing() {
         [-x[1] - x[0], x[0] - x[1], 0.0]
     });
     let energy = cell.energy(&m, &u, 1.0).unwrap();
-    let force = cell.tangent(&m, &u, 1.0, false).unwrap().gradient.iter().fold(0.0_f64, |m, g| m.max(g.abs()));
+    let force =
+        cell.tangent(&m, &u, 1.0, false).unwrap().gradient.iter().fold(0.0_f64, |m, g| m.max(g.abs()));
     let k0 = cell.tangent(&m, &[[0.0; 3]; 8], 1.0, true).unwrap().hessian.unwrap();
     let flat: Vec<f64> = u.iter().flatten().copied().collect();
     let ku: Vec<f64> = (0..24).map(|r| (0..24).map(|c| k0[r][c] * flat[c]).sum()).collect();

@@ -14,97 +14,20 @@
 
 use std::time::Instant;
 
-use fibfluid_fem::hyper::{CellMaterial, StrainSummary, cell_states};
-use fibfluid_fem::{
-    FemBody, FemOptions, FemStats, GridEstimate, Loads, SparseGrid, Tissue, TissueModel,
-};
+use fibfluid_fem::hyper::{CellMaterial, CellState, StrainSummary, cell_states};
+use fibfluid_fem::{FemStats, SparseGrid, Tissue, TissueModel};
 use fibfluid_geometry::{Boundary, Vec3};
 use serde::Serialize;
 
 use crate::choices::{LengthUnit, Method};
+use crate::fem_inputs::failed;
+pub use crate::fem_inputs::{
+    FemPlate, build_body, estimate, fixed_axes, full_loads, refuse_plates, tissue_of,
+};
 use crate::model::{Model, Shape};
 use crate::result_guards::{ResultChecks, ResultWarning, check_answer};
 use crate::stages::{StageLog, StageRecord, names};
 use crate::{Error, Result};
-
-/// A failure of the finite-element crate, with the scene named.
-fn failed(model: &Model) -> impl Fn(fibfluid_fem::FemError) -> Error + '_ {
-    move |source| Error::Fem { scene: model.display_name(), source }
-}
-
-/// The problem of a model that the finite-element method cannot run.
-fn needs(model: &Model, problem: &'static str) -> Error {
-    Error::MethodNeeds { scene: model.display_name(), method: Method::Fem, problem }
-}
-
-/// The model's tissue, or the error that names the missing `[tissue]` section.
-pub fn tissue_of(model: &Model) -> Result<Tissue> {
-    // A `Tissue` is valid by construction: nothing to check again here.
-    model
-        .tissue
-        .ok_or_else(|| needs(model, "needs a [tissue] section (young in Pa, poisson, density in kg/m^3)"))
-}
-
-/// The grid the model would get, from counts, refused when its estimated factor would not
-/// fit in `limit` bytes.
-pub fn estimate(model: &Model, limit: u64) -> Result<GridEstimate> {
-    let Shape::Surface(file) = &model.shape else {
-        return Err(needs(model, "needs a surface mesh (this scene is a 2D polygon)"));
-    };
-    let est = GridEstimate::of(file.mesh.positions(), model.fem.resolution).map_err(failed(model))?;
-    if est.factor_bytes > limit as f64 {
-        return Err(Error::TooLarge {
-            scene: model.display_name(),
-            stage: names::FACTORIZATION,
-            needed: est.factor_bytes as u64,
-            available: limit,
-            hint: "lower [fem] resolution",
-        });
-    }
-    Ok(est)
-}
-
-/// Per surface vertex, the axes the model fixes. A prescribed non-zero displacement is
-/// refused (the FEM holds fixed vertices at zero).
-pub fn fixed_axes(model: &Model) -> Result<Vec<[bool; 3]>> {
-    if model.constraints.has_nonzero() {
-        return Err(needs(
-            model,
-            "holds fixed vertices at zero: prescribed non-zero displacements are not supported",
-        ));
-    }
-    Ok((0..model.n_vertices())
-        .map(|v| std::array::from_fn(|a| model.constraints.get(v, a).is_some()))
-        .collect())
-}
-
-/// The model's loads in full: gravity and every point force (their timing is a stepping
-/// matter; the linear FEM applies the whole load at once).
-pub fn full_loads(model: &Model) -> Loads {
-    Loads {
-        gravity: model.load.gravity,
-        point_forces: model.load.forces.iter().map(|f| (f.vertex, f.value)).collect(),
-    }
-}
-
-/// Builds the model's finite-element body (voxelized, assembled, factored), refusing from
-/// counts first. Plates are the caller's ([`FemRun`] carries them).
-pub fn build_body(model: &Model, limit: u64, log: &mut StageLog) -> Result<FemBody> {
-    let tissue = tissue_of(model)?;
-    estimate(model, limit)?;
-    let fixed = fixed_axes(model)?;
-    let Shape::Surface(file) = &model.shape else { unreachable!("estimate refused a polygon") };
-    let options = FemOptions { resolution: model.fem.resolution, ..FemOptions::default() };
-    let start = Instant::now();
-    let body = FemBody::from_surface(file.mesh.positions(), file.mesh.triangles(), &tissue, &fixed, &options)
-        .map_err(failed(model))?;
-    let total = start.elapsed().as_secs_f64();
-    let stats = body.stats();
-    log.add(names::VOXELIZATION, (total - stats.assembly_seconds - stats.factor_seconds).max(0.0));
-    log.add(names::ASSEMBLY, stats.assembly_seconds);
-    log.add(names::FACTORIZATION, stats.factor_seconds);
-    Ok(body)
-}
 
 /// A finished finite-element run.
 #[derive(Debug)]
@@ -127,12 +50,10 @@ pub struct FemRun {
     pub plates: Vec<FemPlate>,
     /// Largest strain, `J` extremes and stress of the answer's cells.
     pub strain: StrainSummary,
+    /// Inside the tissue: the grid, its nodes' displacements and its cells' states.
+    pub volume: VolumeAnswer,
     /// Newton's record (hyperelastic tissue only).
     pub newton: Option<crate::hyper_run::NewtonRecord>,
-    /// The grid the answer lives on.
-    pub grid: SparseGrid,
-    /// The displacement of every grid node (m).
-    pub node_displacements: Vec<Vec3>,
     /// The result guards that fired ([`crate::result_guards`]).
     pub warnings: Vec<ResultWarning>,
     /// Stage times.
@@ -163,6 +84,7 @@ impl FemRun {
                         stats: sol.stats,
                     }),
                     strain: sol.summary,
+                    cells: sol.cells,
                     residual: sol.residual,
                     stats,
                     grid: body.grid().clone(),
@@ -188,9 +110,13 @@ impl FemRun {
             residual: answer.residual,
             plates: answer.plates,
             strain: answer.strain,
+            volume: VolumeAnswer {
+                cell_materials: vec![0; answer.cells.len()],
+                cells: answer.cells,
+                grid: answer.grid,
+                node_displacements: answer.node_displacements,
+            },
             newton: answer.newton,
-            grid: answer.grid,
-            node_displacements: answer.node_displacements,
             rest,
             positions,
             log,
@@ -198,6 +124,20 @@ impl FemRun {
             model,
         })
     }
+}
+
+/// The answer inside the tissue: what `volume.vtu` shows.
+#[derive(Debug, Clone)]
+pub struct VolumeAnswer {
+    /// The grid the answer lives on.
+    pub grid: SparseGrid,
+    /// The displacement of every grid node (m).
+    pub node_displacements: Vec<Vec3>,
+    /// Each active cell's strain, `J` and stress (grid order).
+    pub cells: Vec<CellState>,
+    /// Each active cell's material: 0 the `[tissue]`, `k` the `k`-th `[[region]]` (the
+    /// region holding most of the cell).
+    pub cell_materials: Vec<u16>,
 }
 
 /// What a solve of either model hands to [`FemRun`].
@@ -208,6 +148,7 @@ struct FemAnswer {
     residual: f64,
     plates: Vec<FemPlate>,
     strain: StrainSummary,
+    cells: Vec<CellState>,
     newton: Option<crate::hyper_run::NewtonRecord>,
     stats: FemStats,
 }
@@ -217,9 +158,10 @@ fn solve_linear(model: &Model, limit: u64, log: &mut StageLog) -> Result<FemAnsw
     let mut body = build_body(model, limit, log)?;
     let loads = full_loads(model);
     let s = log.time(names::SOLVE, || body.solve(&loads)).map_err(failed(model))?;
-    let (surface, nodes, residual, plates) = (s.surface_displacements, s.node_displacements, s.residual, Vec::new());
+    let (surface, nodes, residual, plates) =
+        (s.surface_displacements, s.node_displacements, s.residual, Vec::new());
     let materials = vec![CellMaterial::of(body.tissue()); body.grid().n_cells()];
-    let (_, strain) = cell_states(body.grid(), &materials, &nodes);
+    let (cells, strain) = cell_states(body.grid(), &materials, &nodes);
     Ok(FemAnswer {
         surface_displacements: surface,
         node_displacements: nodes,
@@ -227,6 +169,7 @@ fn solve_linear(model: &Model, limit: u64, log: &mut StageLog) -> Result<FemAnsw
         residual,
         plates,
         strain,
+        cells,
         newton: None,
         stats: body.stats(),
     })
@@ -250,26 +193,6 @@ pub fn answer_guards(
         method: Method::Fem,
         vertex: e.vertex,
     })
-}
-
-/// Refuses a model with plates for an interactive finite-element body (its base state is
-/// one solve without contact).
-pub fn refuse_plates(model: &Model) -> Result<()> {
-    if model.plates.is_empty() {
-        return Ok(());
-    }
-    Err(needs(model, "does not carry [[plate]] contact in an interactive body (use `run --method fem`)"))
-}
-
-/// One plate's contact in a finite-element run (at its final position).
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct FemPlate {
-    /// Total contact force on the body along the plate's normal (N).
-    pub force: f64,
-    /// Vertices in contact.
-    pub contact_vertices: usize,
-    /// Active-set iterations (shared by all plates).
-    pub active_set_iterations: usize,
 }
 
 /// The units every number of a report is in.

@@ -10,7 +10,7 @@ use fibfluid_fem::hyper::{HyperBody, HyperSolution, HyperStats, LoadStep, RigidP
 use fibfluid_fem::{FemOptions, FemStats, Tissue};
 use serde::Serialize;
 
-use crate::fem_run::{FemPlate, estimate, fixed_axes, full_loads};
+use crate::fem_inputs::{FemPlate, estimate, fixed_axes, full_loads};
 use crate::model::{Model, Shape};
 use crate::stages::{StageLog, names};
 use crate::{Error, Result};
@@ -71,14 +71,12 @@ pub fn solve(
 
 /// Each plate's contact from a hyperelastic solution (contacts counted in surface samples).
 pub fn plate_records(solution: &HyperSolution) -> Vec<FemPlate> {
-    solution
-        .plate_forces
-        .iter()
-        .zip(&solution.plate_contacts)
-        .map(|(&force, &contacts)| FemPlate {
-            force,
-            contact_vertices: contacts,
-            active_set_iterations: solution.stats.augmentations,
+    (0..solution.plate_forces.len())
+        .map(|k| FemPlate {
+            force: solution.plate_forces[k],
+            contact_samples: solution.plate_contacts[k],
+            penetration: solution.plate_penetration[k],
+            augmentations: solution.stats.augmentations,
         })
         .collect()
 }

@@ -24,6 +24,7 @@ mod choices;
 pub mod contact;
 mod effects;
 mod error;
+mod fem_inputs;
 pub mod fem_run;
 mod fit;
 pub mod guards;

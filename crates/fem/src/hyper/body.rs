@@ -262,12 +262,20 @@ impl HyperBody {
 /// # Panics
 /// When `u` does not have one entry per grid node or `materials` one per cell.
 #[track_caller]
-pub fn cell_states(grid: &SparseGrid, materials: &[CellMaterial], u: &[Vec3]) -> (Vec<CellState>, StrainSummary) {
+pub fn cell_states(
+    grid: &SparseGrid,
+    materials: &[CellMaterial],
+    u: &[Vec3],
+) -> (Vec<CellState>, StrainSummary) {
     assert_eq!(u.len(), grid.n_nodes(), "one displacement per node");
     assert_eq!(materials.len(), grid.n_cells(), "one material per cell");
     let cell = HyperCell::new(grid.cell_size());
-    let cells: Vec<CellState> =
-        grid.cell_nodes().iter().zip(materials).map(|(nodes, m)| cell.state(m, &nodes.map(|n| u[n]))).collect();
+    let cells: Vec<CellState> = grid
+        .cell_nodes()
+        .iter()
+        .zip(materials)
+        .map(|(nodes, m)| cell.state(m, &nodes.map(|n| u[n])))
+        .collect();
     let mut s = StrainSummary {
         j_min: f64::INFINITY,
         j_max: f64::NEG_INFINITY,

@@ -111,7 +111,11 @@ impl HyperCell {
         if m.model == TissueModel::Linear {
             let k = self.linear_matrix(m, fill);
             let x: Vec<f64> = u.iter().flatten().copied().collect();
-            return Some(0.5 * (0..CELL_DOFS).map(|r| x[r] * (0..CELL_DOFS).map(|c| k[r][c] * x[c]).sum::<f64>()).sum::<f64>());
+            return Some(
+                0.5 * (0..CELL_DOFS)
+                    .map(|r| x[r] * (0..CELL_DOFS).map(|c| k[r][c] * x[c]).sum::<f64>())
+                    .sum::<f64>(),
+            );
         }
         let mut iso = 0.0;
         let mut theta = 0.0;
@@ -210,9 +214,16 @@ impl HyperCell {
 /// The von Mises stress of the small-strain stress `2 mu dev eps` (`eps` the symmetric
 /// part of `F - I`).
 fn linear_von_mises(f: &M3, mu: f64) -> f64 {
-    let eps: M3 = std::array::from_fn(|i| std::array::from_fn(|k| 0.5 * (f[i][k] + f[k][i]) - if i == k { 1.0 } else { 0.0 }));
+    let eps: M3 = std::array::from_fn(|i| {
+        std::array::from_fn(|k| 0.5 * (f[i][k] + f[k][i]) - if i == k { 1.0 } else { 0.0 })
+    });
     let mean = (eps[0][0] + eps[1][1] + eps[2][2]) / 3.0;
-    let dev2: f64 = (0..9).map(|r| { let (i, k) = (r / 3, r % 3); (eps[i][k] - if i == k { mean } else { 0.0 }).powi(2) }).sum();
+    let dev2: f64 = (0..9)
+        .map(|r| {
+            let (i, k) = (r / 3, r % 3);
+            (eps[i][k] - if i == k { mean } else { 0.0 }).powi(2)
+        })
+        .sum();
     2.0 * mu * (1.5 * dev2).sqrt()
 }
 

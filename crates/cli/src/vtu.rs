@@ -1,0 +1,89 @@
+//! `volume.vtu`: the finite-element run's active cells as an XML VTK unstructured grid
+//! (ASCII), so ParaView shows inside the tissue: the deformed grid nodes with their
+//! displacement, and per cell its mean dilatation `J`, the largest principal Green–Lagrange
+//! strain, the von Mises Cauchy stress (Pa), its fill fraction and its material id.
+
+use std::io::Write;
+
+use fibfluid::sim::fem_run::FemRun;
+
+/// The name of the volume file a finite-element run writes.
+pub const VOLUME_FILE: &str = "volume.vtu";
+
+/// VTK's corner order of a hexahedron (`VTK_HEXAHEDRON`, type 12) in the grid's corner
+/// numbering (corner `b` at `(b & 1, (b >> 1) & 1, (b >> 2) & 1)`).
+const VTK_HEX: [usize; 8] = [0, 1, 3, 2, 4, 5, 7, 6];
+
+fn array(
+    out: &mut impl Write,
+    kind: &str,
+    name: &str,
+    components: usize,
+    values: impl Iterator<Item = String>,
+) -> std::io::Result<()> {
+    writeln!(
+        out,
+        r#"<DataArray type="{kind}" Name="{name}" NumberOfComponents="{components}" format="ascii">"#
+    )?;
+    for v in values {
+        writeln!(out, "{v}")?;
+    }
+    writeln!(out, "</DataArray>")
+}
+
+/// Writes the run's cells (positions and displacements in the mesh file's unit, stresses in
+/// Pa).
+pub fn write_vtu(out: &mut impl Write, run: &FemRun) -> std::io::Result<()> {
+    let to_unit = 1.0 / run.model.unit.metres();
+    let volume = &run.volume;
+    let grid = &volume.grid;
+    let nodes = grid.node_positions();
+    let cells = grid.cell_nodes();
+    writeln!(out, r#"<?xml version="1.0"?>"#)?;
+    writeln!(
+        out,
+        r#"<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">"#
+    )?;
+    writeln!(
+        out,
+        "<!-- fibfluid {} ({}, {}): lengths in {}, stresses in Pa -->",
+        run.model.name,
+        run.tissue.model(),
+        run.model.unit,
+        run.model.unit
+    )?;
+    writeln!(out, "<UnstructuredGrid>")?;
+    writeln!(out, r#"<Piece NumberOfPoints="{}" NumberOfCells="{}">"#, nodes.len(), cells.len())?;
+    writeln!(out, "<Points>")?;
+    let deformed = nodes.iter().zip(&volume.node_displacements).map(|(p, u)| {
+        format!("{:?} {:?} {:?}", (p[0] + u[0]) * to_unit, (p[1] + u[1]) * to_unit, (p[2] + u[2]) * to_unit)
+    });
+    array(out, "Float64", "Points", 3, deformed)?;
+    writeln!(out, "</Points>")?;
+    writeln!(out, "<Cells>")?;
+    let connectivity = cells.iter().map(|c| VTK_HEX.map(|b| c[b].to_string()).join(" "));
+    array(out, "Int64", "connectivity", 1, connectivity)?;
+    array(out, "Int64", "offsets", 1, (1..=cells.len()).map(|k| (8 * k).to_string()))?;
+    array(out, "UInt8", "types", 1, cells.iter().map(|_| "12".to_string()))?;
+    writeln!(out, "</Cells>")?;
+    writeln!(out, r#"<PointData Vectors="displacement">"#)?;
+    let disp = volume
+        .node_displacements
+        .iter()
+        .map(|u| format!("{:?} {:?} {:?}", u[0] * to_unit, u[1] * to_unit, u[2] * to_unit));
+    array(out, "Float64", "displacement", 3, disp)?;
+    writeln!(out, "</PointData>")?;
+    writeln!(out, r#"<CellData Scalars="J">"#)?;
+    let cell = |f: fn(&fibfluid::fem::hyper::CellState) -> f64| {
+        volume.cells.iter().map(move |c| format!("{:?}", f(c)))
+    };
+    array(out, "Float64", "J", 1, cell(|c| c.dilatation))?;
+    array(out, "Float64", "max_principal_strain", 1, cell(|c| c.max_principal_strain))?;
+    array(out, "Float64", "von_mises_stress", 1, cell(|c| c.von_mises))?;
+    array(out, "Float64", "fill", 1, grid.fill().iter().map(|f| format!("{f:?}")))?;
+    array(out, "Int32", "material_id", 1, volume.cell_materials.iter().map(|m| m.to_string()))?;
+    writeln!(out, "</CellData>")?;
+    writeln!(out, "</Piece>")?;
+    writeln!(out, "</UnstructuredGrid>")?;
+    writeln!(out, "</VTKFile>")
+}
