@@ -281,16 +281,17 @@ impl FemBody {
 
     /// The free-dof force vector of `loads` ([`load_vector`]).
     pub(crate) fn load_vector(&self, loads: &Loads) -> Result<Vec<f64>> {
-        load_vector(&self.grid, &self.tissue, &self.free, self.n_free, loads)
+        let density = self.tissue.density();
+        load_vector(&self.grid, |_| density, &self.free, self.n_free, loads)
     }
 }
 
-/// The free-dof force vector of `loads`: `rho g fill h^3 / 8` on each node of each
-/// cell, point forces spread to their cell's nodes by the trilinear weights (the
+/// The free-dof force vector of `loads`: `rho_c g fill h^3 / 8` on each node of each
+/// cell `c` (`density(c)` its density), point forces spread to their cell's nodes by the trilinear weights (the
 /// virtual-work-consistent loads); components on fixed dofs go to the supports.
 pub(crate) fn load_vector(
     grid: &SparseGrid,
-    tissue: &Tissue,
+    density: impl Fn(usize) -> f64,
     free: &[usize],
     n_free: usize,
     loads: &Loads,
@@ -305,9 +306,10 @@ pub(crate) fn load_vector(
             f[i] += value;
         }
     };
-    let node_mass = tissue.density() * grid.cell_size().powi(3) / 8.0;
+    let node_volume = grid.cell_size().powi(3) / 8.0;
     if loads.gravity != [0.0; 3] {
-        for (nodes, fill) in grid.cell_nodes().iter().zip(grid.fill()) {
+        for (c, (nodes, fill)) in grid.cell_nodes().iter().zip(grid.fill()).enumerate() {
+            let node_mass = density(c) * node_volume;
             for &n in nodes {
                 for a in 0..3 {
                     add(n, a, fill * node_mass * loads.gravity[a]);

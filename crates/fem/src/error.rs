@@ -120,6 +120,12 @@ pub enum FemError {
         /// The limit.
         limit: f64,
     },
+    /// A region of different tissue holds no part of the body.
+    #[error("region {region} lies outside the body: none of its points is inside the surface")]
+    RegionOutsideBody {
+        /// The region (1-based, in the order given).
+        region: usize,
+    },
     /// Newton's method could not reach a load: the increment was cut below its minimum.
     #[error(
         "Newton's method did not converge at load step {step} (load factor {load:.4}): relative residual {residual:.3e}; the body may be inverting or the load too large"

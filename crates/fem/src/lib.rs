@@ -50,6 +50,7 @@ mod grid;
 mod held;
 pub mod hyper;
 mod ordering;
+mod region;
 mod rigid;
 mod tissue;
 
@@ -63,5 +64,6 @@ pub use grid::{
 };
 pub use held::{FemHold, HeldResponse};
 pub use ordering::{ND_LEAF, Ordering};
+pub use region::{CellBlend, Region, RegionShape, blend_regions};
 pub use rigid::{RIGID_MODE_TOLERANCE, RigidMode, check_rigid_modes, free_rigid_modes};
 pub use tissue::{Tissue, TissueModel, TissueParameter};

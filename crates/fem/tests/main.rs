@@ -10,3 +10,4 @@ mod hyper;
 mod ordering;
 mod patch;
 mod point_force;
+mod region;

@@ -128,6 +128,10 @@ pub struct HyperBody {
     pub(crate) cell: HyperCell,
     /// Each cell's law and moduli.
     pub(crate) materials: Vec<CellMaterial>,
+    /// Each cell's mass density (kg/m^3).
+    pub(crate) densities: Vec<f64>,
+    /// Each cell's material id (0: the body's tissue, `k`: region `k`).
+    pub(crate) material_ids: Vec<u16>,
     pub(crate) tangent: SparseColMat<usize, f64>,
     pub(crate) symbolic: Arc<SparseSymbolic>,
     pub(crate) settings: NewtonSettings,
@@ -189,6 +193,8 @@ impl HyperBody {
             samples: surface_samples(&grid, fixed),
             cell: HyperCell::new(h),
             materials: vec![CellMaterial::of(tissue); grid.n_cells()],
+            densities: vec![tissue.density(); grid.n_cells()],
+            material_ids: vec![0; grid.n_cells()],
             clamp_beta: clamp_stiffness(tissue, h),
             clamp: clamp.points,
             grid,
@@ -199,6 +205,26 @@ impl HyperBody {
             symbolic,
             settings: NewtonSettings::default(),
         })
+    }
+
+    /// The same body with regions of other tissues ([`crate::blend_regions`]: each cell's
+    /// moduli and density blended from the tissues its samples fall in).
+    ///
+    /// Errors: a region outside the body, a malformed region surface.
+    pub fn with_regions(mut self, regions: &[crate::Region]) -> Result<Self> {
+        if regions.is_empty() {
+            return Ok(self);
+        }
+        let blend = crate::blend_regions(&self.grid, &self.tissue, regions)?;
+        self.materials = blend.materials;
+        self.densities = blend.densities;
+        self.material_ids = blend.ids;
+        Ok(self)
+    }
+
+    /// Each cell's material id (0: the body's tissue, `k`: the `k`-th region).
+    pub fn material_ids(&self) -> &[u16] {
+        &self.material_ids
     }
 
     /// The same body with other Newton settings.

@@ -30,7 +30,7 @@ impl HyperBody {
         if plates.iter().any(|p| p.start.iter().chain(&p.end).chain(&p.normal).any(|v| !v.is_finite())) {
             return Err(FemError::NonFinite { what: "plate" });
         }
-        let external = load_vector(&self.grid, &self.tissue, &self.free, self.n_free, loads)?;
+        let external = load_vector(&self.grid, |c| self.densities[c], &self.free, self.n_free, loads)?;
         let mut multipliers = vec![vec![0.0; self.samples.len()]; plates.len()];
         let mut run = Progress {
             x: vec![0.0; self.n_free],
