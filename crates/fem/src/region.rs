@@ -92,12 +92,21 @@ pub fn blend_regions(grid: &SparseGrid, base: &Tissue, regions: &[Region]) -> Re
         spacing: h / s as f64,
         dims: [dims[0] * s, dims[1] * s, dims[2] * s],
     };
-    let body = RegionShape::Surface { positions: grid.surface_positions().to_vec(), triangles: grid.surface_triangles().to_vec() };
+    let body = RegionShape::Surface {
+        positions: grid.surface_positions().to_vec(),
+        triangles: grid.surface_triangles().to_vec(),
+    };
     let inside_body = inside_flags(&lattice, &body)?;
-    let inside: Vec<Vec<bool>> = regions.iter().map(|r| inside_flags(&lattice, &r.shape)).collect::<Result<_>>()?;
+    let inside: Vec<Vec<bool>> =
+        regions.iter().map(|r| inside_flags(&lattice, &r.shape)).collect::<Result<_>>()?;
     let tissues: Vec<Tissue> = std::iter::once(*base).chain(regions.iter().map(|r| r.tissue)).collect();
     let [lx, ly, _] = lattice.dims;
-    let mut blend = CellBlend { materials: Vec::new(), densities: Vec::new(), ids: Vec::new(), region_cells: vec![0; regions.len()] };
+    let mut blend = CellBlend {
+        materials: Vec::new(),
+        densities: Vec::new(),
+        ids: Vec::new(),
+        region_cells: vec![0; regions.len()],
+    };
     let mut samples_in = vec![0usize; regions.len()];
     for c in grid.cell_coords() {
         let mut counts = vec![0usize; tissues.len()];
@@ -127,7 +136,9 @@ pub fn blend_regions(grid: &SparseGrid, base: &Tissue, regions: &[Region]) -> Re
 /// Appends one cell's sample-weighted material.
 fn push_cell(blend: &mut CellBlend, tissues: &[Tissue], counts: &[usize]) {
     let total = counts.iter().sum::<usize>() as f64;
-    let mean = |f: &dyn Fn(&Tissue) -> f64| tissues.iter().zip(counts).map(|(t, &n)| f(t) * n as f64).sum::<f64>() / total;
+    let mean = |f: &dyn Fn(&Tissue) -> f64| {
+        tissues.iter().zip(counts).map(|(t, &n)| f(t) * n as f64).sum::<f64>() / total
+    };
     blend.materials.push(CellMaterial {
         model: tissues[0].model(),
         mu: mean(&|t| t.shear_modulus()),

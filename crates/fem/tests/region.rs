@@ -15,9 +15,13 @@ fn two_layers_act_as_springs_in_series() {
     let fixed: Vec<[bool; 3]> = pos.iter().map(|p| [p[0] == 0.0, p[1] == 0.0, p[2] == 0.0]).collect();
     let soft = Tissue::new(1000.0, 0.0, 0.0).unwrap();
     let stiff = Tissue::new(4000.0, 0.0, 0.0).unwrap();
-    let region = Region { shape: RegionShape::Box { min: [-1.0, -1.0, 0.5], max: [2.0, 2.0, 2.0] }, tissue: stiff };
+    let region =
+        Region { shape: RegionShape::Box { min: [-1.0, -1.0, 0.5], max: [2.0, 2.0, 2.0] }, tissue: stiff };
     let options = FemOptions { resolution: 4, ..FemOptions::default() };
-    let mut body = HyperBody::from_surface(&pos, &tris, &soft, &fixed, &options).unwrap().with_regions(&[region]).unwrap();
+    let mut body = HyperBody::from_surface(&pos, &tris, &soft, &fixed, &options)
+        .unwrap()
+        .with_regions(&[region])
+        .unwrap();
     assert_eq!(body.material_ids().iter().filter(|&&m| m == 1).count(), 32, "the upper half's cells");
     let d = 0.01;
     let plate = RigidPlate { start: [0.0, 0.0, 1.0], end: [0.0, 0.0, 1.0 - d], normal: [0.0, 0.0, -1.0] };
@@ -25,7 +29,10 @@ fn two_layers_act_as_springs_in_series() {
     let expected = d / (0.5 / soft.young() + 0.5 / stiff.young());
     let mid = pos.iter().position(|p| *p == [1.0, 1.0, 0.5]).unwrap();
     let lower_strain = -sol.surface_displacements[mid][2] / 0.5;
-    eprintln!("two layers: force {} N against {expected} N, lower strain {lower_strain}", sol.plate_forces[0]);
+    eprintln!(
+        "two layers: force {} N against {expected} N, lower strain {lower_strain}",
+        sol.plate_forces[0]
+    );
     assert!((sol.plate_forces[0] / expected - 1.0).abs() < 0.01);
     // The lower (soft) layer takes 4/5 of the shortening.
     assert!((lower_strain * 0.5 / d - 0.8).abs() < 0.01, "{lower_strain}");
@@ -40,7 +47,15 @@ fn a_surface_region_takes_its_volume() {
     let (sp, st) = sphere_surface([0.5; 3], 0.3, 4);
     let base = Tissue::new(1000.0, 0.3, 0.0).unwrap();
     let lesion = Tissue::new(5000.0, 0.3, 0.0).unwrap();
-    let blend = blend_regions(&grid, &base, &[Region { shape: RegionShape::Surface { positions: sp.clone(), triangles: st.clone() }, tissue: lesion }]).unwrap();
+    let blend = blend_regions(
+        &grid,
+        &base,
+        &[Region {
+            shape: RegionShape::Surface { positions: sp.clone(), triangles: st.clone() },
+            tissue: lesion,
+        }],
+    )
+    .unwrap();
     let h3 = grid.cell_size().powi(3);
     let share: f64 = blend
         .materials

@@ -40,6 +40,7 @@ pub(crate) fn build(
     let unit =
         spec.mesh.as_ref().map(|m| choice("[mesh].unit", m.unit.clone(), LengthUnit::M)).transpose()?;
     let unit = unit.unwrap_or_default();
+    let mesh_scale = spec.mesh.as_ref().and_then(|m| m.scale).unwrap_or(1.0);
     let shape = match mesh {
         None => shape(spec.mesh, spec.polygon, dir, unit)?,
         Some(_) if spec.polygon.is_some() => {
@@ -55,7 +56,8 @@ pub(crate) fn build(
     let axes = if matches!(shape, Shape::Polygon(_)) { 2 } else { 3 };
     let solver = solver(spec.solver)?;
     let tissue = spec.tissue.map(tissue).transpose()?;
-    let fem = fem_settings(spec.fem)?;
+    let mut fem = fem_settings(spec.fem)?;
+    fem.regions = crate::regions::regions(spec.region, dir, unit, mesh_scale, tissue.as_ref())?;
     let (material, ffm) =
         ffm_material(spec.material, spec.ffm, spec.fluid, tissue.as_ref(), solver.method, axes)?;
     let (steps, tolerance) = load(spec.load)?;
@@ -93,7 +95,7 @@ pub(crate) fn build(
 }
 
 /// `[tissue]`: what the tissue is, in SI units, checked by the FEM's own rule.
-fn tissue(t: TissueToml) -> Result<Tissue, Invalid> {
+pub(crate) fn tissue(t: TissueToml) -> Result<Tissue, Invalid> {
     let density = t.density.unwrap_or(0.0);
     let model = choice("[tissue].model", t.model, fibfluid_fem::TissueModel::Linear)?;
     let tissue = Tissue::new(t.young, t.poisson, density).map_err(|e| match e {

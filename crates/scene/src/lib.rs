@@ -27,6 +27,7 @@ mod error;
 mod invalid;
 mod lines;
 mod path_file;
+mod regions;
 mod spec;
 
 pub use error::{Error, Result, SceneError, SceneProblem};

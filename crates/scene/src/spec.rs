@@ -24,6 +24,24 @@ pub(crate) struct SceneToml {
     #[serde(default)]
     pub(crate) plate: Vec<PlateToml>,
     pub(crate) chainmail: Option<ChainmailToml>,
+    #[serde(default)]
+    pub(crate) region: Vec<TissueRegionToml>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct TissueRegionToml {
+    pub(crate) name: Option<String>,
+    pub(crate) mesh: Option<String>,
+    pub(crate) r#box: Option<BoxToml>,
+    pub(crate) tissue: TissueToml,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct BoxToml {
+    pub(crate) min: [f64; 3],
+    pub(crate) max: [f64; 3],
 }
 
 #[derive(Deserialize)]

@@ -74,7 +74,9 @@ impl FemRun {
         // Plates need contact inside the solve (sampled over the surface): the Newton solver
         // carries it, for the linear law too (one iteration per change of the contact set).
         let answer = match tissue.model() {
-            TissueModel::Linear if model.plates.is_empty() => solve_linear(&model, limit, &mut log)?,
+            TissueModel::Linear if model.plates.is_empty() && model.fem.regions.is_empty() => {
+                solve_linear(&model, limit, &mut log)?
+            }
             TissueModel::Linear | TissueModel::NeoHookean => {
                 let (body, sol, stats) = crate::hyper_run::solve(&model, &tissue, limit, &mut log)?;
                 FemAnswer {
@@ -88,6 +90,7 @@ impl FemRun {
                     residual: sol.residual,
                     stats,
                     grid: body.grid().clone(),
+                    cell_materials: body.material_ids().to_vec(),
                     node_displacements: sol.node_displacements,
                     surface_displacements: sol.surface_displacements,
                 }
@@ -111,7 +114,7 @@ impl FemRun {
             plates: answer.plates,
             strain: answer.strain,
             volume: VolumeAnswer {
-                cell_materials: vec![0; answer.cells.len()],
+                cell_materials: answer.cell_materials,
                 cells: answer.cells,
                 grid: answer.grid,
                 node_displacements: answer.node_displacements,
@@ -145,6 +148,7 @@ struct FemAnswer {
     surface_displacements: Vec<Vec3>,
     node_displacements: Vec<Vec3>,
     grid: SparseGrid,
+    cell_materials: Vec<u16>,
     residual: f64,
     plates: Vec<FemPlate>,
     strain: StrainSummary,
@@ -166,6 +170,7 @@ fn solve_linear(model: &Model, limit: u64, log: &mut StageLog) -> Result<FemAnsw
         surface_displacements: surface,
         node_displacements: nodes,
         grid: body.grid().clone(),
+        cell_materials: vec![0; body.grid().n_cells()],
         residual,
         plates,
         strain,
@@ -230,6 +235,52 @@ pub struct FemResultFacts {
     pub volume_final: f64,
 }
 
+/// A region of other tissue in `report.json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct RegionRecord {
+    /// Its name.
+    pub name: String,
+    /// Its tissue (Pa, -, kg/m^3).
+    pub tissue: Tissue,
+    /// Cells whose samples are mostly in it.
+    pub cells: usize,
+    /// The mean displacement of those cells' centres (m).
+    pub mean_displacement: Vec3,
+}
+
+impl RegionRecord {
+    /// The regions of a run, from its cells' material ids.
+    pub fn of(run: &FemRun) -> Vec<Self> {
+        let volume = &run.volume;
+        let u = &volume.node_displacements;
+        let mut sums = vec![([0.0; 3], 0usize); run.model.fem.regions.len()];
+        for (nodes, &id) in volume.grid.cell_nodes().iter().zip(&volume.cell_materials) {
+            if id == 0 {
+                continue;
+            }
+            let (sum, count) = &mut sums[id as usize - 1];
+            for n in nodes {
+                for a in 0..3 {
+                    sum[a] += u[*n][a] / 8.0;
+                }
+            }
+            *count += 1;
+        }
+        run.model
+            .fem
+            .regions
+            .iter()
+            .zip(sums)
+            .map(|(r, (sum, cells))| RegionRecord {
+                name: r.name.clone(),
+                tissue: r.region.tissue,
+                cells,
+                mean_displacement: sum.map(|x| x / cells.max(1) as f64),
+            })
+            .collect()
+    }
+}
+
 /// `report.json` of a finite-element run.
 #[derive(Clone, Debug, Serialize)]
 pub struct FemReport {
@@ -259,6 +310,10 @@ pub struct FemReport {
     /// Each plate's contact at its final position (omitted without plates).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub plates: Vec<FemPlate>,
+    /// Each region of other tissue: its cells and how far they moved (omitted without
+    /// regions).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub regions: Vec<RegionRecord>,
     /// The result guards that fired (empty: the answer passed them).
     pub warnings: Vec<ResultWarning>,
     /// Stages with their seconds.
@@ -301,6 +356,7 @@ impl FemReport {
             strain: run.strain,
             newton: run.newton.clone(),
             plates: run.plates.clone(),
+            regions: RegionRecord::of(run),
             warnings: run.warnings.clone(),
             stages,
             notes,

@@ -48,8 +48,10 @@ pub fn solve(
     let failed = |source| Error::Fem { scene: model.display_name(), source };
     let options = FemOptions { resolution: model.fem.resolution, ..FemOptions::default() };
     let start = Instant::now();
+    let regions: Vec<_> = model.fem.regions.iter().map(|r| r.region.clone()).collect();
     let mut body =
         HyperBody::from_surface(file.mesh.positions(), file.mesh.triangles(), tissue, &fixed, &options)
+            .and_then(|b| b.with_regions(&regions))
             .map_err(failed)?;
     log.add(names::VOXELIZATION, start.elapsed().as_secs_f64());
     let plates = rigid_plates(model);

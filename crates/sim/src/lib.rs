@@ -42,8 +42,8 @@ pub use choices::{FiberModel, ForceTiming, LengthUnit, Method, Mode, Stepping};
 pub use effects::{Ineffective, ineffective};
 pub use error::{Error, Result};
 pub use model::{
-    FemSettings, FfmSettings, Load, MAX_STEPS, Model, PLATE_REST_TOLERANCE, PointForce, Shape, SolverOptions,
-    VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE,
+    FemSettings, FfmSettings, Load, MAX_STEPS, Model, NamedRegion, PLATE_REST_TOLERANCE, PointForce, Shape,
+    SolverOptions, VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE,
 };
 pub use plan::{Plan, PlannedStage};
 pub use report::{

@@ -137,16 +137,29 @@ pub struct FfmSettings {
     pub calibrate: bool,
 }
 
-/// The finite-element method's settings (`[fem]`).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// The finite-element method's settings (`[fem]`) and the regions of other tissue
+/// (`[[region]]`).
+#[derive(Clone, Debug, PartialEq)]
 pub struct FemSettings {
     /// Cells along the bounding box's longest side.
     pub resolution: usize,
+    /// Regions of other tissue inside the body, in the scene's order (material ids 1, 2,
+    /// ...).
+    pub regions: Vec<NamedRegion>,
+}
+
+/// A region of other tissue with the name reports give it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NamedRegion {
+    /// Its name (`[[region]] name`, or `region k`).
+    pub name: String,
+    /// Its shape (in metres) and tissue.
+    pub region: fibfluid_fem::Region,
 }
 
 impl Default for FemSettings {
     fn default() -> Self {
-        Self { resolution: fibfluid_fem::DEFAULT_RESOLUTION }
+        Self { resolution: fibfluid_fem::DEFAULT_RESOLUTION, regions: Vec::new() }
     }
 }
 

@@ -1,0 +1,89 @@
+//! `[[region]]`: regions of other tissue inside the body (for the finite-element method).
+//!
+//! ```toml
+//! [[region]]
+//! name = "lesion"                 # optional; reports say "region k" otherwise
+//! mesh = "lesion.obj"             # a closed surface, in the [mesh]'s unit (and `scale`)
+//! # or: box = { min = [x, y, z], max = [x, y, z] }, in the [mesh]'s unit
+//! [region.tissue]
+//! young = 24000.0                 # Pa
+//! poisson = 0.45
+//! density = 1000.0                # kg/m^3
+//! ```
+//!
+//! A region's tissue takes the body's `[tissue] model`; giving `model` in a region is
+//! refused (one law per body).
+
+use std::path::Path;
+
+use fibfluid_fem::{Region, RegionShape};
+use fibfluid_geometry::{ReadOptions, load_mesh_with};
+use fibfluid_sim::{LengthUnit, NamedRegion};
+
+use crate::error::SceneProblem;
+use crate::invalid::{Invalid, invalid, range};
+use crate::spec::TissueRegionToml;
+
+/// The scene's regions, in metres; `body_tissue` must be given when any region is.
+pub(crate) fn regions(
+    specs: Vec<TissueRegionToml>,
+    dir: &Path,
+    unit: LengthUnit,
+    mesh_scale: f64,
+    body_tissue: Option<&fibfluid_fem::Tissue>,
+) -> Result<Vec<NamedRegion>, Invalid> {
+    let mut out = Vec::with_capacity(specs.len());
+    for (k, spec) in specs.into_iter().enumerate() {
+        let key = format!("[[region]] #{}", k + 1);
+        let Some(body) = body_tissue else {
+            return Err(invalid(key, SceneProblem::Conflict("a region needs the body's [tissue] table")));
+        };
+        if spec.tissue.model.is_some() {
+            return Err(invalid(
+                format!("{key} tissue.model"),
+                SceneProblem::Conflict("a region takes the body's [tissue] model; remove `model` here"),
+            ));
+        }
+        let tissue = crate::build::tissue(spec.tissue)
+            .map_err(|e| Invalid { key: Some(format!("{key} tissue")), ..e })?;
+        let tissue = tissue.with_model(body.model());
+        let metres = unit.metres();
+        let shape = match (spec.mesh, spec.r#box) {
+            (Some(path), None) => {
+                let file = dir.join(&path);
+                if !file.exists() {
+                    return Err(invalid(
+                        format!("{key} mesh"),
+                        SceneProblem::MeshNotFound { given: path, resolved: file },
+                    ));
+                }
+                let scale = Some(mesh_scale * metres).filter(|s| *s != 1.0);
+                let mesh = load_mesh_with(&file, &ReadOptions { scale, ..Default::default() })
+                    .map_err(|e| invalid(format!("{key} mesh"), SceneProblem::Mesh(e)))?;
+                RegionShape::Surface {
+                    positions: mesh.mesh.positions().to_vec(),
+                    triangles: mesh.mesh.triangles().to_vec(),
+                }
+            }
+            (None, Some(b)) => {
+                if !(0..3).all(|a| b.min[a].is_finite() && b.max[a].is_finite() && b.min[a] < b.max[a]) {
+                    return Err(range(
+                        format!("{key} box"),
+                        "finite, with min < max on every axis",
+                        format!("{:?} .. {:?}", b.min, b.max),
+                    ));
+                }
+                RegionShape::Box { min: b.min.map(|c| c * metres), max: b.max.map(|c| c * metres) }
+            }
+            _ => {
+                return Err(invalid(
+                    key,
+                    SceneProblem::Conflict("give a region either `mesh` or `box`, not both or neither"),
+                ));
+            }
+        };
+        let name = spec.name.unwrap_or_else(|| format!("region {}", k + 1));
+        out.push(NamedRegion { name, region: Region { shape, tissue } });
+    }
+    Ok(out)
+}
