@@ -2,6 +2,7 @@
 
 mod chainmail;
 mod fibers;
+mod frame_guards;
 mod fuzz_readers;
 mod golden_sphere42;
 mod hard_cases;

@@ -5,6 +5,7 @@ use fibfluid_geometry::{MeshFile, Vec3};
 use fibfluid_interact::{
     InteractError, MethodBody, ProbeError, ProbeOptions, RigidMotion, ToolLoad, ToolSet,
 };
+use fibfluid_sim::result_guards::{FrameGuardError, FrameGuards, ResultChecks, ResultWarning};
 use fibfluid_sim::{Choice, Method, Shape};
 use numpy::IntoPyArray;
 use numpy::PyArray2;
@@ -32,6 +33,12 @@ pub(crate) struct NativeBody {
     tools: ToolSet,
     /// The tools' loads after the last step.
     loads: Vec<ToolLoad>,
+    /// The result guards of every frame, in the body's vertex order.
+    guards: FrameGuards,
+    /// What the guards check of this method's frames.
+    checks: ResultChecks,
+    /// The result guards that fired on the last step.
+    warnings: Vec<ResultWarning>,
 }
 
 impl NativeBody {
@@ -100,6 +107,8 @@ impl NativeBody {
             let (model, chainmail) = (&scene.scene.model, &scene.scene.chainmail);
             let body = py.detach(|| MethodBody::build(model, chainmail, method, &opts)).map_err(lib_error)?;
             let setup_seconds = body.setup_seconds();
+            let guards = FrameGuards::new(body.interactive_ref().rest_positions(), file.mesh.triangles())
+                .map_err(|e| error(format!("the result guards cannot measure this body: {e}")))?;
             Ok(NativeBody {
                 body,
                 file_to_mesh: file.file_to_mesh(),
@@ -108,6 +117,9 @@ impl NativeBody {
                 setup_seconds,
                 tools: ToolSet::default(),
                 loads: Vec::new(),
+                guards,
+                checks: ResultChecks::for_frames(method),
+                warnings: Vec::new(),
             })
         })
     }
@@ -167,6 +179,12 @@ impl NativeBody {
         self.tools.lift(self.body.interactive()).map_err(|e| self.body_error(e))
     }
 
+    /// The result guards that fired on the last step: `(guard, message)` pairs, the message
+    /// on one line (see `Body.warnings`).
+    fn warnings(&self) -> Vec<(String, String)> {
+        self.warnings.iter().map(|w| (w.guard.to_string(), crate::one_line(&w.to_string()))).collect()
+    }
+
     /// The tools' loads after the last step, as JSON (see `Body.tools`).
     fn tools_json(&self) -> String {
         serde_json::to_string(&self.loads).unwrap_or_else(|_| "[]".into())
@@ -192,14 +210,27 @@ impl NativeBody {
         })
     }
 
-    /// Applies the holds and computes the frame (the GIL released): returns the positions
-    /// `(N, 3)` in file order and the reactions `(k, 4)`: file vertex, force x, y, z.
+    /// Applies the holds and computes the frame (the GIL released), then checks it with the
+    /// result guards (see `warnings`): returns the positions `(N, 3)` in file order and the
+    /// reactions `(k, 4)`: file vertex, force x, y, z. A non-finite answer is an error.
     fn step<'py>(&mut self, py: Python<'py>) -> PyResult<Frame<'py>> {
         guard(|| {
             let (body, tools, to_file) = (&mut self.body, &mut self.tools, &self.file.to_file);
             let loads =
                 py.detach(|| tools.frame(body.interactive(), to_file)).map_err(|e| self.body_error(e))?;
             self.loads = loads;
+            self.warnings.clear();
+            let checked = self.guards.check(self.body.interactive_ref().positions(), self.checks);
+            self.warnings = checked.map_err(|e| {
+                let e = match e {
+                    FrameGuardError::NonFinite { vertex } => {
+                        let file = self.file.to_file.get(vertex).map_or(vertex, |&f| f as usize);
+                        FrameGuardError::NonFinite { vertex: file }
+                    }
+                    other => other,
+                };
+                error(e.to_string())
+            })?;
             let reactions = self.body.interactive_ref().reactions().to_vec();
             let positions = self.in_file_order(self.body.interactive_ref().positions());
             Ok((points_array(py, &positions), self.reactions_array(py, &reactions)))

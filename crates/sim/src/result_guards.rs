@@ -20,9 +20,13 @@
 //! scene; an answer past these limits is the model outside its validity (a linear model at
 //! large strain) or constraints that do not hold the body. A non-finite answer is an error
 //! ([`NonFiniteAnswer`]), never a warning: nothing is written from it.
+//!
+//! [`FrameGuards`] checks every frame of an interactive body (the live viewer's, Python's
+//! `Body`'s) with the same guards and limits ([`ResultChecks::for_frames`]), set up once
+//! and measured per frame in one pass over the vertices and one over the faces.
 
-use fibfluid_geometry::vec3::{dist, norm, sub};
-use fibfluid_geometry::{Boundary, Vec3};
+use fibfluid_geometry::vec3::{cross, dist, dot, norm, sub};
+use fibfluid_geometry::{Boundary, Vec3, face_area_vector};
 use fibfluid_linalg::{Choice, impl_choice};
 use serde::Serialize;
 
@@ -137,32 +141,28 @@ pub struct ResultChecks {
     pub linear: bool,
 }
 
-/// The result guards of an answer: `positions` against `rest` on `boundary` (see the module
-/// docs). Errors on a non-finite position.
-pub fn check_answer(
-    boundary: &Boundary,
-    rest: &[Vec3],
-    positions: &[Vec3],
-    checks: ResultChecks,
-) -> Result<Vec<ResultWarning>, NonFiniteAnswer> {
-    // Positions, displacements (a difference of two huge positions overflows) and the volume.
-    let lengths: Vec<f64> = positions.iter().zip(rest).map(|(p, r)| norm(sub(*p, *r))).collect();
-    let finite = |v: usize| positions[v].iter().all(|x| x.is_finite()) && lengths[v].is_finite();
-    if let Some(vertex) = (0..lengths.len()).find(|&v| !finite(v)) {
-        return Err(NonFiniteAnswer { vertex });
-    }
-    let (v0, v1) = (boundary.volume(rest), boundary.volume(positions));
-    if !v1.is_finite() {
-        return Err(NonFiniteAnswer { vertex: 0 });
-    }
+/// What the guards measure of an answer, before the limits are applied.
+struct Measures {
+    /// The enclosed volume at rest.
+    rest_volume: f64,
+    /// The enclosed volume now.
+    volume: f64,
+    /// The largest displacement.
+    largest: f64,
+    /// The body's size: its rest bounding-box diagonal.
+    size: f64,
+    /// Faces turned inside out (counted only when [`ResultChecks::inverted`] asks).
+    inverted: usize,
+}
+
+/// The warnings of measured values against the limits of the module docs.
+fn judge(m: &Measures, checks: ResultChecks) -> Vec<ResultWarning> {
     let mut out = vec![];
-    let ratio = v1 / v0;
-    if !(v1 > 0.0 && (1.0 / VOLUME_RATIO_LIMIT..=VOLUME_RATIO_LIMIT).contains(&ratio)) {
+    let ratio = m.volume / m.rest_volume;
+    if !(m.volume > 0.0 && (1.0 / VOLUME_RATIO_LIMIT..=VOLUME_RATIO_LIMIT).contains(&ratio)) {
         out.push(ResultWarning { guard: ResultGuard::Volume, value: ratio, limit: VOLUME_RATIO_LIMIT });
     }
-    let (lo, hi) = fibfluid_geometry::bounding_box(rest);
-    let size = dist(lo, hi);
-    let largest = lengths.iter().copied().fold(0.0, f64::max);
+    let (largest, size) = (m.largest, m.size);
     if largest > DISPLACEMENT_LIMIT * size {
         out.push(ResultWarning {
             guard: ResultGuard::Displacement,
@@ -177,16 +177,160 @@ pub fn check_answer(
             limit: LINEAR_DISPLACEMENT_LIMIT,
         });
     }
-    if checks.inverted {
-        let inverted = inverted_faces(boundary, rest, positions);
-        if inverted > 0 {
-            out.push(ResultWarning { guard: ResultGuard::Inverted, value: inverted as f64, limit: 0.0 });
-        }
+    if checks.inverted && m.inverted > 0 {
+        out.push(ResultWarning { guard: ResultGuard::Inverted, value: m.inverted as f64, limit: 0.0 });
     }
     if let Some(r) = checks.residual
         && !(r <= RESULT_RESIDUAL_LIMIT)
     {
         out.push(ResultWarning { guard: ResultGuard::Residual, value: r, limit: RESULT_RESIDUAL_LIMIT });
     }
-    Ok(out)
+    out
+}
+
+/// The result guards of an answer: `positions` against `rest` on `boundary` (see the module
+/// docs). Errors on a non-finite position.
+pub fn check_answer(
+    boundary: &Boundary,
+    rest: &[Vec3],
+    positions: &[Vec3],
+    checks: ResultChecks,
+) -> Result<Vec<ResultWarning>, NonFiniteAnswer> {
+    // Positions, displacements (a difference of two huge positions overflows) and the volume.
+    let lengths: Vec<f64> = positions.iter().zip(rest).map(|(p, r)| norm(sub(*p, *r))).collect();
+    let finite = |v: usize| positions[v].iter().all(|x| x.is_finite()) && lengths[v].is_finite();
+    if let Some(vertex) = (0..lengths.len()).find(|&v| !finite(v)) {
+        return Err(NonFiniteAnswer { vertex });
+    }
+    let (rest_volume, volume) = (boundary.volume(rest), boundary.volume(positions));
+    if !volume.is_finite() {
+        return Err(NonFiniteAnswer { vertex: 0 });
+    }
+    let (lo, hi) = fibfluid_geometry::bounding_box(rest);
+    let measures = Measures {
+        rest_volume,
+        volume,
+        largest: lengths.iter().copied().fold(0.0, f64::max),
+        size: dist(lo, hi),
+        inverted: if checks.inverted { inverted_faces(boundary, rest, positions) } else { 0 },
+    };
+    Ok(judge(&measures, checks))
+}
+
+impl ResultChecks {
+    /// The checks of an interactive body's frames (a viewer's, a Python `Body`'s): faces
+    /// turned inside out for every method (no step guard watches a frame), no residual, and
+    /// the small-strain validity for the finite-element method (linear).
+    pub fn for_frames(method: crate::Method) -> Self {
+        Self { inverted: true, residual: None, linear: method == crate::Method::Fem }
+    }
+}
+
+/// Why [`FrameGuards`] cannot be set up or cannot check a frame.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum FrameGuardError {
+    /// A face refers to a vertex beyond the rest shape.
+    #[error("face {face} refers to vertex {vertex}, beyond the {count} vertices of the rest shape")]
+    FaceVertex {
+        /// The face.
+        face: usize,
+        /// The vertex it names.
+        vertex: u32,
+        /// Vertices of the rest shape.
+        count: usize,
+    },
+    /// A frame with another number of positions than the rest shape has vertices.
+    #[error("the frame has {found} positions for a rest shape of {count} vertices")]
+    Count {
+        /// Positions of the frame.
+        found: usize,
+        /// Vertices of the rest shape.
+        count: usize,
+    },
+    /// A position, a displacement or the volume is not finite: the frame is an error, never
+    /// a warning.
+    #[error(
+        "the answer is not finite at vertex {vertex}: the tissue is far too soft for the load, or the constraints do not hold the body"
+    )]
+    NonFinite {
+        /// The first vertex whose position or displacement is not finite (0 when only the
+        /// volume overflows).
+        vertex: usize,
+    },
+}
+
+/// The result guards of every frame of a triangle surface: [`check_answer`]'s guards and
+/// limits, set up once (the rest volume, the body's size, each face's rest area vector) so
+/// that a frame costs one pass over the vertices (finiteness, the largest displacement) and
+/// one over the faces (the volume by the divergence theorem, the faces turned inside out),
+/// and allocates nothing unless a guard fires.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameGuards {
+    rest: Vec<Vec3>,
+    triangles: Vec<[u32; 3]>,
+    rest_areas: Vec<Vec3>,
+    rest_volume: f64,
+    size: f64,
+}
+
+impl FrameGuards {
+    /// The guards of the surface `triangles` over the rest shape `rest` (vertices no face
+    /// uses are allowed: they count for the displacement only).
+    pub fn new(rest: &[Vec3], triangles: &[[u32; 3]]) -> Result<Self, FrameGuardError> {
+        let count = rest.len();
+        for (face, t) in triangles.iter().enumerate() {
+            if let Some(&vertex) = t.iter().find(|&&v| v as usize >= count) {
+                return Err(FrameGuardError::FaceVertex { face, vertex, count });
+            }
+        }
+        let corners = |t: &[u32; 3]| [rest[t[0] as usize], rest[t[1] as usize], rest[t[2] as usize]];
+        let rest_areas = triangles.iter().map(|t| face_area_vector(corners(t))).collect();
+        let (lo, hi) = fibfluid_geometry::bounding_box(rest);
+        Ok(Self {
+            rest: rest.to_vec(),
+            triangles: triangles.to_vec(),
+            rest_areas,
+            rest_volume: fibfluid_geometry::volume(rest, triangles),
+            size: dist(lo, hi),
+        })
+    }
+
+    /// The warnings of the frame `positions` (one per rest vertex, in the same order);
+    /// empty when every guard holds. A non-finite position, displacement or volume is
+    /// [`FrameGuardError::NonFinite`].
+    pub fn check(
+        &self,
+        positions: &[Vec3],
+        checks: ResultChecks,
+    ) -> Result<Vec<ResultWarning>, FrameGuardError> {
+        let count = self.rest.len();
+        if positions.len() != count {
+            return Err(FrameGuardError::Count { found: positions.len(), count });
+        }
+        let mut largest = 0.0_f64;
+        for (vertex, (p, r)) in positions.iter().zip(&self.rest).enumerate() {
+            let length = norm(sub(*p, *r));
+            if !(p.iter().all(|x| x.is_finite()) && length.is_finite()) {
+                return Err(FrameGuardError::NonFinite { vertex });
+            }
+            largest = largest.max(length);
+        }
+        let (mut six_volume, mut inverted) = (0.0, 0);
+        for (t, rest_area) in self.triangles.iter().zip(&self.rest_areas) {
+            let c = [positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize]];
+            six_volume += dot(c[0], cross(c[1], c[2]));
+            inverted += usize::from(dot(*rest_area, face_area_vector(c)) <= 0.0);
+        }
+        let volume = six_volume / 6.0;
+        if !volume.is_finite() {
+            return Err(FrameGuardError::NonFinite { vertex: 0 });
+        }
+        let measures = Measures { rest_volume: self.rest_volume, volume, largest, size: self.size, inverted };
+        Ok(judge(&measures, checks))
+    }
+
+    /// Vertices of the rest shape (the length [`check`](Self::check) expects).
+    pub fn n_vertices(&self) -> usize {
+        self.rest.len()
+    }
 }

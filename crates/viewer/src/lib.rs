@@ -12,10 +12,14 @@
 //! - WebSocket `/ws?method=NAME`: one body per client, built by a factory closure
 //!   ([`BodyFactory`]). Client messages `{"grab": V, "to": [x, y, z]}`, `{"release": V}`,
 //!   `{"reset": true}`; each batch of messages read together is answered by one text
-//!   message `{"frame": k, "reactions": [[V, fx, fy, fz], ...], "latency_us": t}` and one
-//!   binary message of `3 N` little-endian `f32` positions (messages that arrive faster
-//!   than frames are coalesced: the last state wins). A bad message is answered by
-//!   `{"error": "..."}` and the connection stays open.
+//!   message `{"frame": k, "reactions": [[V, fx, fy, fz], ...], "latency_us": t,
+//!   "warnings": [...]}` and one binary message of `3 N` little-endian `f32` positions
+//!   (messages that arrive faster than frames are coalesced: the last state wins). Every
+//!   frame is checked by the result guards
+//!   ([`FrameGuards`](fibfluid_sim::result_guards::FrameGuards): volume, displacement,
+//!   inverted faces, and the small-strain validity of a finite-element body); `warnings`
+//!   lists those that fired, and a non-finite answer is an error instead of a frame. A bad
+//!   message is answered by `{"error": "..."}` and the connection stays open.
 //!
 //! One thread per connection; plain blocking I/O (tungstenite, no async runtime). The
 //! server is meant to survive hostile clients: open connections are capped (extra ones

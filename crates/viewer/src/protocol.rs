@@ -2,6 +2,7 @@
 
 use fibfluid_geometry::Vec3;
 use fibfluid_interact::ToolLoad;
+use fibfluid_sim::result_guards::{FrameGuardError, ResultWarning};
 use serde_json::Value;
 
 /// A client message.
@@ -93,6 +94,10 @@ pub enum MessageError {
     /// The body refused the request or could not compute the frame.
     #[error("{0}")]
     Body(#[from] fibfluid_interact::InteractError),
+    /// The frame cannot be checked: its answer is not finite (the vertex in the file's
+    /// order), so nothing is shown.
+    #[error("{0}; the frame is not shown (release or reset)")]
+    Answer(#[from] FrameGuardError),
 }
 
 fn malformed(problem: impl Into<String>) -> MessageError {
@@ -185,11 +190,31 @@ pub fn parse_message(text: &str) -> Result<ClientMessage, MessageError> {
 }
 
 /// The text message of a frame: `{"frame": k, "reactions": [[V, fx, fy, fz], ...],
-/// "latency_us": t}` (reactions by file vertex, ascending), plus `"tools": [...]` when a
-/// grasp or the tip is active (see [`ToolLoad`]).
-pub fn frame_json(frame: u64, reactions: &[(usize, Vec3)], latency_us: f64, tools: &[ToolLoad]) -> String {
+/// "latency_us": t, "warnings": [...]}` (reactions by file vertex, ascending; the result
+/// guards that fired on the frame, each `{"guard": name, "value": v, "limit": l,
+/// "message": text}`, empty when none did), plus `"tools": [...]` when a grasp or the tip is
+/// active (see [`ToolLoad`]).
+pub fn frame_json(
+    frame: u64,
+    reactions: &[(usize, Vec3)],
+    latency_us: f64,
+    tools: &[ToolLoad],
+    warnings: &[ResultWarning],
+) -> String {
     let r: Vec<Value> = reactions.iter().map(|&(v, f)| serde_json::json!([v, f[0], f[1], f[2]])).collect();
-    let mut msg = serde_json::json!({ "frame": frame, "reactions": r, "latency_us": latency_us });
+    let w: Vec<Value> = warnings
+        .iter()
+        .map(|w| {
+            serde_json::json!({
+                "guard": w.guard.to_string(),
+                "value": w.value,
+                "limit": w.limit,
+                "message": w.to_string(),
+            })
+        })
+        .collect();
+    let mut msg =
+        serde_json::json!({ "frame": frame, "reactions": r, "latency_us": latency_us, "warnings": w });
     if !tools.is_empty() {
         msg["tools"] = serde_json::to_value(tools).unwrap_or(Value::Null);
     }

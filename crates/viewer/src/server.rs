@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 
 use fibfluid_geometry::Vec3;
 use fibfluid_interact::{Interactive, Method, RigidMotion, ToolSet};
+use fibfluid_sim::result_guards::{FrameGuardError, FrameGuards, ResultChecks};
 use tungstenite::protocol::frame::coding::CloseCode;
 use tungstenite::protocol::{CloseFrame, Role};
 use tungstenite::{Message, WebSocket};
@@ -131,6 +132,9 @@ impl Shared {
 
 struct Shared {
     mesh: ViewMesh,
+    /// The result guards of every frame, in the body's vertex order (an error when the
+    /// mesh does not describe a body: every client is then refused).
+    guards: Result<FrameGuards>,
     mesh_json: String,
     info_json: String,
     factory: BodyFactory,
@@ -198,6 +202,7 @@ impl Server {
         .to_string();
         let shared = Arc::new(Shared {
             mesh_json: mesh.to_json(),
+            guards: body_guards(&mesh),
             mesh,
             info_json,
             factory,
@@ -432,9 +437,34 @@ fn refuse(mut ws: WebSocket<TcpStream>, text: &str, code: CloseCode) {
     while ws.read().is_ok() {}
 }
 
+/// The result guards of `mesh`'s body: its rest shape and faces in the body's vertex order,
+/// without the file's vertices that no face uses (the body has none of them).
+fn body_guards(mesh: &ViewMesh) -> Result<FrameGuards> {
+    let mismatch = |problem: String| ViewerError::Mismatch { problem };
+    let count = mesh.positions.len();
+    let rest = mesh
+        .to_file
+        .iter()
+        .map(|&f| mesh.positions.get(f as usize).copied())
+        .collect::<Option<Vec<Vec3>>>()
+        .ok_or_else(|| mismatch(format!("a body vertex maps beyond the {count} vertices of the mesh")))?;
+    let mut triangles = Vec::with_capacity(mesh.triangles.len());
+    for t in &mesh.triangles {
+        let body = t.map(|v| mesh.body_vertex(v as usize).map(|b| b as u32));
+        match body {
+            [Some(a), Some(b), Some(c)] => triangles.push([a, b, c]),
+            _ => return Err(mismatch(format!("triangle {t:?} uses a vertex the body does not have"))),
+        }
+    }
+    FrameGuards::new(&rest, &triangles).map_err(|e| mismatch(e.to_string()))
+}
+
 /// One client's body and the buffers of its frames.
 struct Session<'a> {
     mesh: &'a ViewMesh,
+    /// The result guards of the mesh, and what to check of this body's frames.
+    guards: &'a FrameGuards,
+    checks: ResultChecks,
     body: Box<dyn Interactive + Send>,
     tools: ToolSet,
     positions: Vec<Vec3>,
@@ -489,18 +519,25 @@ impl Session<'_> {
         Ok(true)
     }
 
-    /// Computes the frame; returns its text message (the binary one is in `self.bytes`).
+    /// Computes the frame and checks it with the result guards; returns its text message
+    /// (the binary one is in `self.bytes`). A non-finite answer is an error.
     fn frame(&mut self, start: Instant) -> std::result::Result<String, MessageError> {
         let tools = self.tools.frame(self.body.as_mut(), &self.mesh.to_file)?;
         for (b, p) in self.body.positions().iter().enumerate() {
             self.positions[self.mesh.to_file[b] as usize] = *p;
         }
+        let to_file = |v: usize| self.mesh.to_file.get(v).map_or(v, |&f| f as usize);
+        let warnings = self.guards.check(self.body.positions(), self.checks).map_err(|e| match e {
+            FrameGuardError::NonFinite { vertex } => FrameGuardError::NonFinite { vertex: to_file(vertex) },
+            other => other,
+        })?;
         positions_le_f32(&self.positions, &mut self.bytes);
         let mut reactions: Vec<(usize, Vec3)> =
             self.body.reactions().iter().map(|&(b, f)| (self.mesh.to_file[b] as usize, f)).collect();
         reactions.sort_by_key(|r| r.0);
         let latency_us = start.elapsed().as_secs_f64() * 1e6;
-        Ok(frame_json(self.body.frame(), &reactions, (latency_us * 10.0).round() / 10.0, &tools))
+        let latency_us = (latency_us * 10.0).round() / 10.0;
+        Ok(frame_json(self.body.frame(), &reactions, latency_us, &tools, &warnings))
     }
 }
 
@@ -626,8 +663,17 @@ fn serve_client(mut ws: WebSocket<TcpStream>, shared: &Shared, method: &str) {
             return;
         }
     };
+    let guards = match &shared.guards {
+        Ok(g) => g,
+        Err(e) => {
+            refuse(ws, &e.to_string(), CloseCode::Error);
+            return;
+        }
+    };
     let mut session = Session {
         mesh: &shared.mesh,
+        guards,
+        checks: ResultChecks::for_frames(body.method()),
         body,
         tools: ToolSet::default(),
         positions: shared.mesh.positions.clone(),

@@ -5,10 +5,12 @@
 //! cargo test -p fibfluid-viewer --features browser --test main browser
 //! ```
 //!
-//! Two screenshots of the paper's sphere: `/` (the base state, no hold) and `/?demo=drag`
-//! (the page's scripted drag through its own mouse handlers). The surface must have moved
-//! (pixels differ in the mesh region) and the force readout must have appeared (yellow
-//! text in the readout region of the drag, next to none in the other).
+//! Three screenshots of the paper's sphere: `/` (the base state, no hold), `/?demo=drag`
+//! (the page's scripted drag through its own mouse handlers) and `/?demo=drag&reach=8` (the
+//! same drag eight times as far, past the body's size). The surface must have moved (pixels
+//! differ in the mesh region), the force readout must have appeared (yellow text in the
+//! readout region of the drags, next to none in the other), and the result guards' orange
+//! line must be absent from the base state and longest after the far drag.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -77,6 +79,21 @@ fn differing(a: &Pixmap, b: &Pixmap, x: std::ops::Range<u32>, y: std::ops::Range
     count
 }
 
+/// Pixels of the rectangle in the guard line's orange (#e8590c: red high, green middling,
+/// blue low; no color of the surface, the readouts or the fixed vertices is near it).
+fn orange(p: &Pixmap, x: std::ops::Range<u32>, y: std::ops::Range<u32>) -> usize {
+    let mut count = 0;
+    for j in y {
+        for i in x.clone() {
+            let [r, g, b] = pixel(p, i, j);
+            if r > 200 && (60..130).contains(&g) && b < 50 {
+                count += 1;
+            }
+        }
+    }
+    count
+}
+
 /// Pixels of the rectangle in the readout's yellow (#ffd479: red and green high, blue lower).
 fn yellow(p: &Pixmap, x: std::ops::Range<u32>, y: std::ops::Range<u32>) -> usize {
     let mut count = 0;
@@ -99,6 +116,7 @@ fn browser_scripted_drag_moves_the_surface_and_shows_the_force() {
     std::fs::create_dir_all(&dir).unwrap();
     let drag = screenshot(&format!("{}?demo=drag", server.url()), &dir.join("drag.png"));
     let still = screenshot(&server.url(), &dir.join("still.png"));
+    let far = screenshot(&format!("{}?demo=drag&reach=8", server.url()), &dir.join("far.png"));
 
     // The mesh region: right of the panel, above the bottom.
     let (mesh_x, mesh_y) = (340..WIDTH - 80, 0..HEIGHT);
@@ -120,5 +138,14 @@ fn browser_scripted_drag_moves_the_surface_and_shows_the_force() {
         "no force readout ({text_drag} vs {text_still})"
     );
     assert!(readout_changed > 100);
+    // The panel: the guard line sits under the readouts when a guard fired.
+    let (panel_x, panel_y) = (10..322, 0..HEIGHT);
+    let guard_line = [&still, &drag, &far].map(|p| orange(p, panel_x.clone(), panel_y.clone()));
+    eprintln!("browser: guard line pixels {guard_line:?} (still, drag, far)");
+    assert!(guard_line[0] < 20, "a guard line on the base state ({guard_line:?})");
+    assert!(guard_line[2] > 1000, "no guard line after the far drag ({guard_line:?})");
+    // The scripted drag pulls a vertex next to the fixed cap and folds a few faces there
+    // (`inverted`); the far one adds `displacement`: a longer line.
+    assert!(guard_line[2] > guard_line[1], "the far drag's line is not longer ({guard_line:?})");
     let _ = std::fs::remove_dir_all(&dir);
 }

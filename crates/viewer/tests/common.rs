@@ -28,6 +28,37 @@ pub fn scene_body(path: &str, storage: Storage) -> (Scene, FfmBody) {
     (scene, body)
 }
 
+/// The sphere with an extra vertex at `unused` that no face uses written first in the file,
+/// so file vertex `v + 1` is body vertex `v`: the protocol must speak the file's order.
+/// Writes the mesh and the scene into `dir`; returns the scene's path.
+pub fn sphere_with_unused_first_vertex(dir: &std::path::Path, unused: Vec3) -> String {
+    let obj = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../fixtures/meshes/icosphere-2.obj"
+    ))
+    .unwrap();
+    let mut out = format!("v {} {} {}\n", unused[0], unused[1], unused[2]);
+    for line in obj.lines() {
+        match line.strip_prefix("f ") {
+            Some(rest) => {
+                let shifted: Vec<String> =
+                    rest.split_whitespace().map(|i| (i.parse::<usize>().unwrap() + 1).to_string()).collect();
+                out.push_str(&format!("f {}\n", shifted.join(" ")));
+            }
+            None => out.push_str(&format!("{line}\n")),
+        }
+    }
+    std::fs::create_dir_all(dir).unwrap();
+    std::fs::write(dir.join("shifted.obj"), out).unwrap();
+    let scene =
+        std::fs::read_to_string(sphere_path()).unwrap().replace("../meshes/icosphere-2.obj", "shifted.obj");
+    // The scene's point force names file vertex 3; keep it on the same point.
+    let scene = scene.replace("vertex = 3", "vertex = 4");
+    let path = dir.join("shifted.toml");
+    std::fs::write(&path, scene).unwrap();
+    path.to_string_lossy().into_owned()
+}
+
 /// A server of `body` (each client gets a clone), on a free port of 127.0.0.1.
 pub fn serve(scene: &Scene, body: &FfmBody, max_clients: usize) -> ServerHandle {
     serve_with(scene, body, ServerOptions { max_clients, ..test_options() })
@@ -86,6 +117,8 @@ pub struct Frame {
     pub positions: Vec<Vec3>,
     /// The frame's `tools` (empty without a grasp or a tip).
     pub tools: Vec<serde_json::Value>,
+    /// The result guards that fired on the frame (every frame carries the list).
+    pub warnings: Vec<serde_json::Value>,
 }
 
 /// What the server sent next: a frame or an error text.
@@ -151,6 +184,7 @@ impl Client {
             latency_us: v["latency_us"].as_f64().expect("latency_us"),
             positions,
             tools: v["tools"].as_array().cloned().unwrap_or_default(),
+            warnings: v["warnings"].as_array().cloned().expect("every frame lists its warnings"),
         })
     }
 

@@ -9,7 +9,9 @@
 use fibfluid_geometry::{Vec3, load_mesh};
 use fibfluid_interact::{Grasp, Interactive, Press, RigidMotion, Storage};
 
-use crate::common::{Client, Reply, http_get, max_dist, scene_body, serve, sphere_path};
+use crate::common::{
+    Client, Reply, http_get, max_dist, scene_body, serve, sphere_path, sphere_with_unused_first_vertex,
+};
 
 /// Positions travel as f32: each coordinate is rounded once (relative 2^-24); the sphere's
 /// coordinates are at most ~1.2, so 4 f32 epsilons of that bound the difference.
@@ -258,40 +260,10 @@ fn unsupported_method_is_refused_with_a_message() {
     assert_eq!(e, "method `tsve-chainmail` is not available in this viewer (available: ffm)");
 }
 
-/// The sphere with an extra vertex that no face uses written first in the file, so file
-/// vertex `v + 1` is body vertex `v`: the protocol must speak the file's order.
-fn sphere_with_unused_first_vertex(dir: &std::path::Path) -> String {
-    let obj = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../fixtures/meshes/icosphere-2.obj"
-    ))
-    .unwrap();
-    let mut out = String::from("v 5 5 5\n");
-    for line in obj.lines() {
-        match line.strip_prefix("f ") {
-            Some(rest) => {
-                let shifted: Vec<String> =
-                    rest.split_whitespace().map(|i| (i.parse::<usize>().unwrap() + 1).to_string()).collect();
-                out.push_str(&format!("f {}\n", shifted.join(" ")));
-            }
-            None => out.push_str(&format!("{line}\n")),
-        }
-    }
-    std::fs::create_dir_all(dir).unwrap();
-    std::fs::write(dir.join("shifted.obj"), out).unwrap();
-    let scene =
-        std::fs::read_to_string(sphere_path()).unwrap().replace("../meshes/icosphere-2.obj", "shifted.obj");
-    // The scene's point force names file vertex 3; keep it on the same point.
-    let scene = scene.replace("vertex = 3", "vertex = 4");
-    let path = dir.join("shifted.toml");
-    std::fs::write(&path, scene).unwrap();
-    path.to_string_lossy().into_owned()
-}
-
 #[test]
 fn vertices_are_in_the_file_order_with_an_unused_vertex() {
     let dir = std::env::temp_dir().join(format!("fibfluid-viewer-order-{}", std::process::id()));
-    let (scene, body) = scene_body(&sphere_with_unused_first_vertex(&dir), Storage::F64);
+    let (scene, body) = scene_body(&sphere_with_unused_first_vertex(&dir, [5.0, 5.0, 5.0]), Storage::F64);
     let (_, reference) = scene_body(sphere_path(), Storage::F64);
     let _ = std::fs::remove_dir_all(&dir);
     let server = serve(&scene, &body, 2);

@@ -34,10 +34,19 @@ from ._native import Error
 
 __version__: str = _native.__version__
 
-__all__ = ["Body", "Error", "Result", "Scene", "run", "set_threads", "__version__"]
+__all__ = ["Body", "Error", "GuardWarning", "Result", "Scene", "run", "set_threads", "__version__"]
 
 #: The methods a :class:`Body` can run.
 METHODS: Tuple[str, ...] = ("ffm", "tsve-chainmail", "generalized-chainmail")
+
+
+
+class GuardWarning(RuntimeWarning):
+    """A result guard fired on a :class:`Body`'s frame: the answer is outside what the
+    model can give (a volume far from the body's, a vertex moved further than the body's
+    size, faces turned inside out, or a finite-element answer past the small-strain
+    limit). :attr:`Body.warnings` lists every guard that fired on the last step."""
+
 
 Vector = Union[Sequence[float], np.ndarray]
 Progress = Union[None, bool, Callable[[int, int], Any]]
@@ -321,7 +330,7 @@ class Body:
     displacement from the rest position. Holds take effect at the next :meth:`step`.
     """
 
-    __slots__ = ("_native",)
+    __slots__ = ("_native", "_warned")
 
     def __init__(self, scene: Scene, method: str = "ffm", max_memory: Optional[int] = None) -> None:
         """Builds the body of ``scene`` for ``method``."""
@@ -330,6 +339,7 @@ class Body:
         if not isinstance(method, str):
             raise Error(f"method must be a string, one of: {', '.join(METHODS)}")
         self._native = _native.NativeBody(scene._native, method, _memory(max_memory))
+        self._warned: set = set()
 
     def grab(self, vertex: int, to: Vector) -> None:
         """Holds ``vertex`` at its rest position plus ``to`` (3 floats) from the next step."""
@@ -377,8 +387,26 @@ class Body:
         """Applies the holds and computes a frame (the GIL released). Returns the positions
         ``(N, 3)`` and the reactions ``(k, 4)``: one row per held vertex, sorted, with the
         vertex (as a float) and the force on the body there (x, y, z); empty without
-        forces (ChainMail)."""
-        return self._native.step()
+        forces (ChainMail).
+
+        Each frame is checked by the result guards (see :attr:`warnings`); the first time a
+        guard fires on this body it is also issued as a :class:`GuardWarning`. A frame whose
+        answer is not finite raises :class:`Error`."""
+        frame = self._native.step()
+        for guard, message in self._native.warnings():
+            if guard not in self._warned:
+                self._warned.add(guard)
+                warnings.warn(message, GuardWarning, stacklevel=2)
+        return frame
+
+    @property
+    def warnings(self) -> List[str]:
+        """The result guards that fired on the last :meth:`step`, one line each (empty when
+        every guard held): the volume against the rest volume (a factor of 2 either way),
+        the largest displacement against the body's size (its bounding-box diagonal), faces
+        turned inside out, and for ``"fem"`` (a linear, small-strain model) a displacement
+        past a tenth of the body's size."""
+        return [message for _, message in self._native.warnings()]
 
     @property
     def positions(self) -> np.ndarray:

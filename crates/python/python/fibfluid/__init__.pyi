@@ -18,6 +18,9 @@ MethodName = Literal["ffm", "tsve-chainmail", "generalized-chainmail"]
 class Error(ValueError):
     """Everything fibfluid refuses or fails at, with the command line's one-line message."""
 
+class GuardWarning(RuntimeWarning):
+    """A result guard fired on a Body's frame (issued once per guard and body)."""
+
 class Scene:
     # Settings (checked on assignment; a bad value raises Error).
     steps: int
@@ -90,6 +93,8 @@ class Body:
     def release(self, vertex: int) -> None: ...
     def release_all(self) -> None: ...
     def step(self) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+    @property
+    def warnings(self) -> List[str]: ...
     @property
     def positions(self) -> npt.NDArray[np.float64]: ...
     @property
