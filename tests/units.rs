@@ -376,3 +376,31 @@ fn measure_calibration_against_the_p2_references() {
         );
     }
 }
+
+/// A linear FEM answer measures its own largest strain: a cube pressed by 2 % stays under
+/// the `strain` guard's 5 %, pressed by 20 % it warns (its largest principal strain is
+/// then about 0.2); the same 20 % with a neo-Hookean tissue does not (the guard is the
+/// linear model's).
+#[test]
+fn a_linear_fem_answer_warns_when_its_strain_is_large() {
+    use fibfluid::sim::result_guards::ResultGuard;
+    let dir = tempfile::tempdir().unwrap();
+    let side = 0.1;
+    std::fs::write(dir.path().join("cube.obj"), cube_obj(side, 4)).unwrap();
+    let strain_warning = |d: f64, model: &str| {
+        let toml = format!(
+            "[mesh]\npath = \"cube.obj\"\n\n[tissue]\nmodel = \"{model}\"\nyoung = 1e4\npoisson = 0.3\n\n\
+             [fem]\nresolution = 4\n\n[[fix]]\naxis = \"y\"\nbottom = 0.001\n\n\
+             [[plate]]\npoint = [0.0, {side}, 0.0]\nnormal = [0.0, -1.0, 0.0]\ntravel = {d}\n\n\
+             [solver]\nmethod = \"fem\"\n"
+        );
+        std::fs::write(dir.path().join("cube.toml"), toml).unwrap();
+        let run = FemRun::new(Scene::load(dir.path().join("cube.toml")).unwrap(), None).unwrap();
+        println!("d {d} {model}: largest strain {:.4}, {:?}", run.strain.max_strain_magnitude, run.warnings);
+        run.warnings.iter().find(|w| w.guard == ResultGuard::Strain).map(|w| w.value)
+    };
+    assert_eq!(strain_warning(0.002, "linear"), None);
+    let large = strain_warning(0.02, "linear").expect("a strain warning at 20 %");
+    assert!(large > 0.15 && large < 0.35, "{large}");
+    assert_eq!(strain_warning(0.02, "neo-hookean"), None);
+}

@@ -25,7 +25,7 @@ pub use crate::fem_inputs::{
     FemPlate, build_body, estimate, fixed_axes, full_loads, refuse_plates, tissue_of,
 };
 use crate::model::{Model, Shape};
-use crate::result_guards::{ResultChecks, ResultWarning, check_answer};
+use crate::result_guards::{LINEAR_STRAIN_LIMIT, ResultChecks, ResultGuard, ResultWarning, check_answer};
 use crate::stages::{StageLog, StageRecord, names};
 use crate::{Error, Result};
 
@@ -105,7 +105,15 @@ impl FemRun {
             })
             .collect();
         let small_strain = tissue.model() == TissueModel::Linear;
-        let warnings = answer_guards(&model, &rest, &positions, answer.residual, small_strain)?;
+        let mut warnings = answer_guards(&model, &rest, &positions, answer.residual, small_strain)?;
+        let strain = answer.strain.max_strain_magnitude;
+        if small_strain && strain > LINEAR_STRAIN_LIMIT {
+            warnings.push(ResultWarning {
+                guard: ResultGuard::Strain,
+                value: strain,
+                limit: LINEAR_STRAIN_LIMIT,
+            });
+        }
         Ok(Self {
             warnings,
             tissue,
