@@ -403,4 +403,11 @@ fn a_linear_fem_answer_warns_when_its_strain_is_large() {
     let large = strain_warning(0.02, "linear").expect("a strain warning at 20 %");
     assert!(large > 0.15 && large < 0.35, "{large}");
     assert_eq!(strain_warning(0.02, "neo-hookean"), None);
+    // `auto` keeps the linear answer at 2 % and solves the 20 % again neo-Hookean (no strain
+    // warning then, and a note that says why).
+    assert_eq!(strain_warning(0.002, "auto"), None);
+    assert_eq!(strain_warning(0.02, "auto"), None);
+    let run = FemRun::new(Scene::load(dir.path().join("cube.toml")).unwrap(), None).unwrap();
+    assert_eq!(run.tissue.model(), fibfluid::fem::TissueModel::NeoHookean);
+    assert!(run.notes.iter().any(|n| n.contains("auto")), "{:?}", run.notes);
 }

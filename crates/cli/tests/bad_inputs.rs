@@ -59,6 +59,16 @@ const EXPECTED: &[(&str, &str)] = &[
         "scene-force-vertex-out-of-range.toml:14: [[force]] #1.vertex: vertex 42 is out of range",
     ),
     (
+        "scene-fem-unknown-model.toml",
+        "scene-fem-unknown-model.toml:6: [tissue].model: `mooney` is not a tissue model (expected one of: linear, neo-hookean, auto)",
+    ),
+    ("scene-fem-region-outside.toml", "scene-fem-region-outside.toml: fem: region 1 lies outside the body"),
+    ("scene-fem-region-model.toml", "[[region]] #1 tissue.model: a region takes the body's [tissue] model"),
+    (
+        "scene-fem-newton-fails.toml",
+        "scene-fem-newton-fails.toml: fem: Newton's method did not converge at load step",
+    ),
+    (
         "scene-fem-poisson-half.toml",
         "scene-fem-poisson-half.toml:7: [tissue].poisson: must be in (-1, 0.5): 0.5 is the incompressible limit",
     ),

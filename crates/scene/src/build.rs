@@ -55,8 +55,12 @@ pub(crate) fn build(
     };
     let axes = if matches!(shape, Shape::Polygon(_)) { 2 } else { 3 };
     let solver = solver(spec.solver)?;
-    let tissue = spec.tissue.map(tissue).transpose()?;
+    let (tissue, auto_model) = match spec.tissue.map(tissue).transpose()? {
+        Some((t, auto)) => (Some(t), auto),
+        None => (None, false),
+    };
     let mut fem = fem_settings(spec.fem)?;
+    fem.auto_model = auto_model;
     fem.regions = crate::regions::regions(spec.region, dir, unit, mesh_scale, tissue.as_ref())?;
     let (material, ffm) =
         ffm_material(spec.material, spec.ffm, spec.fluid, tissue.as_ref(), solver.method, axes)?;
@@ -95,9 +99,18 @@ pub(crate) fn build(
 }
 
 /// `[tissue]`: what the tissue is, in SI units, checked by the FEM's own rule.
-pub(crate) fn tissue(t: TissueToml) -> Result<Tissue, Invalid> {
+/// `model = "auto"` is not a law: it asks the run to choose ([`FemSettings::auto_model`]),
+/// starting linear.
+pub(crate) fn tissue(t: TissueToml) -> Result<(Tissue, bool), Invalid> {
     let density = t.density.unwrap_or(0.0);
-    let model = choice("[tissue].model", t.model, fibfluid_fem::TissueModel::Linear)?;
+    let auto = t.model.as_deref() == Some(AUTO_MODEL);
+    let given = if auto { None } else { t.model };
+    let model = choice("[tissue].model", given, fibfluid_fem::TissueModel::Linear).map_err(|mut e| {
+        if let SceneProblem::Choice(c) = &mut e.problem {
+            c.expected.push_str(", auto");
+        }
+        e
+    })?;
     let tissue = Tissue::new(t.young, t.poisson, density).map_err(|e| match e {
         fibfluid_fem::FemError::InvalidTissue { name, value, .. } => {
             let rule = match name {
@@ -111,8 +124,11 @@ pub(crate) fn tissue(t: TissueToml) -> Result<Tissue, Invalid> {
         }
         other => invalid("[tissue]", SceneProblem::Tissue(other)),
     })?;
-    Ok(tissue.with_model(model))
+    Ok((tissue.with_model(model), auto))
 }
+
+/// The `[tissue] model` that lets the run choose the law.
+const AUTO_MODEL: &str = "auto";
 
 /// `[fem]`.
 fn fem_settings(f: Option<FemToml>) -> Result<FemSettings, Invalid> {

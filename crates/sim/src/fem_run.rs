@@ -56,6 +56,8 @@ pub struct FemRun {
     pub newton: Option<crate::hyper_run::NewtonRecord>,
     /// The result guards that fired ([`crate::result_guards`]).
     pub warnings: Vec<ResultWarning>,
+    /// What the run decided on its own (the law `model = "auto"` chose).
+    pub notes: Vec<String>,
     /// Stage times.
     pub log: StageLog,
     /// Wall-clock seconds.
@@ -69,33 +71,19 @@ impl FemRun {
         let start = Instant::now();
         let limit = fibfluid_linalg::memory_budget(max_memory);
         let mut log = StageLog::default();
-        let tissue = tissue_of(&model)?;
+        let mut tissue = tissue_of(&model)?;
         let rest = model.rest_positions();
-        // Plates need contact inside the solve (sampled over the surface): the Newton solver
-        // carries it, for the linear law too (one iteration per change of the contact set).
-        let answer = match tissue.model() {
-            TissueModel::Linear if model.plates.is_empty() && model.fem.regions.is_empty() => {
-                solve_linear(&model, limit, &mut log)?
-            }
-            TissueModel::Linear | TissueModel::NeoHookean => {
-                let (body, sol, stats) = crate::hyper_run::solve(&model, &tissue, limit, &mut log)?;
-                FemAnswer {
-                    plates: crate::hyper_run::plate_records(&sol),
-                    newton: Some(crate::hyper_run::NewtonRecord {
-                        steps: sol.steps.clone(),
-                        stats: sol.stats,
-                    }),
-                    strain: sol.summary,
-                    cells: sol.cells,
-                    residual: sol.residual,
-                    stats,
-                    grid: body.grid().clone(),
-                    cell_materials: body.material_ids().to_vec(),
-                    node_displacements: sol.node_displacements,
-                    surface_displacements: sol.surface_displacements,
-                }
-            }
-        };
+        let mut answer = solve_answer(&model, &tissue, limit, &mut log)?;
+        let mut notes = Vec::new();
+        let strain = answer.strain.max_strain_magnitude;
+        if model.fem.auto_model && tissue.model() == TissueModel::Linear && strain > LINEAR_STRAIN_LIMIT {
+            notes.push(format!(
+                "[tissue] model = \"auto\": the linear answer's largest strain {strain:.3} is above {LINEAR_STRAIN_LIMIT}; solved again neo-Hookean"
+            ));
+            tissue = tissue.with_model(TissueModel::NeoHookean);
+            log = StageLog::default();
+            answer = solve_answer(&model, &tissue, limit, &mut log)?;
+        }
         let positions: Vec<Vec3> = rest
             .iter()
             .zip(&answer.surface_displacements)
@@ -116,6 +104,7 @@ impl FemRun {
         }
         Ok(Self {
             warnings,
+            notes,
             tissue,
             stats: answer.stats,
             residual: answer.residual,
@@ -135,6 +124,28 @@ impl FemRun {
             model,
         })
     }
+}
+
+/// Solves the model with `tissue`'s law. Plates and regions need the Newton solver (contact
+/// sampled over the surface inside the solve, per-cell materials), for the linear law too
+/// (one iteration per change of the contact set); a plain linear body is one solve.
+fn solve_answer(model: &Model, tissue: &Tissue, limit: u64, log: &mut StageLog) -> Result<FemAnswer> {
+    if tissue.model() == TissueModel::Linear && model.plates.is_empty() && model.fem.regions.is_empty() {
+        return solve_linear(model, limit, log);
+    }
+    let (body, sol, stats) = crate::hyper_run::solve(model, tissue, limit, log)?;
+    Ok(FemAnswer {
+        plates: crate::hyper_run::plate_records(&sol),
+        newton: Some(crate::hyper_run::NewtonRecord { steps: sol.steps.clone(), stats: sol.stats }),
+        strain: sol.summary,
+        cells: sol.cells,
+        residual: sol.residual,
+        stats,
+        grid: body.grid().clone(),
+        cell_materials: body.material_ids().to_vec(),
+        node_displacements: sol.node_displacements,
+        surface_displacements: sol.surface_displacements,
+    })
 }
 
 /// The answer inside the tissue: what `volume.vtu` shows.
@@ -346,6 +357,7 @@ impl FemReport {
             Shape::Polygon(_) => (0.0, 0.0),
         };
         let mut stages = extra_stages.to_vec();
+        let notes: Vec<String> = run.notes.iter().cloned().chain(notes).collect();
         stages.extend_from_slice(run.log.records());
         Self {
             scene: run.model.name.clone(),

@@ -146,6 +146,9 @@ pub struct FemSettings {
     /// Regions of other tissue inside the body, in the scene's order (material ids 1, 2,
     /// ...).
     pub regions: Vec<NamedRegion>,
+    /// `[tissue] model = "auto"`: solve linear, and again neo-Hookean when the linear
+    /// answer's largest strain is above `result_guards::LINEAR_STRAIN_LIMIT`.
+    pub auto_model: bool,
 }
 
 /// A region of other tissue with the name reports give it.
@@ -159,7 +162,7 @@ pub struct NamedRegion {
 
 impl Default for FemSettings {
     fn default() -> Self {
-        Self { resolution: fibfluid_fem::DEFAULT_RESOLUTION, regions: Vec::new() }
+        Self { resolution: fibfluid_fem::DEFAULT_RESOLUTION, regions: Vec::new(), auto_model: false }
     }
 }
 

@@ -19,6 +19,9 @@ const ARMIJO: f64 = 1e-4;
 const MAX_BACKTRACKS: usize = 30;
 /// Energy changes below this fraction of the energy's terms are rounding.
 const ENERGY_ROUNDING: f64 = 1e-12;
+/// A full step whose energy change is below this fraction of the energy's terms is judged
+/// by the residual instead (the energy no longer resolves progress there).
+const NEAR_SOLUTION: f64 = 1e-8;
 /// A force below `RESIDUAL_FLOOR * E h^2` is zero (the residual's scale when nothing loads
 /// the body).
 const RESIDUAL_FLOOR: f64 = 1e-9;
@@ -282,8 +285,16 @@ impl HyperBody {
             for ((t, xi), di) in trial.iter_mut().zip(x.iter()).zip(d) {
                 *t = xi + alpha * di;
             }
-            if let Some(e) = self.energy(&trial, state)
-                && e <= eval.energy + ARMIJO * alpha * slope.min(0.0) + rounding
+            let Some(e) = self.energy(&trial, state) else {
+                alpha *= 0.5;
+                continue;
+            };
+            // Near the solution the energy's change is below its rounding: a full step that
+            // lowers the residual is taken then (Newton's own measure of progress).
+            let decreases = e <= eval.energy + ARMIJO * alpha * slope.min(0.0) + rounding;
+            let near = alpha == 1.0 && (e - eval.energy).abs() <= NEAR_SOLUTION * eval.magnitude;
+            if decreases
+                || (near && self.residual_norm(&trial, state).is_some_and(|r| r < norm(&eval.gradient)))
             {
                 x.copy_from_slice(&trial);
                 return true;
@@ -291,6 +302,11 @@ impl HyperBody {
             alpha *= 0.5;
         }
         false
+    }
+
+    /// `|gradient|` at `x` (no tangent), `None` when a cell is inverted.
+    fn residual_norm(&mut self, x: &[f64], state: &LoadState<'_>) -> Option<f64> {
+        self.evaluate(x, state, false).map(|e| norm(&e.gradient))
     }
 
     /// The energy alone (no gradient), `None` when a cell is inverted.
