@@ -6,7 +6,6 @@ use fibfluid_assembly::{
     AssemblyError, Constraints, DEFAULT_PENALTY, Material, MaterialParameter, PAPER_KERNEL_EXPONENT,
     Selector, StiffnessLaw,
 };
-use fibfluid_fem::TissueParameter;
 use fibfluid_geometry::{MeshFile, Polygon, ReadOptions, load_mesh_with};
 use fibfluid_sim::contact::{Plate, PlateProblem, check_plates};
 use fibfluid_sim::guards::Guards;
@@ -55,7 +54,7 @@ pub(crate) fn build(
     };
     let axes = if matches!(shape, Shape::Polygon(_)) { 2 } else { 3 };
     let solver = solver(spec.solver)?;
-    let (tissue, auto_model) = match spec.tissue.map(tissue).transpose()? {
+    let (tissue, auto_model) = match spec.tissue.map(crate::tissue_table::tissue).transpose()? {
         Some((t, auto)) => (Some(t), auto),
         None => (None, false),
     };
@@ -97,38 +96,6 @@ pub(crate) fn build(
     model.unit = unit;
     Ok(model)
 }
-
-/// `[tissue]`: what the tissue is, in SI units, checked by the FEM's own rule.
-/// `model = "auto"` is not a law: it asks the run to choose ([`FemSettings::auto_model`]),
-/// starting linear.
-pub(crate) fn tissue(t: TissueToml) -> Result<(Tissue, bool), Invalid> {
-    let density = t.density.unwrap_or(0.0);
-    let auto = t.model.as_deref() == Some(AUTO_MODEL);
-    let given = if auto { None } else { t.model };
-    let model = choice("[tissue].model", given, fibfluid_fem::TissueModel::Linear).map_err(|mut e| {
-        if let SceneProblem::Choice(c) = &mut e.problem {
-            c.expected.push_str(", auto");
-        }
-        e
-    })?;
-    let tissue = Tissue::new(t.young, t.poisson, density).map_err(|e| match e {
-        fibfluid_fem::FemError::InvalidTissue { name, value, .. } => {
-            let rule = match name {
-                TissueParameter::Young => "finite and > 0 (Pa)",
-                TissueParameter::Poisson => {
-                    "in (-1, 0.5): 0.5 is the incompressible limit the linear FEM cannot take"
-                }
-                TissueParameter::Density => "finite and >= 0 (kg/m^3)",
-            };
-            range(format!("[tissue].{name}"), rule, value)
-        }
-        other => invalid("[tissue]", SceneProblem::Tissue(other)),
-    })?;
-    Ok((tissue.with_model(model), auto))
-}
-
-/// The `[tissue] model` that lets the run choose the law.
-const AUTO_MODEL: &str = "auto";
 
 /// `[fem]`.
 fn fem_settings(f: Option<FemToml>) -> Result<FemSettings, Invalid> {

@@ -44,7 +44,7 @@ pub(crate) fn regions(
                 SceneProblem::Conflict("a region takes the body's [tissue] model; remove `model` here"),
             ));
         }
-        let (tissue, _) = crate::build::tissue(spec.tissue)
+        let (tissue, _) = crate::tissue_table::tissue(spec.tissue)
             .map_err(|e| Invalid { key: Some(format!("{key} tissue")), ..e })?;
         let tissue = tissue.with_model(body.model());
         let metres = unit.metres();

@@ -252,6 +252,8 @@ pub struct FemResultFacts {
     pub volume_initial: f64,
     /// Volume after (m^3).
     pub volume_final: f64,
+    /// The answer's largest strain, `J` extremes and largest von Mises stress.
+    pub strain: StrainSummary,
 }
 
 /// A region of other tissue in `report.json`.
@@ -321,8 +323,6 @@ pub struct FemReport {
     /// The solve's measured relative residual `|K u - f| / |f|` (the last Newton residual
     /// for a hyperelastic tissue).
     pub residual: f64,
-    /// The answer's largest strain, `J` extremes and largest von Mises stress.
-    pub strain: StrainSummary,
     /// Newton's steps, residual histories, counts and times (hyperelastic tissue only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub newton: Option<crate::hyper_run::NewtonRecord>,
@@ -371,9 +371,9 @@ impl FemReport {
                 mean_displacement: disp.iter().sum::<f64>() / disp.len().max(1) as f64,
                 volume_initial,
                 volume_final,
+                strain: run.strain,
             },
             residual: run.residual,
-            strain: run.strain,
             newton: run.newton.clone(),
             plates: run.plates.clone(),
             regions: RegionRecord::of(run),
