@@ -33,6 +33,21 @@ impl CellMaterial {
     }
 }
 
+/// The empty part of a partly filled neo-Hookean cell is a fictitious material of this
+/// fraction of the tissue's moduli (the finite-cell method's), integrated fully (the
+/// volumetric energy `U(J)` at each Gauss point, not on the mean dilatation). A
+/// mean-dilatation hexahedron under a large pressure can buckle in spurious modes; the
+/// empty part of a boundary cell, held only by the tissue part's energy (scaled by its
+/// fill), did (the Newton iterations stalled with an indefinite tangent). The fictitious
+/// material is rotation-invariant, so it resists no rigid turn of the cell, and a cell that
+/// is half empty gains 0.5 % of its stiffness.
+pub const EMPTY_STIFFNESS: f64 = 1e-2;
+
+/// The fictitious material's weight in a cell of `fill`.
+fn empty_weight(fill: f64) -> f64 {
+    EMPTY_STIFFNESS * (1.0 - fill).max(0.0)
+}
+
 /// Gauss weight of each of the eight points (fractions of the cell's volume).
 const W: f64 = 1.0 / 8.0;
 
@@ -119,13 +134,16 @@ impl HyperCell {
         }
         let mut iso = 0.0;
         let mut theta = 0.0;
+        let mut pointwise = 0.0;
         for g in &self.grads {
             let f = deformation_gradient(u, g);
             iso += W * isochoric_energy(&f, m.mu)?;
             theta += W * det(&f);
+            pointwise += W * volumetric(det(&f), m.kappa)?[0];
         }
         let [vol, _, _] = volumetric(theta, m.kappa)?;
-        Some(fill * self.volume * (iso + vol))
+        let empty = empty_weight(fill) * self.volume;
+        Some(fill * self.volume * (iso + vol) + empty * (iso + pointwise))
     }
 
     /// The gradient and (with `hessian`) the Hessian of [`HyperCell::energy`]; `None` when
@@ -138,6 +156,7 @@ impl HyperCell {
             return Some(CellTangent { gradient, hessian: hessian.then(|| Box::new(k)) });
         }
         let scale = fill * self.volume;
+        let empty = empty_weight(fill) * self.volume;
         let fs: [M3; 8] = std::array::from_fn(|p| deformation_gradient(u, &self.grads[p]));
         let js = fs.map(|f| det(&f));
         if js.iter().any(|&j| !(j > 0.0)) {
@@ -152,10 +171,12 @@ impl HyperCell {
             let g = &self.grads[p];
             let cof = cofactor(&fs[p]);
             let (stress, a) = isochoric_stress_tangent(&fs[p], m.mu);
+            // The empty part's pointwise volumetric energy U(J) (see `EMPTY_STIFFNESS`).
+            let [_, du_p, ddu_p] = volumetric(js[p], m.kappa)?;
             for b in 0..8 {
                 for i in 0..3 {
                     let dot = |m: &M3| (0..3).map(|jj| m[i][jj] * g[b][jj]).sum::<f64>();
-                    gradient[3 * b + i] += scale * W * dot(&stress);
+                    gradient[3 * b + i] += (scale + empty) * W * dot(&stress) + empty * W * du_p * dot(&cof);
                     dtheta[3 * b + i] += W * dot(&cof);
                 }
             }
@@ -165,10 +186,15 @@ impl HyperCell {
                     let (i, jj) = (r / 3, r % 3);
                     for (s, v) in row.iter_mut().enumerate() {
                         let (kk, l) = (s / 3, s % 3);
-                        *v = W * (*v + du * (cof[i][jj] * cof[kk][l] - cof[i][l] * cof[kk][jj]) / js[p]);
+                        let geometric = (cof[i][jj] * cof[kk][l] - cof[i][l] * cof[kk][jj]) / js[p];
+                        let material = cof[i][jj] * cof[kk][l];
+                        *v = W
+                            * ((scale + empty) * *v
+                                + scale * du * geometric
+                                + empty * (du_p * geometric + ddu_p * material));
                     }
                 }
-                add_gauss_point(k, &c, g, scale);
+                add_gauss_point(k, &c, g, 1.0);
             }
         }
         for (gi, d) in gradient.iter_mut().zip(&dtheta) {

@@ -105,7 +105,63 @@ pub(crate) fn surface_samples(grid: &SparseGrid, fixed: &[[bool; 3]]) -> Vec<Con
     out
 }
 
-/// The contact pressure `max(0, lambda - beta g)` of a sample (Pa), 0 out of contact.
-pub(crate) fn pressure(multiplier: f64, beta: f64, gap: f64) -> f64 {
-    (multiplier - beta * gap).max(0.0)
+/// The smoothing of the contact law, in units of `E`: the pressure `max(0, x)` of
+/// `x = lambda - beta g` is rounded to a quadratic over `|x| <= CONTACT_SMOOTHING * E`, so the
+/// energy is twice differentiable and Newton converges quadratically when a sample sits at
+/// the edge of the contact zone (a kinked law makes it chatter there). A sample just out of
+/// contact then carries at most `CONTACT_SMOOTHING * E / 4`.
+pub const CONTACT_SMOOTHING: f64 = 1e-2;
+
+/// The augmented-Lagrangian contact law of one sample (see the module docs).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct ContactLaw {
+    /// The penalty `beta`, per unit area (Pa/m).
+    pub(crate) beta: f64,
+    /// Half the width of the smoothed zone, in pressure (Pa).
+    pub(crate) width: f64,
+}
+
+impl ContactLaw {
+    /// `x = lambda - beta g` for a multiplier and a gap.
+    pub(crate) fn argument(&self, multiplier: f64, gap: f64) -> f64 {
+        multiplier - self.beta * gap
+    }
+
+    /// The contact pressure (Pa): the smoothed `max(0, x)`.
+    pub(crate) fn pressure(&self, x: f64) -> f64 {
+        let e = self.width;
+        if x >= e {
+            x
+        } else if x > -e {
+            (x + e) * (x + e) / (4.0 * e)
+        } else {
+            0.0
+        }
+    }
+
+    /// `d pressure / dx`.
+    pub(crate) fn slope(&self, x: f64) -> f64 {
+        let e = self.width;
+        if x >= e {
+            1.0
+        } else if x > -e {
+            (x + e) / (2.0 * e)
+        } else {
+            0.0
+        }
+    }
+
+    /// The energy of a sample of `area` (J): `area / (2 beta) (Q(x) - lambda^2)` with
+    /// `Q' = 2 pressure`, so that its derivative along the gap is `-area * pressure`.
+    pub(crate) fn energy(&self, area: f64, multiplier: f64, x: f64) -> f64 {
+        let e = self.width;
+        let q = if x >= e {
+            x * x + e * e / 3.0
+        } else if x > -e {
+            (x + e).powi(3) / (6.0 * e)
+        } else {
+            0.0
+        };
+        area / (2.0 * self.beta) * (q - multiplier * multiplier)
+    }
 }

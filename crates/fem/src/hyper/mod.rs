@@ -22,4 +22,7 @@ mod solve;
 
 pub use body::{HyperBody, HyperSolution, HyperStats, LoadStep, NewtonSettings, StrainSummary, cell_states};
 pub use cell::{CellMaterial, CellState, CellTangent, HyperCell};
-pub use contact::{CONTACT_GAP_TOLERANCE, CONTACT_PENALTY, MAX_AUGMENTATIONS, RigidPlate};
+pub use contact::{
+    CONTACT_FORCE_TOLERANCE, CONTACT_GAP_TOLERANCE, CONTACT_PENALTY, CONTACT_SMOOTHING, MAX_AUGMENTATIONS,
+    RigidPlate,
+};

@@ -8,7 +8,7 @@ use fibfluid_geometry::Vec3;
 use fibfluid_linalg::SparseCholesky;
 
 use super::body::{HyperBody, HyperStats};
-use super::contact::{CONTACT_PENALTY, RigidPlate, pressure};
+use super::contact::{CONTACT_PENALTY, CONTACT_SMOOTHING, ContactLaw, RigidPlate};
 use crate::assemble::FIXED;
 use crate::element::CELL_DOFS;
 use crate::error::{FemError, Result};
@@ -51,8 +51,11 @@ pub(super) struct Failure {
 }
 
 impl HyperBody {
-    pub(super) fn beta_contact(&self) -> f64 {
-        CONTACT_PENALTY * self.tissue.young() / self.grid.cell_size()
+    /// The contact law: `beta = CONTACT_PENALTY * E / h`, smoothed over
+    /// `CONTACT_SMOOTHING * E`.
+    pub(super) fn contact_law(&self) -> ContactLaw {
+        let e = self.tissue.young();
+        ContactLaw { beta: CONTACT_PENALTY * e / self.grid.cell_size(), width: CONTACT_SMOOTHING * e }
     }
 
     fn cell_dofs(&self, nodes: &[usize; 8]) -> [usize; CELL_DOFS] {
@@ -172,15 +175,15 @@ impl HyperBody {
     /// The plates' augmented-Lagrangian contact energy (see [`super::contact`]); gradient
     /// and Hessian added as [`HyperBody::add_clamp`] does.
     fn add_contact(&mut self, u: &[Vec3], state: &LoadState<'_>, gradient: &mut [f64], tangent: bool) -> f64 {
-        let beta = self.beta_contact();
+        let law = self.contact_law();
         let mut energy = 0.0;
         for (k, plate) in state.plates.iter().enumerate() {
             for s in 0..self.samples.len() {
                 let sample = self.samples[s];
                 let lambda = state.multipliers[k][s];
-                let gap = plate.gap(sample.position(u), state.t);
-                let p = pressure(lambda, beta, gap);
-                energy += sample.area / (2.0 * beta) * (p * p - lambda * lambda);
+                let x = law.argument(lambda, plate.gap(sample.position(u), state.t));
+                energy += law.energy(sample.area, lambda, x);
+                let p = law.pressure(x);
                 if p == 0.0 {
                     continue;
                 }
@@ -193,7 +196,7 @@ impl HyperBody {
                     }
                 }
                 if tangent {
-                    self.add_rank_one(&dofs, &v, sample.area * beta);
+                    self.add_rank_one(&dofs, &v, sample.area * law.beta * law.slope(x));
                 }
             }
         }
@@ -320,12 +323,12 @@ impl HyperBody {
             let d: f64 = (0..8).map(|b| p.weights[b] * u[p.nodes[b]][p.axis]).sum();
             e += 0.5 * self.clamp_beta * p.area * d * d;
         }
-        let beta = self.beta_contact();
+        let law = self.contact_law();
         for (k, plate) in state.plates.iter().enumerate() {
             for (s, sample) in self.samples.iter().enumerate() {
                 let lambda = state.multipliers[k][s];
-                let p = pressure(lambda, beta, plate.gap(sample.position(&u), state.t));
-                e += sample.area / (2.0 * beta) * (p * p - lambda * lambda);
+                let x = law.argument(lambda, plate.gap(sample.position(&u), state.t));
+                e += law.energy(sample.area, lambda, x);
             }
         }
         let work: f64 = state.external.iter().zip(x).map(|(f, xi)| f * xi).sum();

@@ -3,9 +3,7 @@
 use fibfluid_linalg::SparseCholesky;
 
 use super::body::{HyperBody, HyperSolution, HyperStats, LoadStep};
-use super::contact::{
-    CONTACT_FORCE_TOLERANCE, CONTACT_GAP_TOLERANCE, MAX_AUGMENTATIONS, RigidPlate, pressure,
-};
+use super::contact::{CONTACT_FORCE_TOLERANCE, CONTACT_GAP_TOLERANCE, MAX_AUGMENTATIONS, RigidPlate};
 use super::newton::LoadState;
 use crate::body::{Loads, load_vector};
 use crate::error::{FemError, Result};
@@ -154,7 +152,7 @@ impl HyperBody {
     /// Per plate, the contact force on the body along its normal (N) at the full load.
     fn plate_forces(&self, x: &[f64], plates: &[RigidPlate], multipliers: &[Vec<f64>]) -> Vec<f64> {
         let u = self.node_field(x);
-        let beta = self.beta_contact();
+        let law = self.contact_law();
         plates
             .iter()
             .zip(multipliers)
@@ -162,7 +160,7 @@ impl HyperBody {
                 self.samples
                     .iter()
                     .zip(m)
-                    .map(|(s, &l)| s.area * pressure(l, beta, p.gap(s.position(&u), 1.0)))
+                    .map(|(s, &l)| s.area * law.pressure(law.argument(l, p.gap(s.position(&u), 1.0))))
                     .sum()
             })
             .collect()
@@ -171,10 +169,10 @@ impl HyperBody {
     /// Uzawa's update of the contact pressures: `lambda <- max(0, lambda - beta g)`.
     fn augment(&self, x: &[f64], plates: &[RigidPlate], multipliers: &mut [Vec<f64>]) {
         let u = self.node_field(x);
-        let beta = self.beta_contact();
+        let law = self.contact_law();
         for (p, m) in plates.iter().zip(multipliers) {
             for (s, lambda) in self.samples.iter().zip(m.iter_mut()) {
-                *lambda = pressure(*lambda, beta, p.gap(s.position(&u), 1.0));
+                *lambda = law.pressure(law.argument(*lambda, p.gap(s.position(&u), 1.0)));
             }
         }
     }
@@ -182,12 +180,12 @@ impl HyperBody {
     /// The solution record of a converged solve.
     fn finish(&self, run: Progress, plates: &[RigidPlate], multipliers: &[Vec<f64>]) -> HyperSolution {
         let u = self.node_field(&run.x);
-        let beta = self.beta_contact();
+        let law = self.contact_law();
         let mut plate_forces = vec![0.0; plates.len()];
         let mut plate_contacts = vec![0; plates.len()];
         for (k, p) in plates.iter().enumerate() {
             for (s, sample) in self.samples.iter().enumerate() {
-                let pr = pressure(multipliers[k][s], beta, p.gap(sample.position(&u), 1.0));
+                let pr = law.pressure(law.argument(multipliers[k][s], p.gap(sample.position(&u), 1.0)));
                 plate_forces[k] += sample.area * pr;
                 plate_contacts[k] += usize::from(pr > 0.0);
             }
