@@ -29,6 +29,12 @@ pub enum Ineffective {
         /// The acceleration asked for.
         acceleration: Vec3,
     },
+    /// `[[region]]`s in a scene run by a method that has none (FFM, ChainMail): the whole
+    /// body is the base tissue.
+    RegionsOutsideFem {
+        /// How many regions the scene gives.
+        regions: usize,
+    },
     /// A fluid density without gravity: the density enters only the hydrostatic load.
     DensityWithoutGravity {
         /// The density given.
@@ -68,6 +74,10 @@ impl fmt::Display for Ineffective {
                 f,
                 "[gravity] acceleration = [{}, {}, {}] has no effect: [tissue] density is 0 (set it in kg/m^3, e.g. 1000)",
                 a[0], a[1], a[2]
+            ),
+            Ineffective::RegionsOutsideFem { regions } => write!(
+                f,
+                "{regions} [[region]] table(s) have no effect: regions of other tissue are a finite-element feature (method = \"fem\"); this method treats the whole body as one material"
             ),
             Ineffective::DensityWithoutGravity { density } => write!(
                 f,
@@ -112,6 +122,9 @@ pub fn ineffective(scene: &Model) -> Vec<Ineffective> {
     // A density FFM took from `[tissue]` (its fibers calibrated) describes the tissue; it
     // asks for no effect, so its absence of gravity is no mistake.
     let from_tissue = scene.ffm.calibrate && scene.tissue.is_some_and(|t| t.density() == density);
+    if !fem && !scene.fem.regions.is_empty() {
+        found.push(Ineffective::RegionsOutsideFem { regions: scene.fem.regions.len() });
+    }
     if !has_gravity && density > 0.0 && !fem && !from_tissue {
         found.push(Ineffective::DensityWithoutGravity { density });
     }

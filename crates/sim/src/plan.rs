@@ -441,11 +441,79 @@ fn step_stages(scene: &Model, c: &Costs) -> Vec<PlannedStage> {
     st
 }
 
+/// Newton iterations a plan expects without plates (measured: 11 for liver-hanging at
+/// resolution 24, docs/performance.md).
+pub const EXPECTED_NEWTON_ITERATIONS: usize = 15;
+/// Newton iterations a plan expects with plates, contact augmentations included (measured:
+/// 26 for breast-compression at resolution 24).
+pub const EXPECTED_NEWTON_ITERATIONS_WITH_PLATES: usize = 30;
+
+/// The stages of a Newton run: per iteration one assembly of the gradient and tangent (8 Gauss
+/// points, a 9 x 9 tangent and the 24 x 24 cell matrix each), one numeric refactorization on
+/// the kept symbolic analysis, one solve and a line search.
+fn newton_stages(e: &fibfluid_fem::GridEstimate, scene: &Model) -> Vec<PlannedStage> {
+    let iterations = if scene.plates.is_empty() {
+        EXPECTED_NEWTON_ITERATIONS
+    } else {
+        EXPECTED_NEWTON_ITERATIONS_WITH_PLATES
+    };
+    let n = iterations as f64;
+    let cells = e.cells as f64;
+    let samples = (fibfluid_fem::SUBSAMPLES as f64).powi(3);
+    vec![
+        stage(
+            names::VOXELIZATION,
+            true,
+            format!(
+                "{} x {} x {} cells of {:.3e} m, fill from {samples} samples each",
+                e.dims[0], e.dims[1], e.dims[2], e.cell_size
+            ),
+            cells * 80.0,
+            cells * samples * 40.0,
+        ),
+        stage(
+            names::ASSEMBLY,
+            true,
+            format!(
+                "per Newton iteration: gradient and tangent of {} cells, {} stored nonzeros; x ~{iterations} iterations",
+                e.cells, e.nonzeros
+            ),
+            e.nonzeros as f64 * 16.0,
+            n * cells * 8.0 * 2.0 * (24.0 * 9.0 * 3.0 + 24.0 * 24.0 * 3.0),
+        ),
+        stage(
+            names::FACTORIZATION,
+            true,
+            format!(
+                "per Newton iteration: numeric sparse Cholesky of up to {} unknowns (~{:.3e} factor nonzeros, one symbolic analysis); x ~{iterations} iterations",
+                e.dofs, e.factor_nonzeros
+            ),
+            e.factor_bytes,
+            n * e.factor_flops,
+        ),
+        stage(
+            names::SOLVE,
+            true,
+            format!(
+                "Newton's method, load steps and contact augmentations: ~{iterations} iterations expected (docs/performance.md)"
+            ),
+            e.dofs as f64 * 8.0 * 4.0,
+            n * 4.0 * e.factor_nonzeros,
+        ),
+    ]
+}
+
 /// The finite-element method's plan, from the grid's estimate (counts only): voxelization,
-/// assembly, factorization and one solve.
+/// assembly, factorization and one solve; for a Newton run (a neo-Hookean tissue, plates or
+/// regions) the assembly, refactorization and solve of each iteration times the expected
+/// count.
 fn fem_plan(scene: &Model) -> Plan {
     let positions = scene.rest_positions();
+    let newton = scene.tissue.is_some_and(|t| t.model() == fibfluid_fem::TissueModel::NeoHookean)
+        || !scene.plates.is_empty()
+        || !scene.fem.regions.is_empty();
     let st = match fibfluid_fem::GridEstimate::of(&positions, scene.fem.resolution) {
+        Ok(e) if newton => newton_stages(&e, scene),
         Ok(e) => {
             let cells = e.cells as f64;
             let samples = (fibfluid_fem::SUBSAMPLES as f64).powi(3);
