@@ -6,14 +6,14 @@ use std::time::Instant;
 use faer::Mat;
 use faer::sparse::SparseColMat;
 use fibfluid_geometry::Vec3;
-use fibfluid_linalg::{SparseCholesky, SparseOrdering};
+use fibfluid_linalg::SparseCholesky;
 use serde::Serialize;
 
 use crate::assemble::{FIXED, add_penalty, assemble_lower, cell_matrix, number_free_dofs, symmetric_mul};
 use crate::clamp::{Clamp, clamp_stiffness};
 use crate::error::{FemError, Result};
 use crate::grid::{Element, FemOptions, SparseGrid};
-use crate::ordering::{Ordering, dof_permutation, nested_dissection};
+use crate::ordering::{Ordering, symbolic_analysis};
 use crate::tissue::Tissue;
 
 /// Largest accepted relative residual `|K u - f| / |f|` of a solve.
@@ -107,10 +107,7 @@ impl FemBody {
         fixed: &[[bool; 3]],
         options: &FemOptions,
     ) -> Result<Self> {
-        if fixed.len() == positions.len() {
-            crate::rigid::check_rigid_modes(positions, fixed)?;
-        }
-        let grid = SparseGrid::from_surface(positions, triangles, options.resolution)?;
+        let grid = crate::rigid::checked_grid(positions, triangles, fixed, options.resolution)?;
         Self::with_element(grid, tissue, fixed, options.element)
     }
 
@@ -162,14 +159,8 @@ impl FemBody {
         add_penalty(&mut k_lower, &free, &clamp.points, |p| beta * p.area);
         let assembly_seconds = start.elapsed().as_secs_f64();
         let start = Instant::now();
-        let factor = match ordering {
-            Ordering::Amd => SparseCholesky::new(k_lower.as_ref(), SparseOrdering::Amd)?,
-            Ordering::NestedDissection => {
-                let nodes = nested_dissection(grid.node_coords());
-                let (fwd, inv) = dof_permutation(&nodes, &free, n_free);
-                SparseCholesky::new(k_lower.as_ref(), SparseOrdering::Custom { fwd: &fwd, inv: &inv })?
-            }
-        };
+        let symbolic = symbolic_analysis(&grid, &free, n_free, k_lower.symbolic(), ordering)?;
+        let factor = SparseCholesky::factor(&std::sync::Arc::new(symbolic), k_lower.as_ref())?;
         let factor_seconds = start.elapsed().as_secs_f64();
         let stats = FemStats {
             resolution: grid.resolution(),

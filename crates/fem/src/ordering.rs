@@ -95,3 +95,23 @@ pub(crate) fn dof_permutation(
     }
     (fwd, inv)
 }
+
+/// The symbolic Cholesky analysis of a lower-triangle `pattern` over the free dofs of
+/// `grid`, in `ordering` (the linear body and the Newton body share it).
+pub(crate) fn symbolic_analysis(
+    grid: &crate::grid::SparseGrid,
+    free: &[usize],
+    n_free: usize,
+    pattern: faer::sparse::SymbolicSparseColMatRef<'_, usize>,
+    ordering: Ordering,
+) -> crate::error::Result<fibfluid_linalg::SparseSymbolic> {
+    use fibfluid_linalg::{SparseOrdering, SparseSymbolic};
+    Ok(match ordering {
+        Ordering::Amd => SparseSymbolic::new(pattern, SparseOrdering::Amd)?,
+        Ordering::NestedDissection => {
+            let nodes = nested_dissection(grid.node_coords());
+            let (fwd, inv) = dof_permutation(&nodes, free, n_free);
+            SparseSymbolic::new(pattern, SparseOrdering::Custom { fwd: &fwd, inv: &inv })?
+        }
+    })
+}

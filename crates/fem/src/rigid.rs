@@ -138,3 +138,18 @@ fn unit(a: Vec3) -> Vec3 {
     let n = norm(a);
     if n > 0.0 { a.map(|x| x / n) } else { a }
 }
+
+/// The grid of a surface at `resolution`, after refusing (from the constraints alone, before
+/// anything is built) a `fixed` that leaves a rigid motion free. A `fixed` of the wrong
+/// length is left to the body's own check, which names it.
+pub(crate) fn checked_grid(
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    fixed: &[[bool; 3]],
+    resolution: usize,
+) -> crate::error::Result<crate::grid::SparseGrid> {
+    if fixed.len() == positions.len() {
+        check_rigid_modes(positions, fixed)?;
+    }
+    crate::grid::SparseGrid::from_surface(positions, triangles, resolution)
+}

@@ -448,6 +448,22 @@ pub const EXPECTED_NEWTON_ITERATIONS: usize = 15;
 /// 26 for breast-compression at resolution 24).
 pub const EXPECTED_NEWTON_ITERATIONS_WITH_PLATES: usize = 30;
 
+/// The voxelization of a grid estimate: its cells and their fill samples.
+fn voxelization_stage(e: &fibfluid_fem::GridEstimate) -> PlannedStage {
+    let cells = e.cells as f64;
+    let samples = (fibfluid_fem::SUBSAMPLES as f64).powi(3);
+    stage(
+        names::VOXELIZATION,
+        true,
+        format!(
+            "{} x {} x {} cells of {:.3e} m, fill from {samples} samples each",
+            e.dims[0], e.dims[1], e.dims[2], e.cell_size
+        ),
+        cells * 80.0,
+        cells * samples * 40.0,
+    )
+}
+
 /// The stages of a Newton run: per iteration one assembly of the gradient and tangent (8 Gauss
 /// points, a 9 x 9 tangent and the 24 x 24 cell matrix each), one numeric refactorization on
 /// the kept symbolic analysis, one solve and a line search.
@@ -459,18 +475,8 @@ fn newton_stages(e: &fibfluid_fem::GridEstimate, scene: &Model) -> Vec<PlannedSt
     };
     let n = iterations as f64;
     let cells = e.cells as f64;
-    let samples = (fibfluid_fem::SUBSAMPLES as f64).powi(3);
     vec![
-        stage(
-            names::VOXELIZATION,
-            true,
-            format!(
-                "{} x {} x {} cells of {:.3e} m, fill from {samples} samples each",
-                e.dims[0], e.dims[1], e.dims[2], e.cell_size
-            ),
-            cells * 80.0,
-            cells * samples * 40.0,
-        ),
+        voxelization_stage(e),
         stage(
             names::ASSEMBLY,
             true,
@@ -516,18 +522,8 @@ fn fem_plan(scene: &Model) -> Plan {
         Ok(e) if newton => newton_stages(&e, scene),
         Ok(e) => {
             let cells = e.cells as f64;
-            let samples = (fibfluid_fem::SUBSAMPLES as f64).powi(3);
             vec![
-                stage(
-                    names::VOXELIZATION,
-                    true,
-                    format!(
-                        "{} x {} x {} cells of {:.3e} m, fill from {samples} samples each",
-                        e.dims[0], e.dims[1], e.dims[2], e.cell_size
-                    ),
-                    cells * 80.0,
-                    cells * samples * 40.0,
-                ),
+                voxelization_stage(&e),
                 stage(
                     names::ASSEMBLY,
                     true,

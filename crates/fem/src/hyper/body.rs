@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use faer::sparse::SparseColMat;
 use fibfluid_geometry::Vec3;
-use fibfluid_linalg::{SparseOrdering, SparseSymbolic};
+use fibfluid_linalg::SparseSymbolic;
 use serde::Serialize;
 
 use super::cell::{CellMaterial, CellState, HyperCell};
@@ -14,7 +14,7 @@ use crate::assemble::{lower_pattern, number_free_dofs};
 use crate::clamp::{Clamp, ClampPoint, clamp_stiffness};
 use crate::error::{FemError, Result};
 use crate::grid::{FemOptions, SparseGrid};
-use crate::ordering::{Ordering, dof_permutation, nested_dissection};
+use crate::ordering::{Ordering, symbolic_analysis};
 use crate::tissue::Tissue;
 
 /// Newton's method and its load stepping.
@@ -156,10 +156,7 @@ impl HyperBody {
         fixed: &[[bool; 3]],
         options: &FemOptions,
     ) -> Result<Self> {
-        if fixed.len() == positions.len() {
-            crate::rigid::check_rigid_modes(positions, fixed)?;
-        }
-        let grid = SparseGrid::from_surface(positions, triangles, options.resolution)?;
+        let grid = crate::rigid::checked_grid(positions, triangles, fixed, options.resolution)?;
         Self::new(grid, tissue, fixed, Ordering::default())
     }
 
@@ -178,14 +175,7 @@ impl HyperBody {
             return Err(FemError::NothingFree);
         }
         let pattern = lower_pattern(&grid, &free, n_free);
-        let symbolic = Arc::new(match ordering {
-            Ordering::Amd => SparseSymbolic::new(pattern.as_ref(), SparseOrdering::Amd)?,
-            Ordering::NestedDissection => {
-                let nodes = nested_dissection(grid.node_coords());
-                let (fwd, inv) = dof_permutation(&nodes, &free, n_free);
-                SparseSymbolic::new(pattern.as_ref(), SparseOrdering::Custom { fwd: &fwd, inv: &inv })?
-            }
-        });
+        let symbolic = Arc::new(symbolic_analysis(&grid, &free, n_free, pattern.as_ref(), ordering)?);
         let nnz = pattern.row_idx().len();
         let tangent = SparseColMat::new(pattern, vec![0.0; nnz]);
         let h = grid.cell_size();

@@ -77,69 +77,9 @@ pub fn norm(a: V3) -> f64 {
     (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
 
-/// An icosphere of `radius` about `centre`: the icosahedron subdivided `levels` times and
-/// projected onto the sphere, triangles outward.
-pub fn sphere_surface(centre: V3, radius: f64, levels: usize) -> (Vec<V3>, Vec<[u32; 3]>) {
-    let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut pos: Vec<V3> = [
-        [-1.0, t, 0.0],
-        [1.0, t, 0.0],
-        [-1.0, -t, 0.0],
-        [1.0, -t, 0.0],
-        [0.0, -1.0, t],
-        [0.0, 1.0, t],
-        [0.0, -1.0, -t],
-        [0.0, 1.0, -t],
-        [t, 0.0, -1.0],
-        [t, 0.0, 1.0],
-        [-t, 0.0, -1.0],
-        [-t, 0.0, 1.0],
-    ]
-    .to_vec();
-    let mut tris: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..levels {
-        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
-        let mut next = Vec::with_capacity(4 * tris.len());
-        for [a, b, c] in tris {
-            let mut m = |i: u32, j: u32, pos: &mut Vec<V3>| {
-                *mid.entry((i.min(j), i.max(j))).or_insert_with(|| {
-                    let (p, q) = (pos[i as usize], pos[j as usize]);
-                    pos.push([(p[0] + q[0]) / 2.0, (p[1] + q[1]) / 2.0, (p[2] + q[2]) / 2.0]);
-                    (pos.len() - 1) as u32
-                })
-            };
-            let (ab, bc, ca) = (m(a, b, &mut pos), m(b, c, &mut pos), m(c, a, &mut pos));
-            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        tris = next;
-    }
-    let pos = pos
-        .iter()
-        .map(|p| {
-            let n = norm(*p);
-            [centre[0] + radius * p[0] / n, centre[1] + radius * p[1] / n, centre[2] + radius * p[2] / n]
-        })
-        .collect();
-    (pos, tris)
+/// An icosphere of `radius` about `centre` (`fibfluid_geometry::icosphere`, moved).
+pub fn sphere_surface(centre: V3, radius: f64, levels: u32) -> (Vec<V3>, Vec<[u32; 3]>) {
+    let m = fibfluid_geometry::icosphere(levels, radius);
+    let pos = m.positions().iter().map(|p| [p[0] + centre[0], p[1] + centre[1], p[2] + centre[2]]).collect();
+    (pos, m.triangles().to_vec())
 }

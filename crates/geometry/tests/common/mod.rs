@@ -18,6 +18,7 @@ pub const FIXTURES: &[(&str, i64)] = &[
     ("icosphere-1.obj", 0),
     ("icosphere-2.obj", 0),
     ("icosphere-3.obj", 0),
+    ("lesion.obj", 0),
     ("liver-smooth.obj", 0),
     ("liver.obj", 0),
     ("liver2.obj", 0),
