@@ -43,7 +43,8 @@ pub use fibfluid_sim::{
     LengthUnit, MAX_STEPS, MIN_ADAPTIVE_STEP, Method, Mode, Model, ParseChoiceError, Plan, PlannedStage,
     PointForce, Precision, Report, Response, RoundTrip, RunOptions, SetupOptions, Shape, Simulation,
     SkippedStage, SolverOptions, Stage, StageRecord, State, StepStats, Stepping, Tissue,
-    VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE, ineffective, memory_budget, roundtrip, roundtrip_error,
+    VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE, ineffective, ineffective_interactive, memory_budget,
+    roundtrip, roundtrip_error,
 };
 pub use fibfluid_sim::{contact, guards, plan, stages};
 

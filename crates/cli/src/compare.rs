@@ -23,6 +23,9 @@ pub struct CompareArgs {
 /// Runs `fibfluid compare`.
 pub fn run(args: &CompareArgs) -> Result<(), crate::CliError> {
     let scene = Scene::load(&args.scene)?;
+    for w in fibfluid::ineffective_interactive(&scene) {
+        tell!("warning: {w}");
+    }
     let path = load_tool_path(&args.path)?;
     let opts = args.response.options();
     let report = run_compare(&scene, &path, &args.out, &opts)?;

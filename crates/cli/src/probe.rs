@@ -57,6 +57,9 @@ pub struct ProbeArgs {
 /// Runs `fibfluid probe`.
 pub fn run(args: &ProbeArgs) -> Result<(), crate::CliError> {
     let scene = Scene::load(&args.scene)?;
+    for w in fibfluid::ineffective_interactive(&scene) {
+        tell!("warning: {w}");
+    }
     let path = load_tool_path(&args.path)?;
     let opts = args.response.options();
     // Long replays report their progress with an estimate of the time left.

@@ -45,6 +45,9 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
         });
     }
     let scene = Scene::load(&args.scene)?;
+    for w in fibfluid::ineffective_interactive(&scene) {
+        tell!("warning: {w}");
+    }
     let Shape::Surface(file) = &scene.shape else {
         return Err(ProbeError::NotASurface { scene: scene.display_name() }.into());
     };

@@ -35,6 +35,10 @@ pub enum Ineffective {
         /// How many regions the scene gives.
         regions: usize,
     },
+    /// A neo-Hookean `[tissue]` driven interactively (`probe`, `view`, `compare`, Python
+    /// `Body`): interactive FEM bodies are linear (one kept factorization); the neo-Hookean
+    /// law is solved by batch runs only.
+    LinearInteractiveBody,
     /// A fluid density without gravity: the density enters only the hydrostatic load.
     DensityWithoutGravity {
         /// The density given.
@@ -79,6 +83,10 @@ impl fmt::Display for Ineffective {
                 f,
                 "{regions} [[region]] table(s) have no effect: regions of other tissue are a finite-element feature (method = \"fem\"); this method treats the whole body as one material"
             ),
+            Ineffective::LinearInteractiveBody => write!(
+                f,
+                "[tissue] model = \"neo-hookean\" applies to batch runs (`run`): an interactive FEM body is linear (small strain), so far pulls read qualitative (its frame guards say when)"
+            ),
             Ineffective::DensityWithoutGravity { density } => write!(
                 f,
                 "[fluid] density = {density} has no effect without gravity (it enters only the hydrostatic load); add [gravity] acceleration or remove [fluid]"
@@ -98,6 +106,13 @@ impl fmt::Display for Ineffective {
             ),
         }
     }
+}
+
+/// What a scene asks for that an interactive body does not carry: the neo-Hookean law
+/// (interactive FEM bodies are linear).
+pub fn ineffective_interactive(scene: &Model) -> Vec<Ineffective> {
+    let nonlinear = scene.tissue.is_some_and(|t| t.model() == fibfluid_fem::TissueModel::NeoHookean);
+    if nonlinear { vec![Ineffective::LinearInteractiveBody] } else { vec![] }
 }
 
 /// Every setting of `scene` that cannot act, in scene order (gravity and fluid, material,

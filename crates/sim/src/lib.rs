@@ -39,7 +39,7 @@ mod simulate;
 pub mod stages;
 
 pub use choices::{FiberModel, ForceTiming, LengthUnit, Method, Mode, Stepping};
-pub use effects::{Ineffective, ineffective};
+pub use effects::{Ineffective, ineffective, ineffective_interactive};
 pub use error::{Error, Result};
 pub use model::{
     FemSettings, FfmSettings, Load, MAX_STEPS, Model, NamedRegion, PLATE_REST_TOLERANCE, PointForce, Shape,
