@@ -145,7 +145,7 @@ pub fn measure_machine(bytes: usize) -> MachineRates {
             a.as_ref(),
             a.as_ref(),
             1.0,
-            faer::Par::rayon(0),
+            fibfluid::linalg::parallel::compute_par(),
         );
         std::hint::black_box(&c);
         gemm = gemm.min(start.elapsed().as_secs_f64());
@@ -220,4 +220,56 @@ pub fn bench_stages(scene: fibfluid::sim::Model, repeats: usize) -> Result<(Mach
         ),
     ];
     Ok((rates, stages))
+}
+
+/// One thread count of a sweep: the count asked for, the count the compute stages used
+/// (at most the cores), and the stages measured with it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SweepRow {
+    /// Threads allowed (the pool's size and faer's parallelism).
+    pub threads: usize,
+    /// Threads the compute-bound stages used: `threads`, at most the cores.
+    pub compute_threads: usize,
+    /// The machine's rates with these threads.
+    pub machine: MachineRates,
+    /// The stages, as [`bench_stages`] measures them.
+    pub stages: Vec<StageBench>,
+}
+
+/// `fibfluid bench --stages SCENE --threads-sweep 1,2,..`: [`bench_stages`] once per thread
+/// count, each in a rayon pool of that size with faer's parallelism set to it (restored
+/// afterwards), in one process so that the ratios compare like with like.
+pub fn bench_stages_sweep(
+    scene: &fibfluid::sim::Model,
+    repeats: usize,
+    threads: &[usize],
+) -> Result<Vec<SweepRow>> {
+    let before = faer::get_global_parallelism();
+    let mut rows = Vec::with_capacity(threads.len());
+    for &t in threads {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(t)
+            .build()
+            .map_err(|e| fibfluid::linalg::LinalgError::ThreadPool { threads: t, message: e.to_string() });
+        let pool = match pool {
+            Ok(p) => p,
+            Err(e) => {
+                faer::set_global_parallelism(before);
+                return Err(e.into());
+            }
+        };
+        faer::set_global_parallelism(fibfluid::linalg::parallel::par_of(t));
+        let measured = pool.install(|| {
+            let compute_threads = fibfluid::linalg::parallel::compute_threads();
+            bench_stages(scene.clone(), repeats).map(|(machine, stages)| SweepRow {
+                threads: t,
+                compute_threads,
+                machine,
+                stages,
+            })
+        });
+        faer::set_global_parallelism(before);
+        rows.push(measured?);
+    }
+    Ok(rows)
 }

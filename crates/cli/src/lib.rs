@@ -10,6 +10,7 @@ pub mod grab;
 pub mod info;
 pub mod output;
 pub mod probe_run;
+pub mod scaling;
 pub mod study;
 mod study_grid;
 pub mod vtu;

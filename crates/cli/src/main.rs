@@ -178,6 +178,10 @@ enum Command {
         /// in the same run).
         #[arg(long, value_name = "SCENE")]
         stages: Option<PathBuf>,
+        /// With --stages: measure the stages once per thread count (for example 1,2,4,8),
+        /// in one process, so each stage's scaling on this machine reads as ratios.
+        #[arg(long, value_delimiter = ',', value_name = "T,..", requires = "stages")]
+        threads_sweep: Option<Vec<usize>>,
     },
     /// Accuracy versus time over modes, stepping, steps, precision and backends.
     Accuracy {
@@ -412,8 +416,11 @@ fn run(command: Command) -> Result<(), CliError> {
         Command::Plan { scene, over, json } => plan(&scene, &over, json),
         Command::Run { scene, out, over } => run_scene(&scene, &out, &over),
         Command::Roundtrip { scene, over, json } => roundtrip(&scene, &over, json),
+        Command::Bench { stages: Some(scene), repeats, json, threads_sweep: Some(sweep), .. } => {
+            bench_sweep(&scene, repeats, json, &sweep)
+        }
         Command::Bench { stages: Some(scene), repeats, json, .. } => bench_stages(&scene, repeats, json),
-        Command::Bench { sizes, repeats, json, stages: None } => bench(&sizes, repeats, json),
+        Command::Bench { sizes, repeats, json, stages: None, .. } => bench(&sizes, repeats, json),
         Command::Accuracy { scene, out, grid } => accuracy::run(&scene, &out, grid),
         Command::Probe(args) => probe::run(&args),
         Command::View(args) => view::run(&args),
@@ -492,8 +499,14 @@ fn plan(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> {
     // Refused from counts before the convexity check of a body that cannot fit.
     Plan::from_counts(&scene).check_memory(&scene.name, limit, scene.solver.backend)?;
     let plan = Plan::from_scene(&scene);
+    let rate = fibfluid_cli::scaling::measure_gemm_rate(fibfluid_cli::scaling::RATE_PROBE_ORDER);
+    let scaling = fibfluid_cli::scaling::scaling(&scene.model, limit, rate);
     if json {
-        say!("{}", serde_json::to_string_pretty(&plan)?);
+        let mut value = serde_json::to_value(&plan)?;
+        if let Some(map) = value.as_object_mut() {
+            map.insert("machine".into(), serde_json::to_value(&scaling)?);
+        }
+        say!("{}", serde_json::to_string_pretty(&value)?);
     } else {
         say!(
             "{}: {} vertices, {} steps ({} / {} / {} / {})",
@@ -522,6 +535,9 @@ fn plan(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> {
             limit as f64 / 1048576.0,
             plan.flops / 1e9
         );
+        for line in fibfluid_cli::scaling::scaling_lines(&scaling, limit) {
+            say!("{line}");
+        }
     }
     plan.check_memory(&scene.name, limit, scene.solver.backend)?;
     Ok(())
@@ -717,6 +733,52 @@ fn bench_stages(path: &Path, repeats: usize, json: bool) -> Result<(), CliError>
     for s in &stages {
         say!("{:<14} {:>10.4} {:>10.4} {:>7.2}  {}", s.stage, s.seconds, s.limit_seconds, s.ratio, s.limit);
     }
+    Ok(())
+}
+
+/// `fibfluid bench --stages SCENE --threads-sweep T,..`: one table, a column per count.
+fn bench_sweep(path: &Path, repeats: usize, json: bool, sweep: &[usize]) -> Result<(), CliError> {
+    let cap = fibfluid::linalg::threads::thread_cap();
+    if let Some(&t) = sweep.iter().find(|&&t| !(1..=cap).contains(&t)) {
+        return Err(CliError::Flag {
+            flag: "threads-sweep",
+            value: t.to_string(),
+            problem: "each count must be between 1 and 4 per available core",
+        });
+    }
+    if !(1..=1000).contains(&repeats) {
+        return Err(CliError::Flag {
+            flag: "repeats",
+            value: repeats.to_string(),
+            problem: "must be between 1 and 1000",
+        });
+    }
+    let (scene, _) = load_scene(path, &Overrides::default())?;
+    let (name, n) = (scene.name.clone(), scene.n_vertices());
+    let rows = fibfluid_cli::bench::bench_stages_sweep(&scene.model, repeats, sweep)?;
+    if json {
+        say!("{}", serde_json::json!({ "scene": name, "vertices": n, "sweep": rows }));
+        return Ok(());
+    }
+    let cores = fibfluid::linalg::parallel::cores();
+    say!("{name}: {n} vertices; {cores} cores; seconds per stage (ratio to its limit in the same run)");
+    let header: String = rows
+        .iter()
+        .map(|r| format!(" {:>17}", format!("T={} (uses {})", r.threads, r.compute_threads)))
+        .collect();
+    say!("{:<14}{header}", "stage");
+    for (i, stage) in rows.first().map(|r| r.stages.as_slice()).unwrap_or_default().iter().enumerate() {
+        let cells: String = rows
+            .iter()
+            .map(|r| format!(" {:>9.4} ({:>5.2})", r.stages[i].seconds, r.stages[i].ratio))
+            .collect();
+        say!("{:<14}{cells}", stage.stage);
+    }
+    let gemm: String = rows
+        .iter()
+        .map(|r| format!(" {:>17}", format!("{:.1} GFLOP/s", r.machine.gemm_flops_per_second / 1e9)))
+        .collect();
+    say!("{:<14}{gemm}", "GEMM rate");
     Ok(())
 }
 

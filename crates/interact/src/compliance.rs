@@ -610,7 +610,7 @@ fn axpy<T: Entry>(y: &mut [f64], x: &[T], a: f64) {
 /// on a matrix that is not (numerically) positive definite.
 fn invert_spd(k: Mat<f64>) -> std::result::Result<Mat<f64>, usize> {
     let n = k.nrows();
-    let par = faer::get_global_parallelism();
+    let par = fibfluid_linalg::parallel::compute_par();
     let diagonal: Vec<f64> = (0..n).map(|i| k[(i, i)]).collect();
     let mut a = k;
     {

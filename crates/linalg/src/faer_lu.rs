@@ -36,7 +36,7 @@ impl<T: ComplexField> Packed<T> {
     /// The scratch memory and the permutation are allocated fallibly
     /// ([`LinalgError::OutOfMemory`](crate::LinalgError::OutOfMemory)).
     fn factor(mut a: Vec<T>, n: usize) -> Result<Self> {
-        let par = faer::get_global_parallelism();
+        let par = crate::parallel::compute_par();
         let mut fwd = try_collect(n, std::iter::repeat(0usize), "the LU permutation")?;
         let mut inv = try_collect(n, std::iter::repeat(0usize), "the LU permutation")?;
         let req = lu_in_place_scratch::<usize, T>(n, n, par, Default::default());
@@ -57,7 +57,11 @@ impl<T: ComplexField> Packed<T> {
 
     /// Solves in place for the columns of `rhs`.
     fn solve(&self, rhs: MatMut<'_, T>) {
-        let par = faer::get_global_parallelism();
+        let par = if rhs.ncols() <= crate::triangular::MAX_STREAM_RHS {
+            crate::parallel::stream_par(self.n * self.n * std::mem::size_of::<T>())
+        } else {
+            crate::parallel::compute_par()
+        };
         let mut mem = MemBuffer::new(solve_in_place_scratch::<usize, T>(self.n, rhs.ncols(), par));
         let lu = MatRef::from_column_major_slice(&self.lu, self.n, self.n);
         // The unit lower solve reads only the strict lower triangle, the upper solve only

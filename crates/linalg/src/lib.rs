@@ -56,12 +56,14 @@ mod held;
 mod in_place;
 mod matrix;
 mod memory;
+pub mod parallel;
 mod prescribed;
 mod residual;
 mod solver;
 mod sparse;
 mod structured;
 pub mod threads;
+mod triangular;
 
 #[cfg(feature = "faer-lu")]
 mod faer_lu;

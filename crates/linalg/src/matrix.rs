@@ -311,7 +311,7 @@ impl BorderedMatrix {
         use faer::{Accum, MatMut, MatRef};
         let (n, d, dim) = (self.n, self.axes(), self.dim());
         assert!(x.len() == dim && y.len() == dim, "apply: vector length");
-        let par = if n >= 512 { faer::get_global_parallelism() } else { faer::Par::Seq };
+        let par = crate::parallel::stream_par(n * n * 8);
         match &*self.blocks {
             _ if self.is_factored_in_place() => {
                 let slices: Vec<(usize, &[f64])> = (0..d).map(|c| (c, &x[c * n..(c + 1) * n])).collect();
@@ -400,7 +400,7 @@ impl BorderedMatrix {
         let (n, d, dim) = (self.n, self.axes(), self.dim());
         assert!(x.len() == count * dim && y.len() == count * dim, "apply_many: vector length");
         let val = |v: f64| if abs { v.abs() } else { v };
-        let par = if n >= 512 { faer::get_global_parallelism() } else { faer::Par::Seq };
+        let par = crate::parallel::stream_par(n * n * 8);
         let sign = if abs { -1.0 } else { 1.0 };
         match &*self.blocks {
             _ if self.is_factored_in_place() => {
@@ -535,7 +535,7 @@ impl BorderedMatrix {
             // One product for every axis (one pass over the shared block, as in `apply`):
             // Y = 2 D |X| - K |X| with |X| the n x d matrix of the axes' unknowns.
             let k = self.block(0);
-            let par = if n >= 512 { faer::get_global_parallelism() } else { faer::Par::Seq };
+            let par = crate::parallel::stream_par(n * n * 8);
             let xm = faer::MatRef::from_column_major_slice(&ax[..d * n], n, d);
             let ym = faer::MatMut::from_column_major_slice_mut(&mut y[..d * n], n, d);
             faer::linalg::matmul::matmul(ym, faer::Accum::Replace, k.as_ref(), xm, -1.0, par);
@@ -550,7 +550,7 @@ impl BorderedMatrix {
                 let k = self.block(c);
                 let (xc, yc) = (&ax[c * n..(c + 1) * n], &mut y[c * n..(c + 1) * n]);
                 if self.block_is_z_matrix[bi] {
-                    let par = if n >= 512 { faer::get_global_parallelism() } else { faer::Par::Seq };
+                    let par = crate::parallel::stream_par(n * n * 8);
                     let xm = faer::MatRef::from_column_major_slice(xc, n, 1);
                     let ym = faer::MatMut::from_column_major_slice_mut(yc, n, 1);
                     faer::linalg::matmul::matmul(ym, faer::Accum::Replace, k.as_ref(), xm, -1.0, par);

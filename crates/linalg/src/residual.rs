@@ -42,7 +42,7 @@ pub(crate) fn z_matrix_products(k: &Mat<f64>, xs: &[&[f64]]) -> Vec<f64> {
         }
     }
     let mut out = vec![0.0; 2 * m * n];
-    let par = if n >= 512 { faer::get_global_parallelism() } else { faer::Par::Seq };
+    let par = crate::parallel::stream_par(n * n * 8);
     // faer multiplies by up to MATVEC_COLUMNS columns at the speed of reading K (a
     // matrix-vector kernel); with more columns it packs K for its GEMM kernel, which for
     // a thin right-hand side is slower than a second pass.
@@ -74,7 +74,8 @@ pub(crate) fn symmetric_products(k: BlockView<'_>, xs: &[&[f64]]) -> Vec<f64> {
         BlockView::Full(k) | BlockView::Upper { upper: k, .. } => k.nrows(),
     };
     let m = xs.len();
-    let parts = if n >= 512 { rayon::current_num_threads().max(1) } else { 1 };
+    // One part per MiB of the triangle read, at most the compute threads.
+    let parts = crate::parallel::stream_threads(n * n * 4);
     // Column ranges of equal triangle area: column j holds n - j entries of the lower
     // triangle, j of the strict upper one.
     let upper = matches!(k, BlockView::Upper { .. });

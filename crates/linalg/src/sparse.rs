@@ -22,7 +22,7 @@ use faer::sparse::linalg::cholesky::{
     LltRef, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
 };
 use faer::sparse::{FaerError, SparseColMatRef, SymbolicSparseColMatRef};
-use faer::{Conj, MatMut, Side, get_global_parallelism};
+use faer::{Conj, MatMut, Side};
 
 use crate::{LinalgError, Result};
 
@@ -157,7 +157,7 @@ impl SparseCholesky {
     pub fn refactor(&mut self, k_lower: SparseColMatRef<'_, usize, f64>) -> Result<()> {
         self.symbolic.check_pattern(k_lower.symbolic())?;
         let sym = &self.symbolic.symbolic;
-        let par = get_global_parallelism();
+        let par = crate::parallel::compute_par();
         let mut mem =
             MemBuffer::try_new(sym.factorize_numeric_llt_scratch::<f64>(par, Default::default()))
                 .map_err(|_| LinalgError::SparseOutOfMemory { what: "the factorization's workspace" })?;
@@ -195,7 +195,13 @@ impl SparseCholesky {
     pub fn solve_in_place(&self, rhs: MatMut<'_, f64>) {
         assert_eq!(rhs.nrows(), self.symbolic.nrows, "one row per unknown");
         let sym = &self.symbolic.symbolic;
-        let par = get_global_parallelism();
+        // A few right-hand sides read the factor once: split by its bytes; many are
+        // matrix products.
+        let par = if rhs.ncols() <= crate::triangular::MAX_STREAM_RHS {
+            crate::parallel::stream_par(self.values.len() * 8)
+        } else {
+            crate::parallel::compute_par()
+        };
         let mut mem = MemBuffer::new(sym.solve_in_place_scratch::<f64>(rhs.ncols(), par));
         LltRef::new(sym, &self.values).solve_in_place_with_conj(Conj::No, rhs, par, MemStack::new(&mut mem));
     }

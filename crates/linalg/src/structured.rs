@@ -5,11 +5,12 @@ use std::time::Instant;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{LltError, cholesky_in_place, cholesky_in_place_scratch};
 use faer::linalg::triangular_solve::{solve_lower_triangular_in_place, solve_upper_triangular_in_place};
-use faer::{Mat, MatMut, MatRef, Par};
+use faer::{Mat, MatMut, MatRef};
 use rayon::prelude::*;
 
 use crate::block_view::BlockView;
 use crate::in_place::cholesky_keeping_upper;
+use crate::triangular::{MAX_STREAM_RHS, Scalar, llt_solve_in_place};
 use crate::{
     Blocks, BorderedMatrix, FactorCost, FactorOptions, Factorization, LinalgError, LinearSolver, Precision,
     Result, cholesky_flops,
@@ -46,16 +47,6 @@ enum Factor {
     InPlace,
 }
 
-/// Below this N the triangular solves run on one thread; from it on they use faer's global
-/// parallelism. With a handful of right-hand sides they are bound by reading L; on two
-/// cores the sequential solve is 2 to 4 times faster up to N = 1000, while at N = 2,562
-/// the parallel one took 2.6 ms against 5.1 ms (faer 0.24, same run).
-const PAR_SOLVE_MIN_N: usize = 2000;
-
-fn solve_par(n: usize) -> Par {
-    if n >= PAR_SOLVE_MIN_N { faer::get_global_parallelism() } else { Par::Seq }
-}
-
 impl Factor {
     /// The diagonal entry `L_ii` of a factor of order `n` held in its own buffer.
     fn diag(&self, n: usize, i: usize) -> f64 {
@@ -67,26 +58,19 @@ impl Factor {
     }
 
     /// Solves `K X = B` in place for the columns of `b` (n x k): one blocked forward and
-    /// one blocked backward triangular solve over all k columns (each reads L once).
-    /// `stored` is the matrix's block, which holds the factor when it was made in place
-    /// (faer's triangular solves read only the triangle they are given).
-    fn solve(&self, stored: &Mat<f64>, mut b: MatMut<'_, f64>, par: Par) {
+    /// one blocked backward triangular solve over all k columns (each reads L once), with
+    /// at most `threads` threads. `stored` is the matrix's block, which holds the factor
+    /// when it was made in place (only the lower triangle is read).
+    fn solve(&self, stored: &Mat<f64>, b: MatMut<'_, f64>, threads: usize) {
         let n = stored.nrows();
         match self {
-            Factor::InPlace => {
-                solve_lower_triangular_in_place(stored.as_ref(), b.as_mut(), par);
-                solve_upper_triangular_in_place(stored.as_ref().transpose(), b, par);
-            }
-            Factor::F64(v) => {
-                let l = MatRef::from_column_major_slice(v, n, n);
-                solve_lower_triangular_in_place(l, b.as_mut(), par);
-                solve_upper_triangular_in_place(l.transpose(), b, par);
-            }
+            Factor::InPlace => llt_solve(stored.as_ref(), b, threads),
+            Factor::F64(v) => llt_solve(MatRef::from_column_major_slice(v, n, n), b, threads),
             Factor::F32(v) => {
                 let l = MatRef::from_column_major_slice(v, n, n);
                 let mut s = Mat::<f32>::from_fn(n, b.ncols(), |i, j| b[(i, j)] as f32);
-                solve_lower_triangular_in_place(l, s.as_mut(), par);
-                solve_upper_triangular_in_place(l.transpose(), s.as_mut(), par);
+                llt_solve(l, s.as_mut(), threads);
+                let mut b = b;
                 for j in 0..b.ncols() {
                     for i in 0..n {
                         b[(i, j)] = s[(i, j)] as f64;
@@ -94,6 +78,18 @@ impl Factor {
                 }
             }
         }
+    }
+}
+
+/// `L L' X = B` in place: split over L's rows for a few right-hand sides (memory-bound),
+/// faer's blocked solve with the compute threads for many (matrix products).
+fn llt_solve<T: Scalar>(l: MatRef<'_, T>, mut b: MatMut<'_, T>, threads: usize) {
+    if b.ncols() <= MAX_STREAM_RHS {
+        llt_solve_in_place(l, b, threads);
+    } else {
+        let par = crate::parallel::par_of(threads);
+        solve_lower_triangular_in_place(l, b.as_mut(), par);
+        solve_upper_triangular_in_place(l.transpose(), b, par);
     }
 }
 
@@ -200,7 +196,7 @@ fn factor_blocks_in_place(a: &mut BorderedMatrix) -> Result<Vec<Vec<f64>>> {
             restore_lower(ks[c], &d[c]);
         }
         diagonals.push((0..n).map(|i| ks[c][(i, i)]).collect());
-        let result = cholesky_keeping_upper(ks[c].as_mut(), faer::get_global_parallelism()).and_then(|()| {
+        let result = cholesky_keeping_upper(ks[c].as_mut(), crate::parallel::compute_par()).and_then(|()| {
             // As for a copied factor: a tiny positive pivot is a singular block.
             (0..n).find(|&i| !(ks[c][(i, i)].powi(2) > tol * diagonals[c][i].abs())).map_or(Ok(()), Err)
         });
@@ -272,7 +268,7 @@ fn lower_copy<T: Copy + Send + Default>(k: BlockView<'_>, cast: impl Fn(f64) -> 
 /// Factors `a` (n x n, column-major, lower triangle) in place with faer's global
 /// parallelism; returns the index of a non-positive pivot.
 fn cholesky<T: faer::traits::RealField>(a: &mut [T], n: usize) -> std::result::Result<(), usize> {
-    let par = faer::get_global_parallelism();
+    let par = crate::parallel::compute_par();
     let mut mem = MemBuffer::new(cholesky_in_place_scratch::<T>(n, par, Default::default()));
     let m = MatMut::from_column_major_slice_mut(a, n, n);
     cholesky_in_place(m, Default::default(), par, MemStack::new(&mut mem), Default::default())
@@ -320,22 +316,23 @@ impl StructuredFactorization {
     /// Solves `K_c X_c = B_c` for every axis c; `cols[c]` holds axis c's columns (n x k).
     /// A shared factor takes one matrix of every column (`cols` of length 1).
     fn solve_blocks(&self, cols: &mut [MatMut<'_, f64>]) {
-        let n = self.matrix.n_vertices();
         let m = &self.matrix;
+        let threads = crate::parallel::compute_threads();
         if self.factors.len() == 1 {
             for b in cols.iter_mut() {
-                self.factors[0].solve(m.stored_block(0), b.as_mut(), solve_par(n));
+                self.factors[0].solve(m.stored_block(0), b.as_mut(), threads);
             }
-        } else if n >= 256 {
+        } else if threads > 1 {
             // Three different factors, each streamed once for its own columns; the axes
-            // share the cores (one thread each: no nested parallelism).
+            // share the threads.
+            let per_axis = (threads / self.factors.len()).max(1);
             cols.par_iter_mut()
                 .zip(&self.factors)
                 .enumerate()
-                .for_each(|(c, (b, f))| f.solve(m.stored_block(c), b.as_mut(), Par::Seq));
+                .for_each(|(c, (b, f))| f.solve(m.stored_block(c), b.as_mut(), per_axis));
         } else {
             for (c, (b, f)) in cols.iter_mut().zip(&self.factors).enumerate() {
-                f.solve(m.stored_block(c), b.as_mut(), Par::Seq);
+                f.solve(m.stored_block(c), b.as_mut(), 1);
             }
         }
     }
