@@ -206,6 +206,53 @@ fn json_of(out: &std::process::Output) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).unwrap()
 }
 
+/// `bench --stages --threads-sweep` measures every stage at every count, and a stage never
+/// uses more compute threads than the machine has cores; a count of 0 is refused.
+#[test]
+fn bench_sweeps_thread_counts_and_caps_them_at_the_cores() {
+    let scene = root().join("fixtures/scenes/sphere.toml");
+    let out = bin()
+        .args(["bench", "--json", "--repeats", "1", "--threads-sweep", "1,2,4", "--stages"])
+        .arg(&scene)
+        .output();
+    let sweep = json_of(&out.unwrap());
+    let rows = sweep["sweep"].as_array().unwrap();
+    let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1) as u64;
+    assert_eq!(rows.len(), 3);
+    for (row, asked) in rows.iter().zip([1u64, 2, 4]) {
+        assert_eq!(row["threads"].as_u64(), Some(asked));
+        assert_eq!(row["compute_threads"].as_u64(), Some(asked.min(cores)));
+        let names: Vec<&str> =
+            row["stages"].as_array().unwrap().iter().map(|s| s["stage"].as_str().unwrap()).collect();
+        assert_eq!(names, ["assembly", "factorization", "checked solve"]);
+    }
+    let bad = bin().args(["bench", "--threads-sweep", "0", "--stages"]).arg(&scene).output().unwrap();
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("threads-sweep"));
+}
+
+/// `plan` extrapolates the FFM's practical size from its own memory, which grows as N^2:
+/// with a budget of 4 and 16 times the plan's peak, the limit is 2 and 4 times the sphere's
+/// 162 vertices. The FEM's figures for the same body stand beside it.
+#[test]
+fn plan_states_where_the_ffm_stops_fitting() {
+    let scene = root().join("fixtures/scenes/sphere.toml");
+    let plan = json_of(&bin().arg("plan").arg(&scene).arg("--json").output().unwrap());
+    let memory = plan["machine"]["ffm"]["memory_bytes"].as_u64().unwrap();
+    assert_eq!(memory, plan["memory_bytes"].as_u64().unwrap(), "an FFM scene's own plan");
+    for factor in [4u64, 16] {
+        let limit = (factor * memory).to_string();
+        let out = bin().arg("plan").arg(&scene).args(["--json", "--max-memory", &limit]).output().unwrap();
+        let n = json_of(&out)["machine"]["ffm_n_at_memory_limit"].as_f64().unwrap();
+        let want = 162.0 * (factor as f64).sqrt();
+        assert!((n - want).abs() <= 1e-6 * want, "budget {factor}x: N = {n}, want {want}");
+    }
+    assert!(plan["machine"]["fem"]["memory_bytes"].as_u64().unwrap() > 0);
+    assert!(plan["machine"]["gemm_flops_per_second"].as_f64().unwrap() > 1e6);
+    let text = bin().arg("plan").arg(&scene).output().unwrap();
+    assert!(String::from_utf8_lossy(&text.stdout).contains("FFM stops being practical near N ="));
+}
+
 /// `fibfluid plan` works on every fixture scene, prints the documented JSON, and agrees
 /// with what a run then does: every stage the run timed is one the plan runs, and every
 /// stage the plan skips is absent from the run.
