@@ -172,38 +172,7 @@ pub trait FactorizationExt: Factorization {
     /// Solves `A x = b`, refining until the residual reaches the target, and returns an
     /// error if it stays above [`FactorOptions::max_residual`] or anything is not finite.
     fn solve(&self, b: &[f64]) -> Result<Solution> {
-        let a = self.matrix();
-        let dim = a.dim();
-        assert_eq!(b.len(), dim, "rhs length");
-        if let Some(i) = b.iter().position(|v| !v.is_finite()) {
-            return Err(LinalgError::NonFiniteRhs { index: i });
-        }
-        let opts = *self.options();
-        let mut x = b.to_vec();
-        self.solve_unrefined(&mut x);
-        let mut r = vec![0.0; dim];
-        let mut denom = vec![0.0; dim];
-        let mut steps = 0;
-        let mut rel;
-        loop {
-            if let Some(i) = x.iter().position(|v| !v.is_finite()) {
-                return Err(LinalgError::NonFiniteSolution { index: i });
-            }
-            a.residual(&x, b, &mut r, &mut denom);
-            rel = componentwise_backward_error(&r, &denom, b);
-            if rel <= opts.target_for(dim) || steps >= opts.max_refinement_steps {
-                break;
-            }
-            self.solve_unrefined(&mut r);
-            for (xi, di) in x.iter_mut().zip(&r) {
-                *xi += di;
-            }
-            steps += 1;
-        }
-        if !(rel <= opts.max_residual) {
-            return Err(LinalgError::ResidualTooLarge { residual: rel, limit: opts.max_residual });
-        }
-        Ok(Solution { x, relative_residual: rel, refinement_steps: steps })
+        crate::parallel::on_cores(|| checked_solve(self, b))
     }
 
     /// Solves `count` right-hand sides stored one after another in `b` (each `dim()` long)
@@ -217,67 +186,7 @@ pub trait FactorizationExt: Factorization {
     /// If `b.len() != count * dim()` (a programming error).
     #[track_caller]
     fn solve_many(&self, b: &[f64], count: usize) -> Result<Vec<Solution>> {
-        let a = self.matrix();
-        let dim = a.dim();
-        assert_eq!(b.len(), count * dim, "solve_many: rhs length");
-        if let Some(i) = b.iter().position(|v| !v.is_finite()) {
-            return Err(LinalgError::NonFiniteRhs { index: i % dim });
-        }
-        let opts = *self.options();
-        let mut x = b.to_vec();
-        self.solve_many_unrefined(&mut x, count);
-        let mut rel = vec![f64::INFINITY; count];
-        let mut steps = vec![0usize; count];
-        let mut active: Vec<usize> = (0..count).collect();
-        loop {
-            // Residuals of every active right-hand side in one pass over the blocks.
-            let mut xs = Vec::with_capacity(active.len() * dim);
-            for &k in &active {
-                let xk = &x[k * dim..(k + 1) * dim];
-                if let Some(i) = xk.iter().position(|v| !v.is_finite()) {
-                    return Err(LinalgError::NonFiniteSolution { index: i });
-                }
-                xs.extend_from_slice(xk);
-            }
-            let bs: Vec<f64> =
-                active.iter().flat_map(|&k| b[k * dim..(k + 1) * dim].iter().copied()).collect();
-            let mut r = vec![0.0; xs.len()];
-            let mut denom = vec![0.0; xs.len()];
-            a.residual_many(&xs, &bs, &mut r, &mut denom, active.len());
-            let mut corrections = Vec::new();
-            let mut refine = Vec::new();
-            for (j, &k) in active.iter().enumerate() {
-                let bk = &b[k * dim..(k + 1) * dim];
-                let rk = &r[j * dim..(j + 1) * dim];
-                rel[k] = componentwise_backward_error(rk, &denom[j * dim..(j + 1) * dim], bk);
-                if rel[k] > opts.target_for(dim) && steps[k] < opts.max_refinement_steps {
-                    corrections.extend_from_slice(rk);
-                    refine.push(k);
-                }
-            }
-            if refine.is_empty() {
-                break;
-            }
-            self.solve_many_unrefined(&mut corrections, refine.len());
-            for (j, &k) in refine.iter().enumerate() {
-                for (xi, di) in x[k * dim..(k + 1) * dim].iter_mut().zip(&corrections[j * dim..(j + 1) * dim])
-                {
-                    *xi += di;
-                }
-                steps[k] += 1;
-            }
-            active = refine;
-        }
-        if let Some(k) = (0..count).find(|&k| !(rel[k] <= opts.max_residual)) {
-            return Err(LinalgError::ResidualTooLarge { residual: rel[k], limit: opts.max_residual });
-        }
-        Ok((0..count)
-            .map(|k| Solution {
-                x: x[k * dim..(k + 1) * dim].to_vec(),
-                relative_residual: rel[k],
-                refinement_steps: steps[k],
-            })
-            .collect())
+        crate::parallel::on_cores(|| checked_solve_many(self, b, count))
     }
 
     /// Estimates the reciprocal condition number in the 1-norm (Hager–Higham estimator,
@@ -371,4 +280,103 @@ pub(crate) fn check_pivots(a: &BorderedMatrix, pivots: impl Iterator<Item = (usi
         }
     }
     Ok(())
+}
+
+/// [`FactorizationExt::solve`], run by [`on_cores`](crate::parallel::on_cores).
+fn checked_solve<F: Factorization + ?Sized>(f: &F, b: &[f64]) -> Result<Solution> {
+    let a = f.matrix();
+    let dim = a.dim();
+    assert_eq!(b.len(), dim, "rhs length");
+    if let Some(i) = b.iter().position(|v| !v.is_finite()) {
+        return Err(LinalgError::NonFiniteRhs { index: i });
+    }
+    let opts = *f.options();
+    let mut x = b.to_vec();
+    f.solve_unrefined(&mut x);
+    let mut r = vec![0.0; dim];
+    let mut denom = vec![0.0; dim];
+    let mut steps = 0;
+    let mut rel;
+    loop {
+        if let Some(i) = x.iter().position(|v| !v.is_finite()) {
+            return Err(LinalgError::NonFiniteSolution { index: i });
+        }
+        a.residual(&x, b, &mut r, &mut denom);
+        rel = componentwise_backward_error(&r, &denom, b);
+        if rel <= opts.target_for(dim) || steps >= opts.max_refinement_steps {
+            break;
+        }
+        f.solve_unrefined(&mut r);
+        for (xi, di) in x.iter_mut().zip(&r) {
+            *xi += di;
+        }
+        steps += 1;
+    }
+    if !(rel <= opts.max_residual) {
+        return Err(LinalgError::ResidualTooLarge { residual: rel, limit: opts.max_residual });
+    }
+    Ok(Solution { x, relative_residual: rel, refinement_steps: steps })
+}
+
+/// [`FactorizationExt::solve_many`], run by [`on_cores`](crate::parallel::on_cores).
+fn checked_solve_many<F: Factorization + ?Sized>(f: &F, b: &[f64], count: usize) -> Result<Vec<Solution>> {
+    let a = f.matrix();
+    let dim = a.dim();
+    assert_eq!(b.len(), count * dim, "solve_many: rhs length");
+    if let Some(i) = b.iter().position(|v| !v.is_finite()) {
+        return Err(LinalgError::NonFiniteRhs { index: i % dim });
+    }
+    let opts = *f.options();
+    let mut x = b.to_vec();
+    f.solve_many_unrefined(&mut x, count);
+    let mut rel = vec![f64::INFINITY; count];
+    let mut steps = vec![0usize; count];
+    let mut active: Vec<usize> = (0..count).collect();
+    loop {
+        // Residuals of every active right-hand side in one pass over the blocks.
+        let mut xs = Vec::with_capacity(active.len() * dim);
+        for &k in &active {
+            let xk = &x[k * dim..(k + 1) * dim];
+            if let Some(i) = xk.iter().position(|v| !v.is_finite()) {
+                return Err(LinalgError::NonFiniteSolution { index: i });
+            }
+            xs.extend_from_slice(xk);
+        }
+        let bs: Vec<f64> = active.iter().flat_map(|&k| b[k * dim..(k + 1) * dim].iter().copied()).collect();
+        let mut r = vec![0.0; xs.len()];
+        let mut denom = vec![0.0; xs.len()];
+        a.residual_many(&xs, &bs, &mut r, &mut denom, active.len());
+        let mut corrections = Vec::new();
+        let mut refine = Vec::new();
+        for (j, &k) in active.iter().enumerate() {
+            let bk = &b[k * dim..(k + 1) * dim];
+            let rk = &r[j * dim..(j + 1) * dim];
+            rel[k] = componentwise_backward_error(rk, &denom[j * dim..(j + 1) * dim], bk);
+            if rel[k] > opts.target_for(dim) && steps[k] < opts.max_refinement_steps {
+                corrections.extend_from_slice(rk);
+                refine.push(k);
+            }
+        }
+        if refine.is_empty() {
+            break;
+        }
+        f.solve_many_unrefined(&mut corrections, refine.len());
+        for (j, &k) in refine.iter().enumerate() {
+            for (xi, di) in x[k * dim..(k + 1) * dim].iter_mut().zip(&corrections[j * dim..(j + 1) * dim]) {
+                *xi += di;
+            }
+            steps[k] += 1;
+        }
+        active = refine;
+    }
+    if let Some(k) = (0..count).find(|&k| !(rel[k] <= opts.max_residual)) {
+        return Err(LinalgError::ResidualTooLarge { residual: rel[k], limit: opts.max_residual });
+    }
+    Ok((0..count)
+        .map(|k| Solution {
+            x: x[k * dim..(k + 1) * dim].to_vec(),
+            relative_residual: rel[k],
+            refinement_steps: steps[k],
+        })
+        .collect())
 }

@@ -203,6 +203,13 @@ impl SparseCholesky {
             crate::parallel::compute_par()
         };
         let mut mem = MemBuffer::new(sym.solve_in_place_scratch::<f64>(rhs.ncols(), par));
-        LltRef::new(sym, &self.values).solve_in_place_with_conj(Conj::No, rhs, par, MemStack::new(&mut mem));
+        crate::parallel::on_cores(|| {
+            LltRef::new(sym, &self.values).solve_in_place_with_conj(
+                Conj::No,
+                rhs,
+                par,
+                MemStack::new(&mut mem),
+            )
+        });
     }
 }
