@@ -18,7 +18,7 @@
 //!
 //! | module | crate | what |
 //! |---|---|---|
-//! | [`geometry`] | `fibfluid-geometry` | meshes, OBJ/STL, validation, area vectors, fiber visibility |
+//! | [`geometry`] | `fibfluid-geometry` | meshes, OBJ/STL/PLY/OFF, validation, area vectors, fiber visibility |
 //! | [`linalg`] | `fibfluid-linalg` | linear backends, capacitance updates, the memory policy |
 //! | [`assembly`] | `fibfluid-assembly` | FFM's bordered system |
 //! | [`chainmail`] | `fibfluid-chainmail` | Generalized and TSVE ChainMail |

@@ -1,5 +1,5 @@
-//! The `fibfluid` command line's library half: output files (deformed OBJ, VTK,
-//! `report.json`, renders), the probe and comparison runs with their files, the accuracy
+//! The `fibfluid` command line's library half: output files (deformed OBJ, legacy and XML
+//! VTK, `report.json`, renders), the probe and comparison runs with their files, the accuracy
 //! study and the bench harness. The binary (`src/main.rs`) parses arguments and prints;
 //! everything it writes goes through here, all or nothing ([`write_files_atomically`]).
 
@@ -13,6 +13,7 @@ pub mod probe_run;
 pub mod scaling;
 pub mod study;
 mod study_grid;
+pub mod vtp;
 pub mod vtu;
 
 pub use error::{Error, Result};

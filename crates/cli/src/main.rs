@@ -110,7 +110,7 @@ through_lib!(
 enum Command {
     /// Summarize a mesh: size, area, volume, convexity and kept fibers.
     MeshInfo {
-        /// OBJ or STL file.
+        /// OBJ, STL, PLY or OFF file.
         mesh: PathBuf,
         /// Print one JSON object.
         #[arg(long)]
@@ -142,7 +142,7 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// Run a scene; write deformed.obj, deformed.vtk, report.json and render.png.
+    /// Run a scene; write deformed.obj, deformed.vtk, deformed.vtp, report.json and render.png.
     Run {
         /// Scene TOML file.
         scene: PathBuf,

@@ -1,5 +1,5 @@
-//! Output files: deformed OBJ, legacy VTK, report JSON and a PNG render, written to a
-//! temporary directory and moved into place only when everything succeeded.
+//! Output files: deformed OBJ, legacy VTK, XML VTK PolyData, report JSON and a PNG render,
+//! written to a temporary directory and moved into place only when everything succeeded.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -11,7 +11,8 @@ use fibfluid::{Model, Report, Shape, Simulation};
 use crate::{Error, Result};
 
 /// Names of the files a run writes.
-pub const OUTPUT_FILES: [&str; 4] = ["deformed.obj", "deformed.vtk", "report.json", "render.png"];
+pub const OUTPUT_FILES: [&str; 5] =
+    ["deformed.obj", "deformed.vtk", crate::vtp::SURFACE_FILE, "report.json", "render.png"];
 
 /// The force–thickness chart a run with plates writes beside [`OUTPUT_FILES`].
 pub const COMPRESSION_FILE: &str = "compression.png";
@@ -294,8 +295,8 @@ pub fn write_fem_outputs(dir: &Path, run: &FemRun, report: &FemReport) -> Result
     write_surface(dir, &surface, json, png, vec![(crate::vtu::VOLUME_FILE, vtu)])
 }
 
-/// `deformed.obj` and `deformed.vtk` (file order, the mesh's unit), `report.json`,
-/// `render.png` and any extra pictures, all or nothing.
+/// `deformed.obj`, `deformed.vtk` and `deformed.vtp` (file order, the mesh's unit),
+/// `report.json`, `render.png` and any extra files, all or nothing.
 fn write_surface(
     dir: &Path,
     surface: &SurfaceResult<'_>,
@@ -311,16 +312,20 @@ fn write_surface(
         let path = dir.join(name);
         move |source| Error::Io { path, source }
     };
+    let [obj_name, vtk_name, vtp_name, json_name, png_name] = OUTPUT_FILES;
     let mut obj = Vec::new();
-    fibfluid::geometry::write_obj_to(&mut obj, &positions, &triangles).map_err(io(OUTPUT_FILES[0]))?;
+    fibfluid::geometry::write_obj_to(&mut obj, &positions, &triangles).map_err(io(obj_name))?;
     let mut vtk = Vec::new();
     let title = format!("fibfluid {} ({})", surface.model.name, surface.model.unit);
-    write_vtk(&mut vtk, &title, &positions, &triangles, &disp).map_err(io(OUTPUT_FILES[1]))?;
+    write_vtk(&mut vtk, &title, &positions, &triangles, &disp).map_err(io(vtk_name))?;
+    let mut vtp = Vec::new();
+    crate::vtp::write_vtp(&mut vtp, &title, &positions, &triangles, &disp).map_err(io(vtp_name))?;
     let mut files = vec![
-        (OUTPUT_FILES[0], obj),
-        (OUTPUT_FILES[1], vtk),
-        (OUTPUT_FILES[2], json.into_bytes()),
-        (OUTPUT_FILES[3], png),
+        (obj_name, obj),
+        (vtk_name, vtk),
+        (vtp_name, vtp),
+        (json_name, json.into_bytes()),
+        (png_name, png),
     ];
     files.extend(extra);
     write_files_atomically(dir, &files)

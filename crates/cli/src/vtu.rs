@@ -14,7 +14,9 @@ pub const VOLUME_FILE: &str = "volume.vtu";
 /// numbering (corner `b` at `(b & 1, (b >> 1) & 1, (b >> 2) & 1)`).
 const VTK_HEX: [usize; 8] = [0, 1, 3, 2, 4, 5, 7, 6];
 
-fn array(
+/// Writes one ASCII `DataArray` of VTK type `kind` (`Float64`, `Int64`, ...), one value
+/// (a tuple of `components`) per line.
+pub(crate) fn array(
     out: &mut impl Write,
     kind: &str,
     name: &str,
@@ -29,6 +31,15 @@ fn array(
         writeln!(out, "{v}")?;
     }
     writeln!(out, "</DataArray>")
+}
+
+/// `text` made safe inside an XML comment (no `--`, one line).
+pub(crate) fn comment_text(text: &str) -> String {
+    let mut s = text.replace(['\n', '\r'], " ");
+    while s.contains("--") {
+        s = s.replace("--", "- -");
+    }
+    s
 }
 
 /// Writes the run's cells (positions and displacements in the mesh file's unit, stresses in
@@ -47,7 +58,7 @@ pub fn write_vtu(out: &mut impl Write, run: &FemRun) -> std::io::Result<()> {
     writeln!(
         out,
         "<!-- fibfluid {} ({}, {}): lengths in {}, stresses in Pa -->",
-        run.model.name,
+        comment_text(&run.model.name),
         run.tissue.model(),
         run.model.unit,
         run.model.unit

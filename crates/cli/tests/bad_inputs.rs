@@ -21,6 +21,14 @@ const EXPECTED: &[(&str, &str)] = &[
     ("mesh-garbage.obj", "not a text OBJ file (invalid UTF-8)"),
     ("mesh-garbage.stl", "but the file has 301 bytes"),
     ("mesh-huge-header.stl", "header claims 4000000 triangles (200000084 bytes) but the file has 134 bytes"),
+    (
+        "mesh-huge-header.ply",
+        ":4: the header claims 1000000000000 vertex elements (at least 6000000000000 bytes with those before them) but only 56 bytes follow the header",
+    ),
+    ("mesh-index-out-of-range.off", ":11: face refers to vertex 4 but the file has 4 vertices (0-based)"),
+    ("mesh-point-cloud.ply", ":0: the header has no `element face` (a point cloud, not a surface)"),
+    ("mesh-truncated.ply", ":0: binary face 3 at byte 359: the file ends inside it"),
+    ("mesh-wrong-magic.ply", ":1: not a PLY file (the first line is not `ply`)"),
     ("mesh-inconsistent-orientation.obj", "faces around edge (0, 2) are inconsistently oriented"),
     ("mesh-index-out-of-range.obj", ":9: face refers to vertex 9 but the file has 4 vertices"),
     ("mesh-index-zero.obj", ":6: face index 0 (OBJ indices start at 1)"),
@@ -36,7 +44,7 @@ const EXPECTED: &[(&str, &str)] = &[
     ("mesh-single-triangle.obj", "the surface is open: 3 boundary edges"),
     ("mesh-truncated-facet.stl", ":12: the last facet has fewer than 3 vertices"),
     ("mesh-two-tetrahedra.obj", "2 disconnected components"),
-    ("mesh-unknown-extension.ply", "unsupported mesh format"),
+    ("mesh-unknown-extension.xyz", "unsupported mesh format (expected .obj, .stl, .ply or .off)"),
     (
         "scene-backend-not-compiled.toml",
         "[solver].backend: backend `openblas-lu` is not compiled into this build; rebuild with `cargo build --features openblas` (needs the system OpenBLAS",

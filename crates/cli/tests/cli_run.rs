@@ -23,6 +23,75 @@ fn read_obj_positions(path: &Path) -> Vec<[f64; 3]> {
         .collect()
 }
 
+/// The `f` lines of an OBJ file, 0-based.
+fn read_obj_faces(path: &Path) -> Vec<Vec<u64>> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .filter(|l| l.starts_with("f "))
+        .map(|l| l.split_whitespace().skip(1).map(|t| t.parse::<u64>().unwrap() - 1).collect())
+        .collect()
+}
+
+/// The values of the XML VTK `DataArray` named `name` (text between its tags), checking
+/// its component count.
+fn vtk_xml_array(xml: &str, name: &str, components: usize) -> Vec<String> {
+    let start = xml.find(&format!(r#"Name="{name}""#)).unwrap_or_else(|| panic!("no DataArray {name}"));
+    let open = &xml[xml[..start].rfind('<').unwrap()..];
+    let tag = &open[..open.find('>').unwrap()];
+    assert!(tag.contains(&format!(r#"NumberOfComponents="{components}""#)), "{tag}");
+    assert!(tag.contains(r#"format="ascii""#), "{tag}");
+    let body = &open[tag.len() + 1..open.find("</DataArray>").unwrap()];
+    body.split_whitespace().map(str::to_string).collect()
+}
+
+/// The values of a legacy VTK section, from the line after `header` for `count` values.
+fn vtk_legacy_values(vtk: &str, header: &str, skip_lines: usize, count: usize) -> Vec<String> {
+    let at = vtk.find(header).unwrap_or_else(|| panic!("no {header}"));
+    vtk[at..]
+        .lines()
+        .skip(1 + skip_lines)
+        .flat_map(|l| l.split_whitespace())
+        .take(count)
+        .map(str::to_string)
+        .collect()
+}
+
+/// `deformed.vtp` in `out`, read back as text: a PolyData piece whose points are
+/// `deformed.obj`'s vertices (every digit), whose polys are its triangles (connectivity and
+/// offsets), with the displacement vector and its magnitude that `deformed.vtk` carries.
+fn check_vtp(out: &Path) {
+    let xml = std::fs::read_to_string(out.join("deformed.vtp")).unwrap();
+    assert!(xml.starts_with("<?xml"), "{}", &xml[..40]);
+    assert!(xml.contains(r#"<VTKFile type="PolyData" version="1.0" byte_order="LittleEndian""#));
+    assert!(xml.trim_end().ends_with("</VTKFile>"));
+    let positions = read_obj_positions(&out.join("deformed.obj"));
+    let faces = read_obj_faces(&out.join("deformed.obj"));
+    let (n, m) = (positions.len(), faces.len());
+    assert!(
+        xml.contains(&format!(r#"<Piece NumberOfPoints="{n}" NumberOfVerts="0" NumberOfLines="0" NumberOfStrips="0" NumberOfPolys="{m}">"#)),
+        "piece counts"
+    );
+    let points: Vec<f64> = vtk_xml_array(&xml, "Points", 3).iter().map(|t| t.parse().unwrap()).collect();
+    let want: Vec<f64> = positions.iter().flatten().copied().collect();
+    assert_eq!(
+        points.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+        want.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+    );
+    let connectivity: Vec<u64> =
+        vtk_xml_array(&xml, "connectivity", 1).iter().map(|t| t.parse().unwrap()).collect();
+    assert_eq!(connectivity, faces.concat(), "connectivity = the triangles");
+    assert!(faces.iter().all(|f| f.len() == 3));
+    let offsets: Vec<u64> = vtk_xml_array(&xml, "offsets", 1).iter().map(|t| t.parse().unwrap()).collect();
+    assert_eq!(offsets, (1..=m as u64).map(|k| 3 * k).collect::<Vec<_>>());
+    let vtk = std::fs::read_to_string(out.join("deformed.vtk")).unwrap();
+    let displacement = vtk_xml_array(&xml, "displacement", 3);
+    assert_eq!(displacement, vtk_legacy_values(&vtk, "VECTORS displacement double", 0, 3 * n));
+    let magnitude = vtk_xml_array(&xml, "displacement_magnitude", 1);
+    assert_eq!(magnitude, vtk_legacy_values(&vtk, "SCALARS displacement_magnitude double 1", 1, n));
+    assert!(magnitude.iter().any(|t| t.parse::<f64>().unwrap() > 0.0), "the body moved");
+}
+
 fn compiled_backends() -> Vec<String> {
     let out = bin().args(["bench", "--sizes", "8", "--json"]).output().unwrap();
     assert!(out.status.success());
@@ -49,9 +118,10 @@ fn sphere_scene_through_the_cli_with_every_backend() {
             .status()
             .unwrap();
         assert!(status.success(), "{backend}");
-        for f in ["deformed.obj", "deformed.vtk", "report.json", "render.png"] {
+        for f in ["deformed.obj", "deformed.vtk", "deformed.vtp", "report.json", "render.png"] {
             assert!(out.join(f).is_file(), "{backend}: {f} missing");
         }
+        check_vtp(&out);
         let report: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
         assert_eq!(report["backend"], backend.as_str());
@@ -87,6 +157,47 @@ fn sphere_scene_through_the_cli_with_every_backend() {
     }
 }
 
+/// The sphere scene with its mesh as binary big-endian PLY, ASCII PLY and OFF (written from
+/// icosphere-2.obj by the geometry crate): `mesh-info` gives the OBJ's numbers, and `run`
+/// writes the OBJ run's deformed.obj byte for byte (the readers give the OBJ's f64 bits).
+#[test]
+fn a_scene_reads_its_mesh_from_ply_and_off_as_from_obj() {
+    use fibfluid::geometry::{PlyFormat, load_mesh, write_off, write_ply};
+    let tmp = tempfile::tempdir().unwrap();
+    let obj = root().join("fixtures/meshes/icosphere-2.obj");
+    let mesh = load_mesh(&obj).unwrap();
+    let (p, t) = (&mesh.file_positions, mesh.triangles_in_file_order());
+    let ply_be = tmp.path().join("sphere-be.ply");
+    write_ply(&ply_be, p, &t, PlyFormat::BinaryBigEndian).unwrap();
+    let ply_ascii = tmp.path().join("sphere-ascii.PLY");
+    write_ply(&ply_ascii, p, &t, PlyFormat::Ascii).unwrap();
+    let off = tmp.path().join("sphere.off");
+    write_off(&off, p, &t).unwrap();
+    let scene_text = std::fs::read_to_string(root().join("fixtures/scenes/sphere.toml")).unwrap();
+    let info = |mesh: &Path| {
+        let o = bin().arg("mesh-info").arg(mesh).arg("--json").output().unwrap();
+        assert!(o.status.success(), "{}: {}", mesh.display(), String::from_utf8_lossy(&o.stderr));
+        let mut v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        v.as_object_mut().unwrap().retain(|k, _| !k.contains("seconds") && k != "path");
+        v
+    };
+    let run = |mesh: &Path, name: &str| {
+        let scene = tmp.path().join(format!("{name}.toml"));
+        let path = mesh.display().to_string();
+        std::fs::write(&scene, scene_text.replace("../meshes/icosphere-2.obj", &path)).unwrap();
+        let out = tmp.path().join(name);
+        let o = bin().arg("run").arg(&scene).arg("--out").arg(&out).output().unwrap();
+        assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
+        std::fs::read(out.join("deformed.obj")).unwrap()
+    };
+    let (want_info, want_obj) = (info(&obj), run(&obj, "obj"));
+    assert_eq!(want_info["vertices"], 162);
+    for (mesh, name) in [(&ply_be, "ply-be"), (&ply_ascii, "ply-ascii"), (&off, "off")] {
+        assert_eq!(info(mesh), want_info, "{name}: mesh-info");
+        assert!(run(mesh, name) == want_obj, "{name}: deformed.obj differs from the OBJ run's");
+    }
+}
+
 #[test]
 fn roundtrip_json_has_the_documented_keys() {
     let scene = root().join("fixtures/scenes/sphere.toml");
@@ -108,7 +219,7 @@ fn mesh_info_on_every_fixture_mesh() {
     for entry in std::fs::read_dir(&dir).unwrap() {
         let path = entry.unwrap().path();
         let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
-        if !matches!(ext, "obj" | "stl") {
+        if !matches!(ext, "obj" | "stl" | "ply" | "off") {
             continue;
         }
         let out = bin().arg("mesh-info").arg(&path).arg("--json").output().unwrap();
@@ -704,6 +815,9 @@ fn run_with_the_fem_writes_its_report_and_mesh_in_the_file_unit() {
     assert!((largest - reported_cm).abs() <= 1e-9 * reported_cm, "{largest} cm vs {reported_cm} cm");
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(stdout.contains(" cm,") && stdout.contains("Pa"), "{stdout}");
+    // The XML surface carries the same numbers, in cm too.
+    check_vtp(&out);
+    assert!(out.join("volume.vtu").is_file());
 }
 
 /// A physically impossible FEM answer never leaves without a warning: a floor plate driven 5 m

@@ -287,7 +287,7 @@ pub enum GeometryError {
         source: ReadError,
     },
     /// The file has an extension this crate does not read.
-    #[error("{path}: unsupported mesh format (expected .obj or .stl)")]
+    #[error("{path}: unsupported mesh format (expected .obj, .stl, .ply or .off)")]
     UnsupportedFormat {
         /// The file.
         path: PathBuf,

@@ -1,4 +1,6 @@
-//! Mesh files: OBJ and STL in (binary and ASCII), OBJ out.
+//! Mesh files: OBJ, STL (binary and ASCII), PLY (ASCII and binary) and OFF in; OBJ, PLY and
+//! OFF out. The PLY and OFF readers live in `ply.rs` and `off.rs` and share this module's
+//! bounded reading, its result ([`MeshFile`]) and its errors.
 //!
 //! The OBJ reader is a small strict parser rather than `tobj` because two things a solver
 //! needs are not available through `tobj`: the line number of every problem, and the map
@@ -210,7 +212,7 @@ impl MeshFile {
     }
 }
 
-/// Reads a mesh by extension (`.obj`, `.stl`), validates it, and flips it outward if needed.
+/// Reads a mesh by extension (`.obj`, `.stl`, `.ply`, `.off`; any case), validates it, and flips it outward if needed.
 /// The file size limit is [`max_file_bytes`]; see [`load_mesh_with`] for the options.
 pub fn load_mesh(path: impl AsRef<Path>) -> Result<MeshFile> {
     load_mesh_with(path, &ReadOptions::default())
@@ -238,6 +240,8 @@ pub fn load_mesh_with(path: impl AsRef<Path>, opts: &ReadOptions) -> Result<Mesh
     let parse: fn(&[u8]) -> ParseResult<RawMesh> = match ext.as_deref() {
         Some("obj") => parse_obj,
         Some("stl") => parse_stl,
+        Some("ply") => crate::ply::parse_ply,
+        Some("off") => crate::off::parse_off,
         _ => return Err(GeometryError::UnsupportedFormat { path: path.into() }),
     };
     let bytes = read_file_limited(path, opts.max_bytes).map_err(|e| match e {
@@ -291,30 +295,44 @@ fn in_file_units(e: MeshError, s: f64) -> MeshError {
 
 /// Parses OBJ text already in memory (`path` only names it in errors).
 pub fn read_obj_bytes(path: impl AsRef<Path>, bytes: &[u8]) -> Result<MeshFile> {
-    let path = path.as_ref();
-    let raw = parse_obj(bytes).map_err(|(line, message)| GeometryError::Parse {
-        path: path.into(),
-        line,
-        message,
-    })?;
-    finish(path, raw)
+    read_bytes_with(path.as_ref(), bytes, parse_obj)
 }
 
 /// Parses STL bytes already in memory (`path` only names it in errors).
 pub fn read_stl_bytes(path: impl AsRef<Path>, bytes: &[u8]) -> Result<MeshFile> {
-    let path = path.as_ref();
-    let raw = parse_stl(bytes).map_err(|(line, message)| GeometryError::Parse {
-        path: path.into(),
-        line,
-        message,
-    })?;
+    read_bytes_with(path.as_ref(), bytes, parse_stl)
+}
+
+/// Parses PLY bytes (ASCII, binary little- or big-endian) already in memory (`path` only
+/// names it in errors).
+pub fn read_ply_bytes(path: impl AsRef<Path>, bytes: &[u8]) -> Result<MeshFile> {
+    read_bytes_with(path.as_ref(), bytes, crate::ply::parse_ply)
+}
+
+/// Parses OFF text already in memory (`path` only names it in errors).
+pub fn read_off_bytes(path: impl AsRef<Path>, bytes: &[u8]) -> Result<MeshFile> {
+    read_bytes_with(path.as_ref(), bytes, crate::off::parse_off)
+}
+
+fn read_bytes_with(path: &Path, bytes: &[u8], parse: fn(&[u8]) -> ParseResult<RawMesh>) -> Result<MeshFile> {
+    let raw =
+        parse(bytes).map_err(|(line, message)| GeometryError::Parse { path: path.into(), line, message })?;
     finish(path, raw)
 }
 
-struct RawMesh {
-    positions: Vec<Vec3>,
-    triangles: Vec<[u32; 3]>,
-    notes: Vec<String>,
+/// Appends polygon `idx` (at least 3 vertices) as the fan `(0, k, k + 1)`, the one
+/// triangulation of every reader.
+pub(crate) fn push_fan(triangles: &mut Vec<[u32; 3]>, idx: &[u32]) {
+    for k in 1..idx.len().saturating_sub(1) {
+        triangles.push([idx[0], idx[k], idx[k + 1]]);
+    }
+}
+
+/// What a parser found: every position of the file, its triangles (file indices) and notes.
+pub(crate) struct RawMesh {
+    pub(crate) positions: Vec<Vec3>,
+    pub(crate) triangles: Vec<[u32; 3]>,
+    pub(crate) notes: Vec<String>,
 }
 
 fn finish(path: &Path, raw: RawMesh) -> Result<MeshFile> {
@@ -380,10 +398,11 @@ fn to_file_indices(e: MeshError, to_file: &[u32]) -> MeshError {
     }
 }
 
-type ParseResult<T> = std::result::Result<T, (usize, String)>;
+/// A parser's result: its error is (1-based line, 0 when not tied to one; message).
+pub(crate) type ParseResult<T> = std::result::Result<T, (usize, String)>;
 
 /// The UTF-8 byte-order mark some editors write at the start of a text file.
-const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
+pub(crate) const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
 
 fn parse_obj(bytes: &[u8]) -> ParseResult<RawMesh> {
     // A byte-order mark is not part of the first line (which is still line 1).
@@ -443,6 +462,7 @@ fn parse_obj(bytes: &[u8]) -> ParseResult<RawMesh> {
         }
     }
     let mut triangles = Vec::with_capacity(faces.len());
+    let mut polygon = Vec::new();
     for (lineno, idx) in faces {
         if let Some(&bad) = idx.iter().find(|&&v| v as usize >= positions.len()) {
             return Err((
@@ -450,9 +470,9 @@ fn parse_obj(bytes: &[u8]) -> ParseResult<RawMesh> {
                 format!("face refers to vertex {} but the file has {} vertices", bad + 1, positions.len()),
             ));
         }
-        for k in 1..idx.len() - 1 {
-            triangles.push([idx[0] as u32, idx[k] as u32, idx[k + 1] as u32]);
-        }
+        polygon.clear();
+        polygon.extend(idx.iter().map(|&v| v as u32));
+        push_fan(&mut triangles, &polygon);
     }
     if positions.is_empty() {
         return Err((0, "no vertices (`v` lines) found".into()));
@@ -565,14 +585,11 @@ impl Welder {
 
 /// Writes an OBJ file (positions with full f64 precision, 1-based triangles).
 pub fn write_obj(path: impl AsRef<Path>, positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<()> {
-    let path = path.as_ref();
-    let io = |source| GeometryError::Io { path: path.to_path_buf(), source };
-    let mut out = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
-    write_obj_to(&mut out, positions, triangles).map_err(io)?;
-    out.flush().map_err(io)
+    write_file(path.as_ref(), |out| write_obj_to(out, positions, triangles))
 }
 
-/// Writes OBJ text to any writer.
+/// Writes OBJ text to any writer (every f64 coordinate as the shortest decimal that reads
+/// back to it).
 pub fn write_obj_to(out: &mut impl Write, positions: &[Vec3], triangles: &[[u32; 3]]) -> std::io::Result<()> {
     for p in positions {
         writeln!(out, "v {:?} {:?} {:?}", p[0], p[1], p[2])?;
@@ -581,4 +598,30 @@ pub fn write_obj_to(out: &mut impl Write, positions: &[Vec3], triangles: &[[u32;
         writeln!(out, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1)?;
     }
     Ok(())
+}
+
+/// Writes a PLY file of the given encoding (see [`write_ply_to`]).
+pub fn write_ply(
+    path: impl AsRef<Path>,
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    format: crate::ply::PlyFormat,
+) -> Result<()> {
+    write_file(path.as_ref(), |out| crate::ply::write_ply_to(out, positions, triangles, format))
+}
+
+/// Writes an OFF file (see [`write_off_to`]).
+pub fn write_off(path: impl AsRef<Path>, positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<()> {
+    write_file(path.as_ref(), |out| crate::off::write_off_to(out, positions, triangles))
+}
+
+/// Creates `path` and writes it through a buffer; errors name the file.
+fn write_file(
+    path: &Path,
+    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<()> {
+    let io = |source| GeometryError::Io { path: path.to_path_buf(), source };
+    let mut out = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
+    write(&mut out).map_err(io)?;
+    out.flush().map_err(io)
 }

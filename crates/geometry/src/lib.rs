@@ -9,9 +9,10 @@
 //! - Fiber visibility ([`cull_fibers`]): a convex body keeps every vertex pair; otherwise a
 //!   fiber is removed when it leaves the body at one of its ends, or when it crosses the
 //!   surface ([`segment_triangle`], exact predicates, BVH-accelerated).
-//! - Files: OBJ and STL in ([`load_mesh`]; regular files only, at most
-//!   [`DEFAULT_MAX_FILE_BYTES`] unless raised, see [`read_file_limited`]), OBJ out ([`write_obj`]); [`Polygon`] for the
-//!   paper's 2D example; [`icosphere`] for the sphere cases.
+//! - Files: OBJ, STL, PLY (ASCII and binary) and OFF in ([`load_mesh`]; regular files only,
+//!   at most [`DEFAULT_MAX_FILE_BYTES`] unless raised, see [`read_file_limited`]); OBJ, PLY
+//!   and OFF out ([`write_obj`], [`write_ply`], [`write_off`]); [`Polygon`] for the paper's
+//!   2D example; [`icosphere`] for the sphere cases.
 //! - Voxelization ([`inside_lattice`], [`for_each_inside_line`]): which points of a regular
 //!   lattice lie inside a closed surface, by exact-predicate ray crossings along x.
 
@@ -25,6 +26,8 @@ mod icosphere;
 mod io;
 mod limits;
 mod mesh;
+mod off;
+mod ply;
 mod polygon;
 pub mod vec3;
 mod voxel;
@@ -41,13 +44,15 @@ pub use fibers::{
 pub use icosphere::{fibonacci_sphere, icosphere};
 pub use io::{
     DEFAULT_MAX_FILE_BYTES, MAX_FILE_BYTES_ENV, MeshFile, ReadOptions, load_mesh, load_mesh_with,
-    max_file_bytes, parse_byte_count, read_file_limited, read_obj_bytes, read_stl_bytes, set_max_file_bytes,
-    write_obj, write_obj_to,
+    max_file_bytes, parse_byte_count, read_file_limited, read_obj_bytes, read_off_bytes, read_ply_bytes,
+    read_stl_bytes, set_max_file_bytes, write_obj, write_obj_to, write_off, write_ply,
 };
 pub use mesh::{
     CONVEXITY_TOLERANCE, DEGENERATE_AREA, NEAR_DUPLICATE, TriMesh, Validation, bounding_box,
     face_area_vector, raw_vertex_vectors, vertex_area_vectors, volume,
 };
+pub use off::write_off_to;
+pub use ply::{PlyFormat, write_ply_to};
 pub use polygon::Polygon;
 pub use vec3::{AXES, Vec3};
 pub use voxel::{PointLattice, for_each_inside_line, inside_lattice};

@@ -4,6 +4,7 @@ mod adjacency;
 mod area_volume;
 mod common;
 mod fibers;
+mod formats;
 mod properties;
 mod reader;
 mod voxel;

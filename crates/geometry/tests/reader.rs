@@ -473,7 +473,7 @@ fn stl_and_file_errors() {
         Err(GeometryError::Io { path, .. }) => assert_eq!(path, missing),
         other => panic!("{other:?}"),
     }
-    let tmp = TempFile::new("tetra", "ply", TETRA.as_bytes());
+    let tmp = TempFile::new("tetra", "xyz", TETRA.as_bytes());
     match load_mesh(&tmp.0) {
         Err(GeometryError::UnsupportedFormat { path }) => assert_eq!(path, tmp.0),
         other => panic!("{other:?}"),
