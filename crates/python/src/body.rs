@@ -89,6 +89,18 @@ impl NativeBody {
     }
 }
 
+/// Issues a Python `UserWarning` for each thing `model` asks for that an interactive FEM
+/// body does not carry (the neo-Hookean law: the body is linear), as `probe` and `view`
+/// print it.
+fn warn_linear_body(py: Python<'_>, model: &fibfluid_sim::Model) -> PyResult<()> {
+    for w in fibfluid_sim::ineffective_interactive(model) {
+        let message = std::ffi::CString::new(crate::one_line(&w.to_string())).unwrap_or_default();
+        let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
+        PyErr::warn(py, category.as_any(), &message, 1)?;
+    }
+    Ok(())
+}
+
 #[pymethods]
 impl NativeBody {
     /// Builds the body of `scene` for `method` (`ffm`, `tsve-chainmail`,
@@ -106,6 +118,9 @@ impl NativeBody {
             let opts = ProbeOptions { max_memory_bytes: max_memory, ..Default::default() };
             let (model, chainmail) = (&scene.scene.model, &scene.scene.chainmail);
             let body = py.detach(|| MethodBody::build(model, chainmail, method, &opts)).map_err(lib_error)?;
+            if method == Method::Fem {
+                warn_linear_body(py, model)?;
+            }
             let setup_seconds = body.setup_seconds();
             let guards = FrameGuards::new(body.interactive_ref().rest_positions(), file.mesh.triangles())
                 .map_err(|e| error(format!("the result guards cannot measure this body: {e}")))?;

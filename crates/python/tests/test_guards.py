@@ -86,3 +86,18 @@ def test_only_the_finite_element_body_warns_past_the_small_strain_limit():
         fired = [w for w in body.warnings if "`linear`" in w]
         assert bool(fired) == linear, (method, body.warnings)
         assert bool([w for w in issued if "`linear`" in str(w.message)]) == linear
+
+
+def test_a_finite_element_body_of_a_neo_hookean_scene_warns_that_it_is_linear(tmp_path):
+    text = (SCENES / "sphere-tissue.toml").read_text()
+    text = text.replace('path = "../meshes/', f'path = "{SCENES.parent / "meshes"}/')
+    text = text.replace("[tissue]\n", '[tissue]\nmodel = "neo-hookean"\n')
+    path = tmp_path / "sphere-neo-hookean.toml"
+    path.write_text(text)
+    scene = fibfluid.Scene.load(path)
+    with pytest.warns(UserWarning, match="interactive FEM body is linear"):
+        fibfluid.Body(scene, method="fem")
+    # The fiber-fluid body is not a finite-element body: nothing to say.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fibfluid.Body(scene, method="ffm")
