@@ -105,6 +105,10 @@ pub struct Grid {
     /// Whether the physical axis adds the grab comparison of every interactive method
     /// ([`crate::grab`]).
     pub grab: bool,
+    /// Resolutions of the physical axis' FEM points.
+    pub fem_resolutions: Vec<usize>,
+    /// Resolution of the physical axis' FEM reference (finer than every FEM point).
+    pub fem_reference: usize,
 }
 
 impl Default for Grid {
@@ -120,6 +124,8 @@ impl Default for Grid {
             dense_refactor_vertex_limit: 500,
             dense_refactor_max_steps: 10,
             grab: true,
+            fem_resolutions: FEM_STUDY_RESOLUTIONS.to_vec(),
+            fem_reference: FEM_STUDY_REFERENCE,
         }
     }
 }
@@ -146,6 +152,11 @@ pub struct PhysicalAxis {
     pub reference: Vec<fibfluid::geometry::Vec3>,
     /// The FEM at coarser resolutions.
     pub fem: Vec<FemPoint>,
+    /// The reference's law: neo-Hookean when the scene's `[tissue] model` says so.
+    pub reference_law: fibfluid::fem::TissueModel,
+    /// With a neo-Hookean reference, the linear FEM at the same resolutions against it: what
+    /// the small-strain answer costs in accuracy on this scene (empty otherwise).
+    pub linear_fem: Vec<FemPoint>,
     /// The calibrations made once for every point of each fiber model, when the scene gave
     /// only `[tissue]`.
     pub calibrations: Vec<fibfluid::sim::calibration::Calibration>,
@@ -173,7 +184,7 @@ pub struct Study {
 pub fn run_study(scene: &Scene, grid: &Grid, progress: &dyn Fn(usize, usize)) -> crate::Result<Study> {
     let (scene, physical) = match scene.tissue {
         Some(_) => {
-            let (s, p) = physical_axis(scene, &grid.fibers, grid.grab)?;
+            let (s, p) = physical_axis(scene, grid)?;
             (s, Some(p))
         }
         None => (scene.clone(), None),
@@ -306,9 +317,10 @@ fn skip_reason(s: &Scene, grid: &Grid, n: usize) -> Option<String> {
 }
 
 /// The scene with its fibers calibrated once (when it gave only `[tissue]`), the FEM
-/// reference at [`FEM_STUDY_REFERENCE`], the FEM at [`FEM_STUDY_RESOLUTIONS`] and, with
+/// reference at `grid.fem_reference`, the FEM at `grid.fem_resolutions` and, with
 /// `grab`, the grab comparison (the paper's fibers are then calibrated too, for its FFM body).
-fn physical_axis(scene: &Scene, fibers: &[FiberModel], grab: bool) -> crate::Result<(Scene, PhysicalAxis)> {
+fn physical_axis(scene: &Scene, grid: &Grid) -> crate::Result<(Scene, PhysicalAxis)> {
+    let (fibers, grab) = (&grid.fibers, grid.grab);
     let mut calibrated = scene.clone();
     let mut calibrations = Vec::new();
     let grab = grab && crate::grab::applies(scene);
@@ -325,29 +337,52 @@ fn physical_axis(scene: &Scene, fibers: &[FiberModel], grab: bool) -> crate::Res
         calibrated.ffm.calibrate = false;
         apply_calibration(&mut calibrated, &calibrations);
     }
-    let fem_run = |resolution: usize| -> crate::Result<fibfluid::sim::fem_run::FemRun> {
-        let mut m: fibfluid::sim::Model = scene.model.clone();
-        m.solver.method = fibfluid::Method::Fem;
-        m.fem.resolution = resolution;
-        Ok(fibfluid::sim::fem_run::FemRun::new(m, None)?)
-    };
-    let reference_run = fem_run(FEM_STUDY_REFERENCE)?;
+    use fibfluid::fem::TissueModel;
+    let fem_run =
+        |resolution: usize, law: Option<TissueModel>| -> crate::Result<fibfluid::sim::fem_run::FemRun> {
+            let mut m: fibfluid::sim::Model = scene.model.clone();
+            m.solver.method = fibfluid::Method::Fem;
+            m.fem.resolution = resolution;
+            if let Some(law) = law {
+                m.tissue = m.tissue.map(|t| t.with_model(law));
+                m.fem.auto_model = false;
+            }
+            Ok(fibfluid::sim::fem_run::FemRun::new(m, None)?)
+        };
+    let reference_run = fem_run(grid.fem_reference, None)?;
+    let reference_law = reference_run.tissue.model();
     let reference: Vec<_> =
         fibfluid::sim::calibration::displacements(&reference_run.positions, &reference_run.rest);
-    let mut fem = Vec::new();
-    for r in FEM_STUDY_RESOLUTIONS {
-        let run = fem_run(r)?;
-        fem.push(FemPoint {
+    let point = |law: Option<TissueModel>, r: usize| -> crate::Result<FemPoint> {
+        let run = fem_run(r, law)?;
+        Ok(FemPoint {
             resolution: r,
             dofs: run.stats.dofs,
             seconds: run.seconds,
             error_vs_fem: relative_l2(&run.positions, &run.rest, &reference),
-        });
-    }
+        })
+    };
+    let fem = grid.fem_resolutions.iter().map(|&r| point(None, r)).collect::<crate::Result<Vec<_>>>()?;
+    let linear_fem = if reference_law == TissueModel::NeoHookean {
+        grid.fem_resolutions
+            .iter()
+            .map(|&r| point(Some(TissueModel::Linear), r))
+            .collect::<crate::Result<_>>()?
+    } else {
+        Vec::new()
+    };
     let grab = if grab { Some(crate::grab::grab_comparison(scene, &calibrations)?) } else { None };
     Ok((
         calibrated,
-        PhysicalAxis { reference_resolution: FEM_STUDY_REFERENCE, reference, fem, calibrations, grab },
+        PhysicalAxis {
+            reference_resolution: grid.fem_reference,
+            reference,
+            fem,
+            reference_law,
+            linear_fem,
+            calibrations,
+            grab,
+        },
     ))
 }
 
@@ -588,7 +623,10 @@ pub fn chart(
 /// The physical axis as Markdown: the FEM's convergence, then each FFM configuration's
 /// difference from the FEM reference beside the time of a plain run, Pareto points marked.
 fn physical_markdown(study: &Study, axis: &PhysicalAxis) -> String {
-    let mut out = format!("\n#### Against the FEM (reference: resolution {})\n\n", axis.reference_resolution);
+    let mut out = format!(
+        "\n#### Against the FEM (reference: {} FEM, resolution {})\n\n",
+        axis.reference_law, axis.reference_resolution
+    );
     for c in &axis.calibrations {
         out.push_str(&format!(
             "The scene gives only `[tissue]`: {} fibers' modulus calibrated once against the FEM at resolution {} (scale {:.3}, fiber modulus {:.4e}, shape error {:.3}).\n\n",
@@ -603,6 +641,14 @@ fn physical_markdown(study: &Study, axis: &PhysicalAxis) -> String {
             "| {} | {} | {:.3} | {:.3} |\n",
             f.resolution, f.dofs, f.seconds, f.error_vs_fem
         ));
+    }
+    if !axis.linear_fem.is_empty() {
+        out.push_str(
+            "\nThe linear (small-strain) FEM against the same neo-Hookean reference:\n\n| FEM resolution | seconds | difference from the reference |\n|---|---|---|\n",
+        );
+        for f in &axis.linear_fem {
+            out.push_str(&format!("| {} | {:.3} | {:.3} |\n", f.resolution, f.seconds, f.error_vs_fem));
+        }
     }
     let front = physical_front(study);
     out.push_str("\n| fibers | mode | stepping | steps | precision | backend | seconds (one run) | difference from the FEM | |\n|---|---|---|---|---|---|---|---|---|\n");
@@ -673,10 +719,22 @@ pub fn physical_chart(study: &Study, title: &str) -> crate::Result<Option<Vec<u8
         .map(|f| (f.seconds, f.error_vs_fem))
         .collect();
     all.extend(&fem);
+    let resolutions: Vec<usize> = axis.fem.iter().map(|f| f.resolution).collect();
     series.push(fibfluid::render::Series {
-        label: format!("fem, resolution {:?}", FEM_STUDY_RESOLUTIONS),
+        label: format!("fem {}, resolution {resolutions:?}", axis.reference_law),
         points: fem,
     });
+    let linear: Vec<(f64, f64)> = axis
+        .linear_fem
+        .iter()
+        .filter(|f| log_drawable(f.seconds) && log_drawable(f.error_vs_fem))
+        .map(|f| (f.seconds, f.error_vs_fem))
+        .collect();
+    if !linear.is_empty() {
+        all.extend(&linear);
+        series
+            .push(fibfluid::render::Series { label: "fem linear, same resolutions".into(), points: linear });
+    }
     for s in &mut series {
         s.points.sort_by(|a, b| a.0.total_cmp(&b.0));
     }
