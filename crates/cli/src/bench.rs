@@ -95,7 +95,7 @@ pub struct MachineRates {
     /// Streaming read bandwidth of one thread over a buffer larger than the caches (bytes
     /// per second, the fastest of 5 passes).
     pub read_bytes_per_second: f64,
-    /// Dense matrix product rate with every thread (flops per second, the fastest of 3
+    /// Dense matrix product rate with the compute threads (flops per second, the fastest of 3
     /// products of 1024 x 1024 matrices): the rate a blocked factorization can reach.
     pub gemm_flops_per_second: f64,
 }
@@ -133,26 +133,9 @@ pub fn measure_machine(bytes: usize) -> MachineRates {
         read = read.min(start.elapsed().as_secs_f64());
     }
     drop(buffer);
-    let n = 1024;
-    let a = faer::Mat::<f64>::from_fn(n, n, |i, j| ((i * 31 + j * 17) % 13) as f64 - 6.0);
-    let mut c = faer::Mat::<f64>::zeros(n, n);
-    let mut gemm = f64::INFINITY;
-    for _ in 0..3 {
-        let start = std::time::Instant::now();
-        faer::linalg::matmul::matmul(
-            c.as_mut(),
-            faer::Accum::Replace,
-            a.as_ref(),
-            a.as_ref(),
-            1.0,
-            fibfluid::linalg::parallel::compute_par(),
-        );
-        std::hint::black_box(&c);
-        gemm = gemm.min(start.elapsed().as_secs_f64());
-    }
     MachineRates {
         read_bytes_per_second: (len * 8) as f64 / read,
-        gemm_flops_per_second: 2.0 * (n as f64).powi(3) / gemm,
+        gemm_flops_per_second: crate::scaling::measure_gemm_rate(1024),
     }
 }
 

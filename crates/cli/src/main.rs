@@ -709,13 +709,7 @@ fn roundtrip(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> 
 
 /// `fibfluid bench --stages SCENE`.
 fn bench_stages(path: &Path, repeats: usize, json: bool) -> Result<(), CliError> {
-    if !(1..=1000).contains(&repeats) {
-        return Err(CliError::Flag {
-            flag: "repeats",
-            value: repeats.to_string(),
-            problem: "must be between 1 and 1000",
-        });
-    }
+    check_repeats(repeats)?;
     let (scene, _) = load_scene(path, &Overrides::default())?;
     let name = scene.name.clone();
     let n = scene.n_vertices();
@@ -746,13 +740,7 @@ fn bench_sweep(path: &Path, repeats: usize, json: bool, sweep: &[usize]) -> Resu
             problem: "each count must be between 1 and 4 per available core",
         });
     }
-    if !(1..=1000).contains(&repeats) {
-        return Err(CliError::Flag {
-            flag: "repeats",
-            value: repeats.to_string(),
-            problem: "must be between 1 and 1000",
-        });
-    }
+    check_repeats(repeats)?;
     let (scene, _) = load_scene(path, &Overrides::default())?;
     let (name, n) = (scene.name.clone(), scene.n_vertices());
     let rows = fibfluid_cli::bench::bench_stages_sweep(&scene.model, repeats, sweep)?;
@@ -782,6 +770,18 @@ fn bench_sweep(path: &Path, repeats: usize, json: bool, sweep: &[usize]) -> Resu
     Ok(())
 }
 
+/// `--repeats` must be between 1 and 1000.
+fn check_repeats(repeats: usize) -> Result<(), CliError> {
+    if !(1..=1000).contains(&repeats) {
+        return Err(CliError::Flag {
+            flag: "repeats",
+            value: repeats.to_string(),
+            problem: "must be between 1 and 1000",
+        });
+    }
+    Ok(())
+}
+
 fn bench(sizes: &[usize], repeats: usize, json: bool) -> Result<(), CliError> {
     if let Some(&n) = sizes.iter().find(|n| !fibfluid_cli::bench::BENCH_SIZES.contains(n)) {
         return Err(CliError::Flag {
@@ -790,13 +790,7 @@ fn bench(sizes: &[usize], repeats: usize, json: bool) -> Result<(), CliError> {
             problem: "out of range (4..20000)",
         });
     }
-    if !(1..=1000).contains(&repeats) {
-        return Err(CliError::Flag {
-            flag: "repeats",
-            value: repeats.to_string(),
-            problem: "must be between 1 and 1000",
-        });
-    }
+    check_repeats(repeats)?;
     let mut rows = Vec::new();
     for &n in sizes {
         for row in fibfluid_cli::bench::bench_backends(n, repeats)? {
