@@ -15,6 +15,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::error::{FileKind, GeometryError, MeshError, ReadError, Result};
 use crate::mesh::{TriMesh, Validation, suggested_scale};
+use crate::raw::{ParseResult, RawMesh, UTF8_BOM, push_fan};
 use crate::vec3::Vec3;
 
 pub use crate::limits::{DEFAULT_MAX_FILE_BYTES, MAX_FILE_BYTES_ENV};
@@ -320,21 +321,6 @@ fn read_bytes_with(path: &Path, bytes: &[u8], parse: fn(&[u8]) -> ParseResult<Ra
     finish(path, raw)
 }
 
-/// Appends polygon `idx` (at least 3 vertices) as the fan `(0, k, k + 1)`, the one
-/// triangulation of every reader.
-pub(crate) fn push_fan(triangles: &mut Vec<[u32; 3]>, idx: &[u32]) {
-    for k in 1..idx.len().saturating_sub(1) {
-        triangles.push([idx[0], idx[k], idx[k + 1]]);
-    }
-}
-
-/// What a parser found: every position of the file, its triangles (file indices) and notes.
-pub(crate) struct RawMesh {
-    pub(crate) positions: Vec<Vec3>,
-    pub(crate) triangles: Vec<[u32; 3]>,
-    pub(crate) notes: Vec<String>,
-}
-
 fn finish(path: &Path, raw: RawMesh) -> Result<MeshFile> {
     let mesh_err = |source| GeometryError::Mesh { path: path.to_path_buf(), source };
     let RawMesh { positions, triangles, mut notes } = raw;
@@ -397,12 +383,6 @@ fn to_file_indices(e: MeshError, to_file: &[u32]) -> MeshError {
         other => other,
     }
 }
-
-/// A parser's result: its error is (1-based line, 0 when not tied to one; message).
-pub(crate) type ParseResult<T> = std::result::Result<T, (usize, String)>;
-
-/// The UTF-8 byte-order mark some editors write at the start of a text file.
-pub(crate) const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
 
 fn parse_obj(bytes: &[u8]) -> ParseResult<RawMesh> {
     // A byte-order mark is not part of the first line (which is still line 1).

@@ -29,6 +29,7 @@ mod mesh;
 mod off;
 mod ply;
 mod polygon;
+mod raw;
 pub mod vec3;
 mod voxel;
 

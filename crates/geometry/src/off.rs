@@ -10,7 +10,7 @@
 
 use std::io::Write;
 
-use crate::io::{ParseResult, RawMesh, UTF8_BOM, push_fan};
+use crate::raw::{ParseResult, RawMesh, UTF8_BOM, push_fan};
 use crate::vec3::Vec3;
 
 /// Fewest bytes of a vertex line (`0 0 0\n`) and of a face line (`3 0 1 2\n`).

@@ -10,7 +10,7 @@
 
 use std::io::Write;
 
-use crate::io::{ParseResult, RawMesh, UTF8_BOM, push_fan};
+use crate::raw::{ParseResult, RawMesh, UTF8_BOM, push_fan};
 use crate::vec3::Vec3;
 
 /// The encoding of a PLY file's body.
