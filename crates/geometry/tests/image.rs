@@ -288,3 +288,35 @@ fn a_mirroring_sform_still_gives_an_outward_surface() {
     assert!(!s.validation.flipped);
     assert!(rel(s.volume, plain.volume) < 1e-6, "{} {}", s.volume, plain.volume);
 }
+
+#[test]
+fn the_phantom_fixture_gives_a_body_and_a_lesion() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/images/phantom.nii.gz");
+    let image = read_nifti(path).unwrap();
+    assert_eq!((image.dims, image.spacing), ([24, 24, 20], [2e-3; 3]));
+    assert_eq!(image.labels_present(), vec![1, 2]);
+    let body = extract_surface(
+        &image,
+        &SurfaceOptions { target_vertices: Some(600), ..opts(LabelSelection::NonZero) },
+    )
+    .unwrap();
+    let lesion = extract_surface(&image, &opts(LabelSelection::Label(2))).unwrap();
+    let ellipsoid = 4.0 / 3.0 * PI * 20e-3 * 16e-3 * 14e-3;
+    eprintln!(
+        "phantom: body {} vertices (block {}), {:.2} % from voxels, {:.2} % from the ellipsoid",
+        body.mesh.n_vertices(),
+        body.block,
+        100.0 * rel(body.volume, body.voxel_volume),
+        100.0 * rel(body.volume, ellipsoid)
+    );
+    // Blocks of 3 voxels on a body 20 voxels across lose about a tenth of the volume.
+    assert!(body.mesh.n_vertices() <= 600 && rel(body.volume, ellipsoid) < 0.15);
+    let full = extract_surface(&image, &opts(LabelSelection::NonZero)).unwrap();
+    eprintln!(
+        "phantom full: {} vertices, {:.2} % from voxels",
+        full.mesh.n_vertices(),
+        100.0 * rel(full.volume, full.voxel_volume)
+    );
+    assert!(rel(full.volume, full.voxel_volume) < 0.03);
+    assert!(lesion.volume > 0.0 && lesion.volume < 0.1 * body.volume);
+}
