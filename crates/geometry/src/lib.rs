@@ -15,6 +15,8 @@
 //!   2D example; [`icosphere`] for the sphere cases.
 //! - Voxelization ([`inside_lattice`], [`for_each_inside_line`]): which points of a regular
 //!   lattice lie inside a closed surface, by exact-predicate ray crossings along x.
+//! - Label images ([`read_nifti`]: NIfTI-1/2, `.nii` and `.nii.gz`) and the surface of a
+//!   label ([`extract_surface`]: marching tetrahedra, optional smoothing and resampling).
 
 mod adjacency;
 mod boundary;
@@ -23,7 +25,9 @@ mod crossing;
 mod error;
 mod fibers;
 mod icosphere;
+mod image;
 mod io;
+mod isosurface;
 mod limits;
 mod mesh;
 mod off;
@@ -43,11 +47,16 @@ pub use fibers::{
     self_intersections,
 };
 pub use icosphere::{fibonacci_sphere, icosphere};
+pub use image::{
+    AffineSource, GZIP_MARGIN, ImageError, ImageProblem, LabelImage, LabelType, LengthUnit,
+    NiftiWriteOptions, nifti_bytes, read_nifti, read_nifti_bytes, read_nifti_with, write_nifti,
+};
 pub use io::{
     DEFAULT_MAX_FILE_BYTES, MAX_FILE_BYTES_ENV, MeshFile, ReadOptions, load_mesh, load_mesh_with,
     max_file_bytes, parse_byte_count, read_file_limited, read_obj_bytes, read_off_bytes, read_ply_bytes,
     read_stl_bytes, set_max_file_bytes, write_obj, write_obj_to, write_off, write_ply,
 };
+pub use isosurface::{LabelSelection, LabelSurface, SurfaceError, SurfaceOptions, extract_surface};
 pub use mesh::{
     CONVEXITY_TOLERANCE, DEGENERATE_AREA, NEAR_DUPLICATE, TriMesh, Validation, bounding_box,
     face_area_vector, raw_vertex_vectors, vertex_area_vectors, volume,

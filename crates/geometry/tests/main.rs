@@ -5,6 +5,7 @@ mod area_volume;
 mod common;
 mod fibers;
 mod formats;
+mod image;
 mod properties;
 mod reader;
 mod voxel;

@@ -117,12 +117,21 @@ fn shape(
     unit: LengthUnit,
 ) -> Result<Shape, Invalid> {
     match (mesh, polygon) {
+        (Some(m), None) if m.image.is_some() => image_shape(m, dir),
         (Some(m), None) => {
-            let mesh_path = dir.join(&m.path);
+            let Some(path) = m.path.clone() else {
+                return Err(unkeyed(SceneProblem::Conflict("[mesh] needs `path` (a mesh file) or `image`")));
+            };
+            if m.label.is_some() || m.vertices.is_some() || m.smooth.is_some() {
+                return Err(unkeyed(SceneProblem::Conflict(
+                    "[mesh] `label`, `vertices` and `smooth` go with `image`, not `path`",
+                )));
+            }
+            let mesh_path = dir.join(&path);
             if !mesh_path.exists() {
                 return Err(invalid(
                     "[mesh].path",
-                    SceneProblem::MeshNotFound { given: m.path.clone(), resolved: mesh_path },
+                    SceneProblem::MeshNotFound { given: path, resolved: mesh_path },
                 ));
             }
             if let Some(s) = m.scale
@@ -145,6 +154,47 @@ fn shape(
         }
         (None, None) => Err(unkeyed(SceneProblem::Conflict("missing [mesh] (or [polygon]) table"))),
     }
+}
+
+/// The body from a label image: the surface of `label` (default: every non-zero label),
+/// resampled to at most `vertices`, in metres (the image's physical spacing).
+fn image_shape(m: MeshToml, dir: &Path) -> Result<Shape, Invalid> {
+    use fibfluid_geometry::{LabelSelection, MeshFile, SurfaceOptions, extract_surface, read_nifti};
+    if m.path.is_some() {
+        return Err(unkeyed(SceneProblem::Conflict("give either [mesh].path or [mesh].image, not both")));
+    }
+    if m.scale.is_some() || m.unit.as_deref().is_some_and(|u| u != "m") {
+        return Err(unkeyed(SceneProblem::Conflict(
+            "[mesh].image is in metres (its spacing): `scale` and `unit` other than \"m\" are not used with it",
+        )));
+    }
+    let given = m.image.unwrap_or_default();
+    let path = dir.join(&given);
+    if !path.exists() {
+        return Err(invalid("[mesh].image", SceneProblem::MeshNotFound { given, resolved: path }));
+    }
+    let selection = match m.label {
+        None => LabelSelection::NonZero,
+        Some(l) if (1..=u32::MAX as i64).contains(&l) => LabelSelection::Label(l as u32),
+        Some(l) => return Err(range("[mesh].label", "a label between 1 and 4294967295", l)),
+    };
+    let target_vertices = match m.vertices {
+        None => None,
+        Some(v) if v >= 4 => Some(v as usize),
+        Some(v) => return Err(range("[mesh].vertices", "at least 4", v)),
+    };
+    let image = read_nifti(&path).map_err(|e| invalid("[mesh].image", SceneProblem::Image(e)))?;
+    let opts = SurfaceOptions {
+        selection,
+        target_vertices,
+        smooth: m.smooth.unwrap_or(false),
+        fill_cavities: false,
+    };
+    let surface = extract_surface(&image, &opts)
+        .map_err(|source| invalid("[mesh].image", SceneProblem::Surface { path: path.clone(), source }))?;
+    let file = MeshFile::from_mesh(&path, surface.mesh)
+        .map_err(|source| invalid("[mesh].image", SceneProblem::Surface { path, source: source.into() }))?;
+    Ok(Shape::Surface(Box::new(file)))
 }
 
 /// FFM's material and fiber settings from `[material]` (the older name) or `[ffm]`, and

@@ -83,6 +83,7 @@ impl std::error::Error for SceneError {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match &self.problem {
             SceneProblem::Mesh(e) => Some(e),
+            SceneProblem::Image(e) => Some(e),
             SceneProblem::Constraint(e) => Some(e),
             SceneProblem::Choice(e) => Some(e),
             _ => None,
@@ -144,6 +145,17 @@ pub enum SceneProblem {
     /// The mesh file is not a valid closed surface.
     #[error(transparent)]
     Mesh(fibfluid_geometry::GeometryError),
+    /// The label image could not be read.
+    #[error(transparent)]
+    Image(fibfluid_geometry::ImageError),
+    /// The label image's surface could not be extracted.
+    #[error("{}: {source}", path.display())]
+    Surface {
+        /// The image.
+        path: PathBuf,
+        /// Why.
+        source: fibfluid_geometry::SurfaceError,
+    },
     /// A vertex index beyond the mesh file's vertices.
     #[error("vertex {vertex} is out of range (the mesh file has {count} vertices, 0-based)")]
     VertexOutOfRange {

@@ -56,9 +56,17 @@ pub(crate) struct PlateToml {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct MeshToml {
-    pub(crate) path: String,
+    pub(crate) path: Option<String>,
     pub(crate) scale: Option<f64>,
     pub(crate) unit: Option<String>,
+    /// A NIfTI label image (`.nii`, `.nii.gz`) whose label surface is the body.
+    pub(crate) image: Option<String>,
+    /// With `image`: the label (default: every non-zero label, the whole body).
+    pub(crate) label: Option<i64>,
+    /// With `image`: at most this many vertices (resampling, see `extract_surface`).
+    pub(crate) vertices: Option<i64>,
+    /// With `image`: blur the label mask 3x3x3 before extraction.
+    pub(crate) smooth: Option<bool>,
 }
 
 #[derive(Deserialize)]
