@@ -44,6 +44,11 @@ const EXPECTED: &[(&str, &str)] = &[
     ("mesh-single-triangle.obj", "the surface is open: 3 boundary edges"),
     ("mesh-truncated-facet.stl", ":12: the last facet has fewer than 3 vertices"),
     ("mesh-two-tetrahedra.obj", "2 disconnected components"),
+    (
+        "scene-image-truncated.toml",
+        "image-truncated.nii: is truncated: the voxels need 11872 bytes, only 400 present",
+    ),
+    ("scene-image-label-missing.toml", "phantom.nii.gz: the image has no voxel of label 7"),
     ("mesh-unknown-extension.xyz", "unsupported mesh format (expected .obj, .stl, .ply or .off)"),
     (
         "scene-backend-not-compiled.toml",
@@ -182,7 +187,9 @@ const EXPECTED: &[(&str, &str)] = &[
 ];
 
 /// Files of the folder that are not bad inputs.
-const NOT_CORPUS: &[&str] = &["README.md"];
+/// (`image-truncated.nii` is the data of `scene-image-truncated.toml`: `mesh-info` reads
+/// meshes, not images.)
+const NOT_CORPUS: &[&str] = &["README.md", "image-truncated.nii"];
 
 /// Entries that are bad only in a build without a Cargo feature (name, feature compiled in).
 /// With the feature they are valid scenes, so the failure is not asked of them.
