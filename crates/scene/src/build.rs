@@ -40,6 +40,7 @@ pub(crate) fn build(
         spec.mesh.as_ref().map(|m| choice("[mesh].unit", m.unit.clone(), LengthUnit::M)).transpose()?;
     let unit = unit.unwrap_or_default();
     let mesh_scale = spec.mesh.as_ref().and_then(|m| m.scale).unwrap_or(1.0);
+    let image = spec.mesh.as_ref().and_then(|m| m.image.as_ref()).map(|i| dir.join(i));
     let shape = match mesh {
         None => shape(spec.mesh, spec.polygon, dir, unit)?,
         Some(_) if spec.polygon.is_some() => {
@@ -60,7 +61,8 @@ pub(crate) fn build(
     };
     let mut fem = fem_settings(spec.fem)?;
     fem.auto_model = auto_model;
-    fem.regions = crate::regions::regions(spec.region, dir, unit, mesh_scale, tissue.as_ref())?;
+    fem.regions =
+        crate::regions::regions(spec.region, dir, (unit, mesh_scale), image.as_deref(), tissue.as_ref())?;
     let (material, ffm) =
         ffm_material(spec.material, spec.ffm, spec.fluid, tissue.as_ref(), solver.method, axes)?;
     let (steps, tolerance) = load(spec.load)?;

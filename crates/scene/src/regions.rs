@@ -5,6 +5,7 @@
 //! name = "lesion"                 # optional; reports say "region k" otherwise
 //! mesh = "lesion.obj"             # a closed surface, in the [mesh]'s unit (and `scale`)
 //! # or: box = { min = [x, y, z], max = [x, y, z] }, in the [mesh]'s unit
+//! # or, with [mesh].image: label = 2    (the surface of that label, full resolution)
 //! [region.tissue]
 //! young = 24000.0                 # Pa
 //! poisson = 0.45
@@ -24,12 +25,13 @@ use crate::error::SceneProblem;
 use crate::invalid::{Invalid, invalid, range};
 use crate::spec::TissueRegionToml;
 
-/// The scene's regions, in metres; `body_tissue` must be given when any region is.
+/// The scene's regions, in metres, with the `[mesh]`'s unit and scale and its label image
+/// (for `label` regions); `body_tissue` must be given when any region is.
 pub(crate) fn regions(
     specs: Vec<TissueRegionToml>,
     dir: &Path,
-    unit: LengthUnit,
-    mesh_scale: f64,
+    (unit, mesh_scale): (LengthUnit, f64),
+    image: Option<&Path>,
     body_tissue: Option<&fibfluid_fem::Tissue>,
 ) -> Result<Vec<NamedRegion>, Invalid> {
     let mut out = Vec::with_capacity(specs.len());
@@ -48,8 +50,9 @@ pub(crate) fn regions(
             .map_err(|e| Invalid { key: Some(format!("{key} tissue")), ..e })?;
         let tissue = tissue.with_model(body.model());
         let metres = unit.metres();
-        let shape = match (spec.mesh, spec.r#box) {
-            (Some(path), None) => {
+        let shape = match (spec.mesh, spec.r#box, spec.label) {
+            (None, None, Some(label)) => label_shape(&key, image, label)?,
+            (Some(path), None, None) => {
                 let file = dir.join(&path);
                 if !file.exists() {
                     return Err(invalid(
@@ -65,7 +68,7 @@ pub(crate) fn regions(
                     triangles: mesh.mesh.triangles().to_vec(),
                 }
             }
-            (None, Some(b)) => {
+            (None, Some(b), None) => {
                 if !(0..3).all(|a| b.min[a].is_finite() && b.max[a].is_finite() && b.min[a] < b.max[a]) {
                     return Err(range(
                         format!("{key} box"),
@@ -78,7 +81,7 @@ pub(crate) fn regions(
             _ => {
                 return Err(invalid(
                     key,
-                    SceneProblem::Conflict("give a region either `mesh` or `box`, not both or neither"),
+                    SceneProblem::Conflict("give a region one of `mesh`, `box` or `label`"),
                 ));
             }
         };
@@ -86,4 +89,29 @@ pub(crate) fn regions(
         out.push(NamedRegion { name, region: Region { shape, tissue } });
     }
     Ok(out)
+}
+
+/// The region of `label` in the scene's label image: the label's surface at the image's
+/// full resolution, cavities filled (a label around another gives its outer surface).
+fn label_shape(key: &str, image: Option<&Path>, label: i64) -> Result<RegionShape, Invalid> {
+    use fibfluid_geometry::{LabelSelection, SurfaceOptions, extract_surface, read_nifti};
+    let Some(path) = image else {
+        return Err(invalid(
+            format!("{key} label"),
+            SceneProblem::Conflict("a region's `label` needs the body's [mesh].image"),
+        ));
+    };
+    let Some(label) = u32::try_from(label).ok().filter(|&l| l > 0) else {
+        return Err(range(format!("{key} label"), "a label between 1 and 4294967295", label));
+    };
+    let image = read_nifti(path).map_err(|e| invalid(format!("{key} label"), SceneProblem::Image(e)))?;
+    let opts =
+        SurfaceOptions { selection: LabelSelection::Label(label), fill_cavities: true, ..Default::default() };
+    let surface = extract_surface(&image, &opts).map_err(|source| {
+        invalid(format!("{key} label"), SceneProblem::Surface { path: path.to_path_buf(), source })
+    })?;
+    Ok(RegionShape::Surface {
+        positions: surface.mesh.positions().to_vec(),
+        triangles: surface.mesh.triangles().to_vec(),
+    })
 }

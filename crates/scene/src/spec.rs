@@ -34,6 +34,8 @@ pub(crate) struct TissueRegionToml {
     pub(crate) name: Option<String>,
     pub(crate) mesh: Option<String>,
     pub(crate) r#box: Option<BoxToml>,
+    /// A label of `[mesh].image`: the region is that label's surface.
+    pub(crate) label: Option<i64>,
     pub(crate) tissue: TissueToml,
 }
 
