@@ -46,15 +46,32 @@ struct Done {
 /// step with the GIL held; an exception it raises, or Ctrl-C, stops the run before its next
 /// load step and is raised (the scene is unchanged: runs work on a copy). `max_memory` is
 /// the command line's `--max-memory`.
+/// With `fem` (or a scene whose `[solver] method` is `"fem"`) the run is the finite-element
+/// method's, with the scene's tissue law (linear or neo-Hookean), as `fibfluid run` does
+/// it; `progress` is then not called (Newton's load steps are in the report).
 #[pyfunction]
-#[pyo3(signature = (scene, progress=None, max_memory=None))]
+#[pyo3(signature = (scene, progress=None, max_memory=None, fem=false))]
 pub(crate) fn run(
     py: Python<'_>,
     scene: &NativeScene,
     progress: Option<Py<PyAny>>,
     max_memory: Option<u64>,
+    fem: bool,
 ) -> PyResult<RunOutput> {
     guard(|| {
+        if fem || scene.scene.model.solver.method == fibfluid_sim::Method::Fem {
+            let model = scene.scene.model.clone();
+            let load =
+                StageRecord { name: names::LOAD_SCENE, parent: None, seconds: scene.load_seconds, count: 1 };
+            let done = py.detach(move || solve_fem(model, max_memory, load)).map_err(lib_error)?;
+            return Ok(RunOutput {
+                positions: points_array(py, &done.positions).unbind(),
+                displacement: points_array(py, &done.displacement).unbind(),
+                pressure: done.pressure,
+                report_json: done.report_json,
+                warnings: done.warnings,
+            });
+        }
         let failed: Arc<Mutex<Option<PyErr>>> = Arc::new(Mutex::new(None));
         let opts = RunOptions {
             progress: progress.map(|cb| callback(cb, failed.clone())),
@@ -146,5 +163,40 @@ fn solve(
         pressure: sim.pressure(),
         report_json,
         warnings: sim.warnings().iter().map(|w| crate::one_line(&w.to_string())).collect(),
+    })
+}
+
+/// The finite-element run of `model` (its tissue's law), in the mesh file's vertex order; the
+/// pressure is 0 (the FEM has no fluid).
+fn solve_fem(
+    mut model: fibfluid_sim::Model,
+    max_memory: Option<u64>,
+    load: StageRecord,
+) -> Result<Done, fibfluid_scene::Error> {
+    model.solver.method = fibfluid_sim::Method::Fem;
+    let notes = match &model.shape {
+        Shape::Surface(m) => m.notes.clone(),
+        Shape::Polygon(_) => vec![],
+    };
+    let run = fibfluid_sim::fem_run::FemRun::new(model, max_memory)?;
+    let report = fibfluid_sim::fem_run::FemReport::of(&run, std::slice::from_ref(&load), notes);
+    let (positions, rest) = match &run.model.shape {
+        Shape::Surface(m) => {
+            (m.positions_in_file_order(&run.positions), m.positions_in_file_order(&run.rest))
+        }
+        Shape::Polygon(_) => (run.positions.clone(), run.rest.clone()),
+    };
+    let displacement =
+        positions.iter().zip(&rest).map(|(p, r)| [p[0] - r[0], p[1] - r[1], p[2] - r[2]]).collect();
+    let report_json = serde_json::to_string(&report).map_err(|e| fibfluid_scene::Error::Io {
+        path: "report.json".into(),
+        source: std::io::Error::other(e),
+    })?;
+    Ok(Done {
+        positions,
+        displacement,
+        pressure: 0.0,
+        report_json,
+        warnings: run.warnings.iter().map(|w| crate::one_line(&w.to_string())).collect(),
     })
 }

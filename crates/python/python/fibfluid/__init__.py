@@ -98,6 +98,29 @@ class Scene:
         """Reads a scene file (TOML); paths inside it are relative to it."""
         return Scene(_native.NativeScene.load(os.fspath(path)))
 
+    @staticmethod
+    def from_labels(labels: Any, spacing: Sequence[float], tissues: Dict[int, Dict[str, float]],
+                    model: str = "neo-hookean", fix: Optional[Dict[str, Any]] = None,
+                    gravity: Optional[Sequence[float]] = None, vertices: Optional[int] = None,
+                    directory: Union[str, "os.PathLike[str]", None] = None) -> "Scene":
+        """A scene from a label volume: ``labels`` an integer array ``(nx, ny, nz)`` (0 the
+        background, indexed x, y, z), ``spacing`` the voxel size in metres (3 floats), and
+        ``tissues`` ``{label: {"young": Pa, "poisson": ..., "density": kg/m^3}}`` for every
+        label in the volume.
+
+        The body is the surface of every non-zero label (at most ``vertices`` vertices when
+        given); the lowest label's tissue is the body's ``[tissue]`` (with ``model``,
+        ``"linear"`` or ``"neo-hookean"``) and every other label is a ``[[region]]`` of its
+        own tissue, as ``[[region]] label = k`` in a scene file. ``fix`` is one
+        ``[[fix]]`` table (for example ``{"axis": "y", "below": 0.01}``), ``gravity`` the
+        acceleration (m/s^2). The method is the FEM.
+
+        The volume is written as a NIfTI-1 image (spacing in micrometres, stored as float32)
+        and the scene as TOML into ``directory`` (a new temporary directory by default),
+        which the scene reads, as ``Scene.load`` would: keep it while the scene is used.
+        """
+        return Scene.load(_labels_scene(labels, spacing, tissues, model, fix, gravity, vertices, directory))
+
     def with_mesh(self, vertices: Any, faces: Any) -> "Scene":
         """A new scene whose body is the surface of ``vertices`` ``(N, 3)`` and ``faces``
         ``(F, 3)`` (integer vertex indices), checked as a mesh file is (finite, closed,
@@ -226,6 +249,75 @@ _SETTING_DOCS: Dict[str, str] = {
 }
 
 
+def _nifti1(labels: np.ndarray, spacing_um: Sequence[float]) -> bytes:
+    """A NIfTI-1 single file (uint16 or uint32 labels, x fastest, lengths in micrometres)."""
+    import struct
+    big = int(labels.max(initial=0)) > 65535
+    datatype, bits, dtype = (768, 32, "<u4") if big else (512, 16, "<u2")
+    header = bytearray(352)
+    struct.pack_into("<i", header, 0, 348)
+    struct.pack_into("<8h", header, 40, 3, *labels.shape, 1, 1, 1, 1)
+    struct.pack_into("<2h", header, 70, datatype, bits)
+    struct.pack_into("<8f", header, 76, 1.0, *spacing_um, 0.0, 0.0, 0.0, 0.0)
+    struct.pack_into("<f", header, 108, 352.0)
+    struct.pack_into("<B", header, 123, 3)  # xyzt_units: micrometres
+    header[344:348] = b"n+1\0"
+    return bytes(header) + np.asarray(labels, dtype=dtype).tobytes(order="F")
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    return repr(float(v)) if isinstance(v, float) else str(v)
+
+
+def _tissue_toml(t: Dict[str, float]) -> str:
+    return "".join(f"{k} = {_toml_value(float(t[k]))}\n" for k in ("young", "poisson", "density") if k in t)
+
+
+def _labels_scene(labels: Any, spacing: Sequence[float], tissues: Dict[int, Dict[str, float]], model: str,
+                  fix: Optional[Dict[str, Any]], gravity: Optional[Sequence[float]], vertices: Optional[int],
+                  directory: Any) -> str:
+    import tempfile
+    a = np.asarray(labels)
+    if a.ndim != 3 or not np.issubdtype(a.dtype, np.integer):
+        raise Error(f"labels must be a 3-D integer array, not {a.ndim}-D {a.dtype}")
+    if a.size and int(a.min()) < 0:
+        raise Error("labels must not be negative (0 is the background)")
+    h = [float(x) for x in spacing]
+    if len(h) != 3 or not all(np.isfinite(x) and x > 0 for x in h):
+        raise Error(f"spacing must be 3 positive lengths in metres, not {spacing!r}")
+    present = sorted(int(v) for v in np.unique(a) if v != 0)
+    if not present:
+        raise Error("the label volume has no non-zero voxel: no body")
+    missing = [k for k in present if k not in tissues]
+    if missing:
+        raise Error(f"label {missing[0]} has no tissue (tissues gives {sorted(tissues)})")
+    d = directory if directory is not None else tempfile.mkdtemp(prefix="fibfluid-labels-")
+    d = os.fspath(d)
+    with open(os.path.join(d, "labels.nii"), "wb") as f:
+        f.write(_nifti1(a, [x * 1e6 for x in h]))
+    lines = ["[mesh]", 'image = "labels.nii"']
+    if vertices is not None:
+        lines.append(f"vertices = {int(vertices)}")
+    lines += ["", "[tissue]", f"model = {_toml_value(model)}", _tissue_toml(tissues[present[0]])]
+    for k in present[1:]:
+        lines += ["[[region]]", f'name = "label {k}"', f"label = {k}", "[region.tissue]", _tissue_toml(tissues[k])]
+    if fix is not None:
+        lines += ["[[fix]]"] + [f"{k} = {_toml_value(v)}" for k, v in fix.items()] + [""]
+    if gravity is not None:
+        lines += ["[gravity]", f"acceleration = {_toml_value([float(x) for x in gravity])}", ""]
+    lines += ["[solver]", 'method = "fem"', ""]
+    path = os.path.join(d, "scene.toml")
+    with open(path, "w") as f:
+        f.write("\n".join(lines))
+    return path
+
+
 def _setting(name: str) -> property:
     def get(self: Scene) -> Any:
         return self._native.get(name)
@@ -289,17 +381,18 @@ def run(scene: Scene, method: Optional[str] = None, progress: Progress = None,
     """Runs a scene as ``fibfluid run`` does (the same stages, numbers and report, without
     writing files) and returns a :class:`Result`.
 
-    ``method`` may be None or ``"ffm"`` (a batch run is the fiber-fluid method's; ChainMail
-    is interactive only, see :class:`Body`). ``progress`` is a callable ``(step, total)``
-    called after each load step, or True for a tqdm bar. The GIL is released during the
-    solve. ``max_memory`` (bytes) refuses a scene whose plan needs more, as
-    ``--max-memory``. The scene's settings that cannot act are issued as warnings.
+    ``method`` may be None (the scene's own), ``"ffm"`` or ``"fem"`` (the finite-element
+    method with the scene's ``[tissue]`` law, linear or neo-Hookean; its ``pressure`` is 0
+    and ``progress`` is not called: Newton's load steps are in ``report["newton"]``).
+    ChainMail is interactive only, see :class:`Body`. ``progress`` is a callable
+    ``(step, total)`` called after each load step, or True for a tqdm bar. The GIL is
+    released during the solve. ``max_memory`` (bytes) refuses a scene whose plan needs
+    more, as ``--max-memory``. The scene's settings that cannot act are issued as warnings.
     """
     if not isinstance(scene, Scene):
         raise Error("run needs a fibfluid.Scene (Scene.load)")
-    if method == "fem":
-        raise Error("method fem has no batch run in the Python package yet: use `fibfluid run --method fem` or fibfluid.Body(scene, method='fem')")
-    if method is not None and method != "ffm":
+    fem = method == "fem"
+    if method is not None and method not in ("ffm", "fem"):
         known = ", ".join(METHODS)
         if method in METHODS:
             raise Error(f"{method} is interactive only (no batch run): use fibfluid.Body(scene, method={method!r})")
@@ -308,7 +401,7 @@ def run(scene: Scene, method: Optional[str] = None, progress: Progress = None,
         warnings.warn(w, stacklevel=2)
     callback, close = _progress_callback(progress)
     try:
-        out = _native.run(scene._native, callback, _memory(max_memory))
+        out = _native.run(scene._native, callback, _memory(max_memory), fem)
     finally:
         close()
     return Result(

@@ -40,6 +40,17 @@ class Scene:
     penalty: float
     @staticmethod
     def load(path: Union[str, os.PathLike[str]]) -> Scene: ...
+    @staticmethod
+    def from_labels(
+        labels: npt.ArrayLike,
+        spacing: Sequence[float],
+        tissues: Dict[int, Dict[str, float]],
+        model: str = ...,
+        fix: Optional[Dict[str, Any]] = ...,
+        gravity: Optional[Sequence[float]] = ...,
+        vertices: Optional[int] = ...,
+        directory: Union[str, os.PathLike[str], None] = ...,
+    ) -> Scene: ...
     def with_mesh(self, vertices: npt.ArrayLike, faces: npt.ArrayLike) -> Scene: ...
     def copy(self) -> Scene: ...
     @property

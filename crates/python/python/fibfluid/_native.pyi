@@ -49,6 +49,7 @@ def run(
     scene: NativeScene,
     progress: Optional[Callable[[int, int], Any]] = None,
     max_memory: Optional[int] = None,
+    fem: bool = False,
 ) -> RunOutput: ...
 
 class NativeBody:
