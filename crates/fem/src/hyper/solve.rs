@@ -3,7 +3,10 @@
 use fibfluid_linalg::SparseCholesky;
 
 use super::body::{HyperBody, HyperSolution, HyperStats, LoadStep};
+use fibfluid_geometry::Vec3;
+
 use super::contact::{CONTACT_FORCE_TOLERANCE, CONTACT_GAP_TOLERANCE, MAX_AUGMENTATIONS, RigidPlate};
+use super::grasp::GRASP_TOLERANCE;
 use super::newton::LoadState;
 use crate::body::{Loads, load_vector};
 use crate::error::{FemError, Result};
@@ -19,7 +22,7 @@ struct Progress {
 
 impl HyperBody {
     /// The static large-deformation response to `loads` (dead loads, scaled by the load
-    /// factor) and the `plates` (moving with it).
+    /// factor), the `plates` (moving with it) and the body's grasps (moving with it).
     ///
     /// Errors: a vertex out of range or a non-finite load or plate; a load step that
     /// cannot converge ([`FemError::NotConverged`], with the step, the load factor and the
@@ -30,6 +33,7 @@ impl HyperBody {
         }
         let external = load_vector(&self.grid, |c| self.densities[c], &self.free, self.n_free, loads)?;
         let mut multipliers = vec![vec![0.0; self.samples.len()]; plates.len()];
+        let mut held = vec![[0.0; 3]; self.grasps.points.len()];
         let mut run = Progress {
             x: vec![0.0; self.n_free],
             t: 0.0,
@@ -37,15 +41,40 @@ impl HyperBody {
             stats: HyperStats::default(),
             factor: None,
         };
-        self.step_to_full_load(&mut run, &external, plates, &multipliers)?;
+        let state = LoadState {
+            t: 0.0,
+            external: &external,
+            plates,
+            multipliers: &multipliers,
+            grasp_multipliers: &held,
+        };
+        self.step_to_full_load(&mut run, &state)?;
         let mut force = self.plate_forces(&run.x, plates, &multipliers);
+        // Contact is settled when nothing penetrates or the plate forces stopped changing.
+        let mut contact_settled = false;
         for augmentation in 1..=MAX_AUGMENTATIONS {
-            let tolerance = CONTACT_GAP_TOLERANCE * self.grid.cell_size();
-            if self.deepest_penetration(&run.x, plates).iter().all(|&d| d <= tolerance) {
+            let h = self.grid.cell_size();
+            let shallow =
+                self.deepest_penetration(&run.x, plates).iter().all(|&d| d <= CONTACT_GAP_TOLERANCE * h);
+            let contact_done = shallow || contact_settled;
+            let u = self.node_field(&run.x);
+            let grasp_done = self.grasps.largest_error(&u) <= GRASP_TOLERANCE * h;
+            if contact_done && grasp_done {
                 break;
             }
-            self.augment(&run.x, plates, &mut multipliers);
-            let state = LoadState { t: 1.0, external: &external, plates, multipliers: &multipliers };
+            if !contact_done {
+                self.augment(&run.x, plates, &mut multipliers);
+            }
+            if !grasp_done {
+                self.grasps.augment(&u, &mut held);
+            }
+            let state = LoadState {
+                t: 1.0,
+                external: &external,
+                plates,
+                multipliers: &multipliers,
+                grasp_multipliers: &held,
+            };
             let mut history = Vec::new();
             match self.newton(&mut run.x, &state, &mut run.factor, &mut history, &mut run.stats)? {
                 Ok(iterations) => {
@@ -55,8 +84,8 @@ impl HyperBody {
                     let change = next.iter().zip(&force).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
                     let largest = next.iter().fold(0.0_f64, |m, f| m.max(f.abs()));
                     force = next;
-                    if change <= CONTACT_FORCE_TOLERANCE * largest {
-                        break;
+                    if !contact_done {
+                        contact_settled = change <= CONTACT_FORCE_TOLERANCE * largest;
                     }
                 }
                 Err(f) => {
@@ -68,24 +97,26 @@ impl HyperBody {
                 }
             }
         }
-        Ok(self.finish(run, plates, &multipliers))
+        let state = LoadState {
+            t: 1.0,
+            external: &external,
+            plates,
+            multipliers: &multipliers,
+            grasp_multipliers: &held,
+        };
+        let support_force = self.support_force(&run.x, &state, loads);
+        Ok(self.finish(run, &state, support_force))
     }
 
     /// Load steps from 0 to 1: an increment halves when Newton fails and doubles after an
     /// easy step.
-    fn step_to_full_load(
-        &mut self,
-        run: &mut Progress,
-        external: &[f64],
-        plates: &[RigidPlate],
-        multipliers: &[Vec<f64>],
-    ) -> Result<()> {
+    fn step_to_full_load(&mut self, run: &mut Progress, base: &LoadState<'_>) -> Result<()> {
         let mut increment = self.settings.first_increment.clamp(self.settings.min_increment, 1.0);
         // The last converged increment (load and displacement), for the secant predictor.
         let mut last: Option<(f64, Vec<f64>)> = None;
         while run.t < 1.0 {
             let target = (run.t + increment).min(1.0);
-            let state = LoadState { t: target, external, plates, multipliers };
+            let state = LoadState { t: target, ..*base };
             let mut trial = self.predict(&run.x, last.as_ref(), target - run.t, &state);
             let mut history = Vec::new();
             match self.newton(&mut trial, &state, &mut run.factor, &mut history, &mut run.stats)? {
@@ -177,8 +208,9 @@ impl HyperBody {
         }
     }
 
-    /// The solution record of a converged solve.
-    fn finish(&self, run: Progress, plates: &[RigidPlate], multipliers: &[Vec<f64>]) -> HyperSolution {
+    /// The solution record of a converged solve (`state` at the full load).
+    fn finish(&self, run: Progress, state: &LoadState<'_>, support_force: Vec3) -> HyperSolution {
+        let (plates, multipliers) = (state.plates, state.multipliers);
         let u = self.node_field(&run.x);
         let law = self.contact_law();
         let mut plate_forces = vec![0.0; plates.len()];
@@ -191,6 +223,7 @@ impl HyperBody {
             }
         }
         let plate_penetration = self.deepest_penetration(&run.x, plates);
+        let grasps = self.grasps.records(&u, state.grasp_multipliers);
         let (cells, summary) = self.cell_states(&u);
         let residual = run.steps.last().and_then(|s| s.residuals.last().copied()).unwrap_or(0.0);
         HyperSolution {
@@ -201,6 +234,8 @@ impl HyperBody {
             plate_forces,
             plate_contacts,
             plate_penetration,
+            grasps,
+            support_force,
             cells,
             summary,
             stats: run.stats,
