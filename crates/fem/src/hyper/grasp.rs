@@ -18,10 +18,6 @@ use fibfluid_geometry::Vec3;
 use fibfluid_geometry::vec3::{add, cross, norm, scale, sub};
 use serde::Serialize;
 
-use super::body::HyperBody;
-use super::newton::LoadState;
-use crate::assemble::FIXED;
-use crate::body::Loads;
 use crate::error::{FemError, Result};
 use crate::grid::SparseGrid;
 
@@ -247,88 +243,5 @@ impl GraspSet {
             r.error = r.error.max(norm(*g));
         }
         out
-    }
-}
-
-impl HyperBody {
-    /// The grasps' energy; its gradient added to `gradient`, its Hessian (`k w w^T` per
-    /// axis) to the tangent.
-    pub(super) fn add_grasps(
-        &mut self,
-        u: &[Vec3],
-        state: &LoadState<'_>,
-        gradient: &mut [f64],
-        tangent: bool,
-    ) -> f64 {
-        let forces = self.grasps.forces(u, state.t, state.grasp_multipliers);
-        for (i, f) in forces.iter().enumerate() {
-            let p = self.grasps.points[i];
-            for a in 0..3 {
-                let mut dofs = [FIXED; crate::element::CELL_DOFS];
-                let mut v = [0.0; crate::element::CELL_DOFS];
-                for b in 0..8 {
-                    dofs[3 * b + a] = self.free[3 * p.nodes[b] + a];
-                    v[3 * b + a] = p.weights[b];
-                    if let Some(g) = gradient.get_mut(dofs[3 * b + a]) {
-                        *g += f[a] * p.weights[b];
-                    }
-                }
-                if tangent {
-                    self.add_rank_one(&dofs, &v, p.stiffness);
-                }
-            }
-        }
-        self.grasps.energy(u, state.t, state.grasp_multipliers)
-    }
-
-    /// The total force the supports (the clamp's penalty and the eliminated degrees of
-    /// freedom) put on the body at load factor `t`: the clamp's penalty forces on free
-    /// dofs, plus at every fixed dof the internal force less the loads, grasps and
-    /// contact acting there.
-    pub(super) fn support_force(&self, x: &[f64], state: &LoadState<'_>, loads: &Loads) -> Vec3 {
-        let u = self.node_field(x);
-        let fixed = |n: usize, a: usize| self.free[3 * n + a] == FIXED;
-        let mut r = [0.0; 3];
-        for p in &self.clamp {
-            let d: f64 = (0..8).map(|b| p.weights[b] * u[p.nodes[b]][p.axis]).sum();
-            for b in (0..8).filter(|&b| !fixed(p.nodes[b], p.axis)) {
-                r[p.axis] -= self.clamp_beta * p.area * d * p.weights[b];
-            }
-        }
-        let node_volume = self.grid.cell_size().powi(3) / 8.0;
-        for (c, nodes) in self.grid.cell_nodes().iter().enumerate() {
-            let fill = self.grid.fill()[c];
-            let local = nodes.map(|n| u[n]);
-            let Some(t) = self.cell.tangent(&self.materials[c], &local, fill, false) else { continue };
-            for (l, g) in t.gradient.iter().enumerate() {
-                let (n, a) = (nodes[l / 3], l % 3);
-                if fixed(n, a) {
-                    r[a] += g - state.t * fill * self.densities[c] * node_volume * loads.gravity[a];
-                }
-            }
-        }
-        let mut at_fixed = |nodes: &[usize; 8], weights: &[f64; 8], f: Vec3| {
-            for b in 0..8 {
-                (0..3).filter(|&a| fixed(nodes[b], a)).for_each(|a| r[a] -= weights[b] * f[a]);
-            }
-        };
-        for &(v, f) in &loads.point_forces {
-            if let Some(e) = self.grid.embedding().get(v) {
-                at_fixed(&e.nodes, &e.weights, scale(f, state.t));
-            }
-        }
-        let forces = self.grasps.forces(&u, state.t, state.grasp_multipliers);
-        for (p, f) in self.grasps.points.iter().zip(&forces) {
-            at_fixed(&p.nodes, &p.weights, scale(*f, -1.0));
-        }
-        let law = self.contact_law();
-        for (k, plate) in state.plates.iter().enumerate() {
-            for (s, sample) in self.samples.iter().enumerate() {
-                let lambda = state.multipliers[k][s];
-                let pr = law.pressure(law.argument(lambda, plate.gap(sample.position(&u), state.t)));
-                at_fixed(&sample.nodes, &sample.weights, scale(plate.normal, sample.area * pr));
-            }
-        }
-        r
     }
 }

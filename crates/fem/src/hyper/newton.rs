@@ -209,6 +209,36 @@ impl HyperBody {
         energy
     }
 
+    /// The grasps' energy; its gradient added to `gradient`, its Hessian (`k w w^T` per
+    /// axis) to the tangent.
+    pub(super) fn add_grasps(
+        &mut self,
+        u: &[Vec3],
+        state: &LoadState<'_>,
+        gradient: &mut [f64],
+        tangent: bool,
+    ) -> f64 {
+        let forces = self.grasps.forces(u, state.t, state.grasp_multipliers);
+        for (i, f) in forces.iter().enumerate() {
+            let p = self.grasps.points[i];
+            for a in 0..3 {
+                let mut dofs = [FIXED; crate::element::CELL_DOFS];
+                let mut v = [0.0; crate::element::CELL_DOFS];
+                for b in 0..8 {
+                    dofs[3 * b + a] = self.free[3 * p.nodes[b] + a];
+                    v[3 * b + a] = p.weights[b];
+                    if let Some(g) = gradient.get_mut(dofs[3 * b + a]) {
+                        *g += f[a] * p.weights[b];
+                    }
+                }
+                if tangent {
+                    self.add_rank_one(&dofs, &v, p.stiffness);
+                }
+            }
+        }
+        self.grasps.energy(u, state.t, state.grasp_multipliers)
+    }
+
     /// Factors the assembled tangent; a tangent that is not positive definite (far from
     /// equilibrium) is shifted by a growing multiple of its largest diagonal entry (up to the
     /// entry itself: a scaled gradient step); beyond that the load step is cut.

@@ -1,13 +1,15 @@
 //! The load stepping of a hyperelastic solve and its contact augmentations.
 
+use fibfluid_geometry::Vec3;
+use fibfluid_geometry::vec3::scale;
 use fibfluid_linalg::SparseCholesky;
 
 use super::body::{HyperBody, HyperSolution, HyperStats, LoadStep};
-use fibfluid_geometry::Vec3;
 
 use super::contact::{CONTACT_FORCE_TOLERANCE, CONTACT_GAP_TOLERANCE, MAX_AUGMENTATIONS, RigidPlate};
 use super::grasp::GRASP_TOLERANCE;
 use super::newton::LoadState;
+use crate::assemble::FIXED;
 use crate::body::{Loads, load_vector};
 use crate::error::{FemError, Result};
 
@@ -206,6 +208,57 @@ impl HyperBody {
                 *lambda = law.pressure(law.argument(*lambda, p.gap(s.position(&u), 1.0)));
             }
         }
+    }
+
+    /// The total force the supports (the clamp's penalty and the eliminated degrees of
+    /// freedom) put on the body at load factor `t`: the clamp's penalty forces on free
+    /// dofs, plus at every fixed dof the internal force less the loads, grasps and
+    /// contact acting there.
+    fn support_force(&self, x: &[f64], state: &LoadState<'_>, loads: &Loads) -> Vec3 {
+        let u = self.node_field(x);
+        let fixed = |n: usize, a: usize| self.free[3 * n + a] == FIXED;
+        let mut r = [0.0; 3];
+        for p in &self.clamp {
+            let d: f64 = (0..8).map(|b| p.weights[b] * u[p.nodes[b]][p.axis]).sum();
+            for b in (0..8).filter(|&b| !fixed(p.nodes[b], p.axis)) {
+                r[p.axis] -= self.clamp_beta * p.area * d * p.weights[b];
+            }
+        }
+        let node_volume = self.grid.cell_size().powi(3) / 8.0;
+        for (c, nodes) in self.grid.cell_nodes().iter().enumerate() {
+            let fill = self.grid.fill()[c];
+            let local = nodes.map(|n| u[n]);
+            let Some(t) = self.cell.tangent(&self.materials[c], &local, fill, false) else { continue };
+            for (l, g) in t.gradient.iter().enumerate() {
+                let (n, a) = (nodes[l / 3], l % 3);
+                if fixed(n, a) {
+                    r[a] += g - state.t * fill * self.densities[c] * node_volume * loads.gravity[a];
+                }
+            }
+        }
+        let mut at_fixed = |nodes: &[usize; 8], weights: &[f64; 8], f: Vec3| {
+            for b in 0..8 {
+                (0..3).filter(|&a| fixed(nodes[b], a)).for_each(|a| r[a] -= weights[b] * f[a]);
+            }
+        };
+        for &(v, f) in &loads.point_forces {
+            if let Some(e) = self.grid.embedding().get(v) {
+                at_fixed(&e.nodes, &e.weights, scale(f, state.t));
+            }
+        }
+        let forces = self.grasps.forces(&u, state.t, state.grasp_multipliers);
+        for (p, f) in self.grasps.points.iter().zip(&forces) {
+            at_fixed(&p.nodes, &p.weights, scale(*f, -1.0));
+        }
+        let law = self.contact_law();
+        for (k, plate) in state.plates.iter().enumerate() {
+            for (s, sample) in self.samples.iter().enumerate() {
+                let lambda = state.multipliers[k][s];
+                let pr = law.pressure(law.argument(lambda, plate.gap(sample.position(&u), state.t)));
+                at_fixed(&sample.nodes, &sample.weights, scale(plate.normal, sample.area * pr));
+            }
+        }
+        r
     }
 
     /// The solution record of a converged solve (`state` at the full load).
