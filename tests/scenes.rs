@@ -424,6 +424,10 @@ fn settings_that_cannot_act_are_found_and_really_do_nothing() {
         let (pa, pb) = (run(a).positions().to_vec(), run(b).positions().to_vec());
         assert_eq!(pa, pb, "{what}: the setting changed the run");
     };
+    // A grasp is the finite-element batch run's: FFM ignores it and says so.
+    let mut s = Scene::load("fixtures/scenes/liver-grasp.toml").unwrap();
+    s.solver.method = fibfluid::Method::Ffm;
+    assert_eq!(ineffective(&s), vec![Ineffective::GraspsOutsideFemRun { grasps: 1 }]);
     // sphere.toml: gravity [0, -10, 0], density 1000, a force on vertex 3, paper mode.
     let mut s = sphere();
     s.material.set_density(0.0).unwrap();

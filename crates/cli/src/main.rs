@@ -633,7 +633,7 @@ fn run_fem(
         report.residual,
         report.seconds_total
     );
-    for (k, p) in report.plates.iter().enumerate() {
+    for (k, p) in report.supports.plates.iter().enumerate() {
         say!(
             "  plate {}: force {} N, {} surface samples in contact, deepest {} {unit}, {} augmentations",
             k + 1,
@@ -641,6 +641,21 @@ fn run_fem(
             p.contact_samples,
             num(p.penetration * to_unit),
             p.augmentations
+        );
+    }
+    for (k, g) in report.supports.grasps.iter().enumerate() {
+        let (f, m) = (g.force, g.moment);
+        say!(
+            "  grasp {}: {} vertices, force on the grasper [{}, {}, {}] N, moment [{}, {}, {}] N m, largest error {} {unit}",
+            k + 1,
+            g.vertices,
+            num(f[0]),
+            num(f[1]),
+            num(f[2]),
+            num(m[0]),
+            num(m[1]),
+            num(m[2]),
+            num(g.error * to_unit)
         );
     }
     for w in written {

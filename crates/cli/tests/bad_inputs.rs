@@ -68,6 +68,18 @@ const EXPECTED: &[(&str, &str)] = &[
         "scene-fix-vertex-out-of-range.toml:10: [[fix]] #1.vertices: vertex 100 is out of range",
     ),
     (
+        "scene-grasp-radius-zero.toml",
+        "scene-grasp-radius-zero.toml:15: [[grasp]] #1.radius: must be positive (in the mesh's unit), got 0",
+    ),
+    (
+        "scene-grasp-vertex-out-of-range.toml",
+        "scene-grasp-vertex-out-of-range.toml:14: [[grasp]] #1.vertex: vertex 42 is out of range",
+    ),
+    (
+        "scene-grasp-on-fixed.toml",
+        "scene-grasp-on-fixed.toml:15: [[grasp]] #1.radius: the patch holds a vertex that a [[fix]] fixes",
+    ),
+    (
         "scene-force-vertex-out-of-range.toml",
         "scene-force-vertex-out-of-range.toml:14: [[force]] #1.vertex: vertex 42 is out of range",
     ),

@@ -94,6 +94,12 @@ pub enum FemError {
         /// Vertices with at least one fixed axis.
         fixed_vertices: usize,
     },
+    /// A grasp with no vertex in its patch.
+    #[error("grasp {grasp} holds no vertex")]
+    EmptyGrasp {
+        /// The grasp (0-based).
+        grasp: usize,
+    },
     /// Every node is fixed: nothing to solve.
     #[error("every degree of freedom is fixed")]
     NothingFree,

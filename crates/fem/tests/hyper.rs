@@ -3,7 +3,9 @@
 //! the closed form, near-incompressibility and Newton's convergence.
 
 use crate::common::*;
-use fibfluid_fem::hyper::{CellMaterial, HyperBody, HyperCell, NewtonSettings, RigidPlate};
+use fibfluid_fem::hyper::{
+    CellMaterial, GRASP_TOLERANCE, Grasp, HyperBody, HyperCell, NewtonSettings, RigidPlate,
+};
 use fibfluid_fem::{FemBody, FemError, FemOptions, Loads, Tissue, TissueModel};
 
 /// A smooth, non-trivial displacement of a cell of edge `h` (stretch, shear and twist of
@@ -239,4 +241,123 @@ fn linear_plate_force_matches_uniaxial_stiffness() {
     eprintln!("linear: force {force:.6} N against E A d / L = {expected:.6} N, lateral {lateral:.6}");
     assert!((force / expected - 1.0).abs() < 0.02, "{force} against {expected}");
     assert!((lateral - (1.0 + tissue.poisson() * 0.01)).abs() < 0.02 * tissue.poisson() * 0.01);
+}
+
+/// The unit cube of 8 x 8 x 8 surface squares over 4 x 4 x 4 cells, its top face (z = 1,
+/// 81 vertices, most between nodes) grasped and moved by `translation` and `rotation`;
+/// clamped at its bottom face (z = 0) when `clamped`. Returns the solution and the surface.
+fn grasped_cube(
+    tissue: &Tissue,
+    clamped: bool,
+    translation: [f64; 3],
+    rotation: [f64; 3],
+    gravity: [f64; 3],
+) -> (fibfluid_fem::hyper::HyperSolution, Vec<[f64; 3]>, Vec<usize>) {
+    let (pos, tris) = box_surface([0.0; 3], [8; 3], 1.0 / 8.0);
+    let fixed: Vec<[bool; 3]> = pos.iter().map(|p| [clamped && p[2] == 0.0; 3]).collect();
+    let top: Vec<usize> = (0..pos.len()).filter(|&v| pos[v][2] == 1.0).collect();
+    let grasp = Grasp { vertices: top.clone(), translation, rotation };
+    let options = FemOptions { resolution: 4, ..FemOptions::default() };
+    let mut body = HyperBody::from_surface_grasped(&pos, &tris, tissue, &fixed, &[grasp], &options).unwrap();
+    let sol = body.solve(&Loads { gravity, ..Default::default() }, &[]).unwrap();
+    let g = sol.grasps[0];
+    eprintln!(
+        "grasped cube ({:?}, clamped {clamped}): force {:?} N, moment {:?} N m, error {:.2e} m, support {:?} N, iterations {}, augmentations {}, largest strain {:.2e}, J {:.8}..{:.8}",
+        tissue.model(),
+        g.force,
+        g.moment,
+        g.error,
+        sol.support_force,
+        sol.stats.newton_iterations,
+        sol.stats.augmentations,
+        sol.summary.max_strain_magnitude,
+        sol.summary.j_min,
+        sol.summary.j_max
+    );
+    (sol, pos, top)
+}
+
+/// Clamped at the bottom, the top face grasped and pulled up by 1 %, the linear law at
+/// nu = 0: no lateral strain, so clamping the faces changes nothing and the closed form is
+/// uniaxial stress, `F = E A d / L` (the exact answer is linear in z, inside the element's
+/// space: only the grasp's remaining error separates them). The tissue pulls the grasper
+/// down with it; the grasped vertices sit where they are told within `GRASP_TOLERANCE h`.
+#[test]
+fn grasp_pull_matches_uniaxial_stiffness() {
+    let tissue = Tissue::new(5000.0, 0.0, 0.0).unwrap();
+    let d = 0.01;
+    let (sol, _, top) = grasped_cube(&tissue, true, [0.0, 0.0, d], [0.0; 3], [0.0; 3]);
+    let expected = -tissue.young() * 1.0 * d / 1.0;
+    let f = sol.grasps[0].force;
+    assert!((f[2] / expected - 1.0).abs() < 1e-3, "{f:?} against {expected}");
+    assert!(f[0].abs() < 1e-6 * expected.abs() && f[1].abs() < 1e-6 * expected.abs(), "{f:?}");
+    assert!(sol.grasps[0].error <= GRASP_TOLERANCE * 0.25, "{}", sol.grasps[0].error);
+    for &v in &top {
+        let u = sol.surface_displacements[v];
+        assert!(norm([u[0], u[1], u[2] - d]) <= GRASP_TOLERANCE * 0.25, "vertex {v}: {u:?}");
+    }
+}
+
+/// The same pull to stretch 1.3, neo-Hookean (nu = 0.45) under gravity: a clamped top and
+/// bottom is not uniaxial, so there is no closed form; the check is equilibrium. The force
+/// the tissue puts on the grasper equals the force the supports put on the body (the
+/// clamp's penalty and its eliminated nodes, computed from the cells' internal forces)
+/// plus the body's weight (`rho g` times the unit volume), to 1e-6 of the force; the
+/// grasped vertices are where they are told within `GRASP_TOLERANCE h`.
+#[test]
+fn grasp_pull_is_in_equilibrium_with_the_clamp() {
+    let tissue = Tissue::new(5000.0, 0.45, 1000.0).unwrap().with_model(TissueModel::NeoHookean);
+    let (d, g) = (0.3, [0.0, 0.0, -9.81]);
+    let (sol, _, top) = grasped_cube(&tissue, true, [0.0, 0.0, d], [0.0; 3], g);
+    let f = sol.grasps[0].force;
+    let weight = g.map(|a| tissue.density() * 1.0 * a);
+    let balance: [f64; 3] = std::array::from_fn(|a| f[a] - sol.support_force[a] - weight[a]);
+    eprintln!("force balance {balance:?} N");
+    assert!(norm(balance) < 1e-6 * norm(f), "{balance:?} against {f:?}");
+    for &v in &top {
+        let u = sol.surface_displacements[v];
+        assert!(norm([u[0], u[1], u[2] - d]) <= GRASP_TOLERANCE * 0.25, "vertex {v}: {u:?}");
+    }
+}
+
+/// A free body (no clamp, no gravity) whose top face is grasped and translated by
+/// (0.3, -0.2, 0.5) m: the neo-Hookean body translates with it, every vertex by the
+/// translation, with zero strain and zero force on the grasper.
+#[test]
+fn grasp_translates_a_free_body_rigidly() {
+    let tissue = Tissue::new(5000.0, 0.45, 0.0).unwrap().with_model(TissueModel::NeoHookean);
+    let t = [0.3, -0.2, 0.5];
+    let (sol, _, _) = grasped_cube(&tissue, false, t, [0.0; 3], [0.0; 3]);
+    let scale = tissue.young() * 1.0;
+    assert!(norm(sol.grasps[0].force) < 1e-6 * scale, "{:?}", sol.grasps[0].force);
+    assert!(sol.summary.max_strain_magnitude < 1e-6, "{}", sol.summary.max_strain_magnitude);
+    for u in &sol.surface_displacements {
+        assert!(norm([u[0] - t[0], u[1] - t[1], u[2] - t[2]]) < GRASP_TOLERANCE * 0.25, "{u:?}");
+    }
+}
+
+/// A free body whose top face is grasped and turned by 90 degrees about x (through the
+/// face's centre): the neo-Hookean body turns with it, with no force or moment on the
+/// grasper, no strain and no change of volume (every cell's `J` is 1); the linear law
+/// through the same solve cannot represent the rotation and strains the body (largest
+/// Green–Lagrange strain above 0.1).
+#[test]
+fn grasp_rotates_a_free_body_rigidly_only_large_deformation() {
+    let quarter = [std::f64::consts::FRAC_PI_2, 0.0, 0.0];
+    let tissue = Tissue::new(5000.0, 0.45, 0.0).unwrap();
+    let (sol, pos, _) =
+        grasped_cube(&tissue.with_model(TissueModel::NeoHookean), false, [0.0; 3], quarter, [0.0; 3]);
+    let scale = tissue.young() * 1.0;
+    let g = sol.grasps[0];
+    assert!(norm(g.force) < 1e-6 * scale && norm(g.moment) < 1e-6 * scale, "{g:?}");
+    assert!(sol.summary.max_strain_magnitude < 1e-6, "{}", sol.summary.max_strain_magnitude);
+    assert!((sol.summary.j_min - 1.0).abs() < 1e-6 && (sol.summary.j_max - 1.0).abs() < 1e-6);
+    // The rotation about x through (0.5, 0.5, 1): (y, z) - c -> (-(z - cz), y - cy) + c.
+    for (p, u) in pos.iter().zip(&sol.surface_displacements) {
+        let want = [p[0], 0.5 - (p[2] - 1.0), 1.0 + (p[1] - 0.5)];
+        let got = [p[0] + u[0], p[1] + u[1], p[2] + u[2]];
+        assert!(norm([got[0] - want[0], got[1] - want[1], got[2] - want[2]]) < 1e-3, "{p:?}: {got:?}");
+    }
+    let (linear, _, _) = grasped_cube(&tissue, false, [0.0; 3], quarter, [0.0; 3]);
+    assert!(linear.summary.max_strain_magnitude > 0.1, "{}", linear.summary.max_strain_magnitude);
 }

@@ -83,6 +83,7 @@ pub(crate) fn build(
         }
     }
     let plates = plates(&spec.plate, &vertices)?;
+    fem.grasps = grasps(&spec.grasp, &vertices, &constraints)?;
     let mut model = Model::new(name, shape, material);
     model.constraints = constraints;
     model.load.gravity = gravity;
@@ -532,4 +533,44 @@ fn plates(specs: &[PlateToml], vertices: &VertexMap<'_>) -> Result<Vec<Plate>, I
         return Err(invalid(format!("[[plate]] #{}", k + 1), problem));
     }
     Ok(plates)
+}
+
+/// `[[grasp]]` tables: each patch is the vertices within `radius` of `vertex` (lengths in
+/// the mesh's unit), refused when it holds a vertex a `[[fix]]` fixes.
+fn grasps(
+    specs: &[GraspToml],
+    vertices: &VertexMap<'_>,
+    constraints: &Constraints,
+) -> Result<Vec<fibfluid_fem::hyper::Grasp>, Invalid> {
+    let mut out = Vec::with_capacity(specs.len());
+    for (k, g) in specs.iter().enumerate() {
+        let key = format!("[[grasp]] #{}", k + 1);
+        let centre = vertices.mesh_index(g.vertex, &format!("{key}.vertex"))?;
+        if !(g.radius.is_finite() && g.radius > 0.0) {
+            return Err(range(format!("{key}.radius"), "positive (in the mesh's unit)", g.radius));
+        }
+        if let Some(c) = g.translation.iter().find(|c| !c.is_finite()) {
+            return Err(range(format!("{key}.translation"), "finite", c));
+        }
+        let rotation = g.rotation.unwrap_or([0.0; 3]);
+        if let Some(c) = rotation.iter().find(|c| !c.is_finite()) {
+            return Err(range(format!("{key}.rotation"), "finite (radians)", c));
+        }
+        let m = vertices.metres;
+        let patch = fibfluid_fem::hyper::Grasp::patch(&vertices.positions, centre, g.radius * m);
+        if patch.iter().any(|&v| (0..3).any(|a| constraints.get(v, a).is_some())) {
+            return Err(invalid(
+                format!("{key}.radius"),
+                SceneProblem::Conflict(
+                    "the patch holds a vertex that a [[fix]] fixes (a vertex cannot be both clamped and grasped): lower the radius or move the grasp",
+                ),
+            ));
+        }
+        out.push(fibfluid_fem::hyper::Grasp {
+            vertices: patch,
+            translation: g.translation.map(|c| c * m),
+            rotation,
+        });
+    }
+    Ok(out)
 }

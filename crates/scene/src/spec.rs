@@ -23,6 +23,8 @@ pub(crate) struct SceneToml {
     pub(crate) guards: Option<GuardsToml>,
     #[serde(default)]
     pub(crate) plate: Vec<PlateToml>,
+    #[serde(default)]
+    pub(crate) grasp: Vec<GraspToml>,
     pub(crate) chainmail: Option<ChainmailToml>,
     #[serde(default)]
     pub(crate) region: Vec<TissueRegionToml>,
@@ -53,6 +55,16 @@ pub(crate) struct PlateToml {
     pub(crate) normal: [f64; 3],
     #[serde(default)]
     pub(crate) travel: f64,
+}
+
+/// `[[grasp]]` as written: the patch's centre vertex and radius, and its rigid motion.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct GraspToml {
+    pub(crate) vertex: i64,
+    pub(crate) radius: f64,
+    pub(crate) translation: [f64; 3],
+    pub(crate) rotation: Option<[f64; 3]>,
 }
 
 #[derive(Deserialize)]

@@ -35,6 +35,13 @@ pub enum Ineffective {
         /// How many regions the scene gives.
         regions: usize,
     },
+    /// `[[grasp]]`s in a scene run by a method or body that does not carry them (FFM,
+    /// ChainMail, interactive bodies): only the finite-element batch run (`run` with
+    /// `method = "fem"`) moves grasped patches.
+    GraspsOutsideFemRun {
+        /// How many grasps the scene gives.
+        grasps: usize,
+    },
     /// A neo-Hookean `[tissue]` driven interactively (`probe`, `view`, `compare`, Python
     /// `Body`): interactive FEM bodies are linear (one kept factorization); the neo-Hookean
     /// law is solved by batch runs only.
@@ -83,6 +90,10 @@ impl fmt::Display for Ineffective {
                 f,
                 "{regions} [[region]] table(s) have no effect: regions of other tissue are a finite-element feature (method = \"fem\"); this method treats the whole body as one material"
             ),
+            Ineffective::GraspsOutsideFemRun { grasps } => write!(
+                f,
+                "{grasps} [[grasp]] table(s) are ignored: grasps are carried by the finite-element batch run only (`run` with method = \"fem\"); interactive bodies grasp through tool paths"
+            ),
             Ineffective::LinearInteractiveBody => write!(
                 f,
                 "[tissue] model = \"neo-hookean\" applies to batch runs (`run`): an interactive FEM body is linear (small strain), so far pulls read qualitative (its frame guards say when)"
@@ -109,10 +120,14 @@ impl fmt::Display for Ineffective {
 }
 
 /// What a scene asks for that an interactive body does not carry: the neo-Hookean law
-/// (interactive FEM bodies are linear).
+/// (interactive FEM bodies are linear) and grasps.
 pub fn ineffective_interactive(scene: &Model) -> Vec<Ineffective> {
     let nonlinear = scene.tissue.is_some_and(|t| t.model() == fibfluid_fem::TissueModel::NeoHookean);
-    if nonlinear { vec![Ineffective::LinearInteractiveBody] } else { vec![] }
+    let mut found = if nonlinear { vec![Ineffective::LinearInteractiveBody] } else { vec![] };
+    if !scene.fem.grasps.is_empty() {
+        found.push(Ineffective::GraspsOutsideFemRun { grasps: scene.fem.grasps.len() });
+    }
+    found
 }
 
 /// Every setting of `scene` that cannot act, in scene order (gravity and fluid, material,
@@ -139,6 +154,9 @@ pub fn ineffective(scene: &Model) -> Vec<Ineffective> {
     let from_tissue = scene.ffm.calibrate && scene.tissue.is_some_and(|t| t.density() == density);
     if !fem && !scene.fem.regions.is_empty() {
         found.push(Ineffective::RegionsOutsideFem { regions: scene.fem.regions.len() });
+    }
+    if !fem && !scene.fem.grasps.is_empty() {
+        found.push(Ineffective::GraspsOutsideFemRun { grasps: scene.fem.grasps.len() });
     }
     if !has_gravity && density > 0.0 && !fem && !from_tissue {
         found.push(Ineffective::DensityWithoutGravity { density });

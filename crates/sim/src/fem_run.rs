@@ -14,7 +14,7 @@
 
 use std::time::Instant;
 
-use fibfluid_fem::hyper::{CellMaterial, CellState, StrainSummary, cell_states};
+use fibfluid_fem::hyper::{CellMaterial, CellState, GraspRecord, StrainSummary, cell_states};
 use fibfluid_fem::{FemStats, SparseGrid, Tissue, TissueModel};
 use fibfluid_geometry::{Boundary, Vec3};
 use serde::Serialize;
@@ -48,6 +48,8 @@ pub struct FemRun {
     pub residual: f64,
     /// Each plate's contact (empty without plates).
     pub plates: Vec<FemPlate>,
+    /// Each grasp's force, moment and constraint error (empty without grasps).
+    pub grasps: Vec<GraspRecord>,
     /// Largest strain, `J` extremes and stress of the answer's cells.
     pub strain: StrainSummary,
     /// Inside the tissue: the grid, its nodes' displacements and its cells' states.
@@ -109,6 +111,7 @@ impl FemRun {
             stats: answer.stats,
             residual: answer.residual,
             plates: answer.plates,
+            grasps: answer.grasps,
             strain: answer.strain,
             volume: VolumeAnswer {
                 cell_materials: answer.cell_materials,
@@ -126,16 +129,18 @@ impl FemRun {
     }
 }
 
-/// Solves the model with `tissue`'s law. Plates and regions need the Newton solver (contact
-/// sampled over the surface inside the solve, per-cell materials), for the linear law too
+/// Solves the model with `tissue`'s law. Plates, grasps and regions need the Newton solver
+/// (contact and grasps inside the solve, per-cell materials), for the linear law too
 /// (one iteration per change of the contact set); a plain linear body is one solve.
 fn solve_answer(model: &Model, tissue: &Tissue, limit: u64, log: &mut StageLog) -> Result<FemAnswer> {
-    if tissue.model() == TissueModel::Linear && model.plates.is_empty() && model.fem.regions.is_empty() {
+    let plain = model.plates.is_empty() && model.fem.regions.is_empty() && model.fem.grasps.is_empty();
+    if tissue.model() == TissueModel::Linear && plain {
         return solve_linear(model, limit, log);
     }
     let (body, sol, stats) = crate::hyper_run::solve(model, tissue, limit, log)?;
     Ok(FemAnswer {
         plates: crate::hyper_run::plate_records(&sol),
+        grasps: sol.grasps.clone(),
         newton: Some(crate::hyper_run::NewtonRecord { steps: sol.steps.clone(), stats: sol.stats }),
         strain: sol.summary,
         cells: sol.cells,
@@ -170,6 +175,7 @@ struct FemAnswer {
     cell_materials: Vec<u16>,
     residual: f64,
     plates: Vec<FemPlate>,
+    grasps: Vec<GraspRecord>,
     strain: StrainSummary,
     cells: Vec<CellState>,
     newton: Option<crate::hyper_run::NewtonRecord>,
@@ -192,6 +198,7 @@ fn solve_linear(model: &Model, limit: u64, log: &mut StageLog) -> Result<FemAnsw
         cell_materials: vec![0; body.grid().n_cells()],
         residual,
         plates,
+        grasps: Vec::new(),
         strain,
         cells,
         newton: None,
@@ -302,6 +309,18 @@ impl RegionRecord {
     }
 }
 
+/// What the plates and grasps of a finite-element run did.
+#[derive(Clone, Debug, Serialize)]
+pub struct FemSupports {
+    /// Each plate's contact at its final position (omitted without plates).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub plates: Vec<FemPlate>,
+    /// Each grasp's force (N) and moment (N m) on the grasper and its largest constraint
+    /// error (m) (omitted without grasps).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub grasps: Vec<GraspRecord>,
+}
+
 /// `report.json` of a finite-element run.
 #[derive(Clone, Debug, Serialize)]
 pub struct FemReport {
@@ -326,9 +345,10 @@ pub struct FemReport {
     /// Newton's steps, residual histories, counts and times (hyperelastic tissue only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub newton: Option<crate::hyper_run::NewtonRecord>,
-    /// Each plate's contact at its final position (omitted without plates).
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub plates: Vec<FemPlate>,
+    /// Each plate's contact and each grasp's force (flattened into `report.json`:
+    /// `plates`, `grasps`).
+    #[serde(flatten)]
+    pub supports: FemSupports,
     /// Each region of other tissue: its cells and how far they moved (omitted without
     /// regions).
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -375,7 +395,7 @@ impl FemReport {
             },
             residual: run.residual,
             newton: run.newton.clone(),
-            plates: run.plates.clone(),
+            supports: FemSupports { plates: run.plates.clone(), grasps: run.grasps.clone() },
             regions: RegionRecord::of(run),
             warnings: run.warnings.clone(),
             stages,

@@ -49,8 +49,9 @@ pub fn solve(
     let options = FemOptions { resolution: model.fem.resolution, ..FemOptions::default() };
     let start = Instant::now();
     let regions: Vec<_> = model.fem.regions.iter().map(|r| r.region.clone()).collect();
+    let (positions, triangles) = (file.mesh.positions(), file.mesh.triangles());
     let mut body =
-        HyperBody::from_surface(file.mesh.positions(), file.mesh.triangles(), tissue, &fixed, &options)
+        HyperBody::from_surface_grasped(positions, triangles, tissue, &fixed, &model.fem.grasps, &options)
             .and_then(|b| b.with_regions(&regions))
             .map_err(failed)?;
     log.add(names::VOXELIZATION, start.elapsed().as_secs_f64());

@@ -149,6 +149,9 @@ pub struct FemSettings {
     /// `[tissue] model = "auto"`: solve linear, and again neo-Hookean when the linear
     /// answer's largest strain is above `result_guards::LINEAR_STRAIN_LIMIT`.
     pub auto_model: bool,
+    /// Grasps (`[[grasp]]`): patches of the surface moved rigidly with the load factor;
+    /// vertices are mesh indices, lengths in metres.
+    pub grasps: Vec<fibfluid_fem::hyper::Grasp>,
 }
 
 /// A region of other tissue with the name reports give it.
@@ -162,7 +165,12 @@ pub struct NamedRegion {
 
 impl Default for FemSettings {
     fn default() -> Self {
-        Self { resolution: fibfluid_fem::DEFAULT_RESOLUTION, regions: Vec::new(), auto_model: false }
+        Self {
+            resolution: fibfluid_fem::DEFAULT_RESOLUTION,
+            regions: Vec::new(),
+            auto_model: false,
+            grasps: Vec::new(),
+        }
     }
 }
 

@@ -10,6 +10,7 @@ use serde::Serialize;
 
 use super::cell::{CellMaterial, CellState, HyperCell};
 use super::contact::{ContactSample, surface_samples};
+use super::grasp::{GRASP_PENALTY, Grasp, GraspRecord, GraspSet};
 use crate::assemble::{lower_pattern, number_free_dofs};
 use crate::clamp::{Clamp, ClampPoint, clamp_stiffness};
 use crate::error::{FemError, Result};
@@ -108,6 +109,11 @@ pub struct HyperSolution {
     pub plate_contacts: Vec<usize>,
     /// Per plate, the deepest remaining penetration (m).
     pub plate_penetration: Vec<f64>,
+    /// Per grasp, the force and moment the tissue exerts on the grasper and its largest
+    /// constraint error.
+    pub grasps: Vec<GraspRecord>,
+    /// The total force the supports (the clamp) put on the body (N).
+    pub support_force: Vec3,
     /// Each cell's strain, stress and `J`.
     pub cells: Vec<CellState>,
     /// Extremes over the cells.
@@ -125,6 +131,7 @@ pub struct HyperBody {
     pub(crate) clamp: Vec<ClampPoint>,
     pub(crate) clamp_beta: f64,
     pub(crate) samples: Vec<ContactSample>,
+    pub(crate) grasps: GraspSet,
     pub(crate) cell: HyperCell,
     /// Each cell's law and moduli.
     pub(crate) materials: Vec<CellMaterial>,
@@ -156,8 +163,40 @@ impl HyperBody {
         fixed: &[[bool; 3]],
         options: &FemOptions,
     ) -> Result<Self> {
-        let grid = crate::rigid::checked_grid(positions, triangles, fixed, options.resolution)?;
-        Self::new(grid, tissue, fixed, Ordering::default())
+        Self::from_surface_grasped(positions, triangles, tissue, fixed, &[], options)
+    }
+
+    /// [`HyperBody::from_surface`] with `grasps` moving patches of the surface rigidly
+    /// ([`HyperBody::with_grasps`]); a grasped vertex counts as held on every axis when the
+    /// constraints are checked for free rigid motions.
+    ///
+    /// Errors: those of [`HyperBody::from_surface`] and of [`HyperBody::with_grasps`].
+    pub fn from_surface_grasped(
+        positions: &[Vec3],
+        triangles: &[[u32; 3]],
+        tissue: &Tissue,
+        fixed: &[[bool; 3]],
+        grasps: &[Grasp],
+        options: &FemOptions,
+    ) -> Result<Self> {
+        let mut held = fixed.to_vec();
+        for v in grasps.iter().flat_map(|g| &g.vertices) {
+            if let Some(h) = held.get_mut(*v) {
+                *h = [true; 3];
+            }
+        }
+        let grid = crate::rigid::checked_grid(positions, triangles, &held, options.resolution)?;
+        Self::new(grid, tissue, fixed, Ordering::default())?.with_grasps(grasps)
+    }
+
+    /// The same body with `grasps` (replacing any it had): each moves its patch rigidly
+    /// with the load factor (see [`super::grasp`]'s module docs).
+    ///
+    /// Errors: a vertex out of range, an empty patch, a non-finite motion.
+    pub fn with_grasps(mut self, grasps: &[Grasp]) -> Result<Self> {
+        let beta = GRASP_PENALTY * self.tissue.young() / self.grid.cell_size();
+        self.grasps = GraspSet::new(&self.grid, grasps, beta)?;
+        Ok(self)
     }
 
     /// Prepares the body on a grid (see [`HyperBody::from_surface`]).
@@ -181,6 +220,7 @@ impl HyperBody {
         let h = grid.cell_size();
         Ok(Self {
             samples: surface_samples(&grid, fixed),
+            grasps: GraspSet::default(),
             cell: HyperCell::new(h),
             materials: vec![CellMaterial::of(tissue); grid.n_cells()],
             densities: vec![tissue.density(); grid.n_cells()],

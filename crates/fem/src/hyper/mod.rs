@@ -6,7 +6,8 @@
 //!   dilatation (the nonlinear counterpart of the linear body's B-bar, [`cell`]).
 //! - Loads: gravity and point forces are dead loads (fixed in direction and size) scaled by
 //!   the load factor `t` in `[0, 1]`; [`RigidPlate`]s move with `t`; the clamp is the
-//!   linear body's penalty on the fixed part of the surface (it holds the rest position).
+//!   linear body's penalty on the fixed part of the surface (it holds the rest position);
+//!   [`Grasp`]s move patches of the surface rigidly with `t` ([`grasp`]'s augmented Lagrangian).
 //! - Newton: the consistent tangent (the energy's Hessian, symmetric), factored by the kept
 //!   symbolic analysis (numeric refactorization only); a backtracking line search on the
 //!   energy; load increments that halve when Newton fails and double after an easy step
@@ -16,6 +17,7 @@
 mod body;
 mod cell;
 mod contact;
+mod grasp;
 mod material;
 mod newton;
 mod solve;
@@ -26,3 +28,4 @@ pub use contact::{
     CONTACT_FORCE_TOLERANCE, CONTACT_GAP_TOLERANCE, CONTACT_PENALTY, CONTACT_SMOOTHING, MAX_AUGMENTATIONS,
     RigidPlate,
 };
+pub use grasp::{GRASP_PENALTY, GRASP_TOLERANCE, Grasp, GraspRecord};

@@ -33,6 +33,8 @@ pub(super) struct LoadState<'a> {
     pub(super) plates: &'a [RigidPlate],
     /// Per plate, per sample: the contact pressure of the last augmentation (Pa).
     pub(super) multipliers: &'a [Vec<f64>],
+    /// Per grasped vertex: the force of the last augmentation (N).
+    pub(super) grasp_multipliers: &'a [fibfluid_geometry::Vec3],
 }
 
 /// The body's energy and gradient at one point.
@@ -63,7 +65,7 @@ impl HyperBody {
     }
 
     /// Adds `coef * v v^T` on `dofs` to the tangent's lower triangle.
-    fn add_rank_one(&mut self, dofs: &[usize; CELL_DOFS], v: &[f64; CELL_DOFS], coef: f64) {
+    pub(super) fn add_rank_one(&mut self, dofs: &[usize; CELL_DOFS], v: &[f64; CELL_DOFS], coef: f64) {
         let (symbolic, values) = self.tangent.parts_mut();
         let (col_ptr, row_idx) = (symbolic.col_ptr(), symbolic.row_idx());
         for (c, &gc) in dofs.iter().enumerate() {
@@ -130,15 +132,19 @@ impl HyperBody {
             }
         }
         let internal = gradient.iter().map(|v| v * v).sum::<f64>().sqrt();
-        let supports =
-            self.add_clamp(&u, &mut gradient, tangent) + self.add_contact(&u, state, &mut gradient, tangent);
+        let supports = self.add_clamp(&u, &mut gradient, tangent)
+            + self.add_contact(&u, state, &mut gradient, tangent)
+            + self.add_grasps(&u, state, &mut gradient, tangent);
         let mut work = 0.0;
         for (g, (f, xi)) in gradient.iter_mut().zip(state.external.iter().zip(x)) {
             *g -= state.t * f;
             work += state.t * f * xi;
         }
         let external = state.t * state.external.iter().map(|v| v * v).sum::<f64>().sqrt();
-        let floor = RESIDUAL_FLOOR * self.tissue.young() * self.grid.cell_size().powi(2);
+        let (e, h) = (self.tissue.young(), self.grid.cell_size());
+        // A body moved only by grasps has no load: the elastic force of a cell moved by the
+        // grasps' largest motion is the scale then (a rigid motion leaves only rounding).
+        let floor = (RESIDUAL_FLOOR * e * h * h).max(e * h * self.grasps.largest_motion(state.t));
         Some(Evaluation {
             energy: elastic + supports - work,
             magnitude: elastic.abs() + supports.abs() + work.abs(),
@@ -201,6 +207,36 @@ impl HyperBody {
             }
         }
         energy
+    }
+
+    /// The grasps' energy; its gradient added to `gradient`, its Hessian (`k w w^T` per
+    /// axis) to the tangent.
+    pub(super) fn add_grasps(
+        &mut self,
+        u: &[Vec3],
+        state: &LoadState<'_>,
+        gradient: &mut [f64],
+        tangent: bool,
+    ) -> f64 {
+        let forces = self.grasps.forces(u, state.t, state.grasp_multipliers);
+        for (i, f) in forces.iter().enumerate() {
+            let p = self.grasps.points[i];
+            for a in 0..3 {
+                let mut dofs = [FIXED; crate::element::CELL_DOFS];
+                let mut v = [0.0; crate::element::CELL_DOFS];
+                for b in 0..8 {
+                    dofs[3 * b + a] = self.free[3 * p.nodes[b] + a];
+                    v[3 * b + a] = p.weights[b];
+                    if let Some(g) = gradient.get_mut(dofs[3 * b + a]) {
+                        *g += f[a] * p.weights[b];
+                    }
+                }
+                if tangent {
+                    self.add_rank_one(&dofs, &v, p.stiffness);
+                }
+            }
+        }
+        self.grasps.energy(u, state.t, state.grasp_multipliers)
     }
 
     /// Factors the assembled tangent; a tangent that is not positive definite (far from
@@ -331,6 +367,7 @@ impl HyperBody {
                 e += law.energy(sample.area, lambda, x);
             }
         }
+        e += self.grasps.energy(&u, state.t, state.grasp_multipliers);
         let work: f64 = state.external.iter().zip(x).map(|(f, xi)| f * xi).sum();
         Some(e - state.t * work)
     }

@@ -1,10 +1,15 @@
 //! The load stepping of a hyperelastic solve and its contact augmentations.
 
+use fibfluid_geometry::Vec3;
+use fibfluid_geometry::vec3::scale;
 use fibfluid_linalg::SparseCholesky;
 
 use super::body::{HyperBody, HyperSolution, HyperStats, LoadStep};
+
 use super::contact::{CONTACT_FORCE_TOLERANCE, CONTACT_GAP_TOLERANCE, MAX_AUGMENTATIONS, RigidPlate};
+use super::grasp::GRASP_TOLERANCE;
 use super::newton::LoadState;
+use crate::assemble::FIXED;
 use crate::body::{Loads, load_vector};
 use crate::error::{FemError, Result};
 
@@ -19,7 +24,7 @@ struct Progress {
 
 impl HyperBody {
     /// The static large-deformation response to `loads` (dead loads, scaled by the load
-    /// factor) and the `plates` (moving with it).
+    /// factor), the `plates` (moving with it) and the body's grasps (moving with it).
     ///
     /// Errors: a vertex out of range or a non-finite load or plate; a load step that
     /// cannot converge ([`FemError::NotConverged`], with the step, the load factor and the
@@ -30,6 +35,7 @@ impl HyperBody {
         }
         let external = load_vector(&self.grid, |c| self.densities[c], &self.free, self.n_free, loads)?;
         let mut multipliers = vec![vec![0.0; self.samples.len()]; plates.len()];
+        let mut held = vec![[0.0; 3]; self.grasps.points.len()];
         let mut run = Progress {
             x: vec![0.0; self.n_free],
             t: 0.0,
@@ -37,15 +43,40 @@ impl HyperBody {
             stats: HyperStats::default(),
             factor: None,
         };
-        self.step_to_full_load(&mut run, &external, plates, &multipliers)?;
+        let state = LoadState {
+            t: 0.0,
+            external: &external,
+            plates,
+            multipliers: &multipliers,
+            grasp_multipliers: &held,
+        };
+        self.step_to_full_load(&mut run, &state)?;
         let mut force = self.plate_forces(&run.x, plates, &multipliers);
+        // Contact is settled when nothing penetrates or the plate forces stopped changing.
+        let mut contact_settled = false;
         for augmentation in 1..=MAX_AUGMENTATIONS {
-            let tolerance = CONTACT_GAP_TOLERANCE * self.grid.cell_size();
-            if self.deepest_penetration(&run.x, plates).iter().all(|&d| d <= tolerance) {
+            let h = self.grid.cell_size();
+            let shallow =
+                self.deepest_penetration(&run.x, plates).iter().all(|&d| d <= CONTACT_GAP_TOLERANCE * h);
+            let contact_done = shallow || contact_settled;
+            let u = self.node_field(&run.x);
+            let grasp_done = self.grasps.largest_error(&u) <= GRASP_TOLERANCE * h;
+            if contact_done && grasp_done {
                 break;
             }
-            self.augment(&run.x, plates, &mut multipliers);
-            let state = LoadState { t: 1.0, external: &external, plates, multipliers: &multipliers };
+            if !contact_done {
+                self.augment(&run.x, plates, &mut multipliers);
+            }
+            if !grasp_done {
+                self.grasps.augment(&u, &mut held);
+            }
+            let state = LoadState {
+                t: 1.0,
+                external: &external,
+                plates,
+                multipliers: &multipliers,
+                grasp_multipliers: &held,
+            };
             let mut history = Vec::new();
             match self.newton(&mut run.x, &state, &mut run.factor, &mut history, &mut run.stats)? {
                 Ok(iterations) => {
@@ -55,8 +86,8 @@ impl HyperBody {
                     let change = next.iter().zip(&force).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
                     let largest = next.iter().fold(0.0_f64, |m, f| m.max(f.abs()));
                     force = next;
-                    if change <= CONTACT_FORCE_TOLERANCE * largest {
-                        break;
+                    if !contact_done {
+                        contact_settled = change <= CONTACT_FORCE_TOLERANCE * largest;
                     }
                 }
                 Err(f) => {
@@ -68,24 +99,26 @@ impl HyperBody {
                 }
             }
         }
-        Ok(self.finish(run, plates, &multipliers))
+        let state = LoadState {
+            t: 1.0,
+            external: &external,
+            plates,
+            multipliers: &multipliers,
+            grasp_multipliers: &held,
+        };
+        let support_force = self.support_force(&run.x, &state, loads);
+        Ok(self.finish(run, &state, support_force))
     }
 
     /// Load steps from 0 to 1: an increment halves when Newton fails and doubles after an
     /// easy step.
-    fn step_to_full_load(
-        &mut self,
-        run: &mut Progress,
-        external: &[f64],
-        plates: &[RigidPlate],
-        multipliers: &[Vec<f64>],
-    ) -> Result<()> {
+    fn step_to_full_load(&mut self, run: &mut Progress, base: &LoadState<'_>) -> Result<()> {
         let mut increment = self.settings.first_increment.clamp(self.settings.min_increment, 1.0);
         // The last converged increment (load and displacement), for the secant predictor.
         let mut last: Option<(f64, Vec<f64>)> = None;
         while run.t < 1.0 {
             let target = (run.t + increment).min(1.0);
-            let state = LoadState { t: target, external, plates, multipliers };
+            let state = LoadState { t: target, ..*base };
             let mut trial = self.predict(&run.x, last.as_ref(), target - run.t, &state);
             let mut history = Vec::new();
             match self.newton(&mut trial, &state, &mut run.factor, &mut history, &mut run.stats)? {
@@ -177,8 +210,60 @@ impl HyperBody {
         }
     }
 
-    /// The solution record of a converged solve.
-    fn finish(&self, run: Progress, plates: &[RigidPlate], multipliers: &[Vec<f64>]) -> HyperSolution {
+    /// The total force the supports (the clamp's penalty and the eliminated degrees of
+    /// freedom) put on the body at load factor `t`: the clamp's penalty forces on free
+    /// dofs, plus at every fixed dof the internal force less the loads, grasps and
+    /// contact acting there.
+    fn support_force(&self, x: &[f64], state: &LoadState<'_>, loads: &Loads) -> Vec3 {
+        let u = self.node_field(x);
+        let fixed = |n: usize, a: usize| self.free[3 * n + a] == FIXED;
+        let mut r = [0.0; 3];
+        for p in &self.clamp {
+            let d: f64 = (0..8).map(|b| p.weights[b] * u[p.nodes[b]][p.axis]).sum();
+            for b in (0..8).filter(|&b| !fixed(p.nodes[b], p.axis)) {
+                r[p.axis] -= self.clamp_beta * p.area * d * p.weights[b];
+            }
+        }
+        let node_volume = self.grid.cell_size().powi(3) / 8.0;
+        for (c, nodes) in self.grid.cell_nodes().iter().enumerate() {
+            let fill = self.grid.fill()[c];
+            let local = nodes.map(|n| u[n]);
+            let Some(t) = self.cell.tangent(&self.materials[c], &local, fill, false) else { continue };
+            for (l, g) in t.gradient.iter().enumerate() {
+                let (n, a) = (nodes[l / 3], l % 3);
+                if fixed(n, a) {
+                    r[a] += g - state.t * fill * self.densities[c] * node_volume * loads.gravity[a];
+                }
+            }
+        }
+        let mut at_fixed = |nodes: &[usize; 8], weights: &[f64; 8], f: Vec3| {
+            for b in 0..8 {
+                (0..3).filter(|&a| fixed(nodes[b], a)).for_each(|a| r[a] -= weights[b] * f[a]);
+            }
+        };
+        for &(v, f) in &loads.point_forces {
+            if let Some(e) = self.grid.embedding().get(v) {
+                at_fixed(&e.nodes, &e.weights, scale(f, state.t));
+            }
+        }
+        let forces = self.grasps.forces(&u, state.t, state.grasp_multipliers);
+        for (p, f) in self.grasps.points.iter().zip(&forces) {
+            at_fixed(&p.nodes, &p.weights, scale(*f, -1.0));
+        }
+        let law = self.contact_law();
+        for (k, plate) in state.plates.iter().enumerate() {
+            for (s, sample) in self.samples.iter().enumerate() {
+                let lambda = state.multipliers[k][s];
+                let pr = law.pressure(law.argument(lambda, plate.gap(sample.position(&u), state.t)));
+                at_fixed(&sample.nodes, &sample.weights, scale(plate.normal, sample.area * pr));
+            }
+        }
+        r
+    }
+
+    /// The solution record of a converged solve (`state` at the full load).
+    fn finish(&self, run: Progress, state: &LoadState<'_>, support_force: Vec3) -> HyperSolution {
+        let (plates, multipliers) = (state.plates, state.multipliers);
         let u = self.node_field(&run.x);
         let law = self.contact_law();
         let mut plate_forces = vec![0.0; plates.len()];
@@ -191,6 +276,7 @@ impl HyperBody {
             }
         }
         let plate_penetration = self.deepest_penetration(&run.x, plates);
+        let grasps = self.grasps.records(&u, state.grasp_multipliers);
         let (cells, summary) = self.cell_states(&u);
         let residual = run.steps.last().and_then(|s| s.residuals.last().copied()).unwrap_or(0.0);
         HyperSolution {
@@ -201,6 +287,8 @@ impl HyperBody {
             plate_forces,
             plate_contacts,
             plate_penetration,
+            grasps,
+            support_force,
             cells,
             summary,
             stats: run.stats,
