@@ -151,19 +151,25 @@ fn solve(
         }
         Shape::Polygon(_) => (sim.positions().to_vec(), sim.rest_positions().to_vec()),
     };
+    let warnings = sim.warnings().iter().map(|w| crate::one_line(&w.to_string())).collect();
+    done(positions, &rest, sim.pressure(), serde_json::to_string(&report), warnings)
+}
+
+/// [`Done`] from file-order positions and rest, the pressure, the report and the warnings.
+fn done(
+    positions: Vec<Vec3>,
+    rest: &[Vec3],
+    pressure: f64,
+    report: serde_json::Result<String>,
+    warnings: Vec<String>,
+) -> Result<Done, fibfluid_scene::Error> {
     let displacement =
-        positions.iter().zip(&rest).map(|(p, r)| [p[0] - r[0], p[1] - r[1], p[2] - r[2]]).collect();
-    let report_json = serde_json::to_string(&report).map_err(|e| fibfluid_scene::Error::Io {
+        positions.iter().zip(rest).map(|(p, r)| [p[0] - r[0], p[1] - r[1], p[2] - r[2]]).collect();
+    let report_json = report.map_err(|e| fibfluid_scene::Error::Io {
         path: "report.json".into(),
         source: std::io::Error::other(e),
     })?;
-    Ok(Done {
-        positions,
-        displacement,
-        pressure: sim.pressure(),
-        report_json,
-        warnings: sim.warnings().iter().map(|w| crate::one_line(&w.to_string())).collect(),
-    })
+    Ok(Done { positions, displacement, pressure, report_json, warnings })
 }
 
 /// The finite-element run of `model` (its tissue's law), in the mesh file's vertex order; the
@@ -186,17 +192,6 @@ fn solve_fem(
         }
         Shape::Polygon(_) => (run.positions.clone(), run.rest.clone()),
     };
-    let displacement =
-        positions.iter().zip(&rest).map(|(p, r)| [p[0] - r[0], p[1] - r[1], p[2] - r[2]]).collect();
-    let report_json = serde_json::to_string(&report).map_err(|e| fibfluid_scene::Error::Io {
-        path: "report.json".into(),
-        source: std::io::Error::other(e),
-    })?;
-    Ok(Done {
-        positions,
-        displacement,
-        pressure: 0.0,
-        report_json,
-        warnings: run.warnings.iter().map(|w| crate::one_line(&w.to_string())).collect(),
-    })
+    let warnings = run.warnings.iter().map(|w| crate::one_line(&w.to_string())).collect();
+    done(positions, &rest, 0.0, serde_json::to_string(&report), warnings)
 }
