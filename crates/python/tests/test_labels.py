@@ -69,3 +69,22 @@ def test_the_fem_batch_run_equals_the_command_lines(cli, tmp_path):
     assert np.array_equal(in_cm, np.array(read_obj_vertices(out / "deformed.obj")))
     cli_report = json.loads((out / "report.json").read_text())
     assert result.report["fem"]["cells"] == cli_report["fem"]["cells"]
+
+
+def test_a_result_converts_to_meshio_and_pyvista_without_copying_the_points():
+    result = fibfluid.run(fibfluid.Scene.load(SCENES / "sphere.toml"))
+    assert result.faces is not None and result.faces.shape[1] == 3
+    meshio = pytest.importorskip("meshio")
+    mesh = result.to_meshio()
+    assert isinstance(mesh, meshio.Mesh)
+    assert np.shares_memory(mesh.points, result.positions)
+    assert np.array_equal(mesh.cells_dict["triangle"], result.faces)
+    assert np.array_equal(mesh.point_data["displacement"], result.displacement)
+
+
+def test_a_result_converts_to_pyvista():
+    result = fibfluid.run(fibfluid.Scene.load(SCENES / "sphere.toml"))
+    pytest.importorskip("pyvista")
+    mesh = result.to_pyvista()
+    assert mesh.n_points == result.positions.shape[0] and mesh.n_cells == result.faces.shape[0]
+    assert np.allclose(mesh.point_data["displacement_magnitude"], np.linalg.norm(result.displacement, axis=1))

@@ -349,6 +349,43 @@ class Result:
     report: Dict[str, Any]
     #: Guard warnings, one line each (the report's ``warnings`` as text).
     warnings: List[str] = field(default_factory=list)
+    #: Triangles ``(F, 3)`` int64 in file vertex indices (the scene's ``faces``; a 2-D
+    #: polygon's fan).
+    faces: Optional[np.ndarray] = None
+
+    def to_meshio(self) -> Any:
+        """The deformed surface as a ``meshio.Mesh`` (metres): triangles, and the point data
+        ``displacement`` (m) and ``displacement_magnitude``. The arrays are shared, not
+        copied. Needs ``meshio`` (``pip install meshio``)."""
+        import meshio
+        return meshio.Mesh(
+            self.positions,
+            [("triangle", self._faces())],
+            point_data=self._point_data(),
+        )
+
+    def to_pyvista(self) -> Any:
+        """The deformed surface as a ``pyvista.PolyData`` (metres) with the point data of
+        :meth:`to_meshio`. The faces are copied once into VTK's ``[3, i, j, k, ...]`` layout.
+        Needs ``pyvista`` (``pip install pyvista``)."""
+        import pyvista
+        faces = self._faces()
+        cells = np.hstack([np.full((len(faces), 1), 3, dtype=np.int64), faces]).ravel()
+        mesh = pyvista.PolyData(self.positions, cells)
+        for name, values in self._point_data().items():
+            mesh.point_data[name] = values
+        return mesh
+
+    def _faces(self) -> np.ndarray:
+        if self.faces is None:
+            raise Error("this result has no faces")
+        return self.faces
+
+    def _point_data(self) -> Dict[str, np.ndarray]:
+        return {
+            "displacement": self.displacement,
+            "displacement_magnitude": np.linalg.norm(self.displacement, axis=1),
+        }
 
 
 def _progress_callback(progress: Progress) -> Tuple[Optional[Callable[[int, int], Any]], Callable[[], None]]:
@@ -410,6 +447,7 @@ def run(scene: Scene, method: Optional[str] = None, progress: Progress = None,
         pressure=out.pressure,
         report=json.loads(out.report_json),
         warnings=list(out.warnings),
+        faces=scene.faces,
     )
 
 
