@@ -2,7 +2,6 @@
 
 use std::f64::consts::PI;
 use std::io::Write;
-use std::time::{Duration, Instant};
 
 use fibfluid_geometry::{
     ImageProblem, LabelImage, LabelSelection, LabelType, LengthUnit, MeshError, NiftiWriteOptions,
@@ -175,12 +174,10 @@ fn gzip(bytes: &[u8]) -> Vec<u8> {
     gz.finish().unwrap()
 }
 
-/// Reads `bytes`, expects an error, and checks it came in well under a second.
+/// Reads `bytes` and expects an error (the size checks name what the header claims, so a
+/// refusal here was made from the header, before the voxels were allocated).
 fn refused(bytes: &[u8]) -> ImageProblem {
-    let start = Instant::now();
-    let e = read_nifti_bytes(bytes, LIMIT).expect_err("a bad image was accepted");
-    assert!(start.elapsed() < Duration::from_secs(1), "{e} took {:?}", start.elapsed());
-    e
+    read_nifti_bytes(bytes, LIMIT).expect_err("a bad image was accepted")
 }
 
 #[test]

@@ -41,7 +41,7 @@ pub(crate) fn build(
     let unit = unit.unwrap_or_default();
     let mesh_scale = spec.mesh.as_ref().and_then(|m| m.scale).unwrap_or(1.0);
     let image = spec.mesh.as_ref().and_then(|m| m.image.as_ref()).map(|i| dir.join(i));
-    let shape = match mesh {
+    let (shape, label_image) = match mesh {
         None => shape(spec.mesh, spec.polygon, dir, unit)?,
         Some(_) if spec.polygon.is_some() => {
             return Err(invalid(
@@ -51,7 +51,7 @@ pub(crate) fn build(
                 ),
             ));
         }
-        Some(m) => Shape::Surface(Box::new(m)),
+        Some(m) => (Shape::Surface(Box::new(m)), None),
     };
     let axes = if matches!(shape, Shape::Polygon(_)) { 2 } else { 3 };
     let solver = solver(spec.solver)?;
@@ -61,8 +61,13 @@ pub(crate) fn build(
     };
     let mut fem = fem_settings(spec.fem)?;
     fem.auto_model = auto_model;
-    fem.regions =
-        crate::regions::regions(spec.region, dir, (unit, mesh_scale), image.as_deref(), tissue.as_ref())?;
+    fem.regions = crate::regions::regions(
+        spec.region,
+        dir,
+        (unit, mesh_scale),
+        image.map(|p| (p, label_image)),
+        tissue.as_ref(),
+    )?;
     let (material, ffm) =
         ffm_material(spec.material, spec.ffm, spec.fluid, tissue.as_ref(), solver.method, axes)?;
     let (steps, tolerance) = load(spec.load)?;
@@ -113,14 +118,16 @@ fn fem_settings(f: Option<FemToml>) -> Result<FemSettings, Invalid> {
 }
 
 /// The body: a mesh file (converted from its unit to metres) or a polygon.
+/// The body, and the label image it was extracted from (`[mesh] image`), kept for the
+/// scene's `label` regions.
 fn shape(
     mesh: Option<MeshToml>,
     polygon: Option<PolygonToml>,
     dir: &Path,
     unit: LengthUnit,
-) -> Result<Shape, Invalid> {
-    match (mesh, polygon) {
-        (Some(m), None) if m.image.is_some() => image_shape(m, dir),
+) -> Result<(Shape, Option<fibfluid_geometry::LabelImage>), Invalid> {
+    let shape = match (mesh, polygon) {
+        (Some(m), None) if m.image.is_some() => return image_shape(m, dir).map(|(s, i)| (s, Some(i))),
         (Some(m), None) => {
             let Some(path) = m.path.clone() else {
                 return Err(unkeyed(SceneProblem::Conflict("[mesh] needs `path` (a mesh file) or `image`")));
@@ -147,21 +154,22 @@ fn shape(
             let scale = Some(m.scale.unwrap_or(1.0) * unit.metres()).filter(|s| *s != 1.0);
             let file = load_mesh_with(&mesh_path, &ReadOptions { scale, ..Default::default() })
                 .map_err(|e| invalid("[mesh].path", SceneProblem::Mesh(e)))?;
-            Ok(Shape::Surface(Box::new(file)))
+            Shape::Surface(Box::new(file))
         }
-        (None, Some(p)) => Ok(Shape::Polygon(Polygon::new(p.points).ok_or_else(|| {
+        (None, Some(p)) => Shape::Polygon(Polygon::new(p.points).ok_or_else(|| {
             invalid("[polygon].points", SceneProblem::Conflict("at least 3 finite points are needed"))
-        })?)),
+        })?),
         (Some(_), Some(_)) => {
-            Err(unkeyed(SceneProblem::Conflict("give either [mesh] or [polygon], not both")))
+            return Err(unkeyed(SceneProblem::Conflict("give either [mesh] or [polygon], not both")));
         }
-        (None, None) => Err(unkeyed(SceneProblem::Conflict("missing [mesh] (or [polygon]) table"))),
-    }
+        (None, None) => return Err(unkeyed(SceneProblem::Conflict("missing [mesh] (or [polygon]) table"))),
+    };
+    Ok((shape, None))
 }
 
 /// The body from a label image: the surface of `label` (default: every non-zero label),
 /// resampled to at most `vertices`, in metres (the image's physical spacing).
-fn image_shape(m: MeshToml, dir: &Path) -> Result<Shape, Invalid> {
+fn image_shape(m: MeshToml, dir: &Path) -> Result<(Shape, fibfluid_geometry::LabelImage), Invalid> {
     use fibfluid_geometry::{LabelSelection, MeshFile, SurfaceOptions, extract_surface, read_nifti};
     if m.path.is_some() {
         return Err(unkeyed(SceneProblem::Conflict("give either [mesh].path or [mesh].image, not both")));
@@ -197,7 +205,7 @@ fn image_shape(m: MeshToml, dir: &Path) -> Result<Shape, Invalid> {
         .map_err(|source| invalid("[mesh].image", SceneProblem::Surface { path: path.clone(), source }))?;
     let file = MeshFile::from_mesh(&path, surface.mesh)
         .map_err(|source| invalid("[mesh].image", SceneProblem::Surface { path, source: source.into() }))?;
-    Ok(Shape::Surface(Box::new(file)))
+    Ok((Shape::Surface(Box::new(file)), image))
 }
 
 /// FFM's material and fiber settings from `[material]` (the older name) or `[ffm]`, and

@@ -15,10 +15,10 @@
 //! A region's tissue takes the body's `[tissue] model`; giving `model` in a region is
 //! refused (one law per body).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use fibfluid_fem::{Region, RegionShape};
-use fibfluid_geometry::{ReadOptions, load_mesh_with};
+use fibfluid_geometry::{LabelImage, ReadOptions, load_mesh_with};
 use fibfluid_sim::{LengthUnit, NamedRegion};
 
 use crate::error::SceneProblem;
@@ -26,14 +26,20 @@ use crate::invalid::{Invalid, invalid, range};
 use crate::spec::TissueRegionToml;
 
 /// The scene's regions, in metres, with the `[mesh]`'s unit and scale and its label image
-/// (for `label` regions); `body_tissue` must be given when any region is.
+/// (for `label` regions: its path, and the image when the body was already read from it;
+/// otherwise it is read at the first `label` region); `body_tissue` must be given when any
+/// region is.
 pub(crate) fn regions(
     specs: Vec<TissueRegionToml>,
     dir: &Path,
     (unit, mesh_scale): (LengthUnit, f64),
-    image: Option<&Path>,
+    image: Option<(PathBuf, Option<LabelImage>)>,
     body_tissue: Option<&fibfluid_fem::Tissue>,
 ) -> Result<Vec<NamedRegion>, Invalid> {
+    let (image_path, mut image) = match image {
+        Some((path, read)) => (Some(path), read),
+        None => (None, None),
+    };
     let mut out = Vec::with_capacity(specs.len());
     for (k, spec) in specs.into_iter().enumerate() {
         let key = format!("[[region]] #{}", k + 1);
@@ -51,7 +57,7 @@ pub(crate) fn regions(
         let tissue = tissue.with_model(body.model());
         let metres = unit.metres();
         let shape = match (spec.mesh, spec.r#box, spec.label) {
-            (None, None, Some(label)) => label_shape(&key, image, label)?,
+            (None, None, Some(label)) => label_shape(&key, image_path.as_deref(), &mut image, label)?,
             (Some(path), None, None) => {
                 let file = dir.join(&path);
                 if !file.exists() {
@@ -91,11 +97,17 @@ pub(crate) fn regions(
     Ok(out)
 }
 
-/// The region of `label` in the scene's label image: the label's surface at the image's
-/// full resolution, cavities filled (a label around another gives its outer surface).
-fn label_shape(key: &str, image: Option<&Path>, label: i64) -> Result<RegionShape, Invalid> {
+/// The region of `label` in the scene's label image (at `path`; read into `image` unless it
+/// already holds it): the label's surface at the image's full resolution, cavities filled
+/// (a label around another gives its outer surface).
+fn label_shape(
+    key: &str,
+    path: Option<&Path>,
+    image: &mut Option<LabelImage>,
+    label: i64,
+) -> Result<RegionShape, Invalid> {
     use fibfluid_geometry::{LabelSelection, SurfaceOptions, extract_surface, read_nifti};
-    let Some(path) = image else {
+    let Some(path) = path else {
         return Err(invalid(
             format!("{key} label"),
             SceneProblem::Conflict("a region's `label` needs the body's [mesh].image"),
@@ -104,10 +116,13 @@ fn label_shape(key: &str, image: Option<&Path>, label: i64) -> Result<RegionShap
     let Some(label) = u32::try_from(label).ok().filter(|&l| l > 0) else {
         return Err(range(format!("{key} label"), "a label between 1 and 4294967295", label));
     };
-    let image = read_nifti(path).map_err(|e| invalid(format!("{key} label"), SceneProblem::Image(e)))?;
+    if image.is_none() {
+        *image = Some(read_nifti(path).map_err(|e| invalid(format!("{key} label"), SceneProblem::Image(e)))?);
+    }
+    let Some(image) = image.as_ref() else { unreachable!("read just above") };
     let opts =
         SurfaceOptions { selection: LabelSelection::Label(label), fill_cavities: true, ..Default::default() };
-    let surface = extract_surface(&image, &opts).map_err(|source| {
+    let surface = extract_surface(image, &opts).map_err(|source| {
         invalid(format!("{key} label"), SceneProblem::Surface { path: path.to_path_buf(), source })
     })?;
     Ok(RegionShape::Surface {
