@@ -1,6 +1,5 @@
 //! The assembled, constrained and factored body; loads and solutions.
 
-use std::collections::HashMap;
 use std::time::Instant;
 
 use faer::Mat;
@@ -84,11 +83,8 @@ pub struct FemBody {
     pub(crate) k_lower: SparseColMat<usize, f64>,
     pub(crate) factor: SparseCholesky,
     pub(crate) stats: FemStats,
-    /// `K^-1 C^T` columns of held vertices, computed on first hold: per vertex, 3 columns.
-    pub(crate) compliance: HashMap<usize, [Vec<f64>; 3]>,
-    /// The last loads `respond_held` solved and their response `K^-1 f`: a frame that
-    /// changes only the holds reuses it instead of solving again.
-    pub(crate) unheld: Option<(Loads, Mat<f64>)>,
+    /// Compliance columns of held vertices and the last unheld solve.
+    pub(crate) held: crate::held::HoldCache,
 }
 
 impl std::fmt::Debug for FemBody {
@@ -181,8 +177,7 @@ impl FemBody {
             k_lower,
             factor,
             stats,
-            compliance: HashMap::new(),
-            unheld: None,
+            held: crate::held::HoldCache::default(),
         })
     }
 

@@ -144,6 +144,9 @@ pub enum FemError {
         /// The relative residual when it stopped.
         residual: f64,
     },
+    /// A state inverts a cell (`J <= 0`): no step toward it could be taken.
+    #[error("the body would invert (a cell's volume would reach zero); move the tool less far per step")]
+    Inverted,
     /// The sparse factorization could not allocate or failed for a non-numerical reason.
     #[error("sparse factorization failed: {reason}")]
     Factorization {

@@ -12,13 +12,16 @@
 //! (the columns by the factor's `fibfluid_linalg::ComplianceSource`), the same code as the
 //! fiber–fluid method's contact rows.
 
+use std::collections::HashMap;
+
 use faer::Mat;
 use fibfluid_geometry::Vec3;
-use fibfluid_linalg::{ComplianceSource, LinalgError, RowCapacitance, SparseRow, row_dot};
+use fibfluid_linalg::{ComplianceSource, LinalgError, RowCapacitance, SparseCholesky, SparseRow, row_dot};
 
 use crate::assemble::FIXED;
 use crate::body::{FemBody, Loads};
 use crate::error::{FemError, Result};
+use crate::grid::Embedded;
 
 /// A target below this (relative to the largest target, or absolute when all are 0) counts
 /// as 0 on an axis whose nodes are all fixed.
@@ -95,6 +98,125 @@ struct Row {
     entries: Vec<(usize, f64)>,
 }
 
+/// Compliance columns and the last unheld solve of one factor, kept between frames.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct HoldCache {
+    /// `A^-1 C^T` columns of held vertices, computed on first hold: per vertex, 3 columns.
+    columns: HashMap<usize, [Vec<f64>; 3]>,
+    /// The last right-hand side solved without holds and its solution: a frame that
+    /// changes only the holds reuses it.
+    unheld: Option<(Vec<f64>, Vec<f64>)>,
+}
+
+impl HoldCache {
+    /// Number of vertices whose columns are cached.
+    pub(crate) fn vertices(&self) -> usize {
+        self.columns.len()
+    }
+
+    /// Drops every cached column.
+    pub(crate) fn clear_columns(&mut self) {
+        self.columns.clear();
+    }
+}
+
+/// A factored matrix over a grid's free dofs, with the surface's embedding: what a held
+/// response needs.
+pub(crate) struct HeldSystem<'a> {
+    /// The factor of `A` (the stiffness, or a tangent).
+    pub(crate) factor: &'a SparseCholesky,
+    /// Where each surface vertex sits in the grid.
+    pub(crate) embedding: &'a [Embedded],
+    /// Free-dof number of each node axis ([`FIXED`] when eliminated).
+    pub(crate) free: &'a [usize],
+}
+
+/// The solution of a held system.
+pub(crate) struct HeldSolve {
+    /// The free-dof solution.
+    pub(crate) u: Vec<f64>,
+    /// Per hold (in the order given), the force its holder puts on the body.
+    pub(crate) reactions: Vec<Vec3>,
+    /// The right-hand side with the reactions applied (`f + C^T lambda`).
+    pub(crate) applied: Vec<f64>,
+}
+
+impl HeldSystem<'_> {
+    /// Solves `A u = f + C^T lambda` with every hold met: `C (base + u) = targets` (targets
+    /// are displacements from the rest shape; `base`, when given, the state `u` adds to).
+    pub(crate) fn solve(
+        &self,
+        cache: &mut HoldCache,
+        f: Vec<f64>,
+        holds: &[(usize, FemHold)],
+        base: Option<&[f64]>,
+    ) -> Result<HeldSolve> {
+        let mut rows = constraint_rows(self.embedding, self.free, holds)?;
+        if let Some(base) = base {
+            rows.iter_mut().for_each(|r| r.target -= row_dot(&r.entries, base));
+        }
+        let vertices: Vec<usize> = holds.iter().map(|h| h.0).collect();
+        self.cache_compliance(cache, &vertices)?;
+        let mut u = self.unheld_solution(cache, &f);
+        let columns: Vec<Vec<f64>> = rows.iter().map(|r| row_column(&cache.columns[&r.vertex], r)).collect();
+        let lambda = impose_rows(&rows, &columns, &mut u)?;
+        let mut reactions = vec![[0.0; 3]; holds.len()];
+        let mut applied = f;
+        for (row, l) in rows.iter().zip(&lambda) {
+            let k = holds.iter().position(|h| h.0 == row.vertex).unwrap_or(0);
+            for a in 0..3 {
+                reactions[k][a] += l * row.direction[a];
+            }
+            for &(d, w) in &row.entries {
+                applied[d] += w * l;
+            }
+        }
+        Ok(HeldSolve { u, reactions, applied })
+    }
+
+    /// `A^-1 f`, reused while `f` does not change.
+    fn unheld_solution(&self, cache: &mut HoldCache, f: &[f64]) -> Vec<f64> {
+        if let Some((last, u0)) = &cache.unheld
+            && last.as_slice() == f
+        {
+            return u0.clone();
+        }
+        let n = f.len();
+        let mut u0 = Mat::<f64>::from_fn(n, 1, |i, _| f[i]);
+        self.factor.solve_in_place(u0.as_mut());
+        let out: Vec<f64> = (0..n).map(|i| u0[(i, 0)]).collect();
+        cache.unheld = Some((f.to_vec(), out.clone()));
+        out
+    }
+
+    /// Computes `A^-1 C_v^T` for every held vertex not cached yet, in one solve pass.
+    fn cache_compliance(&self, cache: &mut HoldCache, held: &[usize]) -> Result<()> {
+        let new: Vec<usize> = held.iter().copied().filter(|v| !cache.columns.contains_key(v)).collect();
+        if new.is_empty() {
+            return Ok(());
+        }
+        let mut rows: Vec<Vec<(usize, f64)>> = Vec::with_capacity(3 * new.len());
+        for &v in &new {
+            let e = self.embedding[v];
+            for a in 0..3 {
+                let row = (0..8)
+                    .map(|b| (self.free[3 * e.nodes[b] + a], e.weights[b]))
+                    .filter(|&(dof, _)| dof != FIXED)
+                    .collect();
+                rows.push(row);
+            }
+        }
+        let refs: Vec<&SparseRow> = rows.iter().map(Vec::as_slice).collect();
+        let mut columns = self.factor.compliance_columns(&refs)?.into_iter();
+        for &v in &new {
+            let mut next = || columns.next().expect("three columns per vertex");
+            let cols = [next(), next(), next()];
+            cache.columns.insert(v, cols);
+        }
+        Ok(())
+    }
+}
+
 impl FemBody {
     /// The response to `loads` with each `(vertex, displacement)` of `held` moved exactly to
     /// its displacement. Compliance columns of a vertex are computed when it is first held
@@ -114,164 +236,104 @@ impl FemBody {
     /// the order given; a contact's is along its normal. Errors as
     /// [`respond_held`](Self::respond_held).
     pub fn respond_holds(&mut self, loads: &Loads, holds: &[(usize, FemHold)]) -> Result<HeldResponse> {
-        let rows = self.constraint_rows(holds)?;
-        let vertices: Vec<usize> = holds.iter().map(|h| h.0).collect();
-        self.cache_compliance(&vertices)?;
         let f = self.load_vector(loads)?;
-        let mut u = self.unheld_solution(loads, &f);
-        let columns: Vec<Vec<f64>> = rows.iter().map(|r| self.row_column(r)).collect();
-        let lambda = Self::impose_rows(&rows, &columns, &mut u)?;
-        let mut reactions = vec![[0.0; 3]; holds.len()];
-        let mut applied = f;
-        for (row, l) in rows.iter().zip(&lambda) {
-            let k = holds.iter().position(|h| h.0 == row.vertex).unwrap_or(0);
-            for a in 0..3 {
-                reactions[k][a] += l * row.direction[a];
-            }
-            for &(d, w) in &row.entries {
-                applied[d] += w * l;
-            }
-        }
-        let residual = self.residual(&u, &applied)?;
-        let node_displacements = self.node_values(&u);
+        let system = HeldSystem { factor: &self.factor, embedding: self.grid.embedding(), free: &self.free };
+        let solved = system.solve(&mut self.held, f, holds, None)?;
+        let residual = self.residual(&solved.u, &solved.applied)?;
+        let node_displacements = self.node_values(&solved.u);
         let surface_displacements = self.grid.interpolate(&node_displacements);
-        Ok(HeldResponse { node_displacements, surface_displacements, reactions, residual })
-    }
-
-    /// `K^-1 f` for the loads, reused while the loads do not change.
-    fn unheld_solution(&mut self, loads: &Loads, f: &[f64]) -> Vec<f64> {
-        if let Some((last, u0)) = &self.unheld
-            && last == loads
-        {
-            return (0..self.n_free).map(|i| u0[(i, 0)]).collect();
-        }
-        let mut u0 = Mat::<f64>::from_fn(self.n_free, 1, |i, _| f[i]);
-        self.factor.solve_in_place(u0.as_mut());
-        let out = (0..self.n_free).map(|i| u0[(i, 0)]).collect();
-        self.unheld = Some((loads.clone(), u0));
-        out
-    }
-
-    /// `K^-1 C_row^T` from the cached axis columns of the row's vertex.
-    fn row_column(&self, row: &Row) -> Vec<f64> {
-        let cols = &self.compliance[&row.vertex];
-        let mut z = vec![0.0; self.n_free];
-        for (a, col) in cols.iter().enumerate() {
-            let n = row.direction[a];
-            if n != 0.0 {
-                for (zi, ci) in z.iter_mut().zip(col) {
-                    *zi += n * ci;
-                }
-            }
-        }
-        z
-    }
-
-    /// Imposes the rows on `u` (`K^-1 f` on entry) by the capacitance update of
-    /// `fibfluid_linalg` and returns the multipliers `lambda` (`u = u0 + Z lambda`, the
-    /// reactions `C^T lambda`). A singular `C Z` (dependent rows) is retried with a tiny
-    /// ridge and accepted only if the constraints are then met.
-    fn impose_rows(rows: &[Row], columns: &[Vec<f64>], u: &mut [f64]) -> Result<Vec<f64>> {
-        if rows.is_empty() {
-            return Ok(Vec::new());
-        }
-        let entries: Vec<&SparseRow> = rows.iter().map(|r| r.entries.as_slice()).collect();
-        let targets: Vec<f64> = rows.iter().map(|r| r.target).collect();
-        let dependent = |i: usize| FemError::DependentHolds { vertex: rows[i].vertex };
-        let (capacitance, ridged) = match RowCapacitance::new(&entries, columns, 0.0) {
-            Ok(c) => (c, false),
-            Err(LinalgError::CapacitanceNotPositiveDefinite { .. }) => {
-                (RowCapacitance::new(&entries, columns, DEPENDENT_RIDGE).map_err(|_| dependent(0))?, true)
-            }
-            Err(other) => return Err(other.into()),
-        };
-        // The update's multipliers r are the negated reactions: u = u0 - Z r.
-        let r = capacitance.correct(&entries, columns, &targets, u);
-        if ridged {
-            let scale = targets.iter().fold(1.0_f64, |a, t| a.max(t.abs()));
-            let unmet = (0..rows.len())
-                .find(|&i| (row_dot(entries[i], u) - targets[i]).abs() > CONSTRAINT_TOLERANCE * scale);
-            if let Some(i) = unmet {
-                return Err(dependent(i));
-            }
-        }
-        Ok(r.into_iter().map(|x| -x).collect())
+        Ok(HeldResponse { node_displacements, surface_displacements, reactions: solved.reactions, residual })
     }
 
     /// Drops the cached compliance columns of every held vertex.
     pub fn release_all(&mut self) {
-        self.compliance.clear();
+        self.held.clear_columns();
     }
 
     /// Number of vertices whose compliance columns are cached.
     pub fn cached_holds(&self) -> usize {
-        self.compliance.len()
+        self.held.vertices()
     }
+}
 
-    /// The constraint rows of `holds`, skipping rows carried only by fixed nodes (whose
-    /// target must then be 0).
-    fn constraint_rows(&self, holds: &[(usize, FemHold)]) -> Result<Vec<Row>> {
-        let scale = holds.iter().flat_map(|h| h.1.values()).fold(0.0_f64, |a, b| a.max(b.abs()));
-        let mut rows = Vec::new();
-        for (k, &(v, hold)) in holds.iter().enumerate() {
-            let e = self
-                .grid
-                .embedding()
-                .get(v)
-                .ok_or(FemError::VertexOutOfRange { vertex: v, vertices: self.grid.n_vertices() })?;
-            if hold.values().iter().any(|x| !x.is_finite()) {
-                return Err(FemError::NonFinite { what: "held displacement" });
+/// `A^-1 C_row^T` from the cached axis columns of the row's vertex.
+fn row_column(cols: &[Vec<f64>; 3], row: &Row) -> Vec<f64> {
+    let mut z = vec![0.0; cols[0].len()];
+    for (a, col) in cols.iter().enumerate() {
+        let n = row.direction[a];
+        if n != 0.0 {
+            for (zi, ci) in z.iter_mut().zip(col) {
+                *zi += n * ci;
             }
-            if holds[..k].iter().any(|h| h.0 == v) {
-                return Err(FemError::DependentHolds { vertex: v });
-            }
-            for (direction, target) in hold.rows() {
-                let mut entries: Vec<(usize, f64)> = Vec::new();
-                for b in (0..8).filter(|&b| e.weights[b] > 0.0) {
-                    for a in (0..3).filter(|&a| direction[a] != 0.0) {
-                        let dof = self.free[3 * e.nodes[b] + a];
-                        if dof != FIXED {
-                            entries.push((dof, e.weights[b] * direction[a]));
-                        }
+        }
+    }
+    z
+}
+
+/// Imposes the rows on `u` (`A^-1 f` on entry) by the capacitance update of
+/// `fibfluid_linalg` and returns the multipliers `lambda` (`u = u0 + Z lambda`, the
+/// reactions `C^T lambda`). A singular `C Z` (dependent rows) is retried with a tiny
+/// ridge and accepted only if the constraints are then met.
+fn impose_rows(rows: &[Row], columns: &[Vec<f64>], u: &mut [f64]) -> Result<Vec<f64>> {
+    if rows.is_empty() {
+        return Ok(Vec::new());
+    }
+    let entries: Vec<&SparseRow> = rows.iter().map(|r| r.entries.as_slice()).collect();
+    let targets: Vec<f64> = rows.iter().map(|r| r.target).collect();
+    let dependent = |i: usize| FemError::DependentHolds { vertex: rows[i].vertex };
+    let (capacitance, ridged) = match RowCapacitance::new(&entries, columns, 0.0) {
+        Ok(c) => (c, false),
+        Err(LinalgError::CapacitanceNotPositiveDefinite { .. }) => {
+            (RowCapacitance::new(&entries, columns, DEPENDENT_RIDGE).map_err(|_| dependent(0))?, true)
+        }
+        Err(other) => return Err(other.into()),
+    };
+    // The update's multipliers r are the negated reactions: u = u0 - Z r.
+    let r = capacitance.correct(&entries, columns, &targets, u);
+    if ridged {
+        let scale = targets.iter().fold(1.0_f64, |a, t| a.max(t.abs()));
+        let unmet = (0..rows.len())
+            .find(|&i| (row_dot(entries[i], u) - targets[i]).abs() > CONSTRAINT_TOLERANCE * scale);
+        if let Some(i) = unmet {
+            return Err(dependent(i));
+        }
+    }
+    Ok(r.into_iter().map(|x| -x).collect())
+}
+
+/// The constraint rows of `holds`, skipping rows carried only by fixed nodes (whose
+/// target must then be 0).
+fn constraint_rows(embedding: &[Embedded], free: &[usize], holds: &[(usize, FemHold)]) -> Result<Vec<Row>> {
+    let scale = holds.iter().flat_map(|h| h.1.values()).fold(0.0_f64, |a, b| a.max(b.abs()));
+    let mut rows = Vec::new();
+    for (k, &(v, hold)) in holds.iter().enumerate() {
+        let e =
+            embedding.get(v).ok_or(FemError::VertexOutOfRange { vertex: v, vertices: embedding.len() })?;
+        if hold.values().iter().any(|x| !x.is_finite()) {
+            return Err(FemError::NonFinite { what: "held displacement" });
+        }
+        if holds[..k].iter().any(|h| h.0 == v) {
+            return Err(FemError::DependentHolds { vertex: v });
+        }
+        for (direction, target) in hold.rows() {
+            let mut entries: Vec<(usize, f64)> = Vec::new();
+            for b in (0..8).filter(|&b| e.weights[b] > 0.0) {
+                for a in (0..3).filter(|&a| direction[a] != 0.0) {
+                    let dof = free[3 * e.nodes[b] + a];
+                    if dof != FIXED {
+                        entries.push((dof, e.weights[b] * direction[a]));
                     }
                 }
-                if entries.is_empty() {
-                    if target.abs() > ZERO_TARGET * scale.max(1.0) {
-                        let axis = (0..3).max_by(|&a, &b| direction[a].abs().total_cmp(&direction[b].abs()));
-                        return Err(FemError::HeldOnFixed { vertex: v, axis: axis.unwrap_or(0) });
-                    }
-                    continue;
+            }
+            if entries.is_empty() {
+                if target.abs() > ZERO_TARGET * scale.max(1.0) {
+                    let axis = (0..3).max_by(|&a, &b| direction[a].abs().total_cmp(&direction[b].abs()));
+                    return Err(FemError::HeldOnFixed { vertex: v, axis: axis.unwrap_or(0) });
                 }
-                rows.push(Row { vertex: v, direction, target, entries });
+                continue;
             }
+            rows.push(Row { vertex: v, direction, target, entries });
         }
-        Ok(rows)
     }
-
-    /// Computes `K^-1 C_v^T` for every held vertex not cached yet, in one solve pass.
-    fn cache_compliance(&mut self, held: &[usize]) -> Result<()> {
-        let new: Vec<usize> = held.iter().copied().filter(|v| !self.compliance.contains_key(v)).collect();
-        if new.is_empty() {
-            return Ok(());
-        }
-        let mut rows: Vec<Vec<(usize, f64)>> = Vec::with_capacity(3 * new.len());
-        for &v in &new {
-            let e = self.grid.embedding()[v];
-            for a in 0..3 {
-                let row = (0..8)
-                    .map(|b| (self.free[3 * e.nodes[b] + a], e.weights[b]))
-                    .filter(|&(dof, _)| dof != FIXED)
-                    .collect();
-                rows.push(row);
-            }
-        }
-        let refs: Vec<&SparseRow> = rows.iter().map(Vec::as_slice).collect();
-        let mut columns = self.factor.compliance_columns(&refs)?.into_iter();
-        for &v in &new {
-            let mut next = || columns.next().expect("three columns per vertex");
-            let cols = [next(), next(), next()];
-            self.compliance.insert(v, cols);
-        }
-        Ok(())
-    }
+    Ok(rows)
 }

@@ -11,3 +11,4 @@ mod ordering;
 mod patch;
 mod point_force;
 mod region;
+mod tracking;

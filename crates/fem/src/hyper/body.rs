@@ -142,6 +142,8 @@ pub struct HyperBody {
     pub(crate) tangent: SparseColMat<usize, f64>,
     pub(crate) symbolic: Arc<SparseSymbolic>,
     pub(crate) settings: NewtonSettings,
+    /// The surface's embedding and free dofs as linearizations share them (made once).
+    pub(crate) layout: Option<Arc<super::tracking::Layout>>,
 }
 
 impl std::fmt::Debug for HyperBody {
@@ -234,6 +236,7 @@ impl HyperBody {
             tangent,
             symbolic,
             settings: NewtonSettings::default(),
+            layout: None,
         })
     }
 

@@ -8,6 +8,9 @@
 //!   the load factor `t` in `[0, 1]`; [`RigidPlate`]s move with `t`; the clamp is the
 //!   linear body's penalty on the fixed part of the surface (it holds the rest position);
 //!   [`Grasp`]s move patches of the surface rigidly with `t` ([`grasp`]'s augmented Lagrangian).
+//! - Tracking a moving tool ([`tracking`]): the body linearized at its latest state answers
+//!   frames with held vertices exactly (a capacitance update of the tangent's factor); each
+//!   new linearization at the last answer is one more Newton iteration.
 //! - Newton: the consistent tangent (the energy's Hessian, symmetric), factored by the kept
 //!   symbolic analysis (numeric refactorization only); a backtracking line search on the
 //!   energy; load increments that halve when Newton fails and double after an easy step
@@ -21,6 +24,7 @@ mod grasp;
 mod material;
 mod newton;
 mod solve;
+mod tracking;
 
 pub use body::{HyperBody, HyperSolution, HyperStats, LoadStep, NewtonSettings, StrainSummary, cell_states};
 pub use cell::{CellMaterial, CellState, CellTangent, HyperCell};
@@ -29,3 +33,4 @@ pub use contact::{
     RigidPlate,
 };
 pub use grasp::{GRASP_PENALTY, GRASP_TOLERANCE, Grasp, GraspRecord};
+pub use tracking::{Linearization, MAX_STEP_HALVINGS, TrackStep, TrackedResponse};

@@ -38,11 +38,11 @@ pub(super) struct LoadState<'a> {
 }
 
 /// The body's energy and gradient at one point.
-struct Evaluation {
+pub(super) struct Evaluation {
     energy: f64,
     /// The size of the energy's terms (for the rounding bound).
     magnitude: f64,
-    gradient: Vec<f64>,
+    pub(super) gradient: Vec<f64>,
     /// `max(|t f|, |f_int|)`: the residual's scale.
     scale: f64,
 }
@@ -106,7 +106,7 @@ impl HyperBody {
 
     /// Energy and gradient at `x` (free dofs); with `tangent`, the Hessian is assembled into
     /// `self.tangent`. `None` when a cell is inverted (`J <= 0`).
-    fn evaluate(&mut self, x: &[f64], state: &LoadState<'_>, tangent: bool) -> Option<Evaluation> {
+    pub(super) fn evaluate(&mut self, x: &[f64], state: &LoadState<'_>, tangent: bool) -> Option<Evaluation> {
         let u = self.node_field(x);
         if tangent {
             self.tangent.val_mut().fill(0.0);
@@ -242,7 +242,8 @@ impl HyperBody {
     /// Factors the assembled tangent; a tangent that is not positive definite (far from
     /// equilibrium) is shifted by a growing multiple of its largest diagonal entry (up to the
     /// entry itself: a scaled gradient step); beyond that the load step is cut.
-    fn factor_tangent(&self, factor: &mut Option<SparseCholesky>) -> Result<()> {
+    /// Returns the shift used (relative to the largest diagonal entry; 0: none).
+    pub(super) fn factor_tangent(&self, factor: &mut Option<SparseCholesky>) -> Result<f64> {
         let mut matrix = self.tangent.clone();
         let diagonal: Vec<usize> = (0..self.n_free).map(|j| matrix.symbolic().col_ptr()[j]).collect();
         let largest = diagonal.iter().map(|&p| matrix.val()[p].abs()).fold(0.0, f64::max);
@@ -260,7 +261,7 @@ impl HyperBody {
                 }),
             };
             match result {
-                Ok(()) => return Ok(()),
+                Ok(()) => return Ok(shift),
                 Err(fibfluid_linalg::LinalgError::SparseNotPositiveDefinite { .. }) => continue,
                 Err(e) => return Err(e.into()),
             }
@@ -294,7 +295,7 @@ impl HyperBody {
             }
             let start = Instant::now();
             match self.factor_tangent(factor) {
-                Ok(()) => {}
+                Ok(_) => {}
                 Err(FemError::NotPositiveDefinite) => return Ok(Err(Failure { residual })),
                 Err(e) => return Err(e),
             }

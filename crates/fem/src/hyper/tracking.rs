@@ -1,0 +1,285 @@
+//! Tracking a moving tool: the hyperelastic body linearized at its latest state, answered
+//! at frame rate, and Newton's iterations that move the linearization along.
+//!
+//! A [`Linearization`] at state `x` keeps the factor of the tangent `K(x)` and the
+//! out-of-balance force `r(x) = f - grad W(x)` (the body's own loads less its internal and
+//! clamp forces; the tool's forces are left out). A frame with held vertices (rows `C`,
+//! targets `d` as displacements from rest) and pushed forces `p` solves
+//!
+//! ```text
+//! K(x) du = r(x) + p + C^T lambda,     C (x + du) = d
+//! ```
+//!
+//! by the capacitance update of the linear body (`crate::held`): one solve on the kept
+//! factor, the compliance columns of the held vertices, the dense capacitance system. The
+//! answer `x + du` is exactly one Newton step of the constrained equilibrium from `x`:
+//! holding the tool still, each new linearization at the last answer is one more Newton
+//! iteration, and the frames converge quadratically to the nonlinear equilibrium with the
+//! holds met exactly. [`HyperBody::track`] is that iteration: the step of the current
+//! linearization, shortened (halved) while it would invert a cell, and the body
+//! linearized again there.
+
+use std::sync::Arc;
+
+use fibfluid_geometry::Vec3;
+use fibfluid_linalg::SparseCholesky;
+
+use super::body::HyperBody;
+use super::newton::LoadState;
+use crate::assemble::FIXED;
+use crate::body::{Loads, load_vector};
+use crate::error::{FemError, Result};
+use crate::grid::Embedded;
+use crate::held::{FemHold, HeldSystem, HoldCache};
+
+/// Halvings of a tracking step tried while it would invert a cell.
+pub const MAX_STEP_HALVINGS: usize = 8;
+
+/// What every linearization of one body shares: where the surface sits in the grid.
+#[derive(Debug)]
+pub(crate) struct Layout {
+    embedding: Vec<Embedded>,
+    free: Vec<usize>,
+    n_nodes: usize,
+}
+
+/// The state, out-of-balance force and tangent factor of one linearization.
+struct Core {
+    layout: Arc<Layout>,
+    x: Vec<f64>,
+    force: Vec<f64>,
+    factor: SparseCholesky,
+    /// The shift added to the tangent's diagonal to factor it (0: the exact tangent).
+    shift: f64,
+}
+
+/// The body linearized at one state (see the module docs). Cheap to clone: the factor
+/// is shared, the compliance columns cached for held vertices are copied.
+#[derive(Clone)]
+pub struct Linearization {
+    core: Arc<Core>,
+    cache: HoldCache,
+}
+
+impl std::fmt::Debug for Linearization {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Linearization")
+            .field("dofs", &self.core.x.len())
+            .field("shift", &self.core.shift)
+            .finish()
+    }
+}
+
+/// A frame answered on a linearization.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackedResponse {
+    /// The answer's free-dof state (the linearization's state plus the step).
+    pub state: Vec<f64>,
+    /// Displacement of every surface vertex (m).
+    pub surface_displacements: Vec<Vec3>,
+    /// Per hold (in the order given), the force its holder puts on the body (N).
+    pub reactions: Vec<Vec3>,
+    /// The largest distance a surface vertex moved from the linearization's state (m):
+    /// the Newton step this frame took.
+    pub step: f64,
+}
+
+impl Linearization {
+    /// The free-dof state it was made at.
+    pub fn state(&self) -> &[f64] {
+        &self.core.x
+    }
+
+    /// The shift added to the tangent's diagonal to factor it (relative to its largest
+    /// entry; 0 when the tangent was positive definite).
+    pub fn shift(&self) -> f64 {
+        self.core.shift
+    }
+
+    /// Bytes of the factor and the cached columns.
+    pub fn memory_bytes(&self) -> usize {
+        let n = self.core.x.len();
+        8 * (self.core.factor.nonzeros() + 3 * n) + 24 * n * self.cache.vertices()
+    }
+
+    /// Displacement of every surface vertex at the linearization's own state (m).
+    pub fn surface_displacements(&self) -> Vec<Vec3> {
+        interpolate(&self.core.layout, &self.core.x)
+    }
+
+    /// The response to `pushes` (point forces on surface vertices, N) and `holds`
+    /// (targets as displacements from the rest shape) on this linearization.
+    ///
+    /// Errors: a vertex out of range, a non-finite force or target, dependent holds, a
+    /// target on an axis only fixed nodes carry.
+    pub fn respond(
+        &mut self,
+        pushes: &[(usize, Vec3)],
+        holds: &[(usize, FemHold)],
+    ) -> Result<TrackedResponse> {
+        let layout = &self.core.layout;
+        let mut f = self.core.force.clone();
+        for &(v, force) in pushes {
+            let e = layout
+                .embedding
+                .get(v)
+                .ok_or(FemError::VertexOutOfRange { vertex: v, vertices: layout.embedding.len() })?;
+            if force.iter().any(|x| !x.is_finite()) {
+                return Err(FemError::NonFinite { what: "point force" });
+            }
+            for b in 0..8 {
+                for a in 0..3 {
+                    let i = layout.free[3 * e.nodes[b] + a];
+                    if i != FIXED {
+                        f[i] += e.weights[b] * force[a];
+                    }
+                }
+            }
+        }
+        let system =
+            HeldSystem { factor: &self.core.factor, embedding: &layout.embedding, free: &layout.free };
+        let solved = system.solve(&mut self.cache, f, holds, Some(&self.core.x))?;
+        let step_field = interpolate(layout, &solved.u);
+        let step = step_field.iter().map(|d| fibfluid_geometry::vec3::norm(*d)).fold(0.0, f64::max);
+        let state: Vec<f64> = self.core.x.iter().zip(&solved.u).map(|(a, b)| a + b).collect();
+        Ok(TrackedResponse {
+            surface_displacements: interpolate(layout, &state),
+            state,
+            reactions: solved.reactions,
+            step,
+        })
+    }
+}
+
+/// Surface displacements of a free-dof vector.
+fn interpolate(layout: &Layout, x: &[f64]) -> Vec<Vec3> {
+    let node = |n: usize, a: usize| match layout.free[3 * n + a] {
+        FIXED => 0.0,
+        i => x[i],
+    };
+    debug_assert!(layout.embedding.iter().all(|e| e.nodes.iter().all(|&n| n < layout.n_nodes)));
+    layout
+        .embedding
+        .iter()
+        .map(|e| std::array::from_fn(|a| (0..8).map(|b| e.weights[b] * node(e.nodes[b], a)).sum()))
+        .collect()
+}
+
+/// One tracking iteration's outcome.
+#[derive(Debug, Clone)]
+pub struct TrackStep {
+    /// The new linearization, at the step's end.
+    pub linearization: Linearization,
+    /// The fraction of the Newton step taken (1: the full step).
+    pub fraction: f64,
+    /// The largest surface motion of the full step (m): the distance to the equilibrium
+    /// of the holds, to first order, before this iteration.
+    pub step: f64,
+}
+
+impl HyperBody {
+    /// Linearizes the body (without plates or grasps) at the free-dof state `x` under
+    /// `loads`: assembles the tangent and factors it (shifting the diagonal when it is not
+    /// positive definite, as Newton does).
+    ///
+    /// Errors: a non-finite load, a vertex out of range, an inverted cell at `x`, a tangent
+    /// that no shift makes positive definite.
+    pub fn linearize(&mut self, x: Vec<f64>, loads: &Loads) -> Result<Linearization> {
+        if x.len() != self.n_free {
+            return Err(FemError::LengthMismatch { what: "state", expected: self.n_free, found: x.len() });
+        }
+        let external = load_vector(&self.grid, |c| self.densities[c], &self.free, self.n_free, loads)?;
+        let state =
+            LoadState { t: 1.0, external: &external, plates: &[], multipliers: &[], grasp_multipliers: &[] };
+        let eval = self.evaluate(&x, &state, true).ok_or(FemError::Inverted)?;
+        let mut factor = None;
+        let shift = self.factor_tangent(&mut factor)?;
+        let factor = factor.expect("factored above");
+        let layout = Arc::clone(self.layout.get_or_insert_with(|| {
+            Arc::new(Layout {
+                embedding: self.grid.embedding().to_vec(),
+                free: self.free.clone(),
+                n_nodes: self.grid.n_nodes(),
+            })
+        }));
+        let force = eval.gradient.iter().map(|g| -g).collect();
+        Ok(Linearization {
+            core: Arc::new(Core { layout, x, force, factor, shift }),
+            cache: HoldCache::default(),
+        })
+    }
+
+    /// The rest state (every displacement 0) linearized under `loads`.
+    ///
+    /// Errors: as [`HyperBody::linearize`].
+    pub fn linearize_at_rest(&mut self, loads: &Loads) -> Result<Linearization> {
+        self.linearize(vec![0.0; self.n_free], loads)
+    }
+
+    /// One Newton iteration of the equilibrium with `pushes` and `holds` from
+    /// `current`'s state: its step (see the module docs), halved while it would invert a
+    /// cell, then the body linearized at the step's end. The returned linearization has
+    /// the columns of `holds` cached.
+    ///
+    /// Errors: those of [`Linearization::respond`] and [`HyperBody::linearize`];
+    /// [`FemError::Inverted`] when even the step halved [`MAX_STEP_HALVINGS`] times
+    /// inverts a cell.
+    pub fn track(
+        &mut self,
+        current: &mut Linearization,
+        loads: &Loads,
+        pushes: &[(usize, Vec3)],
+        holds: &[(usize, FemHold)],
+    ) -> Result<TrackStep> {
+        let answer = current.respond(pushes, holds)?;
+        let x0 = current.state();
+        let mut fraction = 1.0;
+        for _ in 0..=MAX_STEP_HALVINGS {
+            let trial: Vec<f64> = x0.iter().zip(&answer.state).map(|(a, b)| a + fraction * (b - a)).collect();
+            if self.cell_states_valid(&trial) {
+                let mut linearization = self.linearize(trial, loads)?;
+                linearization.respond(pushes, holds)?;
+                return Ok(TrackStep { linearization, fraction, step: answer.step });
+            }
+            fraction *= 0.5;
+        }
+        Err(FemError::Inverted)
+    }
+
+    /// Whether no cell is inverted at the free-dof state `x`.
+    fn cell_states_valid(&self, x: &[f64]) -> bool {
+        let u = self.node_field(x);
+        let cells = self.grid.cell_nodes().iter().zip(self.grid.fill()).zip(&self.materials);
+        cells.into_iter().all(|((nodes, &fill), m)| self.cell.energy(m, &nodes.map(|n| u[n]), fill).is_some())
+    }
+}
+
+/// Free-dof vector of node displacements (the inverse of the body's node field).
+pub(crate) fn free_vector(free: &[usize], n_free: usize, u: &[Vec3]) -> Vec<f64> {
+    let mut x = vec![0.0; n_free];
+    for (n, d) in u.iter().enumerate() {
+        for a in 0..3 {
+            if let Some(xi) = x.get_mut(free[3 * n + a]) {
+                *xi = d[a];
+            }
+        }
+    }
+    x
+}
+
+impl HyperBody {
+    /// The free-dof state of node displacements `u` (one per grid node; fixed dofs are
+    /// dropped): the state a batch [`HyperBody::solve`] ends at, to start tracking from.
+    ///
+    /// Errors: `u` not one entry per grid node.
+    pub fn state_of(&self, u: &[Vec3]) -> Result<Vec<f64>> {
+        if u.len() != self.grid.n_nodes() {
+            return Err(FemError::LengthMismatch {
+                what: "node field",
+                expected: self.grid.n_nodes(),
+                found: u.len(),
+            });
+        }
+        Ok(free_vector(&self.free, self.n_free, u))
+    }
+}

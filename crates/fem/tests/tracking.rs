@@ -1,0 +1,89 @@
+//! Tracking a tool on the hyperelastic body: frames answered on the latest linearization
+//! converge, as the linearization follows them, to the batch Newton answer for the same
+//! holds (an independent solve: load stepping with an augmented-Lagrangian grasp, where
+//! tracking meets the holds exactly by a capacitance update), and releasing the holds
+//! returns the body to its own equilibrium.
+
+use crate::common::*;
+use fibfluid_fem::hyper::{Grasp, HyperBody, Linearization};
+use fibfluid_fem::{FemHold, FemOptions, Loads, Tissue, TissueModel};
+
+/// Relative tolerance of the converged tracking against the batch answer (the batch
+/// grasp's own constraint error is below `GRASP_TOLERANCE h`, far smaller).
+const AGREEMENT: f64 = 1e-6;
+
+fn tissue() -> Tissue {
+    Tissue::new(3000.0, 0.45, 1000.0).unwrap().with_model(TissueModel::NeoHookean)
+}
+
+/// The unit cube (8 x 8 surface squares per face, 4 cells per edge) clamped at z = 0 and
+/// the top vertices within 0.3 of the top face's centre.
+fn cube() -> (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<[bool; 3]>, Vec<usize>) {
+    let (pos, tris) = box_surface([0.0; 3], [8; 3], 1.0 / 8.0);
+    let fixed: Vec<[bool; 3]> = pos.iter().map(|p| [p[2] == 0.0; 3]).collect();
+    let patch: Vec<usize> = (0..pos.len())
+        .filter(|&v| pos[v][2] == 1.0 && (pos[v][0] - 0.5).hypot(pos[v][1] - 0.5) <= 0.3)
+        .collect();
+    (pos, tris, fixed, patch)
+}
+
+/// Tracks `holds` from `lin` until the step is below 1e-13 of the body's size; returns
+/// the converged linearization and the step of every iteration.
+fn converge(
+    body: &mut HyperBody,
+    mut lin: Linearization,
+    loads: &Loads,
+    holds: &[(usize, FemHold)],
+) -> (Linearization, Vec<f64>) {
+    let mut steps = Vec::new();
+    for _ in 0..40 {
+        let next = body.track(&mut lin, loads, &[], holds).unwrap();
+        steps.push(next.step);
+        lin = next.linearization;
+        if next.step < 1e-13 {
+            break;
+        }
+    }
+    (lin, steps)
+}
+
+#[test]
+fn held_grasp_converges_to_the_batch_answer_and_release_returns_to_rest() {
+    let (pos, tris, fixed, patch) = cube();
+    let options = FemOptions { resolution: 4, ..FemOptions::default() };
+    let loads = Loads { gravity: [0.0, 0.0, -0.3], ..Default::default() };
+    let translation = [0.05, 0.0, 0.25];
+    let grasp = Grasp { vertices: patch.clone(), translation, rotation: [0.0; 3] };
+    let mut batch =
+        HyperBody::from_surface_grasped(&pos, &tris, &tissue(), &fixed, &[grasp], &options).unwrap();
+    let pulled = batch.solve(&loads, &[]).unwrap();
+    let mut free = HyperBody::from_surface(&pos, &tris, &tissue(), &fixed, &options).unwrap();
+    let hanging = free.solve(&loads, &[]).unwrap();
+
+    let rest = free.linearize_at_rest(&loads).unwrap();
+    let holds: Vec<(usize, FemHold)> = patch.iter().map(|&v| (v, FemHold::At(translation))).collect();
+    let (mut lin, steps) = converge(&mut free, rest, &loads, &holds);
+    eprintln!("tracking steps (m): {:?}", steps.iter().map(|s| format!("{s:.3e}")).collect::<Vec<_>>());
+    assert!(*steps.last().unwrap() < 1e-13, "not converged: {steps:?}");
+    // Quadratic near the solution: a step of 1e-4 m is followed by one near (1e-4)^2 m (above
+    // the rounding floor).
+    for w in steps.windows(2).filter(|w| w[0] < 1e-3 && w[0] > 1e-7) {
+        assert!(w[1] < 10.0 * w[0] * w[0], "not quadratic: {w:?}");
+    }
+    let frame = lin.respond(&[], &holds).unwrap();
+    let error = rel_l2(&frame.surface_displacements, &pulled.surface_displacements, |_| true);
+    let tracked: [f64; 3] = std::array::from_fn(|a| frame.reactions.iter().map(|r| r[a]).sum());
+    let force = pulled.grasps[0].force;
+    let force_error = norm(std::array::from_fn(|a| tracked[a] + force[a])) / norm(force);
+    eprintln!(
+        "tracked against batch: surface {error:.2e}, force {tracked:?} against {force:?} ({force_error:.2e})"
+    );
+    assert!(error < AGREEMENT, "{error}");
+    assert!(force_error < AGREEMENT, "{force_error}");
+
+    let (released, steps) = converge(&mut free, lin, &loads, &[]);
+    let back = released.surface_displacements();
+    let error = rel_l2(&back, &hanging.surface_displacements, |_| true);
+    eprintln!("released after {} iterations: {error:.2e} from the hanging equilibrium", steps.len());
+    assert!(error < AGREEMENT, "{error}");
+}
