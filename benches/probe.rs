@@ -84,7 +84,7 @@ fn build(level: u32, storage: Storage) -> FfmBody {
     let n = scene.n_vertices();
     let precompute = precompute();
     let start = Instant::now();
-    let opts = ProbeOptions { storage, precompute, max_memory_bytes: None };
+    let opts = ProbeOptions { storage, precompute, max_memory_bytes: None, ..Default::default() };
     let pb = build_body(&scene, &opts).expect("probe body");
     let factor = (8 * n * n) as f64;
     let hwm = status_bytes("VmHWM:").unwrap_or(0) as f64;

@@ -27,7 +27,7 @@ pub fn run(args: &CompareArgs) -> Result<(), crate::CliError> {
         tell!("warning: {w}");
     }
     let path = load_tool_path(&args.path)?;
-    let opts = args.response.options();
+    let opts = args.response.options(fibfluid::interact::RefreshMode::Scheduled);
     let report = run_compare(&scene, &path, &args.out, &opts)?;
     for (method, m) in &report.methods {
         for w in &m.warnings {

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use fibfluid::interact::{Method, Precompute, ProbeOptions, Storage};
+use fibfluid::interact::{Method, Precompute, ProbeOptions, RefreshMode, Storage};
 use fibfluid::{Scene, load_tool_path};
 use fibfluid_cli::probe_run::{PROBE_FILES, run_probe_with};
 
@@ -21,15 +21,21 @@ pub struct ResponseFlags {
     /// Memory budget in bytes (default: half the available memory).
     #[arg(long, value_name = "BYTES")]
     pub max_memory: Option<u64>,
+    /// The neo-Hookean FEM body's linearization is refreshed (one Newton iteration) before
+    /// every K-th frame, in the frame loop. Default: `probe` and `compare` pick K from the
+    /// body's counts (reproducible); `view` refreshes on a second thread.
+    #[arg(long, value_name = "K")]
+    pub refresh_every: Option<u64>,
 }
 
 impl ResponseFlags {
-    /// The probe options these flags set.
-    pub fn options(&self) -> ProbeOptions {
+    /// The probe options these flags set; `refresh` unless `--refresh-every` is given.
+    pub fn options(&self, refresh: RefreshMode) -> ProbeOptions {
         ProbeOptions {
             storage: self.precision,
             precompute: self.precompute,
             max_memory_bytes: self.max_memory,
+            refresh: self.refresh_every.map_or(refresh, RefreshMode::EveryFrames),
         }
     }
 }
@@ -61,7 +67,7 @@ pub fn run(args: &ProbeArgs) -> Result<(), crate::CliError> {
         tell!("warning: {w}");
     }
     let path = load_tool_path(&args.path)?;
-    let opts = args.response.options();
+    let opts = args.response.options(RefreshMode::Scheduled);
     // Long replays report their progress with an estimate of the time left.
     let progress = crate::progress(path.frames(), "probe");
     let report = run_probe_with(&scene, &path, &args.out, &opts, args.method, progress.as_deref())?;

@@ -7,8 +7,8 @@ use std::time::Instant;
 use fibfluid::fem::FemStats;
 use fibfluid::geometry::{Boundary, MeshFile, Vec3};
 use fibfluid::interact::{
-    FrameRow, Latency, Method, MethodBody, PathKind, ProbeError, ProbeOptions, Storage, ToolPath,
-    check_method, check_path, replay_observed,
+    FrameRow, Latency, LinearizationStatus, Method, MethodBody, PathKind, ProbeError, ProbeOptions, Storage,
+    ToolPath, check_method, check_path, replay_observed,
 };
 use fibfluid::sim::result_guards::{ResultChecks, ResultWarning, check_answer};
 use fibfluid::{ConstraintKind, Scene, Shape};
@@ -38,6 +38,32 @@ pub struct ProbeStats {
     /// Frames the body computed; a frame that asks exactly what the last one asked costs
     /// none on a body whose answer depends only on its holds (FFM, the FEM).
     pub updates: u64,
+}
+
+/// The `refresh` section of `report.json`: the two-rate neo-Hookean body's linearizations
+/// along the path, and what a refresh thread beside the frames would have kept up with.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RefreshStats {
+    /// Frames between refreshes (each one Newton iteration, in the frame loop).
+    pub every: u64,
+    /// Linearizations made along the path.
+    pub refreshes: u64,
+    /// Mean seconds of one refresh.
+    pub refresh_seconds: f64,
+    /// Refreshes per second a second thread would run back to back.
+    pub refresh_hz: f64,
+    /// Frames a refresh thread would let pass per refresh (mean refresh over mean frame
+    /// seconds): the age of its linearizations, against `every` here.
+    pub frames_per_refresh: f64,
+    /// The oldest linearization a frame used, in frames.
+    pub largest_age_frames: u64,
+    /// The largest estimated distance of a frame from the converged answer for its holds
+    /// (m; Newton's next correction).
+    pub largest_estimated_error: f64,
+    /// The last frame's estimated distance from the converged answer (m).
+    pub final_estimated_error: f64,
+    /// Refreshes that failed (the frames kept the last good linearization).
+    pub failures: usize,
 }
 
 /// `report.json` of a probe run.
@@ -72,6 +98,9 @@ pub struct ProbeReport {
     /// The finite-element grid (absent for the other methods).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fem: Option<FemStats>,
+    /// The neo-Hookean body's refreshes (absent for the bodies that have none).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub refresh: Option<RefreshStats>,
     /// The result guards that fired on the state after the last frame
     /// ([`fibfluid::sim::result_guards`]).
     pub warnings: Vec<ResultWarning>,
@@ -238,9 +267,12 @@ pub fn run_probe_with(
         MethodBody::Ffm(pb) => max_norm(pb.body.base_field()),
         MethodBody::Chainmail(_) => 0.0,
         MethodBody::Fem(b) => max_norm(fibfluid::interact::Interactive::field(b.as_ref())),
+        MethodBody::Hyper(b) => max_norm(fibfluid::interact::Interactive::field(b.as_ref())),
     };
     let frames = checked.frames.len().max(checked.tips.len());
-    let mut replay = replay_observed(mb.interactive(), &checked, |k, _| {
+    let mut statuses = Vec::new();
+    let mut replay = replay_observed(mb.interactive(), &checked, |k, body| {
+        statuses.extend(body.linearization());
         if let Some(p) = progress {
             p(k + 1, frames);
         }
@@ -276,6 +308,7 @@ pub fn run_probe_with(
         final_pressure: d.final_pressure,
         chainmail: d.chainmail,
         fem: d.fem,
+        refresh: refresh_stats(&mb, &statuses, &replay.latency_us),
         warnings: final_state_guards(scene, file, body.field(), method)?,
         seconds_total: 0.0,
     };
@@ -352,6 +385,39 @@ impl MethodDetails {
                 ..none
             },
             MethodBody::Fem(b) => Self { base_seconds: b.setup_seconds(), fem: Some(b.stats()), ..none },
+            MethodBody::Hyper(b) => Self { base_seconds: b.setup_seconds(), fem: Some(b.stats()), ..none },
         }
     }
+}
+
+/// The refresh section of a two-rate body's probe from its frames' statuses.
+fn refresh_stats(
+    mb: &MethodBody,
+    statuses: &[LinearizationStatus],
+    latency_us: &[f64],
+) -> Option<RefreshStats> {
+    let MethodBody::Hyper(b) = mb else { return None };
+    let last = statuses.last().cloned().unwrap_or_default();
+    let mut seconds: Vec<f64> = Vec::new();
+    let mut failures = 0;
+    for w in statuses.windows(2) {
+        if w[1].refreshes > w[0].refreshes {
+            seconds.push(w[1].refresh_seconds);
+        }
+        failures += usize::from(w[1].failure.is_some() && w[1].failure != w[0].failure);
+    }
+    let mean = |v: &[f64]| if v.is_empty() { 0.0 } else { v.iter().sum::<f64>() / v.len() as f64 };
+    let refresh_seconds = mean(&seconds);
+    let frame_seconds = mean(latency_us) * 1e-6;
+    Some(RefreshStats {
+        every: b.refresh_every().unwrap_or(1),
+        refreshes: last.refreshes,
+        refresh_seconds,
+        refresh_hz: if refresh_seconds > 0.0 { 1.0 / refresh_seconds } else { 0.0 },
+        frames_per_refresh: if frame_seconds > 0.0 { refresh_seconds / frame_seconds } else { 0.0 },
+        largest_age_frames: statuses.iter().map(|s| s.age_frames).max().unwrap_or(0),
+        largest_estimated_error: statuses.iter().map(|s| s.estimated_error).fold(0.0, f64::max),
+        final_estimated_error: last.estimated_error,
+        failures,
+    })
 }

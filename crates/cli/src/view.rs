@@ -68,7 +68,7 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
     for warning in server.warnings() {
         tell!("{warning}");
     }
-    let opts = args.response.options();
+    let opts = args.response.options(fibfluid::interact::RefreshMode::Background);
     // The FFM body is built once and shared by every client (each gets a clone: its own
     // holds and frame); ChainMail bodies are cheap and built per client. With the lazy
     // response (the default) the first frame follows the base solve: a vertex's columns are

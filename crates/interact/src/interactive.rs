@@ -146,6 +146,34 @@ pub trait Interactive {
     /// Bytes held by the body's precomputed data (the dominant term; small vectors may be
     /// left out).
     fn memory_bytes(&self) -> usize;
+
+    /// For a body answered on a linearization that a second rate refreshes (the
+    /// hyperelastic body), the one the last frame used; `None` for a body whose frames are
+    /// exact for its own model (the linear ones, ChainMail).
+    fn linearization(&self) -> Option<LinearizationStatus> {
+        None
+    }
+}
+
+/// The linearization a frame was answered on.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct LinearizationStatus {
+    /// Linearizations made since the body was built (0: the starting state's).
+    pub refreshes: u64,
+    /// Frames since the frame whose holds the linearization was made for.
+    pub age_frames: u64,
+    /// Seconds since the linearization was swapped in.
+    pub age_seconds: f64,
+    /// The largest distance a surface vertex moved from the linearization's state in this
+    /// frame (m): the Newton step the frame took.
+    pub step: f64,
+    /// The frame's estimated distance from the converged answer for its holds (m):
+    /// Newton's next correction, `step^2 / h` (h the grid's cell size).
+    pub estimated_error: f64,
+    /// Seconds the last refresh took.
+    pub refresh_seconds: f64,
+    /// Why the last refresh failed, when it did (the frame then used the last good one).
+    pub failure: Option<String>,
 }
 
 /// Tolerance on the length of a contact normal.

@@ -94,6 +94,7 @@ pub mod chainmail_settings;
 mod compliance;
 mod error;
 pub mod fem_body;
+pub mod hyper_body;
 mod interactive;
 mod method_body;
 pub mod replay;
@@ -104,7 +105,8 @@ pub use compliance::{Compliance, ComplianceOptions, MemoryEstimate, Precompute, 
 pub use error::{InteractError, Result};
 pub use fibfluid_linalg::memory_budget;
 pub use fibfluid_sim::Method;
-pub use interactive::{Hold, Interactive, NORMAL_TOLERANCE};
+pub use hyper_body::{HyperInteractive, RefreshMode};
+pub use interactive::{Hold, Interactive, LinearizationStatus, NORMAL_TOLERANCE};
 pub use method_body::{MethodBody, ProbeBody, ProbeOptions, build_body, linearized};
 pub use replay::{
     CheckedPath, FrameRow, Latency, MAX_FRAME, MAX_REACH, PathHold, PathKind, PathProblem, PathRow,

@@ -4,6 +4,7 @@
 use std::sync::Arc;
 use std::time::Instant;
 
+use fibfluid_fem::TissueModel;
 use fibfluid_geometry::Vec3;
 use fibfluid_linalg::{Backend, Precision};
 use fibfluid_sim::{Method, Mode, Model, RunOptions, Shape, Simulation};
@@ -11,6 +12,7 @@ use fibfluid_sim::{Method, Mode, Model, RunOptions, Shape, Simulation};
 use crate::chainmail_body::ChainmailBody;
 use crate::chainmail_settings::{ChainmailSettings, Variant};
 use crate::fem_body::FemInteractive;
+use crate::hyper_body::{HyperInteractive, RefreshMode};
 use crate::replay::ProbeError;
 use crate::{
     Compliance, ComplianceOptions, FfmBody, InteractError, Interactive, Precompute, Storage, memory_budget,
@@ -26,6 +28,8 @@ pub struct ProbeOptions {
     pub precompute: Precompute,
     /// Memory budget (see [`fibfluid_interact::memory_budget`]).
     pub max_memory_bytes: Option<u64>,
+    /// When a hyperelastic body refreshes its linearization.
+    pub refresh: RefreshMode,
 }
 
 /// A scene's interactive body and what building it cost.
@@ -120,8 +124,10 @@ pub enum MethodBody {
     Ffm(Box<ProbeBody>),
     /// A ChainMail body.
     Chainmail(Box<ChainmailBody>),
-    /// The finite-element body.
+    /// The finite-element body of a linear tissue.
     Fem(Box<FemInteractive>),
+    /// The finite-element body of a neo-Hookean tissue, at two rates.
+    Hyper(Box<HyperInteractive>),
 }
 
 impl MethodBody {
@@ -134,6 +140,13 @@ impl MethodBody {
         opts: &ProbeOptions,
     ) -> Result<Self, ProbeError> {
         match (method, Variant::of_method(method)) {
+            (Method::Fem, _) if scene.tissue.is_some_and(|t| t.model() == TissueModel::NeoHookean) => {
+                Ok(MethodBody::Hyper(Box::new(HyperInteractive::new(
+                    scene,
+                    opts.max_memory_bytes,
+                    opts.refresh,
+                )?)))
+            }
             (Method::Fem, _) => {
                 Ok(MethodBody::Fem(Box::new(FemInteractive::new(scene, opts.max_memory_bytes)?)))
             }
@@ -153,6 +166,7 @@ impl MethodBody {
             MethodBody::Ffm(b) => &mut b.body,
             MethodBody::Chainmail(b) => b.as_mut(),
             MethodBody::Fem(b) => b.as_mut(),
+            MethodBody::Hyper(b) => b.as_mut(),
         }
     }
 
@@ -162,6 +176,7 @@ impl MethodBody {
             MethodBody::Ffm(b) => &b.body,
             MethodBody::Chainmail(b) => b.as_ref(),
             MethodBody::Fem(b) => b.as_ref(),
+            MethodBody::Hyper(b) => b.as_ref(),
         }
     }
 
@@ -172,6 +187,7 @@ impl MethodBody {
             MethodBody::Ffm(b) => b.base_seconds + b.precompute_seconds,
             MethodBody::Chainmail(b) => b.setup_seconds(),
             MethodBody::Fem(b) => b.setup_seconds(),
+            MethodBody::Hyper(b) => b.setup_seconds(),
         }
     }
 }

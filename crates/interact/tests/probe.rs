@@ -33,6 +33,8 @@ const F32_TOLERANCE: f64 = 8.0 * f32::EPSILON as f64;
 mod guards;
 #[path = "probe/tools.rs"]
 mod tools;
+#[path = "probe/two_rate.rs"]
+mod two_rate;
 
 /// fixtures/scenes/sphere.toml, in code.
 fn sphere(method: ConstraintMethod) -> Model {
@@ -95,7 +97,7 @@ fn body(scene: &Model, storage: Storage) -> FfmBody {
 }
 
 fn body_with(scene: &Model, storage: Storage, precompute: Precompute) -> FfmBody {
-    let opts = ProbeOptions { storage, precompute, max_memory_bytes: None };
+    let opts = ProbeOptions { storage, precompute, max_memory_bytes: None, ..Default::default() };
     let b = build_body(scene, &opts).expect("the probe body builds").body;
     assert_eq!(b.compliance().precompute(), precompute);
     b

@@ -90,9 +90,8 @@ impl NativeBody {
 }
 
 /// Issues a Python `UserWarning` for each thing `model` asks for that an interactive FEM
-/// body does not carry (the neo-Hookean law: the body is linear), as `probe` and `view`
-/// print it.
-fn warn_linear_body(py: Python<'_>, model: &fibfluid_sim::Model) -> PyResult<()> {
+/// body does not carry (the scene's grasps), as `probe` and `view` print it.
+fn warn_ignored(py: Python<'_>, model: &fibfluid_sim::Model) -> PyResult<()> {
     for w in fibfluid_sim::ineffective_interactive(model) {
         let message = std::ffi::CString::new(crate::one_line(&w.to_string())).unwrap_or_default();
         let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
@@ -119,7 +118,7 @@ impl NativeBody {
             let (model, chainmail) = (&scene.scene.model, &scene.scene.chainmail);
             let body = py.detach(|| MethodBody::build(model, chainmail, method, &opts)).map_err(lib_error)?;
             if method == Method::Fem {
-                warn_linear_body(py, model)?;
+                warn_ignored(py, model)?;
             }
             let setup_seconds = body.setup_seconds();
             let guards = FrameGuards::new(body.interactive_ref().rest_positions(), file.mesh.triangles())
@@ -299,6 +298,23 @@ impl NativeBody {
     #[getter]
     fn frame(&self) -> u64 {
         self.body.interactive_ref().frame()
+    }
+
+    /// The linearization the last step used, as JSON (`null` for a body without one: FFM,
+    /// ChainMail, the linear FEM); see `Body.linearization`.
+    fn linearization_json(&self) -> String {
+        let status = self.body.interactive_ref().linearization().map(|s| {
+            serde_json::json!({
+                "refreshes": s.refreshes,
+                "age_frames": s.age_frames,
+                "age_seconds": s.age_seconds,
+                "step": s.step,
+                "estimated_error": s.estimated_error,
+                "refresh_seconds": s.refresh_seconds,
+                "failure": s.failure,
+            })
+        });
+        serde_json::to_string(&status).unwrap_or_else(|_| "null".into())
     }
 
     /// Seconds the setup took (base solve and precompute, or the lattice).

@@ -42,10 +42,6 @@ pub enum Ineffective {
         /// How many grasps the scene gives.
         grasps: usize,
     },
-    /// A neo-Hookean `[tissue]` driven interactively (`probe`, `view`, `compare`, Python
-    /// `Body`): interactive FEM bodies are linear (one kept factorization); the neo-Hookean
-    /// law is solved by batch runs only.
-    LinearInteractiveBody,
     /// A fluid density without gravity: the density enters only the hydrostatic load.
     DensityWithoutGravity {
         /// The density given.
@@ -94,10 +90,6 @@ impl fmt::Display for Ineffective {
                 f,
                 "{grasps} [[grasp]] table(s) are ignored: grasps are carried by the finite-element batch run only (`run` with method = \"fem\"); interactive bodies grasp through tool paths"
             ),
-            Ineffective::LinearInteractiveBody => write!(
-                f,
-                "[tissue] model = \"neo-hookean\" applies to batch runs (`run`): an interactive FEM body is linear (small strain), so far pulls read qualitative (its frame guards say when)"
-            ),
             Ineffective::DensityWithoutGravity { density } => write!(
                 f,
                 "[fluid] density = {density} has no effect without gravity (it enters only the hydrostatic load); add [gravity] acceleration or remove [fluid]"
@@ -119,15 +111,13 @@ impl fmt::Display for Ineffective {
     }
 }
 
-/// What a scene asks for that an interactive body does not carry: the neo-Hookean law
-/// (interactive FEM bodies are linear) and grasps.
+/// What a scene asks for that an interactive body does not carry: the scene's grasps
+/// (a tool grasps instead).
 pub fn ineffective_interactive(scene: &Model) -> Vec<Ineffective> {
-    let nonlinear = scene.tissue.is_some_and(|t| t.model() == fibfluid_fem::TissueModel::NeoHookean);
-    let mut found = if nonlinear { vec![Ineffective::LinearInteractiveBody] } else { vec![] };
-    if !scene.fem.grasps.is_empty() {
-        found.push(Ineffective::GraspsOutsideFemRun { grasps: scene.fem.grasps.len() });
+    if scene.fem.grasps.is_empty() {
+        return Vec::new();
     }
-    found
+    vec![Ineffective::GraspsOutsideFemRun { grasps: scene.fem.grasps.len() }]
 }
 
 /// Every setting of `scene` that cannot act, in scene order (gravity and fluid, material,

@@ -6,7 +6,7 @@
 
 use std::time::Instant;
 
-use fibfluid_fem::hyper::{HyperBody, HyperSolution, HyperStats, LoadStep, RigidPlate};
+use fibfluid_fem::hyper::{Grasp, HyperBody, HyperSolution, HyperStats, LoadStep, RigidPlate};
 use fibfluid_fem::{FemOptions, FemStats, Tissue};
 use serde::Serialize;
 
@@ -42,20 +42,9 @@ pub fn solve(
     limit: u64,
     log: &mut StageLog,
 ) -> Result<(HyperBody, HyperSolution, FemStats)> {
-    estimate(model, limit)?;
-    let fixed = fixed_axes(model)?;
-    let Shape::Surface(file) = &model.shape else { unreachable!("estimate refused a polygon") };
-    let failed = |source| Error::Fem { scene: model.display_name(), source };
-    let options = FemOptions { resolution: model.fem.resolution, ..FemOptions::default() };
-    let start = Instant::now();
-    let regions: Vec<_> = model.fem.regions.iter().map(|r| r.region.clone()).collect();
-    let (positions, triangles) = (file.mesh.positions(), file.mesh.triangles());
-    let mut body =
-        HyperBody::from_surface_grasped(positions, triangles, tissue, &fixed, &model.fem.grasps, &options)
-            .and_then(|b| b.with_regions(&regions))
-            .map_err(failed)?;
-    log.add(names::VOXELIZATION, start.elapsed().as_secs_f64());
+    let mut body = build(model, tissue, &model.fem.grasps, limit, log)?;
     let plates = rigid_plates(model);
+    let failed = |source| Error::Fem { scene: model.display_name(), source };
     let solution = log.time(names::SOLVE, || body.solve(&full_loads(model), &plates)).map_err(failed)?;
     let grid = body.grid();
     let stats = FemStats {
@@ -70,6 +59,44 @@ pub fn solve(
         solve_seconds: solution.stats.solve_seconds,
     };
     Ok((body, solution, stats))
+}
+
+/// The model's hyperelastic body for a tool to hold (its regions; the scene's grasps are
+/// left to batch runs, as `ineffective_interactive` says: the tool grasps), with its own
+/// loads solved as the starting state.
+///
+/// Errors: a model with plates (named), and those of [`solve`].
+pub fn tool_body(model: &Model, tissue: &Tissue, limit: u64) -> Result<(HyperBody, HyperSolution)> {
+    crate::fem_inputs::refuse_plates(model)?;
+    let mut log = StageLog::default();
+    let mut body = build(model, tissue, &[], limit, &mut log)?;
+    let solution = body
+        .solve(&full_loads(model), &[])
+        .map_err(|source| Error::Fem { scene: model.display_name(), source })?;
+    Ok((body, solution))
+}
+
+/// Voxelizes the model's surface into its hyperelastic body with `grasps` and its regions.
+fn build(
+    model: &Model,
+    tissue: &Tissue,
+    grasps: &[Grasp],
+    limit: u64,
+    log: &mut StageLog,
+) -> Result<HyperBody> {
+    estimate(model, limit)?;
+    let fixed = fixed_axes(model)?;
+    let Shape::Surface(file) = &model.shape else { unreachable!("estimate refused a polygon") };
+    let failed = |source| Error::Fem { scene: model.display_name(), source };
+    let options = FemOptions { resolution: model.fem.resolution, ..FemOptions::default() };
+    let start = Instant::now();
+    let regions: Vec<_> = model.fem.regions.iter().map(|r| r.region.clone()).collect();
+    let (positions, triangles) = (file.mesh.positions(), file.mesh.triangles());
+    let body = HyperBody::from_surface_grasped(positions, triangles, tissue, &fixed, grasps, &options)
+        .and_then(|b| b.with_regions(&regions))
+        .map_err(failed)?;
+    log.add(names::VOXELIZATION, start.elapsed().as_secs_f64());
+    Ok(body)
 }
 
 /// Each plate's contact from a hyperelastic solution (contacts counted in surface samples).

@@ -31,7 +31,7 @@ pub const CONTACT_GAP_TOLERANCE: f64 = 1e-3;
 pub const CONTACT_FORCE_TOLERANCE: f64 = 5e-3;
 
 /// Augmentations at most (each one a converged Newton solve at the full load).
-pub const MAX_AUGMENTATIONS: usize = 12;
+pub const MAX_AUGMENTATIONS: usize = 20;
 
 /// A rigid, frictionless plane that moves with the load factor `t` from `start` (t = 0) to
 /// `end` (t = 1); the body lies on the side its unit `normal` points to.

@@ -32,8 +32,19 @@ use crate::error::{FemError, Result};
 use crate::grid::Embedded;
 use crate::held::{FemHold, HeldSystem, HoldCache};
 
-/// Halvings of a tracking step tried while it would invert a cell.
-pub const MAX_STEP_HALVINGS: usize = 8;
+/// Halvings of a tracking step tried while it would invert a cell or (holds met) raise
+/// the energy.
+pub const MAX_STEP_HALVINGS: usize = 12;
+
+/// A state meets its holds when the step moves no held vertex along a held direction by
+/// more than this fraction of a cell.
+pub const HOLD_MET: f64 = 1e-9;
+
+/// Armijo's sufficient-decrease constant of the tracking step (Newton's).
+const ARMIJO: f64 = 1e-4;
+
+/// Energy changes below this fraction of the energy are rounding.
+const ENERGY_ROUNDING: f64 = 1e-12;
 
 /// What every linearization of one body shares: where the surface sits in the grid.
 #[derive(Debug)]
@@ -102,21 +113,8 @@ impl Linearization {
         8 * (self.core.factor.nonzeros() + 3 * n) + 24 * n * self.cache.vertices()
     }
 
-    /// Displacement of every surface vertex at the linearization's own state (m).
-    pub fn surface_displacements(&self) -> Vec<Vec3> {
-        interpolate(&self.core.layout, &self.core.x)
-    }
-
-    /// The response to `pushes` (point forces on surface vertices, N) and `holds`
-    /// (targets as displacements from the rest shape) on this linearization.
-    ///
-    /// Errors: a vertex out of range, a non-finite force or target, dependent holds, a
-    /// target on an axis only fixed nodes carry.
-    pub fn respond(
-        &mut self,
-        pushes: &[(usize, Vec3)],
-        holds: &[(usize, FemHold)],
-    ) -> Result<TrackedResponse> {
+    /// The out-of-balance force at the state with `pushes` added (free dofs).
+    fn respond_force(&self, pushes: &[(usize, Vec3)]) -> Result<Vec<f64>> {
         let layout = &self.core.layout;
         let mut f = self.core.force.clone();
         for &(v, force) in pushes {
@@ -136,6 +134,26 @@ impl Linearization {
                 }
             }
         }
+        Ok(f)
+    }
+
+    /// Displacement of every surface vertex at the linearization's own state (m).
+    pub fn surface_displacements(&self) -> Vec<Vec3> {
+        interpolate(&self.core.layout, &self.core.x)
+    }
+
+    /// The response to `pushes` (point forces on surface vertices, N) and `holds`
+    /// (targets as displacements from the rest shape) on this linearization.
+    ///
+    /// Errors: a vertex out of range, a non-finite force or target, dependent holds, a
+    /// target on an axis only fixed nodes carry.
+    pub fn respond(
+        &mut self,
+        pushes: &[(usize, Vec3)],
+        holds: &[(usize, FemHold)],
+    ) -> Result<TrackedResponse> {
+        let f = self.respond_force(pushes)?;
+        let layout = &self.core.layout;
         let system =
             HeldSystem { factor: &self.core.factor, embedding: &layout.embedding, free: &layout.free };
         let solved = system.solve(&mut self.cache, f, holds, Some(&self.core.x))?;
@@ -149,6 +167,11 @@ impl Linearization {
             step,
         })
     }
+}
+
+/// The full dead load `external` alone: no plates, no grasps.
+fn dead_loads(external: &[f64]) -> LoadState<'_> {
+    LoadState { t: 1.0, external, plates: &[], multipliers: &[], grasp_multipliers: &[] }
 }
 
 /// Surface displacements of a free-dof vector.
@@ -189,9 +212,7 @@ impl HyperBody {
             return Err(FemError::LengthMismatch { what: "state", expected: self.n_free, found: x.len() });
         }
         let external = load_vector(&self.grid, |c| self.densities[c], &self.free, self.n_free, loads)?;
-        let state =
-            LoadState { t: 1.0, external: &external, plates: &[], multipliers: &[], grasp_multipliers: &[] };
-        let eval = self.evaluate(&x, &state, true).ok_or(FemError::Inverted)?;
+        let eval = self.evaluate(&x, &dead_loads(&external), true).ok_or(FemError::Inverted)?;
         let mut factor = None;
         let shift = self.factor_tangent(&mut factor)?;
         let factor = factor.expect("factored above");
@@ -232,11 +253,34 @@ impl HyperBody {
         holds: &[(usize, FemHold)],
     ) -> Result<TrackStep> {
         let answer = current.respond(pushes, holds)?;
-        let x0 = current.state();
+        let x0 = current.state().to_vec();
+        let direction: Vec<f64> = answer.state.iter().zip(&x0).map(|(a, b)| a - b).collect();
+        // The holds are linear in the state: when the start already meets them, every point
+        // of the step does, and the energy is the merit of the step (Armijo's backtracking);
+        // otherwise the step first restores them, shortened only while it would invert.
+        let merit = if self.meets_holds(current, &direction, holds) {
+            let mut all = loads.clone();
+            all.point_forces.extend_from_slice(pushes);
+            Some(load_vector(&self.grid, |c| self.densities[c], &self.free, self.n_free, &all)?)
+        } else {
+            None
+        };
+        let start = merit.as_ref().and_then(|e| self.energy(&x0, &dead_loads(e)));
+        // The slope of the energy along the step: the gradient is the negated out-of-balance
+        // force with the pushes (the holds' reactions do no work along it).
+        let pushed = current.respond_force(pushes)?;
+        let slope: f64 = -pushed.iter().zip(&direction).map(|(f, d)| f * d).sum::<f64>();
         let mut fraction = 1.0;
         for _ in 0..=MAX_STEP_HALVINGS {
-            let trial: Vec<f64> = x0.iter().zip(&answer.state).map(|(a, b)| a + fraction * (b - a)).collect();
-            if self.cell_states_valid(&trial) {
+            let trial: Vec<f64> = x0.iter().zip(&direction).map(|(a, d)| a + fraction * d).collect();
+            let accepted = match (&merit, start) {
+                (Some(external), Some(e0)) => self.energy(&trial, &dead_loads(external)).is_some_and(|e| {
+                    let rounding = ENERGY_ROUNDING * e0.abs().max(e.abs());
+                    e <= e0 + ARMIJO * fraction * slope.min(0.0) + rounding
+                }),
+                _ => self.cell_states_valid(&trial),
+            };
+            if accepted {
                 let mut linearization = self.linearize(trial, loads)?;
                 linearization.respond(pushes, holds)?;
                 return Ok(TrackStep { linearization, fraction, step: answer.step });
@@ -244,6 +288,29 @@ impl HyperBody {
             fraction *= 0.5;
         }
         Err(FemError::Inverted)
+    }
+
+    /// Whether `current`'s state meets `holds`: the step moves no held vertex along a held
+    /// direction by more than `HOLD_MET` of a cell.
+    fn meets_holds(&self, current: &Linearization, direction: &[f64], holds: &[(usize, FemHold)]) -> bool {
+        let layout = &current.core.layout;
+        let h = self.grid.cell_size();
+        holds.iter().all(|&(v, hold)| {
+            let Some(e) = layout.embedding.get(v) else { return false };
+            let moved: Vec3 = std::array::from_fn(|a| {
+                (0..8)
+                    .map(|b| match layout.free[3 * e.nodes[b] + a] {
+                        FIXED => 0.0,
+                        i => e.weights[b] * direction[i],
+                    })
+                    .sum()
+            });
+            let along = match hold {
+                FemHold::At(_) => fibfluid_geometry::vec3::norm(moved),
+                FemHold::Along { normal, .. } => fibfluid_geometry::vec3::dot(moved, normal).abs(),
+            };
+            along <= HOLD_MET * h
+        })
     }
 
     /// Whether no cell is inverted at the free-dof state `x`.

@@ -19,7 +19,7 @@ use super::{GRAB_TOLERANCE, body, full_solve, mesh_index, relative_difference, s
 const PATCH_TOLERANCE: f64 = 1e-9;
 
 /// The sphere with a tissue for the FEM (E = 50 kPa, nu = 0.45) at a coarse resolution.
-fn fem_sphere() -> Model {
+pub(super) fn fem_sphere() -> Model {
     let mut m = sphere(ConstraintKind::Eliminate);
     m.tissue = Some(fibfluid_fem::Tissue::new(5e4, 0.45, 1000.0).unwrap());
     m.fem.resolution = 12;
@@ -33,7 +33,7 @@ fn chainmail(scene: &Model, method: Method) -> ChainmailBody {
 }
 
 /// The lowest vertex of the sphere (far from the fixed cap).
-fn lowest(b: &dyn Interactive) -> usize {
+pub(super) fn lowest(b: &dyn Interactive) -> usize {
     let r = b.rest_positions();
     (0..r.len()).min_by(|&a, &c| r[a][1].total_cmp(&r[c][1])).unwrap()
 }

@@ -455,9 +455,12 @@ class Body:
     """An interactive body: grab, push and release vertices, frame by frame.
 
     ``method`` is ``"ffm"`` (the fiber-fluid method: a base solve of the scene's loads,
-    then the precomputed response; grabs and pushes, with reaction forces),
-    ``"tsve-chainmail"`` or ``"generalized-chainmail"`` (grabs only, no forces). Building
-    it releases the GIL. Vertices are file indices, as in path files; ``to`` is a
+    then the precomputed response; grabs and pushes, with reaction forces), ``"fem"`` (the
+    finite-element method with the scene's ``[tissue]`` law: linear, or neo-Hookean at two
+    rates, its linearization refreshed by Newton's iterations on a second thread while
+    :meth:`step` answers on the latest one and never waits for it; see
+    :attr:`linearization`), ``"tsve-chainmail"`` or ``"generalized-chainmail"`` (grabs only,
+    no forces). Building it releases the GIL. Vertices are file indices, as in path files; ``to`` is a
     displacement from the rest position. Holds take effect at the next :meth:`step`.
     """
 
@@ -583,6 +586,17 @@ class Body:
     def setup_seconds(self) -> float:
         """Seconds the setup took."""
         return self._native.setup_seconds
+
+    @property
+    def linearization(self) -> Optional[dict]:
+        """For a neo-Hookean ``"fem"`` body, the linearization the last step used:
+        ``refreshes`` (made so far), ``age_frames`` and ``age_seconds`` (how old it is),
+        ``step`` (m: how far the step moved the surface from the linearization's state),
+        ``estimated_error`` (m: Newton's next correction, the step's distance from the
+        converged answer for its holds), ``refresh_seconds`` (the last refresh) and
+        ``failure`` (why the last refresh failed, or None: the step then used the last good
+        linearization). None for the other bodies, whose steps are exact for their model."""
+        return json.loads(self._native.linearization_json())
 
     def is_fixed(self, vertex: int) -> bool:
         """Whether the scene fixes ``vertex`` along any axis."""

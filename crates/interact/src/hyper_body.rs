@@ -1,0 +1,481 @@
+//! The hyperelastic body at two rates: frames answered on the latest linearization, the
+//! linearization refreshed by Newton's iterations on the side.
+//!
+//! A frame applies the pending holds to the current [`Linearization`]
+//! (`fibfluid_fem::hyper`'s tracking: one solve on the kept tangent factor and the
+//! capacitance system of the held vertices, exactly as the linear body's frame), so it
+//! costs what a linear frame costs and never waits for a factorization. A refresh is one
+//! Newton iteration of the equilibrium for the holds the frame asked
+//! ([`HyperBody::track`]: the step, shortened while it would invert a cell, and the tangent
+//! assembled and factored at its end, with the held vertices' columns computed there).
+//! Holding a tool still, each refresh is one more Newton iteration and the frames converge
+//! quadratically to the batch hyperelastic answer for the same holds; with the tool moving,
+//! a frame is the linear response about a state at most one refresh old.
+//!
+//! [`RefreshMode::Background`] runs the refreshes on a second thread, back to back while
+//! the holds change or the last step was not converged, and swaps each new linearization
+//! in at the start of the next frame (a channel; the frame never blocks). A refresh that
+//! fails (the step would invert the body) keeps the last good linearization and says so in
+//! [`LinearizationStatus::failure`]. [`RefreshMode::EveryFrames`] refreshes in the frame
+//! loop before every `k`-th frame, so that two replays of the same path give the same
+//! answers (the probe's schedule).
+
+use std::collections::BTreeMap;
+use std::sync::Mutex;
+use std::sync::mpsc::{self, Receiver, Sender};
+use std::time::Instant;
+
+use fibfluid_fem::hyper::{HyperBody, Linearization};
+use fibfluid_fem::{FemHold, FemStats, Loads};
+use fibfluid_geometry::Vec3;
+use fibfluid_sim::{Method, Model};
+
+use crate::{Hold, InteractError, Interactive, LinearizationStatus, Result};
+
+/// A refresh whose full step moved no surface vertex more than this fraction of a cell
+/// leaves the linearization converged: no new refresh is asked until the holds change.
+pub const CONVERGED_STEP: f64 = 1e-9;
+
+/// The largest `k` [`RefreshMode::Scheduled`] picks.
+pub const MAX_SCHEDULED_EVERY: u64 = 1000;
+
+/// When the linearization is refreshed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum RefreshMode {
+    /// On a second thread, back to back, swapped in between frames (the viewer, Python).
+    #[default]
+    Background,
+    /// In the frame loop, before every `k`-th frame (`k >= 1`): reproducible.
+    EveryFrames(u64),
+    /// In the frame loop, every `k` frames with `k` from the body's counts: the frames one
+    /// refresh's factorization costs, `factor flops / (4 x factor values)` (a frame is
+    /// about two triangular solves), so the schedule is what a second core would keep up
+    /// with, and reproducible.
+    Scheduled,
+}
+
+/// A tool's holds as the tracking takes them.
+#[derive(Clone, Debug, PartialEq, Default)]
+struct Request {
+    pushes: Vec<(usize, Vec3)>,
+    holds: Vec<(usize, FemHold)>,
+    frame: u64,
+}
+
+/// What a refresh produced.
+enum Outcome {
+    Done { linearization: Linearization, step: f64, frame: u64, seconds: f64 },
+    Failed { message: String, frame: u64 },
+}
+
+/// The refresh thread's ends.
+struct Worker {
+    requests: Sender<Request>,
+    /// Behind a lock only so the body is `Sync` (Python shares it); the frames alone read it.
+    outcomes: Mutex<Receiver<Outcome>>,
+    busy: bool,
+}
+
+/// Where refreshes run.
+enum Refresher {
+    Inline { body: Box<HyperBody>, every: u64 },
+    Thread(Worker),
+}
+
+/// The latest linearization and what the frames know of it.
+struct Current {
+    linearization: Linearization,
+    /// The frame whose holds it was made for.
+    frame: u64,
+    since: Instant,
+    /// The full step of the refresh that made it (m).
+    step: f64,
+    refreshes: u64,
+    refresh_seconds: f64,
+    failure: Option<String>,
+}
+
+/// A neo-Hookean finite-element body answered at frame rate (see the module docs).
+pub struct HyperInteractive {
+    refresher: Refresher,
+    current: Current,
+    loads: Loads,
+    cell_size: f64,
+    rest: Vec<Vec3>,
+    fixed: Vec<Option<char>>,
+    pending: BTreeMap<usize, Hold>,
+    /// The holds of the last refresh asked.
+    asked: Option<Request>,
+    field: Vec<Vec3>,
+    positions: Vec<Vec3>,
+    reactions: Vec<(usize, Vec3)>,
+    status: LinearizationStatus,
+    stats: FemStats,
+    frame: u64,
+    setup_seconds: f64,
+}
+
+impl std::fmt::Debug for HyperInteractive {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("HyperInteractive").field("frame", &self.frame).field("status", &self.status).finish()
+    }
+}
+
+impl HyperInteractive {
+    /// Builds the model's neo-Hookean body (refused from counts above the memory budget),
+    /// solves its own loads by Newton's method as the starting state, linearizes there and
+    /// starts the refreshes as `mode` says.
+    ///
+    /// Errors: a model with plates or scene grasps, without a tissue, or whose own loads
+    /// Newton cannot reach. `EveryFrames(0)` refreshes every frame, as `EveryFrames(1)`.
+    pub fn new(model: &Model, max_memory: Option<u64>, mode: RefreshMode) -> fibfluid_sim::Result<Self> {
+        let start = Instant::now();
+        let scene = model.display_name();
+        let tissue = fibfluid_sim::fem_run::tissue_of(model)?;
+        let limit = fibfluid_sim::memory_budget(max_memory);
+        let estimate = fibfluid_sim::fem_run::estimate(model, limit)?;
+        let (mut body, solution) = fibfluid_sim::hyper_run::tool_body(model, &tissue, limit)?;
+        let grid = body.grid();
+        let stats = FemStats {
+            resolution: grid.resolution(),
+            cells: grid.n_cells(),
+            nodes: grid.n_nodes(),
+            dofs: body.dofs(),
+            nonzeros: body.nonzeros(),
+            factor_nonzeros: body.factor_nonzeros(),
+            assembly_seconds: solution.stats.assembly_seconds,
+            factor_seconds: solution.stats.factor_seconds,
+            solve_seconds: solution.stats.solve_seconds,
+        };
+        let failed = |source| fibfluid_sim::Error::Fem { scene: scene.clone(), source };
+        let loads = fibfluid_sim::fem_run::full_loads(model);
+        let state = body.state_of(&solution.node_displacements).map_err(failed)?;
+        let linearization = body.linearize(state, &loads).map_err(failed)?;
+        let cell_size = body.grid().cell_size();
+        let scheduled = (estimate.factor_flops / (4.0 * stats.factor_nonzeros.max(1) as f64)).ceil();
+        let refresher = match mode {
+            RefreshMode::EveryFrames(every) => {
+                Refresher::Inline { body: Box::new(body), every: every.max(1) }
+            }
+            RefreshMode::Scheduled => Refresher::Inline {
+                body: Box::new(body),
+                every: (scheduled as u64).clamp(1, MAX_SCHEDULED_EVERY),
+            },
+            RefreshMode::Background => {
+                Refresher::Thread(spawn_worker(body, linearization.clone(), loads.clone()))
+            }
+        };
+        let rest = model.rest_positions();
+        let fixed = (0..rest.len())
+            .map(|v| {
+                (0..3).find(|&a| model.constraints.get(v, a).is_some()).map(|a| fibfluid_geometry::AXES[a])
+            })
+            .collect();
+        let field = solution.surface_displacements;
+        let positions = rest.iter().zip(&field).map(|(p, u)| add(*p, *u)).collect();
+        let current = Current {
+            linearization,
+            frame: 0,
+            since: Instant::now(),
+            step: 0.0,
+            refreshes: 0,
+            refresh_seconds: 0.0,
+            failure: None,
+        };
+        Ok(Self {
+            refresher,
+            current,
+            loads,
+            cell_size,
+            rest,
+            fixed,
+            pending: BTreeMap::new(),
+            asked: Some(Request::default()),
+            field,
+            positions,
+            reactions: Vec::new(),
+            status: LinearizationStatus::default(),
+            stats,
+            frame: 0,
+            setup_seconds: start.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// Seconds of the setup (voxelization, the Newton solve of the body's own loads, the
+    /// first linearization).
+    pub fn setup_seconds(&self) -> f64 {
+        self.setup_seconds
+    }
+
+    /// The grid's sizes, and the timings of the Newton solve of the body's own loads.
+    pub fn stats(&self) -> FemStats {
+        self.stats
+    }
+
+    /// Frames between two refreshes in the frame loop (`None`: on a second thread).
+    pub fn refresh_every(&self) -> Option<u64> {
+        match &self.refresher {
+            Refresher::Inline { every, .. } => Some(*every),
+            Refresher::Thread(_) => None,
+        }
+    }
+
+    /// The pending holds as the tracking takes them, for frame `frame`.
+    fn request(&self, frame: u64) -> Request {
+        let mut request = Request { frame, ..Request::default() };
+        for (&v, h) in &self.pending {
+            match *h {
+                Hold::Grab { displacement } => request.holds.push((v, FemHold::At(displacement))),
+                Hold::Contact { normal, along } => request.holds.push((v, FemHold::Along { normal, along })),
+                Hold::Push { force } => request.pushes.push((v, force)),
+            }
+        }
+        request
+    }
+
+    /// Whether a refresh is worth asking for `request`: its holds differ from the last
+    /// asked, or the last refresh's step was not converged.
+    fn wants_refresh(&self, request: &Request) -> bool {
+        let same =
+            self.asked.as_ref().is_some_and(|a| a.holds == request.holds && a.pushes == request.pushes);
+        !same || self.current.step > CONVERGED_STEP * self.cell_size
+    }
+
+    /// Takes in what the refresh thread finished (the newest linearization wins).
+    fn poll(&mut self) {
+        let Refresher::Thread(worker) = &mut self.refresher else { return };
+        let outcomes = worker.outcomes.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner);
+        while let Ok(outcome) = outcomes.try_recv() {
+            worker.busy = false;
+            self.current.accept(outcome);
+        }
+    }
+
+    /// Refreshes inline (every `k`-th frame) or asks the thread (when idle).
+    fn schedule(&mut self, request: Request) {
+        if !self.wants_refresh(&request) {
+            return;
+        }
+        match &mut self.refresher {
+            Refresher::Inline { body, every } => {
+                if self.frame % *every != 0 {
+                    return;
+                }
+                let start = Instant::now();
+                let outcome = match body.track(
+                    &mut self.current.linearization,
+                    &self.loads,
+                    &request.pushes,
+                    &request.holds,
+                ) {
+                    Ok(s) => Outcome::Done {
+                        linearization: s.linearization,
+                        step: s.step,
+                        frame: request.frame,
+                        seconds: start.elapsed().as_secs_f64(),
+                    },
+                    Err(e) => Outcome::Failed { message: e.to_string(), frame: request.frame },
+                };
+                self.current.accept(outcome);
+                self.asked = Some(request);
+            }
+            Refresher::Thread(worker) => {
+                if worker.busy {
+                    return;
+                }
+                if worker.requests.send(request.clone()).is_ok() {
+                    worker.busy = true;
+                    self.asked = Some(request);
+                }
+            }
+        }
+    }
+
+    fn check(&self, vertex: usize, value: Vec3, what: &'static str) -> Result<()> {
+        if vertex >= self.rest.len() {
+            return Err(InteractError::UnknownVertex { vertex, vertices: self.rest.len() });
+        }
+        if let Some(&value) = value.iter().find(|c| !c.is_finite()) {
+            return Err(InteractError::NonFinite { vertex, what, value });
+        }
+        Ok(())
+    }
+}
+
+impl Current {
+    /// Swaps in a finished refresh, or records its failure (keeping the linearization).
+    fn accept(&mut self, outcome: Outcome) {
+        match outcome {
+            Outcome::Done { linearization, step, frame, seconds } => {
+                self.linearization = linearization;
+                self.frame = frame;
+                self.since = Instant::now();
+                self.step = step;
+                self.refreshes += 1;
+                self.refresh_seconds = seconds;
+                self.failure = None;
+            }
+            Outcome::Failed { message, frame } => {
+                self.failure = Some(format!(
+                    "the refresh for frame {frame} failed ({message}); frames use the linearization of frame {}",
+                    self.frame
+                ));
+            }
+        }
+    }
+}
+
+/// Starts the refresh thread: it answers each request (the newest waiting) with one
+/// tracking iteration from its last linearization, and ends when the body is dropped.
+fn spawn_worker(mut body: HyperBody, mut linearization: Linearization, loads: Loads) -> Worker {
+    let (requests, inbox) = mpsc::channel::<Request>();
+    let (outbox, outcomes) = mpsc::channel();
+    std::thread::spawn(move || {
+        while let Ok(mut request) = inbox.recv() {
+            while let Ok(newer) = inbox.try_recv() {
+                request = newer;
+            }
+            let start = Instant::now();
+            let outcome = match body.track(&mut linearization, &loads, &request.pushes, &request.holds) {
+                Ok(s) => {
+                    linearization = s.linearization.clone();
+                    Outcome::Done {
+                        linearization: s.linearization,
+                        step: s.step,
+                        frame: request.frame,
+                        seconds: start.elapsed().as_secs_f64(),
+                    }
+                }
+                Err(e) => Outcome::Failed { message: e.to_string(), frame: request.frame },
+            };
+            if outbox.send(outcome).is_err() {
+                break;
+            }
+        }
+    });
+    Worker { requests, outcomes: Mutex::new(outcomes), busy: false }
+}
+
+fn add(a: Vec3, b: Vec3) -> Vec3 {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+impl Interactive for HyperInteractive {
+    fn method(&self) -> Method {
+        Method::Fem
+    }
+
+    fn n_vertices(&self) -> usize {
+        self.rest.len()
+    }
+
+    fn rest_positions(&self) -> &[Vec3] {
+        &self.rest
+    }
+
+    fn is_fixed(&self, vertex: usize) -> bool {
+        self.fixed.get(vertex).is_some_and(Option::is_some)
+    }
+
+    fn supports_forces(&self) -> bool {
+        true
+    }
+
+    fn grab(&mut self, vertex: usize, displacement: Vec3) -> Result<()> {
+        self.check(vertex, displacement, "displacement")?;
+        if let Some(axis) = self.fixed[vertex] {
+            return Err(InteractError::FixedVertex { vertex, axis, action: "grabbed" });
+        }
+        self.pending.insert(vertex, Hold::Grab { displacement });
+        Ok(())
+    }
+
+    fn push(&mut self, vertex: usize, force: Vec3) -> Result<()> {
+        self.check(vertex, force, "force")?;
+        self.pending.insert(vertex, Hold::Push { force });
+        Ok(())
+    }
+
+    fn contact(&mut self, vertex: usize, normal: Vec3, along: f64) -> Result<()> {
+        self.check(vertex, normal, "contact")?;
+        if let Some(axis) = self.fixed[vertex] {
+            return Err(InteractError::FixedVertex { vertex, axis, action: "touched" });
+        }
+        crate::interactive::check_normal(vertex, normal, along)?;
+        self.pending.insert(vertex, Hold::Contact { normal, along });
+        Ok(())
+    }
+
+    fn release(&mut self, vertex: usize) -> Result<()> {
+        self.check(vertex, [0.0; 3], "displacement")?;
+        self.pending.remove(&vertex);
+        Ok(())
+    }
+
+    fn release_all(&mut self) {
+        self.pending.clear();
+    }
+
+    fn holds(&self) -> Vec<(usize, Hold)> {
+        self.pending.iter().map(|(&v, &h)| (v, h)).collect()
+    }
+
+    fn update(&mut self) -> Result<&[(usize, Vec3)]> {
+        self.poll();
+        let request = self.request(self.frame);
+        if matches!(self.refresher, Refresher::Inline { .. }) {
+            self.schedule(request.clone());
+        }
+        let response = self
+            .current
+            .linearization
+            .respond(&request.pushes, &request.holds)
+            .map_err(|e| InteractError::Singular { what: e.to_string() })?;
+        self.field = response.surface_displacements;
+        self.positions = self.rest.iter().zip(&self.field).map(|(p, u)| add(*p, *u)).collect();
+        let mut reactions: Vec<(usize, Vec3)> =
+            request.holds.iter().map(|h| h.0).zip(response.reactions).collect();
+        reactions.extend(request.pushes.iter().copied());
+        reactions.sort_by_key(|r| r.0);
+        self.reactions = reactions;
+        self.status = LinearizationStatus {
+            refreshes: self.current.refreshes,
+            age_frames: self.frame - self.current.frame.min(self.frame),
+            age_seconds: self.current.since.elapsed().as_secs_f64(),
+            step: response.step,
+            estimated_error: response.step * response.step / self.cell_size,
+            refresh_seconds: self.current.refresh_seconds,
+            failure: self.current.failure.clone(),
+        };
+        if matches!(self.refresher, Refresher::Thread(_)) {
+            self.schedule(request);
+        }
+        self.frame += 1;
+        Ok(&self.reactions)
+    }
+
+    fn positions(&self) -> &[Vec3] {
+        &self.positions
+    }
+
+    fn field(&self) -> &[Vec3] {
+        &self.field
+    }
+
+    fn reactions(&self) -> &[(usize, Vec3)] {
+        &self.reactions
+    }
+
+    fn frame(&self) -> u64 {
+        self.frame
+    }
+
+    fn memory_bytes(&self) -> usize {
+        // The frames' linearization and the refresh's (the thread's, or the next inline).
+        2 * self.current.linearization.memory_bytes()
+    }
+
+    fn linearization(&self) -> Option<LinearizationStatus> {
+        Some(self.status.clone())
+    }
+}
