@@ -323,3 +323,25 @@ fn the_phantom_fixture_gives_a_body_and_a_lesion() {
     assert!(rel(full.volume, full.voxel_volume) < 0.03);
     assert!(lesion.volume > 0.0 && lesion.volume < 0.1 * body.volume);
 }
+
+/// A surface above 200 000 vertices and 20 times the target is resampled before it is
+/// decimated: `block` says so, and the result is still one valid surface near the volume.
+#[test]
+fn an_enormous_surface_is_resampled_before_decimation() {
+    let image = balls(130, 1e-3, &[(62.0, 1)]);
+    let s = extract_surface(
+        &image,
+        &SurfaceOptions { target_vertices: Some(5000), ..opts(LabelSelection::NonZero) },
+    )
+    .unwrap();
+    let error = rel(s.volume, s.voxel_volume);
+    eprintln!(
+        "ball r=62: {} vertices (block {}), {:.2} % from voxels",
+        s.mesh.n_vertices(),
+        s.block,
+        100.0 * error
+    );
+    assert!(s.block >= 3 && s.mesh.n_vertices() <= 5000, "block {}", s.block);
+    assert!(!s.validation.flipped && s.validation.genus == 0);
+    assert!(error < 0.03, "{error}");
+}
