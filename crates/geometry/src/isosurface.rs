@@ -10,15 +10,22 @@
 //! their edge's two grid points; each triangle is oriented so its normal points from the
 //! inside end of an edge to the outside end (outward, also for an affine that mirrors).
 //!
-//! Options: a 3x3x3 box blur of the mask (a less staircase surface) and "decimation" to a
-//! target vertex count, which here means resampling: the mask is averaged over blocks of
-//! `k x k x k` voxels (k odd) and the surface extracted on that coarser grid, with the
-//! smallest odd k whose surface has at most the target count of vertices. Averages over an
-//! odd number of voxels (27 for the blur, k^3 for a block) are never exactly 0.5, so the
-//! level set never passes through a sample there either.
+//! Options: a 3x3x3 box blur of the mask (a less staircase surface) and decimation to a
+//! target vertex count. The surface is extracted at full resolution (after the blur when
+//! asked) and then decimated by volume-preserving edge collapses ([`crate::decimate`]): the
+//! result encloses the full-resolution surface's volume (up to rounding) and stays one closed
+//! 2-manifold, outward. Only when the full-resolution surface is enormous, more than 20 times
+//! the target and more than 200 000 vertices, is the mask first resampled: averaged over
+//! blocks of `k x k x k` voxels (k odd, the smallest that brings the surface to at most
+//! that size), the surface extracted on that coarser grid and then decimated. Resampling
+//! loses volume on a body only a few blocks across (the reason it is not the decimation
+//! itself); [`LabelSurface::block`] says when it was used. Averages over an odd number of
+//! voxels (27 for the blur, k^3 for a block) are never exactly 0.5, so the level set never
+//! passes through a sample there either.
 
 use std::collections::HashMap;
 
+use crate::decimate::{DecimateError, decimate_valid};
 use crate::error::MeshError;
 use crate::image::LabelImage;
 use crate::mesh::{TriMesh, Validation};
@@ -61,8 +68,8 @@ pub struct SurfaceOptions {
     /// Also count as inside the background that cannot reach the image border (cavities),
     /// so a shell-shaped label gives its outer surface only.
     pub fill_cavities: bool,
-    /// At most this many vertices: resample on `k x k x k` blocks, k odd, as small as
-    /// allows it (see the module documentation). `None`: full resolution.
+    /// At most this many vertices: the full-resolution surface decimated, keeping its
+    /// volume (see the module documentation). `None`: full resolution.
     pub target_vertices: Option<usize>,
 }
 
@@ -86,12 +93,13 @@ pub enum SurfaceError {
         /// The selection.
         selection: LabelSelection,
     },
-    /// Even the coarsest resampling has more vertices than the target.
-    #[error("no resampling brings the surface to {target} vertices (the coarsest has {smallest})")]
+    /// Decimation cannot bring the surface down to the target (a closed surface has at
+    /// least 4 vertices, and collapses that would damage it are refused).
+    #[error("decimation cannot bring the surface to {target} vertices (it stopped at {smallest})")]
     TargetTooSmall {
         /// The target.
         target: usize,
-        /// Vertices of the coarsest surface tried.
+        /// Vertices of the surface where decimation stopped.
         smallest: usize,
     },
     /// The extracted surface failed validation (e.g. a label in several pieces).
@@ -106,7 +114,7 @@ pub struct LabelSurface {
     pub mesh: TriMesh,
     /// What validation found.
     pub validation: Validation,
-    /// Resampling block edge k (1: full resolution).
+    /// Resampling block edge k before decimation (1: none, the full resolution).
     pub block: usize,
     /// Selected voxels (after filling cavities when asked).
     pub voxels: usize,
@@ -115,6 +123,13 @@ pub struct LabelSurface {
     /// Volume enclosed by the surface, in cubic metres.
     pub volume: f64,
 }
+
+/// Above this many vertices (and [`RESAMPLE_RATIO`] times the target) the mask is resampled
+/// before decimation.
+const RESAMPLE_ABOVE: usize = 200_000;
+
+/// See [`RESAMPLE_ABOVE`].
+const RESAMPLE_RATIO: usize = 20;
 
 /// Extracts the surface of the selected voxels (see the module documentation).
 pub fn extract_surface(image: &LabelImage, opts: &SurfaceOptions) -> Result<LabelSurface, SurfaceError> {
@@ -129,26 +144,31 @@ pub fn extract_surface(image: &LabelImage, opts: &SurfaceOptions) -> Result<Labe
     if opts.smooth {
         box_blur(&mut mask, image.dims);
     }
+    let mut raw = march(image, &mask, 1);
     let mut block = 1;
-    let mut raw = march(image, &mask, block);
     if let Some(target) = opts.target_vertices {
+        let enough = target.saturating_mul(RESAMPLE_RATIO).max(RESAMPLE_ABOVE);
         let largest = image.dims.iter().copied().max().unwrap_or(1);
-        if raw.0.len() > target {
-            let guess = ((raw.0.len() as f64 / target.max(1) as f64).sqrt().ceil() as usize) | 1;
-            block = guess.max(3);
-        }
-        while raw.0.len() > target {
-            if block > largest + 2 {
-                return Err(SurfaceError::TargetTooSmall { target, smallest: raw.0.len() });
-            }
+        while raw.0.len() > enough && block <= largest {
+            block += 2;
             raw = march(image, &mask, block);
-            if raw.0.len() > target {
-                block += 2;
-            }
         }
     }
     let mut mesh = TriMesh::new(raw.0, raw.1)?;
-    let validation = mesh.validate()?;
+    let mut validation = mesh.validate()?;
+    if let Some(target) = opts.target_vertices {
+        let (positions, triangles) =
+            decimate_valid(mesh.positions(), mesh.triangles(), target).map_err(|e| match e {
+                DecimateError::TargetTooSmall { target, reached } => {
+                    SurfaceError::TargetTooSmall { target, smallest: reached }
+                }
+                DecimateError::Mesh(e) => SurfaceError::Mesh(e),
+            })?;
+        mesh = TriMesh::new(positions, triangles)?;
+        let flipped = validation.flipped;
+        validation = mesh.validate()?;
+        validation.flipped |= flipped;
+    }
     let volume = mesh.volume();
     Ok(LabelSurface {
         mesh,

@@ -16,12 +16,14 @@
 //! - Voxelization ([`inside_lattice`], [`for_each_inside_line`]): which points of a regular
 //!   lattice lie inside a closed surface, by exact-predicate ray crossings along x.
 //! - Label images ([`read_nifti`]: NIfTI-1/2, `.nii` and `.nii.gz`) and the surface of a
-//!   label ([`extract_surface`]: marching tetrahedra, optional smoothing and resampling).
+//!   label ([`extract_surface`]: marching tetrahedra, optional smoothing, and decimation to a
+//!   vertex target that keeps the volume, [`decimate`]).
 
 mod adjacency;
 mod boundary;
 mod bvh;
 mod crossing;
+mod decimate;
 mod error;
 mod fibers;
 mod icosphere;
@@ -41,6 +43,7 @@ pub use adjacency::Adjacency;
 pub use boundary::Boundary;
 pub use bvh::TriangleBvh;
 pub use crossing::{Crossing, segment_triangle};
+pub use decimate::{DecimateError, MAX_PASSES, MIN_QUALITY, SHAPE_WEIGHT, decimate};
 pub use error::{FileKind, GeometryError, MeshError, ReadError, Result, ScaleSite};
 pub use fibers::{
     EXIT_TOLERANCE, FiberSet, VisibilityOptions, VisibilityReport, crosses_surface_brute_force, cull_fibers,

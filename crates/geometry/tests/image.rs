@@ -111,7 +111,7 @@ fn two_labels_give_two_valid_surfaces() {
 }
 
 #[test]
-fn resampling_to_a_vertex_target_keeps_the_volume() {
+fn decimating_to_a_vertex_target_keeps_the_volume() {
     let image = balls(41, 1e-3, &[(18.0, 1)]);
     let full = extract_surface(&image, &opts(LabelSelection::NonZero)).unwrap();
     let target = full.mesh.n_vertices() / 5;
@@ -120,16 +120,21 @@ fn resampling_to_a_vertex_target_keeps_the_volume() {
         &SurfaceOptions { target_vertices: Some(target), ..opts(LabelSelection::NonZero) },
     )
     .unwrap();
-    let error = rel(coarse.volume, coarse.voxel_volume);
+    let (to_full, to_voxels) = (rel(coarse.volume, full.volume), rel(coarse.volume, coarse.voxel_volume));
     eprintln!(
-        "resampled: {} -> {} vertices (target {target}, block {}), volume {:.2} % from voxels",
+        "decimated: {} -> {} vertices (target {target}, block {}), volume {:.2e} from the full surface, \
+         {:.2} % from voxels",
         full.mesh.n_vertices(),
         coarse.mesh.n_vertices(),
         coarse.block,
-        100.0 * error
+        to_full,
+        100.0 * to_voxels
     );
-    assert!(coarse.mesh.n_vertices() <= target && coarse.block >= 3);
-    assert!(error < 0.03, "{error}");
+    // Decimated, not resampled: the full-resolution surface's volume, within 1 %.
+    assert!(coarse.mesh.n_vertices() <= target && coarse.block == 1);
+    assert!(!coarse.validation.flipped && coarse.validation.genus == 0);
+    assert!(to_full < 0.01, "{to_full}");
+    assert!(to_voxels < 0.03, "{to_voxels}");
     assert!(matches!(
         extract_surface(
             &image,
@@ -299,21 +304,44 @@ fn the_phantom_fixture_gives_a_body_and_a_lesion() {
     .unwrap();
     let lesion = extract_surface(&image, &opts(LabelSelection::Label(2))).unwrap();
     let ellipsoid = 4.0 / 3.0 * PI * 20e-3 * 16e-3 * 14e-3;
+    let full = extract_surface(&image, &opts(LabelSelection::NonZero)).unwrap();
     eprintln!(
-        "phantom: body {} vertices (block {}), {:.2} % from voxels, {:.2} % from the ellipsoid",
+        "phantom: body {} vertices (block {}), {:.2e} from the full surface ({} vertices), {:.2} % from \
+         voxels, {:.2} % from the ellipsoid",
         body.mesh.n_vertices(),
         body.block,
+        rel(body.volume, full.volume),
+        full.mesh.n_vertices(),
         100.0 * rel(body.volume, body.voxel_volume),
         100.0 * rel(body.volume, ellipsoid)
     );
-    // Blocks of 3 voxels on a body 20 voxels across lose about a tenth of the volume.
-    assert!(body.mesh.n_vertices() <= 600 && rel(body.volume, ellipsoid) < 0.15);
-    let full = extract_surface(&image, &opts(LabelSelection::NonZero)).unwrap();
-    eprintln!(
-        "phantom full: {} vertices, {:.2} % from voxels",
-        full.mesh.n_vertices(),
-        100.0 * rel(full.volume, full.voxel_volume)
-    );
+    // Decimation keeps the full-resolution surface's volume (resampling on 3-voxel blocks
+    // used to lose about a tenth of it).
+    assert!(body.mesh.n_vertices() <= 600 && body.block == 1);
+    assert!(rel(body.volume, full.volume) < 0.01);
+    assert!(rel(body.volume, ellipsoid) < 0.03);
     assert!(rel(full.volume, full.voxel_volume) < 0.03);
     assert!(lesion.volume > 0.0 && lesion.volume < 0.1 * body.volume);
+}
+
+/// A surface above 200 000 vertices and 20 times the target is resampled before it is
+/// decimated: `block` says so, and the result is still one valid surface near the volume.
+#[test]
+fn an_enormous_surface_is_resampled_before_decimation() {
+    let image = balls(130, 1e-3, &[(62.0, 1)]);
+    let s = extract_surface(
+        &image,
+        &SurfaceOptions { target_vertices: Some(5000), ..opts(LabelSelection::NonZero) },
+    )
+    .unwrap();
+    let error = rel(s.volume, s.voxel_volume);
+    eprintln!(
+        "ball r=62: {} vertices (block {}), {:.2} % from voxels",
+        s.mesh.n_vertices(),
+        s.block,
+        100.0 * error
+    );
+    assert!(s.block >= 3 && s.mesh.n_vertices() <= 5000, "block {}", s.block);
+    assert!(!s.validation.flipped && s.validation.genus == 0);
+    assert!(error < 0.03, "{error}");
 }

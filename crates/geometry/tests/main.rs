@@ -3,6 +3,7 @@
 mod adjacency;
 mod area_volume;
 mod common;
+mod decimate;
 mod fibers;
 mod formats;
 mod image;

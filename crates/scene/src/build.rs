@@ -168,7 +168,7 @@ fn shape(
 }
 
 /// The body from a label image: the surface of `label` (default: every non-zero label),
-/// resampled to at most `vertices`, in metres (the image's physical spacing).
+/// decimated to at most `vertices`, in metres (the image's physical spacing).
 fn image_shape(m: MeshToml, dir: &Path) -> Result<(Shape, fibfluid_geometry::LabelImage), Invalid> {
     use fibfluid_geometry::{LabelSelection, MeshFile, SurfaceOptions, extract_surface, read_nifti};
     if m.path.is_some() {

@@ -77,7 +77,7 @@ pub(crate) struct MeshToml {
     pub(crate) image: Option<String>,
     /// With `image`: the label (default: every non-zero label, the whole body).
     pub(crate) label: Option<i64>,
-    /// With `image`: at most this many vertices (resampling, see `extract_surface`).
+    /// With `image`: at most this many vertices (decimation, see `extract_surface`).
     pub(crate) vertices: Option<i64>,
     /// With `image`: blur the label mask 3x3x3 before extraction.
     pub(crate) smooth: Option<bool>,
