@@ -26,8 +26,10 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
+use fibfluid::fem::TissueModel;
 use fibfluid::geometry::Vec3;
 use fibfluid::geometry::vec3::{dist, norm, sub};
+use fibfluid::interact::RefreshMode;
 use fibfluid::interact::{
     CheckedPath, Latency, Method, MethodBody, PathKind, ProbeError, ProbeOptions, ToolPath, check_method,
     check_path, replay_observed,
@@ -39,7 +41,11 @@ use crate::output::write_files_atomically;
 use crate::{Error, Result};
 
 /// Names of the files [`run_compare`] writes.
-pub const COMPARE_FILES: [&str; 2] = ["compare.json", "compare.png"];
+pub const COMPARE_FILES: [&str; 3] = ["compare.json", "compare.png", "frame-errors.png"];
+
+/// Paths up to this many frames get each method's error per frame in `compare.json`
+/// (`frame_errors`); `frame-errors.png` charts them for any length.
+pub const MAX_FRAME_ERRORS: usize = 10_000;
 
 /// What is compared, as `compare.json` says it.
 pub const COMPARED: &str = "tool-induced displacement: grabs applied from, and surfaces measured against, each method's own base state (ChainMail carries no gravity or point forces)";
@@ -61,6 +67,12 @@ pub struct MethodMetrics {
     pub error_vs_reference: f64,
     /// Largest vertex error over the reference's largest tool-induced displacement.
     pub worst_vertex_error: f64,
+    /// Per frame, the L2 norm of the tool-induced displacement's difference from the
+    /// reference's, over the reference's largest L2 norm along the path (so a frame where
+    /// the reference is back at rest reads the error in the same units); absent above
+    /// [`MAX_FRAME_ERRORS`] frames.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub frame_errors: Option<Vec<f64>>,
     /// Largest `|V / V0 - 1|` over the frames.
     pub volume_change_max: f64,
     /// Largest vertex distance from the base state after the last frame, over the diagonal.
@@ -85,14 +97,64 @@ pub struct CompareReport {
     pub diagonal: f64,
     /// What is compared.
     pub compared: &'static str,
-    /// The method the errors are measured against (the FEM when it runs).
-    pub reference: Method,
+    /// The body the errors are measured against: `fem` when the FEM runs (`fem-converged`,
+    /// Newton to convergence at every frame, for a neo-Hookean tissue), else `ffm`.
+    pub reference: &'static str,
     /// The frame shown in `compare.png`: the first frame of the path's largest grab.
     pub shown_frame: usize,
     /// Numbers per method, by method name.
     pub methods: BTreeMap<String, MethodMetrics>,
     /// Methods that did not run, with the reason.
     pub skipped: BTreeMap<String, String>,
+}
+
+/// A body a comparison replays: a method's, or one of the finite-element bodies of a
+/// neo-Hookean scene.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Contender {
+    /// The method's body for the scene as it is (for the FEM of a neo-Hookean tissue, the
+    /// two-rate body with the probe's refresh schedule).
+    Method(Method),
+    /// The neo-Hookean body with Newton run to convergence at every frame: the reference.
+    ConvergedHyper,
+    /// The linear FEM body of the same tissue's small-strain moduli.
+    LinearFem,
+}
+
+impl Contender {
+    /// The name in `compare.json`.
+    fn name(self) -> &'static str {
+        match self {
+            Contender::Method(m) => m.name(),
+            Contender::ConvergedHyper => "fem-converged",
+            Contender::LinearFem => "fem-linear",
+        }
+    }
+
+    /// The method it runs.
+    fn method(self) -> Method {
+        match self {
+            Contender::Method(m) => m,
+            Contender::ConvergedHyper | Contender::LinearFem => Method::Fem,
+        }
+    }
+
+    /// Builds its body.
+    fn build(self, scene: &Scene, opts: &ProbeOptions) -> Result<MethodBody> {
+        let body = match self {
+            Contender::Method(m) => MethodBody::build(scene, &scene.chainmail, m, opts)?,
+            Contender::ConvergedHyper => {
+                let converged = ProbeOptions { refresh: RefreshMode::Converged, ..*opts };
+                MethodBody::build(scene, &scene.chainmail, Method::Fem, &converged)?
+            }
+            Contender::LinearFem => {
+                let mut linear = scene.clone();
+                linear.model.tissue = linear.model.tissue.map(|t| t.with_model(TissueModel::Linear));
+                MethodBody::build(&linear, &scene.chainmail, Method::Fem, opts)?
+            }
+        };
+        Ok(body)
+    }
 }
 
 /// One method's replay: its metrics and its tool-induced displacement at the shown frame.
@@ -104,18 +166,30 @@ struct Run {
 /// Bytes a comparison keeps per frame and vertex: the reference's tool-induced displacement.
 const BYTES_PER_FRAME_VERTEX: u128 = 24;
 
-/// The methods a scene can compare, the reference first, and those it cannot with why.
-fn methods_of(scene: &Scene) -> (Vec<Method>, BTreeMap<String, String>) {
+/// The bodies a scene can compare, the reference first, and the methods it cannot run with
+/// why. A neo-Hookean scene's reference is its converged body, beside the two-rate and the
+/// linear FEM bodies.
+fn methods_of(scene: &Scene) -> (Vec<Contender>, BTreeMap<String, String>) {
     let mut skipped = BTreeMap::new();
-    let mut methods = vec![Method::Ffm, Method::TsveChainmail, Method::GeneralizedChainmail];
-    if scene.tissue.is_some() {
-        methods.insert(0, Method::Fem);
-    } else {
-        skipped
-            .insert(Method::Fem.to_string(), "the scene has no [tissue] (E in Pa, poisson, density)".into());
+    let mut methods: Vec<Contender> = [Method::Ffm, Method::TsveChainmail, Method::GeneralizedChainmail]
+        .into_iter()
+        .map(Contender::Method)
+        .collect();
+    match scene.tissue {
+        Some(t) if t.model() == TissueModel::NeoHookean => {
+            let fem = [Contender::ConvergedHyper, Contender::Method(Method::Fem), Contender::LinearFem];
+            methods.splice(0..0, fem);
+        }
+        Some(_) => methods.insert(0, Contender::Method(Method::Fem)),
+        None => {
+            skipped.insert(
+                Method::Fem.to_string(),
+                "the scene has no [tissue] (E in Pa, poisson, density)".into(),
+            );
+        }
     }
     if !scene.ffm_material {
-        methods.retain(|m| *m != Method::Ffm);
+        methods.retain(|m| *m != Contender::Method(Method::Ffm));
         skipped.insert(Method::Ffm.to_string(), "the scene has no [material] for FFM".into());
     }
     (methods, skipped)
@@ -153,7 +227,7 @@ pub fn run_compare(scene: &Scene, path: &ToolPath, out: &Path, opts: &ProbeOptio
     };
     let (methods, skipped) = methods_of(scene);
     for &m in &methods {
-        check_method(path, m)?;
+        check_method(path, m.method())?;
     }
     let checked = check_path(path, scene)?;
     if let Some(blocked) = COMPARE_FILES.iter().map(|f| out.join(f)).find(|p| p.is_dir()) {
@@ -163,7 +237,7 @@ pub fn run_compare(scene: &Scene, path: &ToolPath, out: &Path, opts: &ProbeOptio
         });
     }
     let frames = checked.frames.len();
-    if frames > MAX_CHAINMAIL_FRAMES && methods.iter().any(|m| m.is_chainmail()) {
+    if frames > MAX_CHAINMAIL_FRAMES && methods.iter().any(|m| m.method().is_chainmail()) {
         return Err(Error::CompareTooLong { path: path.source.clone(), frames, limit: MAX_CHAINMAIL_FRAMES });
     }
     let rest = file.mesh.positions().to_vec();
@@ -174,12 +248,13 @@ pub fn run_compare(scene: &Scene, path: &ToolPath, out: &Path, opts: &ProbeOptio
     let diagonal = dist(lo, hi);
     let shown = largest_grab_frame(&checked);
     let mut reference = Reference::default();
-    let mut runs: Vec<(Method, Run)> = Vec::new();
+    let mut runs: Vec<(Contender, Run)> = Vec::new();
     for &method in &methods {
         let run = replay_method(scene, method, &checked, opts, &mut reference, shown, diagonal)?;
         runs.push((method, run));
     }
     let png = compare_png(&runs, &rest, file.mesh.triangles(), shown, scene)?;
+    let errors_png = frame_errors_png(&runs, scene)?;
     let report = CompareReport {
         scene: scene.name.clone(),
         path: path.source.display().to_string(),
@@ -187,13 +262,23 @@ pub fn run_compare(scene: &Scene, path: &ToolPath, out: &Path, opts: &ProbeOptio
         vertices: rest.len(),
         diagonal,
         compared: COMPARED,
-        reference: methods[0],
+        reference: methods[0].name(),
         shown_frame: shown,
-        methods: runs.into_iter().map(|(m, r)| (m.name().to_string(), r.metrics)).collect(),
+        methods: runs
+            .into_iter()
+            .map(|(m, mut r)| {
+                if frames > MAX_FRAME_ERRORS {
+                    r.metrics.frame_errors = None;
+                }
+                (m.name().to_string(), r.metrics)
+            })
+            .collect(),
         skipped,
     };
     let json = serde_json::to_string_pretty(&report)? + "\n";
-    write_files_atomically(out, &[(COMPARE_FILES[0], json.into_bytes()), (COMPARE_FILES[1], png)])?;
+    let files =
+        [(COMPARE_FILES[0], json.into_bytes()), (COMPARE_FILES[1], png), (COMPARE_FILES[2], errors_png)];
+    write_files_atomically(out, &files)?;
     Ok(report)
 }
 
@@ -201,7 +286,7 @@ pub fn run_compare(scene: &Scene, path: &ToolPath, out: &Path, opts: &ProbeOptio
 /// tool-induced displacements, the others are measured against it.
 fn replay_method(
     scene: &Scene,
-    method: Method,
+    contender: Contender,
     checked: &CheckedPath,
     opts: &ProbeOptions,
     reference: &mut Reference,
@@ -210,7 +295,8 @@ fn replay_method(
 ) -> Result<Run> {
     let Shape::Surface(file) = &scene.shape else { unreachable!("checked by run_compare") };
     let triangles = file.mesh.triangles();
-    let mut body = MethodBody::build(scene, &scene.chainmail, method, opts)?;
+    let method = contender.method();
+    let mut body = contender.build(scene, opts)?;
     let setup_seconds = body.setup_seconds();
     let base = body.interactive_ref().positions().to_vec();
     let rest = body.interactive_ref().rest_positions().to_vec();
@@ -240,6 +326,7 @@ fn replay_method(
         base_max_displacement: base_max,
         error_vs_reference: tally.relative_l2(),
         worst_vertex_error: tally.worst(),
+        frame_errors: Some(tally.frame_errors()),
         volume_change_max: tally.volume_change_max,
         rest_distance_after_release: after / diagonal,
         warnings: crate::probe_run::final_state_guards(scene, file, b.field(), method)?,
@@ -313,6 +400,10 @@ struct Tally {
     reference_sq: f64,
     worst_diff: f64,
     reference_max: f64,
+    /// Per frame, the L2 norm of the difference from the reference (m).
+    frame_errors: Vec<f64>,
+    /// Per frame, the L2 norm of the reference's tool-induced displacement (m).
+    frame_reference: Vec<f64>,
     shown: Vec<Vec3>,
 }
 
@@ -325,6 +416,8 @@ impl Tally {
             reference_sq: 0.0,
             worst_diff: 0.0,
             reference_max: 0.0,
+            frame_errors: Vec::new(),
+            frame_reference: Vec::new(),
             shown: Vec::new(),
         }
     }
@@ -334,18 +427,30 @@ impl Tally {
     }
 
     fn against(&mut self, d: &[Vec3], reference: &[Vec3]) {
+        let (mut diff_sq, mut reference_sq) = (0.0, 0.0);
         for (p, q) in d.iter().zip(reference) {
             let e = dist(*p, *q);
-            self.diff_sq += e * e;
+            diff_sq += e * e;
             self.worst_diff = self.worst_diff.max(e);
             let r = norm(*q);
-            self.reference_sq += r * r;
+            reference_sq += r * r;
             self.reference_max = self.reference_max.max(r);
         }
+        self.diff_sq += diff_sq;
+        self.reference_sq += reference_sq;
+        self.frame_errors.push(diff_sq.sqrt());
+        self.frame_reference.push(reference_sq.sqrt());
     }
 
     fn relative_l2(&self) -> f64 {
         if self.reference_sq > 0.0 { (self.diff_sq / self.reference_sq).sqrt() } else { 0.0 }
+    }
+
+    /// Each frame's error over the reference's largest (over the frames) L2 norm: a
+    /// frame where the reference is back at its base state reads its absolute error.
+    fn frame_errors(&self) -> Vec<f64> {
+        let peak = self.frame_reference.iter().copied().fold(0.0, f64::max);
+        self.frame_errors.iter().map(|e| if peak > 0.0 { e / peak } else { 0.0 }).collect()
     }
 
     fn worst(&self) -> f64 {
@@ -356,7 +461,7 @@ impl Tally {
 /// Each method's tool-induced displacement at frame `k`, on the rest shape, side by side on
 /// one color scale.
 fn compare_png(
-    runs: &[(Method, Run)],
+    runs: &[(Contender, Run)],
     rest: &[Vec3],
     triangles: &[[u32; 3]],
     k: usize,
@@ -383,13 +488,37 @@ fn compare_png(
             triangles,
             scalar: mag,
             title: if Some(*m) == reference {
-                format!("{m} (reference), frame {k}")
+                format!("{} (reference), frame {k}", m.name())
             } else {
-                format!("{m}, frame {k}: error {:.0} %", 100.0 * r.metrics.error_vs_reference)
+                format!("{}, frame {k}: error {:.0} %", m.name(), 100.0 * r.metrics.error_vs_reference)
             },
         })
         .collect();
     let label = format!("tool-induced |u| ({})", scene.unit);
     let opts = fibfluid::render::ViewOptions { scalar_label: label, ..Default::default() };
     Ok(fibfluid::render::render_surfaces(&panels, Some(range), &opts)?)
+}
+
+/// Each compared body's error per frame against the reference, one line each (the
+/// reference itself left out).
+fn frame_errors_png(runs: &[(Contender, Run)], scene: &Scene) -> Result<Vec<u8>> {
+    let series: Vec<fibfluid::render::Series> = runs
+        .iter()
+        .skip(1)
+        .map(|(m, r)| fibfluid::render::Series {
+            label: m.name().to_string(),
+            points: r
+                .metrics
+                .frame_errors
+                .iter()
+                .flatten()
+                .enumerate()
+                .map(|(k, &e)| (k as f64, e))
+                .collect(),
+        })
+        .collect();
+    let reference = runs.first().map_or("the reference", |(m, _)| m.name());
+    let title = format!("{}: error per frame against {reference}", scene.name);
+    let y = "L2 error / the reference's largest L2";
+    Ok(fibfluid::render::line_chart(&title, "frame", y, &series, 900, 520)?)
 }

@@ -12,6 +12,7 @@
 //! (the columns by the factor's `fibfluid_linalg::ComplianceSource`), the same code as the
 //! fiber–fluid method's contact rows.
 
+use std::borrow::Cow;
 use std::collections::HashMap;
 
 use faer::Mat;
@@ -91,11 +92,31 @@ const CONSTRAINT_TOLERANCE: f64 = 1e-9;
 
 /// One constraint row: a held vertex's displacement along a direction as a combination of
 /// free dofs.
-struct Row {
-    vertex: usize,
-    direction: Vec3,
-    target: f64,
-    entries: Vec<(usize, f64)>,
+pub(crate) struct Row {
+    pub(crate) vertex: usize,
+    pub(crate) direction: Vec3,
+    pub(crate) target: f64,
+    pub(crate) entries: Vec<(usize, f64)>,
+}
+
+impl Row {
+    /// The row's identity.
+    pub(crate) fn key(&self) -> RowKey {
+        (self.vertex, self.direction.map(f64::to_bits))
+    }
+}
+
+/// Constraint rows whose `stiffness * C^T C` was added to the factored matrix (a tangent
+/// made positive definite on the held directions, an augmented Lagrangian): a hold on such
+/// a row enters the right-hand side as `stiffness * C^T g` (g its target less the base
+/// state's value); a penalized row not held leaves a spring there (the answer is then
+/// approximate, [`HeldSolve::uncovered`]).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Penalty {
+    /// The penalized rows.
+    pub(crate) keys: Vec<RowKey>,
+    /// Their stiffness (N/m).
+    pub(crate) stiffness: f64,
 }
 
 /// Compliance columns and the last unheld solve of one factor, kept between frames.
@@ -106,7 +127,13 @@ pub(crate) struct HoldCache {
     /// The last right-hand side solved without holds and its solution: a frame that
     /// changes only the holds reuses it.
     unheld: Option<(Vec<f64>, Vec<f64>)>,
+    /// The last rows' capacitance (and whether it needed the ridge), by the rows' vertices
+    /// and directions: a frame that moves the same holds reuses it.
+    capacitance: Option<(Vec<RowKey>, RowCapacitance, bool)>,
 }
+
+/// A constraint row's identity: its vertex and direction (bit for bit).
+pub(crate) type RowKey = (usize, [u64; 3]);
 
 impl HoldCache {
     /// Number of vertices whose columns are cached.
@@ -114,9 +141,10 @@ impl HoldCache {
         self.columns.len()
     }
 
-    /// Drops every cached column.
+    /// Drops every cached column (and the capacitance made of them).
     pub(crate) fn clear_columns(&mut self) {
         self.columns.clear();
+        self.capacitance = None;
     }
 }
 
@@ -139,6 +167,8 @@ pub(crate) struct HeldSolve {
     pub(crate) reactions: Vec<Vec3>,
     /// The right-hand side with the reactions applied (`f + C^T lambda`).
     pub(crate) applied: Vec<f64>,
+    /// Penalized rows that no hold covers (their springs stay in the answer).
+    pub(crate) uncovered: usize,
 }
 
 impl HeldSystem<'_> {
@@ -150,6 +180,7 @@ impl HeldSystem<'_> {
         f: Vec<f64>,
         holds: &[(usize, FemHold)],
         base: Option<&[f64]>,
+        penalty: Option<&Penalty>,
     ) -> Result<HeldSolve> {
         let mut rows = constraint_rows(self.embedding, self.free, holds)?;
         if let Some(base) = base {
@@ -158,8 +189,21 @@ impl HeldSystem<'_> {
         let vertices: Vec<usize> = holds.iter().map(|h| h.0).collect();
         self.cache_compliance(cache, &vertices)?;
         let mut u = self.unheld_solution(cache, &f);
-        let columns: Vec<Vec<f64>> = rows.iter().map(|r| row_column(&cache.columns[&r.vertex], r)).collect();
-        let lambda = impose_rows(&rows, &columns, &mut u)?;
+        let columns: Vec<Cow<'_, [f64]>> =
+            rows.iter().map(|r| row_column(&cache.columns[&r.vertex], r)).collect();
+        let mut uncovered = 0;
+        if let Some(p) = penalty {
+            // A held penalized row: A^-1 (stiffness C^T g) is its column times stiffness g.
+            for (row, column) in rows.iter().zip(&columns) {
+                if p.keys.contains(&row.key()) {
+                    let scale = p.stiffness * row.target;
+                    u.iter_mut().zip(column.iter()).for_each(|(ui, ci)| *ui += scale * ci);
+                }
+            }
+            let keys: Vec<RowKey> = rows.iter().map(Row::key).collect();
+            uncovered = p.keys.iter().filter(|k| !keys.contains(k)).count();
+        }
+        let lambda = impose_rows(&mut cache.capacitance, &rows, &columns, &mut u)?;
         let mut reactions = vec![[0.0; 3]; holds.len()];
         let mut applied = f;
         for (row, l) in rows.iter().zip(&lambda) {
@@ -171,7 +215,7 @@ impl HeldSystem<'_> {
                 applied[d] += w * l;
             }
         }
-        Ok(HeldSolve { u, reactions, applied })
+        Ok(HeldSolve { u, reactions, applied, uncovered })
     }
 
     /// `A^-1 f`, reused while `f` does not change.
@@ -238,7 +282,7 @@ impl FemBody {
     pub fn respond_holds(&mut self, loads: &Loads, holds: &[(usize, FemHold)]) -> Result<HeldResponse> {
         let f = self.load_vector(loads)?;
         let system = HeldSystem { factor: &self.factor, embedding: self.grid.embedding(), free: &self.free };
-        let solved = system.solve(&mut self.held, f, holds, None)?;
+        let solved = system.solve(&mut self.held, f, holds, None, None)?;
         let residual = self.residual(&solved.u, &solved.applied)?;
         let node_displacements = self.node_values(&solved.u);
         let surface_displacements = self.grid.interpolate(&node_displacements);
@@ -256,8 +300,14 @@ impl FemBody {
     }
 }
 
-/// `A^-1 C_row^T` from the cached axis columns of the row's vertex.
-fn row_column(cols: &[Vec<f64>; 3], row: &Row) -> Vec<f64> {
+/// `A^-1 C_row^T` from the cached axis columns of the row's vertex (the column itself for a
+/// row along an axis).
+fn row_column<'a>(cols: &'a [Vec<f64>; 3], row: &Row) -> Cow<'a, [f64]> {
+    if let Some(a) =
+        (0..3).find(|&a| row.direction[a] == 1.0 && row.direction.iter().filter(|&&d| d != 0.0).count() == 1)
+    {
+        return Cow::Borrowed(&cols[a]);
+    }
     let mut z = vec![0.0; cols[0].len()];
     for (a, col) in cols.iter().enumerate() {
         let n = row.direction[a];
@@ -267,30 +317,42 @@ fn row_column(cols: &[Vec<f64>; 3], row: &Row) -> Vec<f64> {
             }
         }
     }
-    z
+    Cow::Owned(z)
 }
 
 /// Imposes the rows on `u` (`A^-1 f` on entry) by the capacitance update of
 /// `fibfluid_linalg` and returns the multipliers `lambda` (`u = u0 + Z lambda`, the
 /// reactions `C^T lambda`). A singular `C Z` (dependent rows) is retried with a tiny
-/// ridge and accepted only if the constraints are then met.
-fn impose_rows(rows: &[Row], columns: &[Vec<f64>], u: &mut [f64]) -> Result<Vec<f64>> {
+/// ridge and accepted only if the constraints are then met. The factored capacitance is
+/// kept in `kept` for the next call with the same rows.
+fn impose_rows(
+    kept: &mut Option<(Vec<RowKey>, RowCapacitance, bool)>,
+    rows: &[Row],
+    columns: &[Cow<'_, [f64]>],
+    u: &mut [f64],
+) -> Result<Vec<f64>> {
     if rows.is_empty() {
         return Ok(Vec::new());
     }
     let entries: Vec<&SparseRow> = rows.iter().map(|r| r.entries.as_slice()).collect();
     let targets: Vec<f64> = rows.iter().map(|r| r.target).collect();
     let dependent = |i: usize| FemError::DependentHolds { vertex: rows[i].vertex };
-    let (capacitance, ridged) = match RowCapacitance::new(&entries, columns, 0.0) {
-        Ok(c) => (c, false),
-        Err(LinalgError::CapacitanceNotPositiveDefinite { .. }) => {
-            (RowCapacitance::new(&entries, columns, DEPENDENT_RIDGE).map_err(|_| dependent(0))?, true)
-        }
-        Err(other) => return Err(other.into()),
-    };
+    let keys: Vec<RowKey> = rows.iter().map(Row::key).collect();
+    if kept.as_ref().is_none_or(|k| k.0 != keys) {
+        *kept = None;
+        let made = match RowCapacitance::new(&entries, columns, 0.0) {
+            Ok(c) => (c, false),
+            Err(LinalgError::CapacitanceNotPositiveDefinite { .. }) => {
+                (RowCapacitance::new(&entries, columns, DEPENDENT_RIDGE).map_err(|_| dependent(0))?, true)
+            }
+            Err(other) => return Err(other.into()),
+        };
+        *kept = Some((keys, made.0, made.1));
+    }
+    let (_, capacitance, ridged) = kept.as_ref().expect("made above");
     // The update's multipliers r are the negated reactions: u = u0 - Z r.
     let r = capacitance.correct(&entries, columns, &targets, u);
-    if ridged {
+    if *ridged {
         let scale = targets.iter().fold(1.0_f64, |a, t| a.max(t.abs()));
         let unmet = (0..rows.len())
             .find(|&i| (row_dot(entries[i], u) - targets[i]).abs() > CONSTRAINT_TOLERANCE * scale);
@@ -303,7 +365,11 @@ fn impose_rows(rows: &[Row], columns: &[Vec<f64>], u: &mut [f64]) -> Result<Vec<
 
 /// The constraint rows of `holds`, skipping rows carried only by fixed nodes (whose
 /// target must then be 0).
-fn constraint_rows(embedding: &[Embedded], free: &[usize], holds: &[(usize, FemHold)]) -> Result<Vec<Row>> {
+pub(crate) fn constraint_rows(
+    embedding: &[Embedded],
+    free: &[usize],
+    holds: &[(usize, FemHold)],
+) -> Result<Vec<Row>> {
     let scale = holds.iter().flat_map(|h| h.1.values()).fold(0.0_f64, |a, b| a.max(b.abs()));
     let mut rows = Vec::new();
     for (k, &(v, hold)) in holds.iter().enumerate() {

@@ -36,6 +36,10 @@ use crate::{Hold, InteractError, Interactive, LinearizationStatus, Result};
 /// leaves the linearization converged: no new refresh is asked until the holds change.
 pub const CONVERGED_STEP: f64 = 1e-9;
 
+/// Below this fraction of a cell, a step that is not at most half the one before has
+/// reached rounding (Newton's steps shrink quadratically until they do): converged too.
+pub const ROUNDING_STEP: f64 = 1e-6;
+
 /// The largest `k` [`RefreshMode::Scheduled`] picks.
 pub const MAX_SCHEDULED_EVERY: u64 = 1000;
 
@@ -52,7 +56,16 @@ pub enum RefreshMode {
     /// about two triangular solves), so the schedule is what a second core would keep up
     /// with, and reproducible.
     Scheduled,
+    /// In the frame loop, before every frame, until Newton has converged for its holds (at
+    /// most [`MAX_CONVERGE_ITERATIONS`]): each frame is the converged nonlinear answer (the
+    /// reference `compare` measures the other bodies against), at a refactorization or more
+    /// per frame.
+    Converged,
 }
+
+/// Newton iterations a [`RefreshMode::Converged`] frame runs at most; a frame still
+/// unconverged after them says so in [`LinearizationStatus::failure`].
+pub const MAX_CONVERGE_ITERATIONS: usize = 50;
 
 /// A tool's holds as the tracking takes them.
 #[derive(Clone, Debug, PartialEq, Default)]
@@ -68,9 +81,20 @@ enum Outcome {
     Failed { message: String, frame: u64 },
 }
 
+/// What the frames send the refresh thread.
+enum Message {
+    /// Refresh for these holds.
+    Refresh(Request),
+    /// Drop a linearization the frames no longer use (its factor is freed off the frame
+    /// thread).
+    Retire(#[allow(dead_code, reason = "held only to be dropped on the refresh thread")] Linearization),
+    /// Start the next refresh from this linearization (the body's own equilibrium).
+    Restart(Linearization),
+}
+
 /// The refresh thread's ends.
 struct Worker {
-    requests: Sender<Request>,
+    requests: Sender<Message>,
     /// Behind a lock only so the body is `Sync` (Python shares it); the frames alone read it.
     outcomes: Mutex<Receiver<Outcome>>,
     busy: bool,
@@ -78,7 +102,7 @@ struct Worker {
 
 /// Where refreshes run.
 enum Refresher {
-    Inline { body: Box<HyperBody>, every: u64 },
+    Inline { body: Box<HyperBody>, every: u64, converge: bool },
     Thread(Worker),
 }
 
@@ -90,6 +114,14 @@ struct Current {
     since: Instant,
     /// The full step of the refresh that made it (m).
     step: f64,
+    /// Whether that step says Newton has converged for its holds.
+    converged: bool,
+    /// Whether it is the body's own equilibrium, made at setup.
+    at_base: bool,
+    /// The grid's cell size (m), the scale of the steps.
+    cell_size: f64,
+    /// The linearization it replaced, to be dropped off the frame thread.
+    retired: Option<Linearization>,
     refreshes: u64,
     refresh_seconds: f64,
     failure: Option<String>,
@@ -99,6 +131,11 @@ struct Current {
 pub struct HyperInteractive {
     refresher: Refresher,
     current: Current,
+    /// The linearization at the body's own equilibrium (setup).
+    base: Linearization,
+    /// The frame the body last went back to its own equilibrium (older refreshes are
+    /// stale).
+    reset_frame: u64,
     loads: Loads,
     cell_size: f64,
     rest: Vec<Vec3>,
@@ -155,12 +192,14 @@ impl HyperInteractive {
         let scheduled = (estimate.factor_flops / (4.0 * stats.factor_nonzeros.max(1) as f64)).ceil();
         let refresher = match mode {
             RefreshMode::EveryFrames(every) => {
-                Refresher::Inline { body: Box::new(body), every: every.max(1) }
+                Refresher::Inline { body: Box::new(body), every: every.max(1), converge: false }
             }
             RefreshMode::Scheduled => Refresher::Inline {
                 body: Box::new(body),
                 every: (scheduled as u64).clamp(1, MAX_SCHEDULED_EVERY),
+                converge: false,
             },
+            RefreshMode::Converged => Refresher::Inline { body: Box::new(body), every: 1, converge: true },
             RefreshMode::Background => {
                 Refresher::Thread(spawn_worker(body, linearization.clone(), loads.clone()))
             }
@@ -178,12 +217,18 @@ impl HyperInteractive {
             frame: 0,
             since: Instant::now(),
             step: 0.0,
+            converged: true,
+            at_base: true,
+            cell_size,
+            retired: None,
             refreshes: 0,
             refresh_seconds: 0.0,
             failure: None,
         };
         Ok(Self {
             refresher,
+            base: current.linearization.clone(),
+            reset_frame: 0,
             current,
             loads,
             cell_size,
@@ -238,7 +283,7 @@ impl HyperInteractive {
     fn wants_refresh(&self, request: &Request) -> bool {
         let same =
             self.asked.as_ref().is_some_and(|a| a.holds == request.holds && a.pushes == request.pushes);
-        !same || self.current.step > CONVERGED_STEP * self.cell_size
+        !same || !self.current.converged
     }
 
     /// Takes in what the refresh thread finished (the newest linearization wins).
@@ -247,43 +292,75 @@ impl HyperInteractive {
         let outcomes = worker.outcomes.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner);
         while let Ok(outcome) = outcomes.try_recv() {
             worker.busy = false;
-            self.current.accept(outcome);
+            let frame = match &outcome {
+                Outcome::Done { frame, .. } | Outcome::Failed { frame, .. } => *frame,
+            };
+            // A refresh asked before the body went back to its own equilibrium is stale.
+            if frame >= self.reset_frame {
+                self.current.accept(outcome);
+            }
         }
     }
 
-    /// Refreshes inline (every `k`-th frame) or asks the thread (when idle).
+    /// With nothing held or pushed, the answer is the body's own equilibrium: the
+    /// linearization made there at setup comes back at once (no Newton iteration), for the
+    /// frames and the refresh thread alike.
+    fn return_to_base(&mut self, request: &Request) {
+        if !(request.holds.is_empty() && request.pushes.is_empty()) || self.current.at_base {
+            return;
+        }
+        let retired = std::mem::replace(&mut self.current.linearization, self.base.clone());
+        self.current.retired = Some(retired);
+        self.current.at_base = true;
+        self.current.converged = true;
+        self.current.step = 0.0;
+        self.current.frame = request.frame;
+        self.current.since = Instant::now();
+        self.reset_frame = request.frame;
+        if let Refresher::Thread(worker) = &mut self.refresher {
+            let _ = worker.requests.send(Message::Restart(self.base.clone()));
+        }
+        self.asked = Some(request.clone());
+    }
+
+    /// Refreshes inline (every `k`-th frame; to convergence when asked) or asks the thread
+    /// (when idle).
     fn schedule(&mut self, request: Request) {
         if !self.wants_refresh(&request) {
             return;
         }
         match &mut self.refresher {
-            Refresher::Inline { body, every } => {
+            Refresher::Inline { body, every, converge } => {
                 if self.frame % *every != 0 {
                     return;
                 }
-                let start = Instant::now();
-                let outcome = match body.track(
-                    &mut self.current.linearization,
-                    &self.loads,
-                    &request.pushes,
-                    &request.holds,
-                ) {
-                    Ok(s) => Outcome::Done {
-                        linearization: s.linearization,
-                        step: s.step,
-                        frame: request.frame,
-                        seconds: start.elapsed().as_secs_f64(),
-                    },
-                    Err(e) => Outcome::Failed { message: e.to_string(), frame: request.frame },
-                };
-                self.current.accept(outcome);
+                let iterations = if *converge { MAX_CONVERGE_ITERATIONS } else { 1 };
+                for _ in 0..iterations {
+                    let outcome = refresh(body, &mut self.current.linearization, &self.loads, &request);
+                    let failed = matches!(outcome, Outcome::Failed { .. });
+                    self.current.accept(outcome);
+                    if failed || self.current.converged {
+                        break;
+                    }
+                }
+                if *converge && !self.current.converged {
+                    self.current.failure = Some(format!(
+                        "Newton did not converge in {MAX_CONVERGE_ITERATIONS} iterations at frame {} (last step {:.3e} m)",
+                        request.frame, self.current.step
+                    ));
+                }
+                self.current.retired = None;
                 self.asked = Some(request);
             }
             Refresher::Thread(worker) => {
                 if worker.busy {
                     return;
                 }
-                if worker.requests.send(request.clone()).is_ok() {
+                if let Some(old) = self.current.retired.take() {
+                    // A closed channel (the thread gone) drops it here instead.
+                    let _ = worker.requests.send(Message::Retire(old));
+                }
+                if worker.requests.send(Message::Refresh(request.clone())).is_ok() {
                     worker.busy = true;
                     self.asked = Some(request);
                 }
@@ -307,7 +384,11 @@ impl Current {
     fn accept(&mut self, outcome: Outcome) {
         match outcome {
             Outcome::Done { linearization, step, frame, seconds } => {
-                self.linearization = linearization;
+                let retired = std::mem::replace(&mut self.linearization, linearization);
+                self.retired = Some(retired);
+                self.at_base = false;
+                let stalled = step <= ROUNDING_STEP * self.cell_size && step > 0.5 * self.step;
+                self.converged = step <= CONVERGED_STEP * self.cell_size || stalled;
                 self.frame = frame;
                 self.since = Instant::now();
                 self.step = step;
@@ -325,29 +406,52 @@ impl Current {
     }
 }
 
+/// One tracking iteration from `current` for `request`, timed.
+fn refresh(body: &mut HyperBody, current: &mut Linearization, loads: &Loads, request: &Request) -> Outcome {
+    let start = Instant::now();
+    match body.track(current, loads, &request.pushes, &request.holds) {
+        Ok(s) => Outcome::Done {
+            linearization: s.linearization,
+            step: s.step,
+            frame: request.frame,
+            seconds: start.elapsed().as_secs_f64(),
+        },
+        Err(e) => Outcome::Failed { message: e.to_string(), frame: request.frame },
+    }
+}
+
 /// Starts the refresh thread: it answers each request (the newest waiting) with one
-/// tracking iteration from its last linearization, and ends when the body is dropped.
+/// tracking iteration from its last linearization, on one thread of its own (the frames
+/// keep the other cores), and ends when the body is dropped.
 fn spawn_worker(mut body: HyperBody, mut linearization: Linearization, loads: Loads) -> Worker {
-    let (requests, inbox) = mpsc::channel::<Request>();
+    let (requests, inbox) = mpsc::channel::<Message>();
     let (outbox, outcomes) = mpsc::channel();
     std::thread::spawn(move || {
-        while let Ok(mut request) = inbox.recv() {
-            while let Ok(newer) = inbox.try_recv() {
-                request = newer;
-            }
-            let start = Instant::now();
-            let outcome = match body.track(&mut linearization, &loads, &request.pushes, &request.holds) {
-                Ok(s) => {
-                    linearization = s.linearization.clone();
-                    Outcome::Done {
-                        linearization: s.linearization,
-                        step: s.step,
-                        frame: request.frame,
-                        seconds: start.elapsed().as_secs_f64(),
-                    }
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().ok();
+        while let Ok(first) = inbox.recv() {
+            let mut request = match first {
+                Message::Refresh(r) => r,
+                Message::Retire(_) => continue,
+                Message::Restart(base) => {
+                    linearization = base;
+                    continue;
                 }
-                Err(e) => Outcome::Failed { message: e.to_string(), frame: request.frame },
             };
+            while let Ok(newer) = inbox.try_recv() {
+                match newer {
+                    Message::Refresh(r) => request = r,
+                    Message::Restart(base) => linearization = base,
+                    Message::Retire(_) => {}
+                }
+            }
+            let mut run = || refresh(&mut body, &mut linearization, &loads, &request);
+            let outcome = match &pool {
+                Some(pool) => pool.install(run),
+                None => run(),
+            };
+            if let Outcome::Done { linearization: made, .. } = &outcome {
+                linearization = made.clone();
+            }
             if outbox.send(outcome).is_err() {
                 break;
             }
@@ -423,6 +527,7 @@ impl Interactive for HyperInteractive {
     fn update(&mut self) -> Result<&[(usize, Vec3)]> {
         self.poll();
         let request = self.request(self.frame);
+        self.return_to_base(&request);
         if matches!(self.refresher, Refresher::Inline { .. }) {
             self.schedule(request.clone());
         }
@@ -445,6 +550,7 @@ impl Interactive for HyperInteractive {
             step: response.step,
             estimated_error: response.step * response.step / self.cell_size,
             refresh_seconds: self.current.refresh_seconds,
+            approximate: response.approximate,
             failure: self.current.failure.clone(),
         };
         if matches!(self.refresher, Refresher::Thread(_)) {

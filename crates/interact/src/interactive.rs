@@ -172,6 +172,9 @@ pub struct LinearizationStatus {
     pub estimated_error: f64,
     /// Seconds the last refresh took.
     pub refresh_seconds: f64,
+    /// Whether the frame kept springs on vertices the linearization was made holding and
+    /// the frame released (until the next refresh).
+    pub approximate: bool,
     /// Why the last refresh failed, when it did (the frame then used the last good one).
     pub failure: Option<String>,
 }

@@ -44,10 +44,11 @@ pub struct ProbeBody {
     pub precompute_seconds: f64,
 }
 
-/// The scene as the probe solves it: paper mode, one step (loads in full), structured
-/// backend, f64.
+/// The scene as the probe solves it with the fiber–fluid method (whatever method the scene
+/// runs in batch): paper mode, one step (loads in full), structured backend, f64.
 pub fn linearized(scene: &Model) -> Model {
     let mut s = scene.clone();
+    s.solver.method = Method::Ffm;
     s.solver.mode = Mode::Paper;
     s.load.steps = 1;
     s.solver.backend = Backend::Structured;

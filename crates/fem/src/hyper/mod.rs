@@ -33,4 +33,4 @@ pub use contact::{
     RigidPlate,
 };
 pub use grasp::{GRASP_PENALTY, GRASP_TOLERANCE, Grasp, GraspRecord};
-pub use tracking::{Linearization, MAX_STEP_HALVINGS, TrackStep, TrackedResponse};
+pub use tracking::{HOLD_PENALTIES, Linearization, MAX_STEP_HALVINGS, SHIFTS, TrackStep, TrackedResponse};

@@ -30,11 +30,19 @@ use crate::assemble::FIXED;
 use crate::body::{Loads, load_vector};
 use crate::error::{FemError, Result};
 use crate::grid::Embedded;
-use crate::held::{FemHold, HeldSystem, HoldCache};
+use crate::held::{FemHold, HeldSystem, HoldCache, Penalty, Row, constraint_rows};
 
 /// Halvings of a tracking step tried while it would invert a cell or (holds met) raise
 /// the energy.
 pub const MAX_STEP_HALVINGS: usize = 12;
+
+/// The hold penalties tried, in units of the tangent's median diagonal entry, when the
+/// tangent alone is not positive definite.
+pub const HOLD_PENALTIES: [f64; 3] = [1e2, 1e4, 1e6];
+
+/// The diagonal shifts tried after the hold penalties, in units of the tangent's median
+/// diagonal entry.
+pub const SHIFTS: [f64; 6] = [1e-4, 1e-3, 1e-2, 1e-1, 1.0, 1e2];
 
 /// A state meets its holds when the step moves no held vertex along a held direction by
 /// more than this fraction of a cell.
@@ -62,6 +70,9 @@ struct Core {
     factor: SparseCholesky,
     /// The shift added to the tangent's diagonal to factor it (0: the exact tangent).
     shift: f64,
+    /// The hold rows penalized to factor it (an augmented Lagrangian on the holds it was
+    /// made for, when the tangent alone is not positive definite).
+    penalty: Option<Penalty>,
 }
 
 /// The body linearized at one state (see the module docs). Cheap to clone: the factor
@@ -93,6 +104,10 @@ pub struct TrackedResponse {
     /// The largest distance a surface vertex moved from the linearization's state (m):
     /// the Newton step this frame took.
     pub step: f64,
+    /// Whether the answer keeps springs on vertices the linearization was made holding
+    /// and this frame does not hold (its tangent needed them; the next linearization for
+    /// these holds drops them).
+    pub approximate: bool,
 }
 
 impl Linearization {
@@ -101,10 +116,17 @@ impl Linearization {
         &self.core.x
     }
 
-    /// The shift added to the tangent's diagonal to factor it (relative to its largest
-    /// entry; 0 when the tangent was positive definite).
+    /// The shift added to the tangent's diagonal to factor it (relative to its median
+    /// diagonal entry; 0 when the tangent, or the tangent with its holds penalized, was
+    /// positive definite).
     pub fn shift(&self) -> f64 {
         self.core.shift
+    }
+
+    /// The stiffness of the penalty on the holds it was made for (N/m; 0: none, the
+    /// tangent alone was positive definite).
+    pub fn hold_penalty(&self) -> f64 {
+        self.core.penalty.as_ref().map_or(0.0, |p| p.stiffness)
     }
 
     /// Bytes of the factor and the cached columns.
@@ -156,7 +178,8 @@ impl Linearization {
         let layout = &self.core.layout;
         let system =
             HeldSystem { factor: &self.core.factor, embedding: &layout.embedding, free: &layout.free };
-        let solved = system.solve(&mut self.cache, f, holds, Some(&self.core.x))?;
+        let solved =
+            system.solve(&mut self.cache, f, holds, Some(&self.core.x), self.core.penalty.as_ref())?;
         let step_field = interpolate(layout, &solved.u);
         let step = step_field.iter().map(|d| fibfluid_geometry::vec3::norm(*d)).fold(0.0, f64::max);
         let state: Vec<f64> = self.core.x.iter().zip(&solved.u).map(|(a, b)| a + b).collect();
@@ -165,6 +188,7 @@ impl Linearization {
             state,
             reactions: solved.reactions,
             step,
+            approximate: solved.uncovered > 0,
         })
     }
 }
@@ -202,20 +226,36 @@ pub struct TrackStep {
 
 impl HyperBody {
     /// Linearizes the body (without plates or grasps) at the free-dof state `x` under
-    /// `loads`: assembles the tangent and factors it (shifting the diagonal when it is not
-    /// positive definite, as Newton does).
+    /// `loads`: assembles the tangent and factors it (shifting the diagonal by the first of
+    /// [`SHIFTS`] that makes it positive definite when it is not).
     ///
     /// Errors: a non-finite load, a vertex out of range, an inverted cell at `x`, a tangent
     /// that no shift makes positive definite.
     pub fn linearize(&mut self, x: Vec<f64>, loads: &Loads) -> Result<Linearization> {
+        self.linearize_holding(x, loads, &[])
+    }
+
+    /// [`HyperBody::linearize`] for frames that hold `holds`: a tangent that is not
+    /// positive definite on its own (a compressed or unloaded body may buckle freely, held
+    /// it does not) is factored with `beta C^T C` added on the holds' rows, `beta` the
+    /// smallest of [`HOLD_PENALTIES`] times the tangent's median diagonal entry that makes it
+    /// positive definite: an augmented Lagrangian that leaves the held answer unchanged.
+    /// Only when that fails is the diagonal shifted.
+    ///
+    /// Errors: as [`HyperBody::linearize`], and those of the holds' rows.
+    pub fn linearize_holding(
+        &mut self,
+        x: Vec<f64>,
+        loads: &Loads,
+        holds: &[(usize, FemHold)],
+    ) -> Result<Linearization> {
         if x.len() != self.n_free {
             return Err(FemError::LengthMismatch { what: "state", expected: self.n_free, found: x.len() });
         }
         let external = load_vector(&self.grid, |c| self.densities[c], &self.free, self.n_free, loads)?;
         let eval = self.evaluate(&x, &dead_loads(&external), true).ok_or(FemError::Inverted)?;
-        let mut factor = None;
-        let shift = self.factor_tangent(&mut factor)?;
-        let factor = factor.expect("factored above");
+        let rows = constraint_rows(self.grid.embedding(), &self.free, holds)?;
+        let (factor, shift, penalty) = self.factor_holding(&rows)?;
         let layout = Arc::clone(self.layout.get_or_insert_with(|| {
             Arc::new(Layout {
                 embedding: self.grid.embedding().to_vec(),
@@ -224,10 +264,61 @@ impl HyperBody {
             })
         }));
         let force = eval.gradient.iter().map(|g| -g).collect();
-        Ok(Linearization {
-            core: Arc::new(Core { layout, x, force, factor, shift }),
-            cache: HoldCache::default(),
-        })
+        let core = Core { layout, x, force, factor, shift, penalty };
+        Ok(Linearization { core: Arc::new(core), cache: HoldCache::default() })
+    }
+
+    /// Factors the assembled tangent as [`HyperBody::linearize_holding`] says.
+    fn factor_holding(&mut self, rows: &[Row]) -> Result<(SparseCholesky, f64, Option<Penalty>)> {
+        match SparseCholesky::factor(&self.symbolic, self.tangent.as_ref()) {
+            Ok(f) => return Ok((f, 0.0, None)),
+            Err(fibfluid_linalg::LinalgError::SparseNotPositiveDefinite { .. }) => {}
+            Err(e) => return Err(e.into()),
+        }
+        let mut diagonal: Vec<f64> = (0..self.n_free)
+            .map(|j| self.tangent.val()[self.tangent.symbolic().col_ptr()[j]].abs())
+            .collect();
+        diagonal.sort_by(f64::total_cmp);
+        let median = diagonal[diagonal.len() / 2];
+        let plain = self.tangent.clone();
+        let diagonal_at: Vec<usize> = (0..self.n_free).map(|j| plain.symbolic().col_ptr()[j]).collect();
+        // First the holds' penalty (exact for frames that hold them), then a shift of the
+        // diagonal (a damped step, exact nowhere: the refreshes converge linearly then).
+        let penalties = if rows.is_empty() { &[][..] } else { &HOLD_PENALTIES[..] };
+        let attempts = penalties.iter().map(|&p| (p, 0.0)).chain(SHIFTS.iter().map(|&s| (0.0, s)));
+        for (penalty, shift) in attempts {
+            let stiffness = penalty * median;
+            for row in rows.iter().filter(|_| penalty > 0.0) {
+                self.add_row_penalty(row, stiffness);
+            }
+            diagonal_at.iter().for_each(|&p| self.tangent.val_mut()[p] += shift * median);
+            let made = SparseCholesky::factor(&self.symbolic, self.tangent.as_ref());
+            self.tangent = plain.clone();
+            match made {
+                Ok(f) if penalty > 0.0 => {
+                    let keys = rows.iter().map(Row::key).collect();
+                    return Ok((f, 0.0, Some(Penalty { keys, stiffness })));
+                }
+                Ok(f) => return Ok((f, shift, None)),
+                Err(fibfluid_linalg::LinalgError::SparseNotPositiveDefinite { .. }) => {}
+                Err(e) => return Err(e.into()),
+            }
+        }
+        Err(FemError::NotPositiveDefinite)
+    }
+
+    /// Adds `stiffness r r^T` of a hold row `r` to the tangent's lower triangle.
+    fn add_row_penalty(&mut self, row: &Row, stiffness: f64) {
+        let (symbolic, values) = self.tangent.parts_mut();
+        let (col_ptr, row_idx) = (symbolic.col_ptr(), symbolic.row_idx());
+        for &(c, wc) in &row.entries {
+            let col = &row_idx[col_ptr[c]..col_ptr[c + 1]];
+            for &(r, wr) in row.entries.iter().filter(|e| e.0 >= c) {
+                if let Ok(pos) = col.binary_search(&r) {
+                    values[col_ptr[c] + pos] += stiffness * wr * wc;
+                }
+            }
+        }
     }
 
     /// The rest state (every displacement 0) linearized under `loads`.
@@ -281,7 +372,7 @@ impl HyperBody {
                 _ => self.cell_states_valid(&trial),
             };
             if accepted {
-                let mut linearization = self.linearize(trial, loads)?;
+                let mut linearization = self.linearize_holding(trial, loads, holds)?;
                 linearization.respond(pushes, holds)?;
                 return Ok(TrackStep { linearization, fraction, step: answer.step });
             }
