@@ -182,6 +182,14 @@ enum Command {
         /// in one process, so each stage's scaling on this machine reads as ratios.
         #[arg(long, value_delimiter = ',', value_name = "T,..", requires = "stages")]
         threads_sweep: Option<Vec<usize>>,
+        /// Instead of the backends: this neo-Hookean scene's two-rate FEM body against its
+        /// linear FEM body on --path, frames paced at 1 kHz (frame p99 ratio; refresh over
+        /// one batch Newton iteration).
+        #[arg(long, value_name = "SCENE", requires = "path", conflicts_with = "stages")]
+        two_rate: Option<PathBuf>,
+        /// With --two-rate: the tool path CSV to replay.
+        #[arg(long, value_name = "PATH", requires = "two_rate")]
+        path: Option<PathBuf>,
     },
     /// Accuracy versus time over modes, stepping, steps, precision and backends.
     Accuracy {
@@ -416,6 +424,9 @@ fn run(command: Command) -> Result<(), CliError> {
         Command::Plan { scene, over, json } => plan(&scene, &over, json),
         Command::Run { scene, out, over } => run_scene(&scene, &out, &over),
         Command::Roundtrip { scene, over, json } => roundtrip(&scene, &over, json),
+        Command::Bench { two_rate: Some(scene), path: Some(path), json, .. } => {
+            bench_two_rate(&scene, &path, json)
+        }
         Command::Bench { stages: Some(scene), repeats, json, threads_sweep: Some(sweep), .. } => {
             bench_sweep(&scene, repeats, json, &sweep)
         }
@@ -741,6 +752,38 @@ fn bench_stages(path: &Path, repeats: usize, json: bool) -> Result<(), CliError>
     say!("{:<14} {:>10} {:>10} {:>7}  limit", "stage", "seconds", "limit s", "ratio");
     for s in &stages {
         say!("{:<14} {:>10.4} {:>10.4} {:>7.2}  {}", s.stage, s.seconds, s.limit_seconds, s.ratio, s.limit);
+    }
+    Ok(())
+}
+
+/// `fibfluid bench --two-rate SCENE --path PATH`: the two-rate body against the linear one.
+fn bench_two_rate(scene: &Path, path: &Path, json: bool) -> Result<(), CliError> {
+    let (scene, _) = load_scene(scene, &Overrides::default())?;
+    let path = fibfluid::load_tool_path(path)?;
+    let b = fibfluid_cli::bench_two_rate::bench_two_rate(&scene, &path, None)?;
+    if json {
+        say!("{}", serde_json::to_string(&b).unwrap_or_default());
+        return Ok(());
+    }
+    say!("{}: {} frames per body, one every 1 ms", scene.name, b.frames);
+    let (l, t) = (b.linear_latency_us, b.two_rate_latency_us);
+    say!("linear FEM frame     p50 {:>9.1} us  p99 {:>9.1} us  max {:>9.1} us", l.p50, l.p99, l.max);
+    say!("two-rate frame       p50 {:>9.1} us  p99 {:>9.1} us  max {:>9.1} us", t.p50, t.p99, t.max);
+    say!("frame p99 ratio      {:.2} (two-rate over linear)", b.frame_p99_ratio);
+    say!(
+        "refreshes            {} at {:.1} Hz, {:.3} s each; one batch Newton iteration {:.3} s; ratio {:.2}",
+        b.refreshes,
+        b.refresh_hz,
+        b.refresh_seconds,
+        b.newton_iteration_seconds,
+        b.refresh_ratio
+    );
+    if b.failures > 0 {
+        let why = b.first_failure.as_deref().unwrap_or("");
+        tell!(
+            "warning: {} refreshes failed (the frames kept the last good linearization): {why}",
+            b.failures
+        );
     }
     Ok(())
 }

@@ -148,6 +148,7 @@ pub struct HyperInteractive {
     reactions: Vec<(usize, Vec3)>,
     status: LinearizationStatus,
     stats: FemStats,
+    newton_iteration_seconds: f64,
     frame: u64,
     setup_seconds: f64,
 }
@@ -184,6 +185,9 @@ impl HyperInteractive {
             factor_seconds: solution.stats.factor_seconds,
             solve_seconds: solution.stats.solve_seconds,
         };
+        let n = &solution.stats;
+        let newton_iteration_seconds =
+            (n.assembly_seconds + n.factor_seconds + n.solve_seconds) / n.newton_iterations.max(1) as f64;
         let failed = |source| fibfluid_sim::Error::Fem { scene: scene.clone(), source };
         let loads = fibfluid_sim::fem_run::full_loads(model);
         let state = body.state_of(&solution.node_displacements).map_err(failed)?;
@@ -241,6 +245,7 @@ impl HyperInteractive {
             reactions: Vec::new(),
             status: LinearizationStatus::default(),
             stats,
+            newton_iteration_seconds,
             frame: 0,
             setup_seconds: start.elapsed().as_secs_f64(),
         })
@@ -255,6 +260,12 @@ impl HyperInteractive {
     /// The grid's sizes, and the timings of the Newton solve of the body's own loads.
     pub fn stats(&self) -> FemStats {
         self.stats
+    }
+
+    /// Seconds of one Newton iteration of that batch solve (its assembly, factorization
+    /// and solve seconds over its iterations): what a refresh is measured against.
+    pub fn newton_iteration_seconds(&self) -> f64 {
+        self.newton_iteration_seconds
     }
 
     /// Frames between two refreshes in the frame loop (`None`: on a second thread).

@@ -33,4 +33,6 @@ pub use contact::{
     RigidPlate,
 };
 pub use grasp::{GRASP_PENALTY, GRASP_TOLERANCE, Grasp, GraspRecord};
-pub use tracking::{HOLD_PENALTIES, Linearization, MAX_STEP_HALVINGS, SHIFTS, TrackStep, TrackedResponse};
+pub use tracking::{
+    HOLD_PENALTIES, Linearization, MAX_RESTORE, MAX_STEP_HALVINGS, SHIFTS, TrackStep, TrackedResponse,
+};

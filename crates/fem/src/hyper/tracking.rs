@@ -48,6 +48,10 @@ pub const SHIFTS: [f64; 6] = [1e-4, 1e-3, 1e-2, 1e-1, 1.0, 1e2];
 /// more than this fraction of a cell.
 pub const HOLD_MET: f64 = 1e-9;
 
+/// A tracking step moves the held vertices toward their targets by at most this fraction
+/// of a cell.
+pub const MAX_RESTORE: f64 = 0.5;
+
 /// Armijo's sufficient-decrease constant of the tracking step (Newton's).
 const ARMIJO: f64 = 1e-4;
 
@@ -270,10 +274,12 @@ impl HyperBody {
 
     /// Factors the assembled tangent as [`HyperBody::linearize_holding`] says.
     fn factor_holding(&mut self, rows: &[Row]) -> Result<(SparseCholesky, f64, Option<Penalty>)> {
-        match SparseCholesky::factor(&self.symbolic, self.tangent.as_ref()) {
-            Ok(f) => return Ok((f, 0.0, None)),
-            Err(fibfluid_linalg::LinalgError::SparseNotPositiveDefinite { .. }) => {}
-            Err(e) => return Err(e.into()),
+        if rows.is_empty() {
+            match SparseCholesky::factor(&self.symbolic, self.tangent.as_ref()) {
+                Ok(f) => return Ok((f, 0.0, None)),
+                Err(fibfluid_linalg::LinalgError::SparseNotPositiveDefinite { .. }) => {}
+                Err(e) => return Err(e.into()),
+            }
         }
         let mut diagonal: Vec<f64> = (0..self.n_free)
             .map(|j| self.tangent.val()[self.tangent.symbolic().col_ptr()[j]].abs())
@@ -349,7 +355,9 @@ impl HyperBody {
         // The holds are linear in the state: when the start already meets them, every point
         // of the step does, and the energy is the merit of the step (Armijo's backtracking);
         // otherwise the step first restores them, shortened only while it would invert.
-        let merit = if self.meets_holds(current, &direction, holds) {
+        let h = self.grid.cell_size();
+        let held_motion = self.held_motion(current, &direction, holds);
+        let merit = if held_motion <= HOLD_MET * h {
             let mut all = loads.clone();
             all.point_forces.extend_from_slice(pushes);
             Some(load_vector(&self.grid, |c| self.densities[c], &self.free, self.n_free, &all)?)
@@ -361,7 +369,9 @@ impl HyperBody {
         // force with the pushes (the holds' reactions do no work along it).
         let pushed = current.respond_force(pushes)?;
         let slope: f64 = -pushed.iter().zip(&direction).map(|(f, d)| f * d).sum::<f64>();
-        let mut fraction = 1.0;
+        // Restoring the holds moves them at most MAX_RESTORE of a cell per iteration: a tool
+        // that ran far ahead is caught up over several, each from a state it can trust.
+        let mut fraction = if merit.is_some() { 1.0 } else { (MAX_RESTORE * h / held_motion).min(1.0) };
         for _ in 0..=MAX_STEP_HALVINGS {
             let trial: Vec<f64> = x0.iter().zip(&direction).map(|(a, d)| a + fraction * d).collect();
             let accepted = match (&merit, start) {
@@ -381,27 +391,28 @@ impl HyperBody {
         Err(FemError::Inverted)
     }
 
-    /// Whether `current`'s state meets `holds`: the step moves no held vertex along a held
-    /// direction by more than `HOLD_MET` of a cell.
-    fn meets_holds(&self, current: &Linearization, direction: &[f64], holds: &[(usize, FemHold)]) -> bool {
+    /// How far the step moves the held vertices along their held directions (m, the
+    /// largest): 0 when `current`'s state already meets `holds`.
+    fn held_motion(&self, current: &Linearization, direction: &[f64], holds: &[(usize, FemHold)]) -> f64 {
         let layout = &current.core.layout;
-        let h = self.grid.cell_size();
-        holds.iter().all(|&(v, hold)| {
-            let Some(e) = layout.embedding.get(v) else { return false };
-            let moved: Vec3 = std::array::from_fn(|a| {
-                (0..8)
-                    .map(|b| match layout.free[3 * e.nodes[b] + a] {
-                        FIXED => 0.0,
-                        i => e.weights[b] * direction[i],
-                    })
-                    .sum()
-            });
-            let along = match hold {
-                FemHold::At(_) => fibfluid_geometry::vec3::norm(moved),
-                FemHold::Along { normal, .. } => fibfluid_geometry::vec3::dot(moved, normal).abs(),
-            };
-            along <= HOLD_MET * h
-        })
+        holds
+            .iter()
+            .map(|&(v, hold)| {
+                let Some(e) = layout.embedding.get(v) else { return 0.0 };
+                let moved: Vec3 = std::array::from_fn(|a| {
+                    (0..8)
+                        .map(|b| match layout.free[3 * e.nodes[b] + a] {
+                            FIXED => 0.0,
+                            i => e.weights[b] * direction[i],
+                        })
+                        .sum()
+                });
+                match hold {
+                    FemHold::At(_) => fibfluid_geometry::vec3::norm(moved),
+                    FemHold::Along { normal, .. } => fibfluid_geometry::vec3::dot(moved, normal).abs(),
+                }
+            })
+            .fold(0.0, f64::max)
     }
 
     /// Whether no cell is inverted at the free-dof state `x`.
