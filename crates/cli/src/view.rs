@@ -4,10 +4,11 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
+use fibfluid::fem::TissueModel;
 use fibfluid::interact::chainmail_body::ChainmailBody;
 use fibfluid::interact::chainmail_settings::Variant;
 use fibfluid::interact::fem_body::FemInteractive;
-use fibfluid::interact::{Interactive, Method, ProbeError, build_body};
+use fibfluid::interact::{HyperInteractive, Interactive, Method, ProbeError, RefreshMode, build_body};
 use fibfluid::{Choice, Scene, Shape, memory_budget};
 use fibfluid_viewer::{BodyFactory, Server, ServerOptions, ViewMesh, ViewerError};
 
@@ -101,6 +102,11 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
                     Some(variant) => ChainmailBody::from_model(scene, &scene.chainmail, variant, budget)
                         .map(|b| Box::new(b) as Box<dyn Interactive + Send>)
                         .map_err(|e| Box::new(e) as _),
+                    None if scene.tissue.is_some_and(|t| t.model() == TissueModel::NeoHookean) => {
+                        HyperInteractive::new(scene, max_memory, RefreshMode::Background)
+                            .map(|b| Box::new(b) as Box<dyn Interactive + Send>)
+                            .map_err(|e| Box::new(e) as _)
+                    }
                     None => FemInteractive::new(scene, max_memory)
                         .map(|b| Box::new(b) as Box<dyn Interactive + Send>)
                         .map_err(|e| Box::new(e) as _),

@@ -1,6 +1,7 @@
 """The result guards on a Body's frames: a pull far past the body's size warns, a small
 one does not, and each guard is issued as a GuardWarning once per body."""
 
+import time
 import warnings
 
 import numpy as np
@@ -88,16 +89,39 @@ def test_only_the_finite_element_body_warns_past_the_small_strain_limit():
         assert bool([w for w in issued if "`linear`" in str(w.message)]) == linear
 
 
-def test_a_finite_element_body_of_a_neo_hookean_scene_warns_that_it_is_linear(tmp_path):
+def test_a_finite_element_body_of_a_neo_hookean_scene_runs_at_two_rates(tmp_path):
     text = (SCENES / "sphere-tissue.toml").read_text()
     text = text.replace('path = "../meshes/', f'path = "{SCENES.parent / "meshes"}/')
     text = text.replace("[tissue]\n", '[tissue]\nmodel = "neo-hookean"\n')
     path = tmp_path / "sphere-neo-hookean.toml"
     path.write_text(text)
     scene = fibfluid.Scene.load(path)
-    with pytest.warns(UserWarning, match="interactive FEM body is linear"):
-        fibfluid.Body(scene, method="fem")
-    # The fiber-fluid body is not a finite-element body: nothing to say.
+    # The body is hyperelastic now: nothing to warn about.
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        fibfluid.Body(scene, method="ffm")
+        body = fibfluid.Body(scene, method="fem")
+        assert fibfluid.Body(scene, method="ffm").linearization is None
+    rest = body.rest_positions
+    v = int(np.argmin(rest[:, 1]))
+    size = float(np.linalg.norm(rest.max(axis=0) - rest.min(axis=0)))
+    body.grab(v, [0.0, -0.1 * size, 0.0])
+    body.step()
+    first = body.linearization
+    assert first["failure"] is None and first["age_frames"] >= 0, first
+    # Holding still, step until a refresh has come in and the estimated error is below
+    # 1e-9 of the body's size (at most 2,000 steps, 5 ms apart: stepping never waits for
+    # the refresh thread).
+    for _ in range(2000):
+        body.step()
+        lin = body.linearization
+        if lin["refreshes"] >= 1 and lin["estimated_error"] < 1e-9 * size:
+            break
+        time.sleep(0.005)
+    else:
+        raise AssertionError(f"no converged refresh: {body.linearization}")
+    held = body.positions[v] - rest[v]
+    assert np.allclose(held, [0.0, -0.1 * size, 0.0], atol=1e-9 * size), held
+    # Released, the body is back at its own equilibrium at once.
+    body.release_all()
+    body.step()
+    assert body.linearization["estimated_error"] < 1e-15 * size

@@ -1,7 +1,7 @@
 //! The messages of the WebSocket protocol: parsing the client's, writing the server's.
 
 use fibfluid_geometry::Vec3;
-use fibfluid_interact::ToolLoad;
+use fibfluid_interact::{LinearizationStatus, ToolLoad};
 use fibfluid_sim::result_guards::{FrameGuardError, ResultWarning};
 use serde_json::Value;
 
@@ -193,13 +193,17 @@ pub fn parse_message(text: &str) -> Result<ClientMessage, MessageError> {
 /// "latency_us": t, "warnings": [...]}` (reactions by file vertex, ascending; the result
 /// guards that fired on the frame, each `{"guard": name, "value": v, "limit": l,
 /// "message": text}`, empty when none did), plus `"tools": [...]` when a grasp or the tip is
-/// active (see [`ToolLoad`]).
+/// active (see [`ToolLoad`]), plus `"linearization": {"refreshes", "age_frames",
+/// "age_ms", "refresh_ms", "estimated_error", "failure"}` on a two-rate body (the
+/// neo-Hookean FEM: the linearization the frame used, its age, the last refresh's time and
+/// the frame's estimated distance from the converged answer, m).
 pub fn frame_json(
     frame: u64,
     reactions: &[(usize, Vec3)],
     latency_us: f64,
     tools: &[ToolLoad],
     warnings: &[ResultWarning],
+    linearization: Option<&LinearizationStatus>,
 ) -> String {
     let r: Vec<Value> = reactions.iter().map(|&(v, f)| serde_json::json!([v, f[0], f[1], f[2]])).collect();
     let w: Vec<Value> = warnings
@@ -217,6 +221,16 @@ pub fn frame_json(
         serde_json::json!({ "frame": frame, "reactions": r, "latency_us": latency_us, "warnings": w });
     if !tools.is_empty() {
         msg["tools"] = serde_json::to_value(tools).unwrap_or(Value::Null);
+    }
+    if let Some(s) = linearization {
+        msg["linearization"] = serde_json::json!({
+            "refreshes": s.refreshes,
+            "age_frames": s.age_frames,
+            "age_ms": (s.age_seconds * 1e4).round() / 10.0,
+            "refresh_ms": (s.refresh_seconds * 1e4).round() / 10.0,
+            "estimated_error": s.estimated_error,
+            "failure": s.failure,
+        });
     }
     msg.to_string()
 }

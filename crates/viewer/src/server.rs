@@ -537,7 +537,8 @@ impl Session<'_> {
         reactions.sort_by_key(|r| r.0);
         let latency_us = start.elapsed().as_secs_f64() * 1e6;
         let latency_us = (latency_us * 10.0).round() / 10.0;
-        Ok(frame_json(self.body.frame(), &reactions, latency_us, &tools, &warnings))
+        let status = self.body.linearization();
+        Ok(frame_json(self.body.frame(), &reactions, latency_us, &tools, &warnings, status.as_ref()))
     }
 }
 

@@ -119,6 +119,8 @@ pub struct Frame {
     pub tools: Vec<serde_json::Value>,
     /// The result guards that fired on the frame (every frame carries the list).
     pub warnings: Vec<serde_json::Value>,
+    /// The frame's `linearization` (null but on a two-rate body).
+    pub linearization: serde_json::Value,
 }
 
 /// What the server sent next: a frame or an error text.
@@ -185,6 +187,7 @@ impl Client {
             positions,
             tools: v["tools"].as_array().cloned().unwrap_or_default(),
             warnings: v["warnings"].as_array().cloned().expect("every frame lists its warnings"),
+            linearization: v["linearization"].clone(),
         })
     }
 

@@ -183,3 +183,42 @@ fn a_moderate_pull_is_outside_the_linear_fem_validity_only() {
         }
     }
 }
+
+/// The sphere of neo-Hookean tissue served with its two-rate body: each frame's message
+/// says which linearization it used, and holding a grab still, the refreshes (on the
+/// body's second thread) come in and the frames' estimated error falls.
+#[test]
+fn a_neo_hookean_body_reports_its_linearization_per_frame() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/scenes/sphere-tissue.toml");
+    let (scene, ffm) = scene_body(path, Storage::F64);
+    let Shape::Surface(file) = &scene.shape else { panic!("a surface scene") };
+    let mesh = ViewMesh::new(file, &ffm).expect("mesh and body agree");
+    let mut model = scene.model.clone();
+    model.tissue = model.tissue.map(|t| t.with_model(fibfluid_sim::TissueModel::NeoHookean));
+    let factory: BodyFactory = Arc::new(move |method: Method| {
+        fibfluid_interact::HyperInteractive::new(&model, None, fibfluid_interact::RefreshMode::Background)
+            .map(|b| Box::new(b) as Box<dyn Interactive + Send>)
+            .map_err(|e| ViewerError::Build { method, source: Box::new(e) })
+    });
+    let opts = fibfluid_viewer::ServerOptions { methods: vec![Method::Fem], ..test_options() };
+    let server = Server::bind(opts).expect("binds a free port").spawn(mesh, factory);
+    let rest = served_rest(&server);
+    let mut c = Client::connect(server.local_addr(), "?method=fem");
+    let r = rest[FREE];
+    c.grab(FREE, [r[0] + 0.002, r[1] - 0.003, r[2]]);
+    let first = c.frame();
+    let lin = &first.linearization;
+    assert!(lin["age_frames"].as_u64().is_some() && lin["failure"].is_null(), "{lin}");
+    // Holding still: at most 2,000 frames, 5 ms apart, until a refresh came in and the
+    // estimated error is below a micrometre.
+    for _ in 0..2000 {
+        c.grab(FREE, [r[0] + 0.002, r[1] - 0.003, r[2]]);
+        let f = c.frame();
+        let lin = &f.linearization;
+        if lin["refreshes"].as_u64().unwrap() >= 1 && lin["estimated_error"].as_f64().unwrap() < 1e-6 {
+            return;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    panic!("no converged refresh came in");
+}

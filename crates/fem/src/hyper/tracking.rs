@@ -48,9 +48,13 @@ pub const SHIFTS: [f64; 6] = [1e-4, 1e-3, 1e-2, 1e-1, 1.0, 1e2];
 /// more than this fraction of a cell.
 pub const HOLD_MET: f64 = 1e-9;
 
-/// A tracking step moves the held vertices toward their targets by at most this fraction
-/// of a cell.
-pub const MAX_RESTORE: f64 = 0.5;
+/// A tracking step moves the held vertices toward their targets by at most this many
+/// cells.
+pub const MAX_RESTORE: f64 = 2.0;
+
+/// Below this fraction of the step, a restoring step is taken even where the tangent
+/// needs a shift.
+const RESTORE_FLOOR: f64 = 1.0 / 64.0;
 
 /// Armijo's sufficient-decrease constant of the tracking step (Newton's).
 const ARMIJO: f64 = 1e-4;
@@ -369,7 +373,7 @@ impl HyperBody {
         // force with the pushes (the holds' reactions do no work along it).
         let pushed = current.respond_force(pushes)?;
         let slope: f64 = -pushed.iter().zip(&direction).map(|(f, d)| f * d).sum::<f64>();
-        // Restoring the holds moves them at most MAX_RESTORE of a cell per iteration: a tool
+        // Restoring the holds moves them at most MAX_RESTORE cells per iteration: a tool
         // that ran far ahead is caught up over several, each from a state it can trust.
         let mut fraction = if merit.is_some() { 1.0 } else { (MAX_RESTORE * h / held_motion).min(1.0) };
         for _ in 0..=MAX_STEP_HALVINGS {
@@ -381,10 +385,15 @@ impl HyperBody {
                 }),
                 _ => self.cell_states_valid(&trial),
             };
+            // A step that restores holds must also land where the held tangent is positive
+            // definite (its penalty suffices, no shift): a state reached by a long stride
+            // can be wildly unstable without inverting a cell.
             if accepted {
                 let mut linearization = self.linearize_holding(trial, loads, holds)?;
-                linearization.respond(pushes, holds)?;
-                return Ok(TrackStep { linearization, fraction, step: answer.step });
+                if merit.is_some() || linearization.shift() == 0.0 || fraction < RESTORE_FLOOR {
+                    linearization.respond(pushes, holds)?;
+                    return Ok(TrackStep { linearization, fraction, step: answer.step });
+                }
             }
             fraction *= 0.5;
         }
