@@ -48,7 +48,7 @@ fn the_rest_shape_and_a_rigid_motion_within_the_size_pass() {
     // vector by 90 degrees or more (the `inverted` test compares it with the rest one's).
     let (c, s) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
     let turned = map(&rest, |p| [c * p[0] + s * p[2], p[1], -s * p[0] + c * p[2]]);
-    let w = g.check(&turned, ResultChecks::for_frames(Method::Ffm)).unwrap();
+    let w = g.check(&turned, ResultChecks::for_frames(Method::Ffm, false)).unwrap();
     assert_eq!(guard_names(&w), vec![]);
 }
 
@@ -57,12 +57,12 @@ fn a_scaled_body_warns_of_its_volume_by_the_cube_of_the_scale() {
     let (rest, tris) = sphere();
     let g = FrameGuards::new(&rest, &tris).unwrap();
     let grown = map(&rest, |p| p.map(|c| 1.5 * c));
-    let w = g.check(&grown, ResultChecks::for_frames(Method::Ffm)).unwrap();
+    let w = g.check(&grown, ResultChecks::for_frames(Method::Ffm, false)).unwrap();
     assert_eq!(guard_names(&w), vec![ResultGuard::Volume]);
     assert!((w[0].value - 3.375).abs() < 1e-12, "{}", w[0].value);
     // The same frame of a finite-element body: a vertex moved by 0.5 (radius 1), about
     // 0.15 of the body's size, is past the small-strain limit.
-    let w = g.check(&grown, ResultChecks::for_frames(Method::Fem)).unwrap();
+    let w = g.check(&grown, ResultChecks::for_frames(Method::Fem, false)).unwrap();
     assert_eq!(guard_names(&w), vec![ResultGuard::Volume, ResultGuard::Linear]);
     assert!((w[1].value - 0.5 / diagonal(&rest)).abs() < 1e-12);
 }
@@ -73,7 +73,7 @@ fn a_mirrored_body_has_the_opposite_volume_and_faces_inside_out() {
     let (rest, tris) = (s.positions().to_vec(), s.triangles().to_vec());
     let g = FrameGuards::new(&rest, &tris).unwrap();
     let mirrored = map(&rest, |p| [-p[0], p[1], p[2]]);
-    let w = g.check(&mirrored, ResultChecks::for_frames(Method::TsveChainmail)).unwrap();
+    let w = g.check(&mirrored, ResultChecks::for_frames(Method::TsveChainmail, false)).unwrap();
     assert_eq!(guard_names(&w), vec![ResultGuard::Volume, ResultGuard::Inverted]);
     // Negating x negates every triple product exactly.
     assert_eq!(w[0].value, -1.0);

@@ -121,6 +121,7 @@ impl NativeBody {
                 warn_ignored(py, model)?;
             }
             let setup_seconds = body.setup_seconds();
+            let large_strain = body.interactive_ref().linearization().is_some();
             let guards = FrameGuards::new(body.interactive_ref().rest_positions(), file.mesh.triangles())
                 .map_err(|e| error(format!("the result guards cannot measure this body: {e}")))?;
             Ok(NativeBody {
@@ -132,7 +133,7 @@ impl NativeBody {
                 tools: ToolSet::default(),
                 loads: Vec::new(),
                 guards,
-                checks: ResultChecks::for_frames(method),
+                checks: ResultChecks::for_frames(method, large_strain),
                 warnings: Vec::new(),
             })
         })

@@ -104,8 +104,11 @@ def test_a_finite_element_body_of_a_neo_hookean_scene_runs_at_two_rates(tmp_path
     rest = body.rest_positions
     v = int(np.argmin(rest[:, 1]))
     size = float(np.linalg.norm(rest.max(axis=0) - rest.min(axis=0)))
-    body.grab(v, [0.0, -0.1 * size, 0.0])
+    # 0.15 of the body's size: past the small-strain limit that the linear FEM body warns
+    # of (the test above), which a neo-Hookean body does not have.
+    body.grab(v, [0.0, -0.15 * size, 0.0])
     body.step()
+    assert not [w for w in body.warnings if "`linear`" in w], body.warnings
     first = body.linearization
     assert first["failure"] is None and first["age_frames"] >= 0, first
     # Holding still, step until a refresh has come in and the estimated error is below
@@ -120,7 +123,7 @@ def test_a_finite_element_body_of_a_neo_hookean_scene_runs_at_two_rates(tmp_path
     else:
         raise AssertionError(f"no converged refresh: {body.linearization}")
     held = body.positions[v] - rest[v]
-    assert np.allclose(held, [0.0, -0.1 * size, 0.0], atol=1e-9 * size), held
+    assert np.allclose(held, [0.0, -0.15 * size, 0.0], atol=1e-9 * size), held
     # Released, the body is back at its own equilibrium at once.
     body.release_all()
     body.step()

@@ -674,7 +674,7 @@ fn serve_client(mut ws: WebSocket<TcpStream>, shared: &Shared, method: &str) {
     let mut session = Session {
         mesh: &shared.mesh,
         guards,
-        checks: ResultChecks::for_frames(body.method()),
+        checks: ResultChecks::for_frames(body.method(), body.linearization().is_some()),
         body,
         tools: ToolSet::default(),
         positions: shared.mesh.positions.clone(),
