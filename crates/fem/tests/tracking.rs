@@ -16,9 +16,12 @@ fn tissue() -> Tissue {
     Tissue::new(3000.0, 0.45, 1000.0).unwrap().with_model(TissueModel::NeoHookean)
 }
 
+/// A surface, its fixed axes and a patch of it.
+type HeldSurface = (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<[bool; 3]>, Vec<usize>);
+
 /// The unit cube (8 x 8 surface squares per face, 4 cells per edge) clamped at z = 0 and
 /// the top vertices within 0.3 of the top face's centre.
-fn cube() -> (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<[bool; 3]>, Vec<usize>) {
+fn cube() -> HeldSurface {
     let (pos, tris) = box_surface([0.0; 3], [8; 3], 1.0 / 8.0);
     let fixed: Vec<[bool; 3]> = pos.iter().map(|p| [p[2] == 0.0; 3]).collect();
     let patch: Vec<usize> = (0..pos.len())

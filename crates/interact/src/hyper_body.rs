@@ -77,7 +77,7 @@ struct Request {
 
 /// What a refresh produced.
 enum Outcome {
-    Done { linearization: Linearization, step: f64, frame: u64, seconds: f64 },
+    Done { linearization: Box<Linearization>, step: f64, frame: u64, seconds: f64 },
     Failed { message: String, frame: u64 },
 }
 
@@ -342,7 +342,7 @@ impl HyperInteractive {
         }
         match &mut self.refresher {
             Refresher::Inline { body, every, converge } => {
-                if self.frame % *every != 0 {
+                if !self.frame.is_multiple_of(*every) {
                     return;
                 }
                 let iterations = if *converge { MAX_CONVERGE_ITERATIONS } else { 1 };
@@ -395,7 +395,7 @@ impl Current {
     fn accept(&mut self, outcome: Outcome) {
         match outcome {
             Outcome::Done { linearization, step, frame, seconds } => {
-                let retired = std::mem::replace(&mut self.linearization, linearization);
+                let retired = std::mem::replace(&mut self.linearization, *linearization);
                 self.retired = Some(retired);
                 self.at_base = false;
                 let stalled = step <= ROUNDING_STEP * self.cell_size && step > 0.5 * self.step;
@@ -422,7 +422,7 @@ fn refresh(body: &mut HyperBody, current: &mut Linearization, loads: &Loads, req
     let start = Instant::now();
     match body.track(current, loads, &request.pushes, &request.holds) {
         Ok(s) => Outcome::Done {
-            linearization: s.linearization,
+            linearization: Box::new(s.linearization),
             step: s.step,
             frame: request.frame,
             seconds: start.elapsed().as_secs_f64(),
@@ -461,7 +461,7 @@ fn spawn_worker(mut body: HyperBody, mut linearization: Linearization, loads: Lo
                 None => run(),
             };
             if let Outcome::Done { linearization: made, .. } = &outcome {
-                linearization = made.clone();
+                linearization = (**made).clone();
             }
             if outbox.send(outcome).is_err() {
                 break;
