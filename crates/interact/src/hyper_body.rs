@@ -20,7 +20,6 @@
 //! loop before every `k`-th frame, so that two replays of the same path give the same
 //! answers (the probe's schedule).
 
-use std::collections::BTreeMap;
 use std::sync::Mutex;
 use std::sync::mpsc::{self, Receiver, Sender};
 use std::time::Instant;
@@ -30,6 +29,7 @@ use fibfluid_fem::{FemHold, FemStats, Loads};
 use fibfluid_geometry::Vec3;
 use fibfluid_sim::{Method, Model};
 
+use crate::fem_holds::PendingHolds;
 use crate::{Hold, InteractError, Interactive, LinearizationStatus, Result};
 
 /// A refresh whose full step moved no surface vertex more than this fraction of a cell
@@ -138,9 +138,7 @@ pub struct HyperInteractive {
     reset_frame: u64,
     loads: Loads,
     cell_size: f64,
-    rest: Vec<Vec3>,
-    fixed: Vec<Option<char>>,
-    pending: BTreeMap<usize, Hold>,
+    holds: PendingHolds,
     /// The holds of the last refresh asked.
     asked: Option<Request>,
     field: Vec<Vec3>,
@@ -173,18 +171,7 @@ impl HyperInteractive {
         let limit = fibfluid_sim::memory_budget(max_memory);
         let estimate = fibfluid_sim::fem_run::estimate(model, limit)?;
         let (mut body, solution) = fibfluid_sim::hyper_run::tool_body(model, &tissue, limit)?;
-        let grid = body.grid();
-        let stats = FemStats {
-            resolution: grid.resolution(),
-            cells: grid.n_cells(),
-            nodes: grid.n_nodes(),
-            dofs: body.dofs(),
-            nonzeros: body.nonzeros(),
-            factor_nonzeros: body.factor_nonzeros(),
-            assembly_seconds: solution.stats.assembly_seconds,
-            factor_seconds: solution.stats.factor_seconds,
-            solve_seconds: solution.stats.solve_seconds,
-        };
+        let stats = fibfluid_sim::hyper_run::fem_stats(&body, &solution.stats);
         let n = &solution.stats;
         let newton_iteration_seconds =
             (n.assembly_seconds + n.factor_seconds + n.solve_seconds) / n.newton_iterations.max(1) as f64;
@@ -208,14 +195,9 @@ impl HyperInteractive {
                 Refresher::Thread(spawn_worker(body, linearization.clone(), loads.clone()))
             }
         };
-        let rest = model.rest_positions();
-        let fixed = (0..rest.len())
-            .map(|v| {
-                (0..3).find(|&a| model.constraints.get(v, a).is_some()).map(|a| fibfluid_geometry::AXES[a])
-            })
-            .collect();
+        let holds = PendingHolds::of(model);
         let field = solution.surface_displacements;
-        let positions = rest.iter().zip(&field).map(|(p, u)| add(*p, *u)).collect();
+        let positions = holds.rest().iter().zip(&field).map(|(p, u)| add(*p, *u)).collect();
         let current = Current {
             linearization,
             frame: 0,
@@ -236,9 +218,7 @@ impl HyperInteractive {
             current,
             loads,
             cell_size,
-            rest,
-            fixed,
-            pending: BTreeMap::new(),
+            holds,
             asked: Some(Request::default()),
             field,
             positions,
@@ -278,15 +258,8 @@ impl HyperInteractive {
 
     /// The pending holds as the tracking takes them, for frame `frame`.
     fn request(&self, frame: u64) -> Request {
-        let mut request = Request { frame, ..Request::default() };
-        for (&v, h) in &self.pending {
-            match *h {
-                Hold::Grab { displacement } => request.holds.push((v, FemHold::At(displacement))),
-                Hold::Contact { normal, along } => request.holds.push((v, FemHold::Along { normal, along })),
-                Hold::Push { force } => request.pushes.push((v, force)),
-            }
-        }
-        request
+        let (holds, pushes) = self.holds.split();
+        Request { pushes, holds, frame }
     }
 
     /// Whether a refresh is worth asking for `request`: its holds differ from the last
@@ -377,16 +350,6 @@ impl HyperInteractive {
                 }
             }
         }
-    }
-
-    fn check(&self, vertex: usize, value: Vec3, what: &'static str) -> Result<()> {
-        if vertex >= self.rest.len() {
-            return Err(InteractError::UnknownVertex { vertex, vertices: self.rest.len() });
-        }
-        if let Some(&value) = value.iter().find(|c| !c.is_finite()) {
-            return Err(InteractError::NonFinite { vertex, what, value });
-        }
-        Ok(())
     }
 }
 
@@ -480,60 +443,7 @@ impl Interactive for HyperInteractive {
         Method::Fem
     }
 
-    fn n_vertices(&self) -> usize {
-        self.rest.len()
-    }
-
-    fn rest_positions(&self) -> &[Vec3] {
-        &self.rest
-    }
-
-    fn is_fixed(&self, vertex: usize) -> bool {
-        self.fixed.get(vertex).is_some_and(Option::is_some)
-    }
-
-    fn supports_forces(&self) -> bool {
-        true
-    }
-
-    fn grab(&mut self, vertex: usize, displacement: Vec3) -> Result<()> {
-        self.check(vertex, displacement, "displacement")?;
-        if let Some(axis) = self.fixed[vertex] {
-            return Err(InteractError::FixedVertex { vertex, axis, action: "grabbed" });
-        }
-        self.pending.insert(vertex, Hold::Grab { displacement });
-        Ok(())
-    }
-
-    fn push(&mut self, vertex: usize, force: Vec3) -> Result<()> {
-        self.check(vertex, force, "force")?;
-        self.pending.insert(vertex, Hold::Push { force });
-        Ok(())
-    }
-
-    fn contact(&mut self, vertex: usize, normal: Vec3, along: f64) -> Result<()> {
-        self.check(vertex, normal, "contact")?;
-        if let Some(axis) = self.fixed[vertex] {
-            return Err(InteractError::FixedVertex { vertex, axis, action: "touched" });
-        }
-        crate::interactive::check_normal(vertex, normal, along)?;
-        self.pending.insert(vertex, Hold::Contact { normal, along });
-        Ok(())
-    }
-
-    fn release(&mut self, vertex: usize) -> Result<()> {
-        self.check(vertex, [0.0; 3], "displacement")?;
-        self.pending.remove(&vertex);
-        Ok(())
-    }
-
-    fn release_all(&mut self) {
-        self.pending.clear();
-    }
-
-    fn holds(&self) -> Vec<(usize, Hold)> {
-        self.pending.iter().map(|(&v, &h)| (v, h)).collect()
-    }
+    crate::fem_holds::delegate_holds!();
 
     fn update(&mut self) -> Result<&[(usize, Vec3)]> {
         self.poll();
@@ -548,12 +458,8 @@ impl Interactive for HyperInteractive {
             .respond(&request.pushes, &request.holds)
             .map_err(|e| InteractError::Singular { what: e.to_string() })?;
         self.field = response.surface_displacements;
-        self.positions = self.rest.iter().zip(&self.field).map(|(p, u)| add(*p, *u)).collect();
-        let mut reactions: Vec<(usize, Vec3)> =
-            request.holds.iter().map(|h| h.0).zip(response.reactions).collect();
-        reactions.extend(request.pushes.iter().copied());
-        reactions.sort_by_key(|r| r.0);
-        self.reactions = reactions;
+        self.positions = self.holds.rest().iter().zip(&self.field).map(|(p, u)| add(*p, *u)).collect();
+        self.reactions = PendingHolds::reactions(&request.holds, response.reactions, &request.pushes);
         self.status = LinearizationStatus {
             refreshes: self.current.refreshes,
             age_frames: self.frame - self.current.frame.min(self.frame),

@@ -94,6 +94,7 @@ pub mod chainmail_settings;
 mod compliance;
 mod error;
 pub mod fem_body;
+mod fem_holds;
 pub mod hyper_body;
 mod interactive;
 mod method_body;

@@ -46,19 +46,24 @@ pub fn solve(
     let plates = rigid_plates(model);
     let failed = |source| Error::Fem { scene: model.display_name(), source };
     let solution = log.time(names::SOLVE, || body.solve(&full_loads(model), &plates)).map_err(failed)?;
+    let stats = fem_stats(&body, &solution.stats);
+    Ok((body, solution, stats))
+}
+
+/// The grid's sizes and a Newton solve's summed timings, as the linear body reports them.
+pub fn fem_stats(body: &HyperBody, newton: &HyperStats) -> FemStats {
     let grid = body.grid();
-    let stats = FemStats {
+    FemStats {
         resolution: grid.resolution(),
         cells: grid.n_cells(),
         nodes: grid.n_nodes(),
         dofs: body.dofs(),
         nonzeros: body.nonzeros(),
         factor_nonzeros: body.factor_nonzeros(),
-        assembly_seconds: solution.stats.assembly_seconds,
-        factor_seconds: solution.stats.factor_seconds,
-        solve_seconds: solution.stats.solve_seconds,
-    };
-    Ok((body, solution, stats))
+        assembly_seconds: newton.assembly_seconds,
+        factor_seconds: newton.factor_seconds,
+        solve_seconds: newton.solve_seconds,
+    }
 }
 
 /// The model's hyperelastic body for a tool to hold (its regions; the scene's grasps are
