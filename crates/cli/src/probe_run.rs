@@ -38,9 +38,12 @@ pub struct ProbeStats {
     /// Frames the body computed; a frame that asks exactly what the last one asked costs
     /// none on a body whose answer depends only on its holds (FFM, the FEM).
     pub updates: u64,
+    /// The neo-Hookean body's refreshes (absent for the bodies that have none).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub refresh: Option<RefreshStats>,
 }
 
-/// The `refresh` section of `report.json`: the two-rate neo-Hookean body's linearizations
+/// The `probe.refresh` section of `report.json`: the two-rate neo-Hookean body's linearizations
 /// along the path, and what a refresh thread beside the frames would have kept up with.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RefreshStats {
@@ -98,9 +101,6 @@ pub struct ProbeReport {
     /// The finite-element grid (absent for the other methods).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fem: Option<FemStats>,
-    /// The neo-Hookean body's refreshes (absent for the bodies that have none).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub refresh: Option<RefreshStats>,
     /// The result guards that fired on the state after the last frame
     /// ([`fibfluid::sim::result_guards`]).
     pub warnings: Vec<ResultWarning>,
@@ -301,6 +301,7 @@ pub fn run_probe_with(
             memory_bytes: body.memory_bytes(),
             latency_us: Latency::of(&replay.latency_us),
             updates: body.frame(),
+            refresh: refresh_stats(&mb, &statuses, &replay.latency_us),
         },
         base_seconds: d.base_seconds,
         base_max_displacement: base_max,
@@ -308,7 +309,6 @@ pub fn run_probe_with(
         final_pressure: d.final_pressure,
         chainmail: d.chainmail,
         fem: d.fem,
-        refresh: refresh_stats(&mb, &statuses, &replay.latency_us),
         warnings: final_state_guards(scene, file, body.field(), method)?,
         seconds_total: 0.0,
     };

@@ -84,7 +84,7 @@ pub struct FemBody {
     pub(crate) factor: SparseCholesky,
     pub(crate) stats: FemStats,
     /// Compliance columns of held vertices and the last unheld solve.
-    pub(crate) held: crate::held::HoldCache,
+    pub(crate) held: crate::held_system::HoldCache,
 }
 
 impl std::fmt::Debug for FemBody {
@@ -177,7 +177,7 @@ impl FemBody {
             k_lower,
             factor,
             stats,
-            held: crate::held::HoldCache::default(),
+            held: crate::held_system::HoldCache::default(),
         })
     }
 

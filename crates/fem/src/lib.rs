@@ -48,6 +48,7 @@ mod element;
 mod error;
 mod grid;
 mod held;
+mod held_system;
 pub mod hyper;
 mod ordering;
 mod region;
@@ -62,7 +63,7 @@ pub use grid::{
     DEFAULT_RESOLUTION, Element, Embedded, FemOptions, GridEstimate, MAX_CELLS, MAX_RESOLUTION, MIN_FILL,
     SNAP, SUBSAMPLES, SparseGrid,
 };
-pub use held::{FemHold, HeldResponse};
+pub use held_system::{FemHold, HeldResponse};
 pub use ordering::{ND_LEAF, Ordering};
 pub use region::{CellBlend, Region, RegionShape, blend_regions};
 pub use rigid::{RIGID_MODE_TOLERANCE, RigidMode, check_rigid_modes, free_rigid_modes};

@@ -122,6 +122,14 @@ pub struct HyperSolution {
     pub stats: HyperStats,
 }
 
+/// What every linearization of one body shares: where the surface sits in the grid.
+#[derive(Debug)]
+pub(crate) struct Layout {
+    pub(crate) embedding: Vec<crate::grid::Embedded>,
+    pub(crate) free: Vec<usize>,
+    pub(crate) n_nodes: usize,
+}
+
 /// A sparse-grid body of compressible neo-Hookean tissue (see the module docs).
 pub struct HyperBody {
     pub(crate) grid: SparseGrid,
@@ -143,7 +151,7 @@ pub struct HyperBody {
     pub(crate) symbolic: Arc<SparseSymbolic>,
     pub(crate) settings: NewtonSettings,
     /// The surface's embedding and free dofs as linearizations share them (made once).
-    pub(crate) layout: Option<Arc<super::tracking::Layout>>,
+    pub(crate) layout: Option<Arc<Layout>>,
 }
 
 impl std::fmt::Debug for HyperBody {

@@ -24,13 +24,12 @@ use std::sync::Arc;
 use fibfluid_geometry::Vec3;
 use fibfluid_linalg::SparseCholesky;
 
-use super::body::HyperBody;
+use super::body::{HyperBody, Layout};
 use super::newton::LoadState;
 use crate::assemble::FIXED;
 use crate::body::{Loads, load_vector};
 use crate::error::{FemError, Result};
-use crate::grid::Embedded;
-use crate::held::{FemHold, HeldSystem, HoldCache, Penalty, Row, constraint_rows};
+use crate::held_system::{FemHold, HeldSystem, HoldCache, Penalty, Row, constraint_rows};
 
 /// Halvings of a tracking step tried while it would invert a cell or (holds met) raise
 /// the energy.
@@ -61,14 +60,6 @@ const ARMIJO: f64 = 1e-4;
 
 /// Energy changes below this fraction of the energy are rounding.
 const ENERGY_ROUNDING: f64 = 1e-12;
-
-/// What every linearization of one body shares: where the surface sits in the grid.
-#[derive(Debug)]
-pub(crate) struct Layout {
-    embedding: Vec<Embedded>,
-    free: Vec<usize>,
-    n_nodes: usize,
-}
 
 /// The state, out-of-balance force and tangent factor of one linearization.
 struct Core {

@@ -1,0 +1,367 @@
+//! Held surface vertices by a capacitance (Schur complement) update of a kept factor: the
+//! linear body's stiffness (`crate::held`) or a hyperelastic tangent
+//! ([`crate::hyper::Linearization`]).
+//!
+//! Holding vertex `v` at displacement `d_v` adds the constraint rows `C_v u = d_v` (row
+//! `(v, a)`: the trilinear weights of `v` on axis `a` of its cell's free nodes) and the
+//! unknown reactions `lambda`: `K u = f + C^T lambda`. With `u0 = K^-1 f` and the
+//! compliance columns `Z = K^-1 C^T`, `(C Z) lambda = d - C u0` and `u = u0 + Z lambda`.
+//! `Z` costs one solve per new held axis and is cached per vertex; each frame then costs
+//! one solve for `u0`, the dense `m x m` capacitance `C Z` (8 m^2 flops from the sparse
+//! rows) and its Cholesky (`m^3 / 3`), against a refactorization of K (its factor flops,
+//! see [`crate::FemStats`]) for eliminating the held dofs.
+//! The capacitance is formed, factored and applied by `fibfluid_linalg::RowCapacitance`
+//! (the columns by the factor's `fibfluid_linalg::ComplianceSource`), the same code as the
+//! fiber–fluid method's contact rows.
+
+use std::borrow::Cow;
+use std::collections::HashMap;
+
+use faer::Mat;
+use fibfluid_geometry::Vec3;
+use fibfluid_linalg::{ComplianceSource, LinalgError, RowCapacitance, SparseCholesky, SparseRow, row_dot};
+
+use crate::assemble::FIXED;
+use crate::error::{FemError, Result};
+use crate::grid::Embedded;
+
+/// A target below this (relative to the largest target, or absolute when all are 0) counts
+/// as 0 on an axis whose nodes are all fixed.
+const ZERO_TARGET: f64 = 1e-12;
+
+/// The response with some surface vertices held.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HeldResponse {
+    /// Displacement of every grid node.
+    pub node_displacements: Vec<Vec3>,
+    /// Displacement of every surface vertex.
+    pub surface_displacements: Vec<Vec3>,
+    /// The force each held vertex receives from its holder, in the order given (applied as
+    /// a point force in [`FemBody::solve`], it reproduces the same displacement). An axis
+    /// carried only by fixed nodes reports 0 (its reaction goes to the supports).
+    pub reactions: Vec<Vec3>,
+    /// The solve's measured relative residual `|K u - f - C^T lambda| / |f + C^T lambda|`.
+    pub residual: f64,
+}
+
+/// How a vertex is held.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum FemHold {
+    /// Moved exactly to this displacement (every axis).
+    At(Vec3),
+    /// Frictionless contact: the displacement along the unit `normal` is `along`; the
+    /// vertex is free across the normal and its reaction is along it.
+    Along {
+        /// Unit direction.
+        normal: Vec3,
+        /// Displacement along `normal`.
+        along: f64,
+    },
+}
+
+impl FemHold {
+    /// The rows of the hold: (direction, target).
+    fn rows(&self) -> Vec<(Vec3, f64)> {
+        match *self {
+            FemHold::At(d) => (0..3)
+                .map(|a| {
+                    let mut e = [0.0; 3];
+                    e[a] = 1.0;
+                    (e, d[a])
+                })
+                .collect(),
+            FemHold::Along { normal, along } => vec![(normal, along)],
+        }
+    }
+
+    fn values(&self) -> Vec<f64> {
+        match *self {
+            FemHold::At(d) => d.to_vec(),
+            FemHold::Along { normal, along } => vec![normal[0], normal[1], normal[2], along],
+        }
+    }
+}
+
+/// Relative ridge added to a capacitance matrix that is singular because more vertices of
+/// one cell are held than its nodes can satisfy independently (consistent targets, such as
+/// a patch moved rigidly, are still met: the constraint residual is checked after).
+const DEPENDENT_RIDGE: f64 = 1e-12;
+
+/// Largest constraint residual (relative to the largest target, at least 1) accepted after
+/// the ridge: above it the holds contradict each other.
+const CONSTRAINT_TOLERANCE: f64 = 1e-9;
+
+/// One constraint row: a held vertex's displacement along a direction as a combination of
+/// free dofs.
+pub(crate) struct Row {
+    pub(crate) vertex: usize,
+    pub(crate) direction: Vec3,
+    pub(crate) target: f64,
+    pub(crate) entries: Vec<(usize, f64)>,
+}
+
+impl Row {
+    /// The row's identity.
+    pub(crate) fn key(&self) -> RowKey {
+        (self.vertex, self.direction.map(f64::to_bits))
+    }
+}
+
+/// Constraint rows whose `stiffness * C^T C` was added to the factored matrix (a tangent
+/// made positive definite on the held directions, an augmented Lagrangian): a hold on such
+/// a row enters the right-hand side as `stiffness * C^T g` (g its target less the base
+/// state's value); a penalized row not held leaves a spring there (the answer is then
+/// approximate, [`HeldSolve::uncovered`]).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Penalty {
+    /// The penalized rows.
+    pub(crate) keys: Vec<RowKey>,
+    /// Their stiffness (N/m).
+    pub(crate) stiffness: f64,
+}
+
+/// Compliance columns and the last unheld solve of one factor, kept between frames.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct HoldCache {
+    /// `A^-1 C^T` columns of held vertices, computed on first hold: per vertex, 3 columns.
+    columns: HashMap<usize, [Vec<f64>; 3]>,
+    /// The last right-hand side solved without holds and its solution: a frame that
+    /// changes only the holds reuses it.
+    unheld: Option<(Vec<f64>, Vec<f64>)>,
+    /// The last rows' capacitance (and whether it needed the ridge), by the rows' vertices
+    /// and directions: a frame that moves the same holds reuses it.
+    capacitance: Option<(Vec<RowKey>, RowCapacitance, bool)>,
+}
+
+/// A constraint row's identity: its vertex and direction (bit for bit).
+pub(crate) type RowKey = (usize, [u64; 3]);
+
+impl HoldCache {
+    /// Number of vertices whose columns are cached.
+    pub(crate) fn vertices(&self) -> usize {
+        self.columns.len()
+    }
+
+    /// Drops every cached column (and the capacitance made of them).
+    pub(crate) fn clear_columns(&mut self) {
+        self.columns.clear();
+        self.capacitance = None;
+    }
+}
+
+/// A factored matrix over a grid's free dofs, with the surface's embedding: what a held
+/// response needs.
+pub(crate) struct HeldSystem<'a> {
+    /// The factor of `A` (the stiffness, or a tangent).
+    pub(crate) factor: &'a SparseCholesky,
+    /// Where each surface vertex sits in the grid.
+    pub(crate) embedding: &'a [Embedded],
+    /// Free-dof number of each node axis ([`FIXED`] when eliminated).
+    pub(crate) free: &'a [usize],
+}
+
+/// The solution of a held system.
+pub(crate) struct HeldSolve {
+    /// The free-dof solution.
+    pub(crate) u: Vec<f64>,
+    /// Per hold (in the order given), the force its holder puts on the body.
+    pub(crate) reactions: Vec<Vec3>,
+    /// The right-hand side with the reactions applied (`f + C^T lambda`).
+    pub(crate) applied: Vec<f64>,
+    /// Penalized rows that no hold covers (their springs stay in the answer).
+    pub(crate) uncovered: usize,
+}
+
+impl HeldSystem<'_> {
+    /// Solves `A u = f + C^T lambda` with every hold met: `C (base + u) = targets` (targets
+    /// are displacements from the rest shape; `base`, when given, the state `u` adds to).
+    pub(crate) fn solve(
+        &self,
+        cache: &mut HoldCache,
+        f: Vec<f64>,
+        holds: &[(usize, FemHold)],
+        base: Option<&[f64]>,
+        penalty: Option<&Penalty>,
+    ) -> Result<HeldSolve> {
+        let mut rows = constraint_rows(self.embedding, self.free, holds)?;
+        if let Some(base) = base {
+            rows.iter_mut().for_each(|r| r.target -= row_dot(&r.entries, base));
+        }
+        let vertices: Vec<usize> = holds.iter().map(|h| h.0).collect();
+        self.cache_compliance(cache, &vertices)?;
+        let mut u = self.unheld_solution(cache, &f);
+        let columns: Vec<Cow<'_, [f64]>> =
+            rows.iter().map(|r| row_column(&cache.columns[&r.vertex], r)).collect();
+        let mut uncovered = 0;
+        if let Some(p) = penalty {
+            // A held penalized row: A^-1 (stiffness C^T g) is its column times stiffness g.
+            for (row, column) in rows.iter().zip(&columns) {
+                if p.keys.contains(&row.key()) {
+                    let scale = p.stiffness * row.target;
+                    u.iter_mut().zip(column.iter()).for_each(|(ui, ci)| *ui += scale * ci);
+                }
+            }
+            let keys: Vec<RowKey> = rows.iter().map(Row::key).collect();
+            uncovered = p.keys.iter().filter(|k| !keys.contains(k)).count();
+        }
+        let lambda = impose_rows(&mut cache.capacitance, &rows, &columns, &mut u)?;
+        let mut reactions = vec![[0.0; 3]; holds.len()];
+        let mut applied = f;
+        for (row, l) in rows.iter().zip(&lambda) {
+            let k = holds.iter().position(|h| h.0 == row.vertex).unwrap_or(0);
+            for a in 0..3 {
+                reactions[k][a] += l * row.direction[a];
+            }
+            for &(d, w) in &row.entries {
+                applied[d] += w * l;
+            }
+        }
+        Ok(HeldSolve { u, reactions, applied, uncovered })
+    }
+
+    /// `A^-1 f`, reused while `f` does not change.
+    fn unheld_solution(&self, cache: &mut HoldCache, f: &[f64]) -> Vec<f64> {
+        if let Some((last, u0)) = &cache.unheld
+            && last.as_slice() == f
+        {
+            return u0.clone();
+        }
+        let n = f.len();
+        let mut u0 = Mat::<f64>::from_fn(n, 1, |i, _| f[i]);
+        self.factor.solve_in_place(u0.as_mut());
+        let out: Vec<f64> = (0..n).map(|i| u0[(i, 0)]).collect();
+        cache.unheld = Some((f.to_vec(), out.clone()));
+        out
+    }
+
+    /// Computes `A^-1 C_v^T` for every held vertex not cached yet, in one solve pass.
+    fn cache_compliance(&self, cache: &mut HoldCache, held: &[usize]) -> Result<()> {
+        let new: Vec<usize> = held.iter().copied().filter(|v| !cache.columns.contains_key(v)).collect();
+        if new.is_empty() {
+            return Ok(());
+        }
+        let mut rows: Vec<Vec<(usize, f64)>> = Vec::with_capacity(3 * new.len());
+        for &v in &new {
+            let e = self.embedding[v];
+            for a in 0..3 {
+                let row = (0..8)
+                    .map(|b| (self.free[3 * e.nodes[b] + a], e.weights[b]))
+                    .filter(|&(dof, _)| dof != FIXED)
+                    .collect();
+                rows.push(row);
+            }
+        }
+        let refs: Vec<&SparseRow> = rows.iter().map(Vec::as_slice).collect();
+        let mut columns = self.factor.compliance_columns(&refs)?.into_iter();
+        for &v in &new {
+            let mut next = || columns.next().expect("three columns per vertex");
+            let cols = [next(), next(), next()];
+            cache.columns.insert(v, cols);
+        }
+        Ok(())
+    }
+}
+
+/// `A^-1 C_row^T` from the cached axis columns of the row's vertex (the column itself for a
+/// row along an axis).
+fn row_column<'a>(cols: &'a [Vec<f64>; 3], row: &Row) -> Cow<'a, [f64]> {
+    if let Some(a) =
+        (0..3).find(|&a| row.direction[a] == 1.0 && row.direction.iter().filter(|&&d| d != 0.0).count() == 1)
+    {
+        return Cow::Borrowed(&cols[a]);
+    }
+    let mut z = vec![0.0; cols[0].len()];
+    for (a, col) in cols.iter().enumerate() {
+        let n = row.direction[a];
+        if n != 0.0 {
+            for (zi, ci) in z.iter_mut().zip(col) {
+                *zi += n * ci;
+            }
+        }
+    }
+    Cow::Owned(z)
+}
+
+/// Imposes the rows on `u` (`A^-1 f` on entry) by the capacitance update of
+/// `fibfluid_linalg` and returns the multipliers `lambda` (`u = u0 + Z lambda`, the
+/// reactions `C^T lambda`). A singular `C Z` (dependent rows) is retried with a tiny
+/// ridge and accepted only if the constraints are then met. The factored capacitance is
+/// kept in `kept` for the next call with the same rows.
+fn impose_rows(
+    kept: &mut Option<(Vec<RowKey>, RowCapacitance, bool)>,
+    rows: &[Row],
+    columns: &[Cow<'_, [f64]>],
+    u: &mut [f64],
+) -> Result<Vec<f64>> {
+    if rows.is_empty() {
+        return Ok(Vec::new());
+    }
+    let entries: Vec<&SparseRow> = rows.iter().map(|r| r.entries.as_slice()).collect();
+    let targets: Vec<f64> = rows.iter().map(|r| r.target).collect();
+    let dependent = |i: usize| FemError::DependentHolds { vertex: rows[i].vertex };
+    let keys: Vec<RowKey> = rows.iter().map(Row::key).collect();
+    if kept.as_ref().is_none_or(|k| k.0 != keys) {
+        *kept = None;
+        let made = match RowCapacitance::new(&entries, columns, 0.0) {
+            Ok(c) => (c, false),
+            Err(LinalgError::CapacitanceNotPositiveDefinite { .. }) => {
+                (RowCapacitance::new(&entries, columns, DEPENDENT_RIDGE).map_err(|_| dependent(0))?, true)
+            }
+            Err(other) => return Err(other.into()),
+        };
+        *kept = Some((keys, made.0, made.1));
+    }
+    let (_, capacitance, ridged) = kept.as_ref().expect("made above");
+    // The update's multipliers r are the negated reactions: u = u0 - Z r.
+    let r = capacitance.correct(&entries, columns, &targets, u);
+    if *ridged {
+        let scale = targets.iter().fold(1.0_f64, |a, t| a.max(t.abs()));
+        let unmet = (0..rows.len())
+            .find(|&i| (row_dot(entries[i], u) - targets[i]).abs() > CONSTRAINT_TOLERANCE * scale);
+        if let Some(i) = unmet {
+            return Err(dependent(i));
+        }
+    }
+    Ok(r.into_iter().map(|x| -x).collect())
+}
+
+/// The constraint rows of `holds`, skipping rows carried only by fixed nodes (whose
+/// target must then be 0).
+pub(crate) fn constraint_rows(
+    embedding: &[Embedded],
+    free: &[usize],
+    holds: &[(usize, FemHold)],
+) -> Result<Vec<Row>> {
+    let scale = holds.iter().flat_map(|h| h.1.values()).fold(0.0_f64, |a, b| a.max(b.abs()));
+    let mut rows = Vec::new();
+    for (k, &(v, hold)) in holds.iter().enumerate() {
+        let e =
+            embedding.get(v).ok_or(FemError::VertexOutOfRange { vertex: v, vertices: embedding.len() })?;
+        if hold.values().iter().any(|x| !x.is_finite()) {
+            return Err(FemError::NonFinite { what: "held displacement" });
+        }
+        if holds[..k].iter().any(|h| h.0 == v) {
+            return Err(FemError::DependentHolds { vertex: v });
+        }
+        for (direction, target) in hold.rows() {
+            let mut entries: Vec<(usize, f64)> = Vec::new();
+            for b in (0..8).filter(|&b| e.weights[b] > 0.0) {
+                for a in (0..3).filter(|&a| direction[a] != 0.0) {
+                    let dof = free[3 * e.nodes[b] + a];
+                    if dof != FIXED {
+                        entries.push((dof, e.weights[b] * direction[a]));
+                    }
+                }
+            }
+            if entries.is_empty() {
+                if target.abs() > ZERO_TARGET * scale.max(1.0) {
+                    let axis = (0..3).max_by(|&a, &b| direction[a].abs().total_cmp(&direction[b].abs()));
+                    return Err(FemError::HeldOnFixed { vertex: v, axis: axis.unwrap_or(0) });
+                }
+                continue;
+            }
+            rows.push(Row { vertex: v, direction, target, entries });
+        }
+    }
+    Ok(rows)
+}
