@@ -112,7 +112,7 @@ fn a_chainmail_grasp_moves_its_patch_with_the_tool() {
 
 /// Presses a tip of radius 0.6 from below into the sphere at each depth and checks every
 /// frame; returns the upward reactions.
-fn press_checks(b: &mut dyn Interactive, depths: &[f64], forces: bool) -> Vec<f64> {
+pub(super) fn press_checks(b: &mut dyn Interactive, depths: &[f64], forces: bool) -> Vec<f64> {
     b.release_all();
     b.update().unwrap();
     let bottom = b.positions()[lowest(b)];

@@ -116,3 +116,16 @@ fn the_refresh_thread_reaches_the_same_answer_without_blocking_frames() {
     );
     assert!(d < 1e-9, "{d:e}");
 }
+
+/// A pressing tip on the two-rate body (refreshed every frame), as on the linear bodies:
+/// no vertex is left inside the tip, the contact forces are frictionless and compressive
+/// and sum to the tip's force (`press_checks`), and pressing deeper never lowers the
+/// upward reaction.
+#[test]
+fn a_press_on_the_two_rate_body_leaves_no_vertex_inside() {
+    let scene = neo_hookean_sphere();
+    let mut b = HyperInteractive::new(&scene, None, RefreshMode::EveryFrames(1)).unwrap();
+    let up = super::tools::press_checks(&mut b, &[0.05, 0.15, 0.3], true);
+    assert!(up[0] > 0.0 && up.windows(2).all(|w| w[1] >= w[0]), "upward reaction by depth {up:?}");
+    assert!(b.linearization().unwrap().failure.is_none());
+}
