@@ -19,6 +19,7 @@ use fibfluid::interact::{
 use serde::Serialize;
 
 use crate::Result;
+use crate::probe_run::RefreshSummary;
 
 /// The frame period the bench paces both bodies at (a 1 kHz haptic loop).
 pub const FRAME_PERIOD: Duration = Duration::from_millis(1);
@@ -82,17 +83,8 @@ pub fn bench_two_rate(scene: &Scene, path: &ToolPath, max_memory: Option<u64>) -
         paced(k, b);
     })?;
     let wall = start.elapsed().as_secs_f64();
-    let mut seconds = Vec::new();
-    let mut failures = 0;
-    for w in statuses.windows(2) {
-        if w[1].refreshes > w[0].refreshes {
-            seconds.push(w[1].refresh_seconds);
-        }
-        failures += usize::from(w[1].failure.is_some() && w[1].failure != w[0].failure);
-    }
-    let refreshes = statuses.last().map_or(0, |s| s.refreshes);
-    let refresh_seconds =
-        if seconds.is_empty() { 0.0 } else { seconds.iter().sum::<f64>() / seconds.len() as f64 };
+    let RefreshSummary { refreshes, refresh_seconds, failures, first_failure } =
+        RefreshSummary::of(&statuses);
     let (linear_latency_us, two_rate_latency_us) =
         (Latency::of(&linear_replay.latency_us), Latency::of(&replay.latency_us));
     Ok(TwoRateBench {
@@ -106,7 +98,7 @@ pub fn bench_two_rate(scene: &Scene, path: &ToolPath, max_memory: Option<u64>) -
         newton_iteration_seconds,
         refresh_ratio: refresh_seconds / newton_iteration_seconds,
         failures,
-        first_failure: statuses.iter().find_map(|s| s.failure.clone()),
+        first_failure,
     })
 }
 

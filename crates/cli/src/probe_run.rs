@@ -391,6 +391,44 @@ impl MethodDetails {
 }
 
 /// The refresh section of a two-rate body's probe from its frames' statuses.
+/// What a two-rate body's frames say of its refreshes along a replay.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RefreshSummary {
+    /// Linearizations made by the last frame.
+    pub refreshes: u64,
+    /// Mean seconds of the refreshes swapped in (0 when none was).
+    pub refresh_seconds: f64,
+    /// Refreshes that failed (a new failure message in a frame).
+    pub failures: usize,
+    /// Why the first failed refresh failed.
+    pub first_failure: Option<String>,
+}
+
+impl RefreshSummary {
+    /// The summary of the frames' statuses, in frame order.
+    pub fn of(statuses: &[LinearizationStatus]) -> Self {
+        let mut seconds: Vec<f64> = Vec::new();
+        let mut failures = 0;
+        for w in statuses.windows(2) {
+            if w[1].refreshes > w[0].refreshes {
+                seconds.push(w[1].refresh_seconds);
+            }
+            failures += usize::from(w[1].failure.is_some() && w[1].failure != w[0].failure);
+        }
+        Self {
+            refreshes: statuses.last().map_or(0, |s| s.refreshes),
+            refresh_seconds: mean(&seconds),
+            failures,
+            first_failure: statuses.iter().find_map(|s| s.failure.clone()),
+        }
+    }
+}
+
+/// The mean of `v` (0 when empty).
+fn mean(v: &[f64]) -> f64 {
+    if v.is_empty() { 0.0 } else { v.iter().sum::<f64>() / v.len() as f64 }
+}
+
 fn refresh_stats(
     mb: &MethodBody,
     statuses: &[LinearizationStatus],
@@ -398,16 +436,7 @@ fn refresh_stats(
 ) -> Option<RefreshStats> {
     let MethodBody::Hyper(b) = mb else { return None };
     let last = statuses.last().cloned().unwrap_or_default();
-    let mut seconds: Vec<f64> = Vec::new();
-    let mut failures = 0;
-    for w in statuses.windows(2) {
-        if w[1].refreshes > w[0].refreshes {
-            seconds.push(w[1].refresh_seconds);
-        }
-        failures += usize::from(w[1].failure.is_some() && w[1].failure != w[0].failure);
-    }
-    let mean = |v: &[f64]| if v.is_empty() { 0.0 } else { v.iter().sum::<f64>() / v.len() as f64 };
-    let refresh_seconds = mean(&seconds);
+    let RefreshSummary { refresh_seconds, failures, .. } = RefreshSummary::of(statuses);
     let frame_seconds = mean(latency_us) * 1e-6;
     Some(RefreshStats {
         every: b.refresh_every().unwrap_or(1),

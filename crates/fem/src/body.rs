@@ -303,19 +303,34 @@ pub(crate) fn load_vector(
             }
         }
     }
-    for &(v, force) in &loads.point_forces {
-        let e = grid
-            .embedding()
-            .get(v)
-            .ok_or(FemError::VertexOutOfRange { vertex: v, vertices: grid.n_vertices() })?;
+    add_point_forces(grid.embedding(), free, &loads.point_forces, &mut f)?;
+    Ok(f)
+}
+
+/// Adds point forces on surface vertices to the free-dof force vector `f`, spread to their
+/// cells' nodes by the trilinear weights (components on fixed dofs go to the supports).
+///
+/// Errors: a vertex out of range, a non-finite force.
+pub(crate) fn add_point_forces(
+    embedding: &[crate::grid::Embedded],
+    free: &[usize],
+    forces: &[(usize, Vec3)],
+    f: &mut [f64],
+) -> Result<()> {
+    for &(v, force) in forces {
+        let e =
+            embedding.get(v).ok_or(FemError::VertexOutOfRange { vertex: v, vertices: embedding.len() })?;
         if force.iter().any(|x| !x.is_finite()) {
             return Err(FemError::NonFinite { what: "point force" });
         }
         for b in 0..8 {
             for a in 0..3 {
-                add(e.nodes[b], a, e.weights[b] * force[a]);
+                let i = free[3 * e.nodes[b] + a];
+                if i != FIXED {
+                    f[i] += e.weights[b] * force[a];
+                }
             }
         }
     }
-    Ok(f)
+    Ok(())
 }

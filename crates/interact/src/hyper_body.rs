@@ -309,8 +309,8 @@ impl HyperInteractive {
 
     /// Refreshes inline (every `k`-th frame; to convergence when asked) or asks the thread
     /// (when idle).
-    fn schedule(&mut self, request: Request) {
-        if !self.wants_refresh(&request) {
+    fn schedule(&mut self, request: &Request) {
+        if !self.wants_refresh(request) {
             return;
         }
         match &mut self.refresher {
@@ -320,7 +320,7 @@ impl HyperInteractive {
                 }
                 let iterations = if *converge { MAX_CONVERGE_ITERATIONS } else { 1 };
                 for _ in 0..iterations {
-                    let outcome = refresh(body, &mut self.current.linearization, &self.loads, &request);
+                    let outcome = refresh(body, &mut self.current.linearization, &self.loads, request);
                     let failed = matches!(outcome, Outcome::Failed { .. });
                     self.current.accept(outcome);
                     if failed || self.current.converged {
@@ -334,7 +334,7 @@ impl HyperInteractive {
                     ));
                 }
                 self.current.retired = None;
-                self.asked = Some(request);
+                self.asked = Some(request.clone());
             }
             Refresher::Thread(worker) => {
                 if worker.busy {
@@ -346,7 +346,7 @@ impl HyperInteractive {
                 }
                 if worker.requests.send(Message::Refresh(request.clone())).is_ok() {
                     worker.busy = true;
-                    self.asked = Some(request);
+                    self.asked = Some(request.clone());
                 }
             }
         }
@@ -450,7 +450,7 @@ impl Interactive for HyperInteractive {
         let request = self.request(self.frame);
         self.return_to_base(&request);
         if matches!(self.refresher, Refresher::Inline { .. }) {
-            self.schedule(request.clone());
+            self.schedule(&request);
         }
         let response = self
             .current
@@ -471,7 +471,7 @@ impl Interactive for HyperInteractive {
             failure: self.current.failure.clone(),
         };
         if matches!(self.refresher, Refresher::Thread(_)) {
-            self.schedule(request);
+            self.schedule(&request);
         }
         self.frame += 1;
         Ok(&self.reactions)

@@ -27,7 +27,7 @@ use fibfluid_linalg::SparseCholesky;
 use super::body::{HyperBody, Layout};
 use super::newton::LoadState;
 use crate::assemble::FIXED;
-use crate::body::{Loads, load_vector};
+use crate::body::{Loads, add_point_forces, load_vector};
 use crate::error::{FemError, Result};
 use crate::held_system::{FemHold, HeldSystem, HoldCache, Penalty, Row, constraint_rows};
 
@@ -69,6 +69,8 @@ struct Core {
     factor: SparseCholesky,
     /// The shift added to the tangent's diagonal to factor it (0: the exact tangent).
     shift: f64,
+    /// Displacement of every surface vertex at `x` (m).
+    surface: Vec<Vec3>,
     /// The hold rows penalized to factor it (an augmented Lagrangian on the holds it was
     /// made for, when the tangent alone is not positive definite).
     penalty: Option<Penalty>,
@@ -136,31 +138,14 @@ impl Linearization {
 
     /// The out-of-balance force at the state with `pushes` added (free dofs).
     fn respond_force(&self, pushes: &[(usize, Vec3)]) -> Result<Vec<f64>> {
-        let layout = &self.core.layout;
         let mut f = self.core.force.clone();
-        for &(v, force) in pushes {
-            let e = layout
-                .embedding
-                .get(v)
-                .ok_or(FemError::VertexOutOfRange { vertex: v, vertices: layout.embedding.len() })?;
-            if force.iter().any(|x| !x.is_finite()) {
-                return Err(FemError::NonFinite { what: "point force" });
-            }
-            for b in 0..8 {
-                for a in 0..3 {
-                    let i = layout.free[3 * e.nodes[b] + a];
-                    if i != FIXED {
-                        f[i] += e.weights[b] * force[a];
-                    }
-                }
-            }
-        }
+        add_point_forces(&self.core.layout.embedding, &self.core.layout.free, pushes, &mut f)?;
         Ok(f)
     }
 
     /// Displacement of every surface vertex at the linearization's own state (m).
     pub fn surface_displacements(&self) -> Vec<Vec3> {
-        interpolate(&self.core.layout, &self.core.x)
+        self.core.surface.clone()
     }
 
     /// The response to `pushes` (point forces on surface vertices, N) and `holds`
@@ -182,8 +167,10 @@ impl Linearization {
         let step_field = interpolate(layout, &solved.u);
         let step = step_field.iter().map(|d| fibfluid_geometry::vec3::norm(*d)).fold(0.0, f64::max);
         let state: Vec<f64> = self.core.x.iter().zip(&solved.u).map(|(a, b)| a + b).collect();
+        let surface =
+            self.core.surface.iter().zip(&step_field).map(|(p, d)| fibfluid_geometry::vec3::add(*p, *d));
         Ok(TrackedResponse {
-            surface_displacements: interpolate(layout, &state),
+            surface_displacements: surface.collect(),
             state,
             reactions: solved.reactions,
             step,
@@ -263,7 +250,8 @@ impl HyperBody {
             })
         }));
         let force = eval.gradient.iter().map(|g| -g).collect();
-        let core = Core { layout, x, force, factor, shift, penalty };
+        let surface = interpolate(&layout, &x);
+        let core = Core { layout, x, force, factor, shift, surface, penalty };
         Ok(Linearization { core: Arc::new(core), cache: HoldCache::default() })
     }
 
