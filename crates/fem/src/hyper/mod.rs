@@ -34,5 +34,6 @@ pub use contact::{
 };
 pub use grasp::{GRASP_PENALTY, GRASP_TOLERANCE, Grasp, GraspRecord};
 pub use tracking::{
-    HOLD_PENALTIES, Linearization, MAX_RESTORE, MAX_STEP_HALVINGS, SHIFTS, TrackStep, TrackedResponse,
+    HOLD_PENALTIES, Linearization, MAX_RESTORE, MAX_STEP_HALVINGS, SHIFTS, SurfaceResponse, TrackStep,
+    TrackedResponse,
 };

@@ -29,7 +29,9 @@ use super::newton::LoadState;
 use crate::assemble::FIXED;
 use crate::body::{Loads, add_point_forces, load_vector};
 use crate::error::{FemError, Result};
-use crate::held_system::{FemHold, HeldSystem, HoldCache, Penalty, Row, constraint_rows};
+use crate::held_system::{
+    FemHold, HeldSystem, HoldCache, Penalty, Row, constraint_rows, interpolate_surface,
+};
 
 /// Halvings of a tracking step tried while it would invert a cell or (holds met) raise
 /// the energy.
@@ -133,7 +135,7 @@ impl Linearization {
     /// Bytes of the factor and the cached columns.
     pub fn memory_bytes(&self) -> usize {
         let n = self.core.x.len();
-        8 * (self.core.factor.nonzeros() + 3 * n) + 24 * n * self.cache.vertices()
+        8 * (self.core.factor.nonzeros() + 3 * n) + self.cache.bytes()
     }
 
     /// The out-of-balance force at the state with `pushes` added (free dofs).
@@ -179,6 +181,56 @@ impl Linearization {
     }
 }
 
+impl Linearization {
+    /// What a frame needs of [`Linearization::respond`]: the same surface, reactions and
+    /// step, without the state inside the body. It costs `3 x surface vertices x held
+    /// rows` flops while the held rows and the pushes stay the same (the rows' columns are
+    /// projected onto the surface once, on the first such frame), whatever the number of
+    /// unknowns.
+    ///
+    /// Errors: those of [`Linearization::respond`].
+    pub fn respond_at_surface(
+        &mut self,
+        pushes: &[(usize, Vec3)],
+        holds: &[(usize, FemHold)],
+    ) -> Result<SurfaceResponse> {
+        let f = self.respond_force(pushes)?;
+        let layout = &self.core.layout;
+        let system =
+            HeldSystem { factor: &self.core.factor, embedding: &layout.embedding, free: &layout.free };
+        let solved = system.solve_surface(
+            &mut self.cache,
+            &f,
+            holds,
+            Some(&self.core.x),
+            self.core.penalty.as_ref(),
+        )?;
+        let step = solved.surface.iter().map(|d| fibfluid_geometry::vec3::norm(*d)).fold(0.0, f64::max);
+        let surface =
+            self.core.surface.iter().zip(&solved.surface).map(|(p, d)| fibfluid_geometry::vec3::add(*p, *d));
+        Ok(SurfaceResponse {
+            surface_displacements: surface.collect(),
+            reactions: solved.reactions,
+            step,
+            approximate: solved.uncovered > 0,
+        })
+    }
+}
+
+/// A frame answered on a linearization at the surface only
+/// ([`Linearization::respond_at_surface`]): a [`TrackedResponse`] without the state.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SurfaceResponse {
+    /// Displacement of every surface vertex (m).
+    pub surface_displacements: Vec<Vec3>,
+    /// Per hold (in the order given), the force its holder puts on the body (N).
+    pub reactions: Vec<Vec3>,
+    /// The largest distance a surface vertex moved from the linearization's state (m).
+    pub step: f64,
+    /// As [`TrackedResponse::approximate`].
+    pub approximate: bool,
+}
+
 /// The full dead load `external` alone: no plates, no grasps.
 fn dead_loads(external: &[f64]) -> LoadState<'_> {
     LoadState { t: 1.0, external, plates: &[], multipliers: &[], grasp_multipliers: &[] }
@@ -186,16 +238,8 @@ fn dead_loads(external: &[f64]) -> LoadState<'_> {
 
 /// Surface displacements of a free-dof vector.
 fn interpolate(layout: &Layout, x: &[f64]) -> Vec<Vec3> {
-    let node = |n: usize, a: usize| match layout.free[3 * n + a] {
-        FIXED => 0.0,
-        i => x[i],
-    };
     debug_assert!(layout.embedding.iter().all(|e| e.nodes.iter().all(|&n| n < layout.n_nodes)));
-    layout
-        .embedding
-        .iter()
-        .map(|e| std::array::from_fn(|a| (0..8).map(|b| e.weights[b] * node(e.nodes[b], a)).sum()))
-        .collect()
+    interpolate_surface(&layout.embedding, &layout.free, x)
 }
 
 /// One tracking iteration's outcome.
@@ -320,7 +364,7 @@ impl HyperBody {
     /// One Newton iteration of the equilibrium with `pushes` and `holds` from
     /// `current`'s state: its step (see the module docs), halved while it would invert a
     /// cell, then the body linearized at the step's end. The returned linearization has
-    /// the columns of `holds` cached.
+    /// the columns of `holds` cached, and their projection onto the surface.
     ///
     /// Errors: those of [`Linearization::respond`] and [`HyperBody::linearize`];
     /// [`FemError::Inverted`] when even the step halved [`MAX_STEP_HALVINGS`] times
@@ -370,7 +414,8 @@ impl HyperBody {
             if accepted {
                 let mut linearization = self.linearize_holding(trial, loads, holds)?;
                 if merit.is_some() || linearization.shift() == 0.0 || fraction < RESTORE_FLOOR {
-                    linearization.respond(pushes, holds)?;
+                    // The frames' projection is made here, off the frame thread.
+                    linearization.respond_at_surface(pushes, holds)?;
                     return Ok(TrackStep { linearization, fraction, step: answer.step });
                 }
             }

@@ -129,3 +129,55 @@ fn a_press_on_the_two_rate_body_leaves_no_vertex_inside() {
     assert!(up[0] > 0.0 && up.windows(2).all(|w| w[1] >= w[0]), "upward reaction by depth {up:?}");
     assert!(b.linearization().unwrap().failure.is_none());
 }
+
+/// Failed refreshes (made to fail by `fail_next_refreshes`), inline and on the thread:
+/// each frame still answers, on the last good linearization (its refresh count and the
+/// surface unchanged while the tool is still), says so in `failure`; once refreshes
+/// succeed again the frames converge to the same answer as a body that never failed.
+#[test]
+fn a_failed_refresh_keeps_the_last_good_linearization_and_says_so() {
+    let scene = neo_hookean_sphere();
+    let mut reference = HyperInteractive::new(&scene, None, RefreshMode::EveryFrames(1)).unwrap();
+    let g = Grasp::new(&reference, lowest(&reference), 0.45).unwrap();
+    let first = RigidMotion::translation([0.1, -0.2, 0.0]);
+    let second = RigidMotion::translation([0.15, -0.35, 0.05]);
+    g.hold(&mut reference, &second).unwrap();
+    settle(&mut reference, 40, std::time::Duration::ZERO);
+    for mode in [RefreshMode::EveryFrames(1), RefreshMode::Background] {
+        let mut b = HyperInteractive::new(&scene, None, mode).unwrap();
+        g.hold(&mut b, &first).unwrap();
+        settle(&mut b, 2000, std::time::Duration::from_millis(2));
+        b.fail_next_refreshes(3);
+        g.hold(&mut b, &second).unwrap();
+        let mut failed = Vec::new();
+        let mut kept = None;
+        for _ in 0..400 {
+            b.update().unwrap();
+            let s = b.linearization().unwrap();
+            if s.failure.is_none() && !failed.is_empty() {
+                break;
+            }
+            if let Some(f) = s.failure {
+                // (On the thread, a refresh asked before the failures may land first.)
+                let good = *kept.get_or_insert(s.refreshes);
+                assert_eq!(s.refreshes, good, "{mode:?}: a failed refresh swapped a linearization in");
+                failed.push((f, b.positions().to_vec()));
+            }
+            std::thread::sleep(std::time::Duration::from_millis(2));
+        }
+        assert!(!failed.is_empty(), "{mode:?}: no frame reported the failed refreshes");
+        assert!(failed[0].0.contains("failed"), "{}", failed[0].0);
+        // The tool held still: every frame on the kept linearization answers the same.
+        assert!(
+            failed.windows(2).all(|w| w[0].1 == w[1].1),
+            "{mode:?}: frames moved on a kept linearization"
+        );
+        settle(&mut b, 2000, std::time::Duration::from_millis(2));
+        let d = relative_difference(b.positions(), reference.positions(), b.rest_positions());
+        eprintln!(
+            "{mode:?}: {} frames reported the failure; then {d:.2e} from the body that never failed",
+            failed.len()
+        );
+        assert!(d < 1e-9, "{mode:?}: {d:e}");
+    }
+}
