@@ -18,6 +18,7 @@ mod body;
 mod run;
 mod scene;
 mod settings;
+mod volume;
 
 pyo3::create_exception!(
     fibfluid,
@@ -65,6 +66,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<scene::NativeScene>()?;
     m.add_class::<body::NativeBody>()?;
     m.add_class::<run::RunOutput>()?;
+    m.add_class::<volume::VolumeOutput>()?;
     m.add_function(wrap_pyfunction!(run::run, m)?)?;
     m.add_function(wrap_pyfunction!(set_threads, m)?)?;
     Ok(())

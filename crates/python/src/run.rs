@@ -10,6 +10,7 @@ use pyo3::prelude::*;
 
 use crate::arrays::points_array;
 use crate::scene::NativeScene;
+use crate::volume::{VolumeArrays, VolumeOutput};
 use crate::{error, guard, lib_error};
 
 /// What a run gives back, in the body's file vertex order.
@@ -30,6 +31,9 @@ pub(crate) struct RunOutput {
     /// Guard warnings, one line each (also in the report).
     #[pyo3(get)]
     warnings: Vec<String>,
+    /// The finite-element run's volume (`volume.vtu`'s grid and fields); None for the FFM.
+    #[pyo3(get)]
+    volume: Option<Py<VolumeOutput>>,
 }
 
 /// What the detached part of a run returns.
@@ -39,6 +43,25 @@ struct Done {
     pressure: f64,
     report_json: String,
     warnings: Vec<String>,
+    volume: Option<VolumeArrays>,
+}
+
+impl Done {
+    /// The run's output as Python objects (the arrays' buffers move to NumPy).
+    fn output(self, py: Python<'_>) -> PyResult<RunOutput> {
+        let volume = match self.volume {
+            Some(v) => Some(Py::new(py, VolumeOutput::new(py, v)?)?),
+            None => None,
+        };
+        Ok(RunOutput {
+            positions: points_array(py, &self.positions).unbind(),
+            displacement: points_array(py, &self.displacement).unbind(),
+            pressure: self.pressure,
+            report_json: self.report_json,
+            warnings: self.warnings,
+            volume,
+        })
+    }
 }
 
 /// Runs a scene as `fibfluid run` does (the same stages and the same report, without the
@@ -64,13 +87,7 @@ pub(crate) fn run(
             let load =
                 StageRecord { name: names::LOAD_SCENE, parent: None, seconds: scene.load_seconds, count: 1 };
             let done = py.detach(move || solve_fem(model, max_memory, load)).map_err(lib_error)?;
-            return Ok(RunOutput {
-                positions: points_array(py, &done.positions).unbind(),
-                displacement: points_array(py, &done.displacement).unbind(),
-                pressure: done.pressure,
-                report_json: done.report_json,
-                warnings: done.warnings,
-            });
+            return done.output(py);
         }
         let failed: Arc<Mutex<Option<PyErr>>> = Arc::new(Mutex::new(None));
         let opts = RunOptions {
@@ -87,14 +104,7 @@ pub(crate) fn run(
         if let Some(e) = failed.lock().map_err(|_| error("the progress callback failed"))?.take() {
             return Err(e);
         }
-        let done = done.map_err(lib_error)?;
-        Ok(RunOutput {
-            positions: points_array(py, &done.positions).unbind(),
-            displacement: points_array(py, &done.displacement).unbind(),
-            pressure: done.pressure,
-            report_json: done.report_json,
-            warnings: done.warnings,
-        })
+        done.map_err(lib_error)?.output(py)
     })
 }
 
@@ -152,16 +162,18 @@ fn solve(
         Shape::Polygon(_) => (sim.positions().to_vec(), sim.rest_positions().to_vec()),
     };
     let warnings = sim.warnings().iter().map(|w| crate::one_line(&w.to_string())).collect();
-    done(positions, &rest, sim.pressure(), serde_json::to_string(&report), warnings)
+    done(positions, &rest, sim.pressure(), serde_json::to_string(&report), warnings, None)
 }
 
-/// [`Done`] from file-order positions and rest, the pressure, the report and the warnings.
+/// [`Done`] from file-order positions and rest, the pressure, the report, the warnings and
+/// the finite-element volume.
 fn done(
     positions: Vec<Vec3>,
     rest: &[Vec3],
     pressure: f64,
     report: serde_json::Result<String>,
     warnings: Vec<String>,
+    volume: Option<VolumeArrays>,
 ) -> Result<Done, fibfluid_scene::Error> {
     let displacement =
         positions.iter().zip(rest).map(|(p, r)| [p[0] - r[0], p[1] - r[1], p[2] - r[2]]).collect();
@@ -169,11 +181,11 @@ fn done(
         path: "report.json".into(),
         source: std::io::Error::other(e),
     })?;
-    Ok(Done { positions, displacement, pressure, report_json, warnings })
+    Ok(Done { positions, displacement, pressure, report_json, warnings, volume })
 }
 
-/// The finite-element run of `model` (its tissue's law), in the mesh file's vertex order; the
-/// pressure is 0 (the FEM has no fluid).
+/// The finite-element run of `model` (its tissue's law), in the mesh file's vertex order, with
+/// its volume; the pressure is 0 (the FEM has no fluid).
 fn solve_fem(
     mut model: fibfluid_sim::Model,
     max_memory: Option<u64>,
@@ -193,5 +205,6 @@ fn solve_fem(
         Shape::Polygon(_) => (run.positions.clone(), run.rest.clone()),
     };
     let warnings = run.warnings.iter().map(|w| crate::one_line(&w.to_string())).collect();
-    done(positions, &rest, 0.0, serde_json::to_string(&report), warnings)
+    let volume = VolumeArrays::of(run.volume);
+    done(positions, &rest, 0.0, serde_json::to_string(&report), warnings, Some(volume))
 }

@@ -41,7 +41,7 @@ def test_every_public_function_has_a_docstring():
         obj = getattr(fibfluid, name)
         if callable(obj):
             assert obj.__doc__, name
-    for cls in (fibfluid.Scene, fibfluid.Body):
+    for cls in (fibfluid.Scene, fibfluid.Body, fibfluid.Result, fibfluid.Volume):
         for attr, value in vars(cls).items():
             if not attr.startswith("_") and (callable(value) or isinstance(value, (property, staticmethod))):
                 assert getattr(cls, attr).__doc__ or getattr(value, "__doc__", None), f"{cls.__name__}.{attr}"

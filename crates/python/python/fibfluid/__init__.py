@@ -34,7 +34,7 @@ from ._native import Error
 
 __version__: str = _native.__version__
 
-__all__ = ["Body", "Error", "GuardWarning", "Result", "Scene", "run", "set_threads", "__version__"]
+__all__ = ["Body", "Error", "GuardWarning", "Result", "Scene", "Volume", "run", "set_threads", "__version__"]
 
 #: The methods a :class:`Body` can run.
 METHODS: Tuple[str, ...] = ("ffm", "tsve-chainmail", "generalized-chainmail")
@@ -334,10 +334,96 @@ del _name
 _READ_ONLY: Tuple[str, ...] = ("name", "source", "n_vertices", "vertices", "faces", "fixed_vertices", "notes")
 
 
+def _optional(module: str, what: str) -> Any:
+    """Imports an optional dependency, or raises ImportError saying how to install it."""
+    import importlib
+    try:
+        return importlib.import_module(module)
+    except ImportError as e:
+        raise ImportError(f"{what} needs {module}, which is not installed: pip install {module}") from e
+
+
+@dataclass(frozen=True)
+class Volume:
+    """Inside the tissue: the finite-element run's grid of hexahedra and its answer, the
+    data of the command line's ``volume.vtu``. SI units: lengths in metres, stresses in Pa
+    (``volume.vtu`` writes lengths in the mesh's unit).
+
+    Nodes are the grid's nodes (not the surface's vertices), cells its active cells, in the
+    grid's order. Cell data are per cell; see :attr:`cell_data`."""
+
+    #: Rest positions of the grid's nodes ``(N, 3)`` float64, metres.
+    nodes: np.ndarray
+    #: Displacement of every node ``(N, 3)`` float64, metres.
+    displacement: np.ndarray
+    #: The active cells ``(C, 8)`` int64: node indices in VTK's hexahedron corner order
+    #: (``VTK_HEXAHEDRON``, type 12).
+    hexahedra: np.ndarray
+    #: Each cell's mean dilatation ``J`` (current over rest volume) ``(C,)`` float64.
+    J: np.ndarray
+    #: Each cell's largest principal Green–Lagrange strain ``(C,)`` float64.
+    max_principal_strain: np.ndarray
+    #: Each cell's von Mises equivalent of the Cauchy stress ``(C,)`` float64, Pa.
+    von_mises_stress: np.ndarray
+    #: Each cell's fill fraction, the part of it inside the surface, in (0, 1] ``(C,)``.
+    fill: np.ndarray
+    #: Each cell's material ``(C,)`` int32: 0 the scene's ``[tissue]``, ``k`` its ``k``-th
+    #: ``[[region]]`` (the region holding most of the cell).
+    material_id: np.ndarray
+
+    @property
+    def n_nodes(self) -> int:
+        """Number of grid nodes."""
+        return len(self.nodes)
+
+    @property
+    def n_cells(self) -> int:
+        """Number of active cells."""
+        return len(self.hexahedra)
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Deformed node positions ``(N, 3)``, metres: ``nodes + displacement`` (a new
+        array at each call)."""
+        return self.nodes + self.displacement
+
+    @property
+    def cell_data(self) -> Dict[str, np.ndarray]:
+        """The cell fields by ``volume.vtu``'s names: ``J``, ``max_principal_strain``,
+        ``von_mises_stress`` (Pa), ``fill`` and ``material_id`` (the arrays themselves,
+        not copies)."""
+        return {
+            "J": self.J,
+            "max_principal_strain": self.max_principal_strain,
+            "von_mises_stress": self.von_mises_stress,
+            "fill": self.fill,
+            "material_id": self.material_id,
+        }
+
+    def __repr__(self) -> str:
+        return f"<fibfluid.Volume: {self.n_nodes} nodes, {self.n_cells} hexahedra>"
+
+
+def _volume(native: Any) -> Optional[Volume]:
+    if native is None:
+        return None
+    return Volume(
+        nodes=native.nodes,
+        displacement=native.displacement,
+        hexahedra=native.hexahedra,
+        J=native.J,
+        max_principal_strain=native.max_principal_strain,
+        von_mises_stress=native.von_mises_stress,
+        fill=native.fill,
+        material_id=native.material_id,
+    )
+
+
 @dataclass(frozen=True)
 class Result:
-    """What :func:`run` gives back. Arrays are in the mesh file's vertex order, the order
-    of ``deformed.obj``."""
+    """What :func:`run` gives back. The surface's arrays are in the mesh file's vertex
+    order, the order of ``deformed.obj``; a finite-element run adds :attr:`volume`, the
+    answer inside the tissue. Lengths are in metres (SI), whatever the mesh file's unit."""
 
     #: Final positions ``(N, 3)`` float64 (``deformed.obj``'s vertices).
     positions: np.ndarray
@@ -352,12 +438,50 @@ class Result:
     #: Triangles ``(F, 3)`` int64 in file vertex indices (the scene's ``faces``; a 2-D
     #: polygon's fan).
     faces: Optional[np.ndarray] = None
+    #: Inside the tissue, for a finite-element run (``method="fem"``): the grid's nodes,
+    #: hexahedra and fields of ``volume.vtu``, in metres and Pa. None for the FFM.
+    volume: Optional[Volume] = None
+
+    def volume_to_meshio(self) -> Any:
+        """The finite-element volume as a ``meshio.Mesh`` (metres, Pa): the deformed nodes
+        (``nodes + displacement``, the one new array), one ``"hexahedron"`` cell block, the
+        point data ``displacement`` (m) and the cell data of :attr:`Volume.cell_data`
+        (shared with :attr:`volume`, not copied). ``mesh.write("volume.vtu")`` writes it.
+        Needs ``meshio`` (``pip install meshio``); raises :class:`Error` for an FFM run."""
+        v = self._volume()
+        meshio = _optional("meshio", "Result.volume_to_meshio")
+        return meshio.Mesh(
+            v.positions,
+            [("hexahedron", v.hexahedra)],
+            point_data={"displacement": v.displacement},
+            cell_data={name: [values] for name, values in v.cell_data.items()},
+        )
+
+    def volume_to_pyvista(self) -> Any:
+        """The finite-element volume as a ``pyvista.UnstructuredGrid`` of hexahedra (metres,
+        Pa): the deformed nodes (``nodes + displacement``, a new array), the point data
+        ``displacement`` (m) and the cell data of :attr:`Volume.cell_data`. PyVista copies the
+        hexahedra once into VTK's cell array; the positions and the data are shared, not
+        copied. Needs ``pyvista`` (``pip install pyvista``); raises :class:`Error` for an FFM
+        run."""
+        v = self._volume()
+        pyvista = _optional("pyvista", "Result.volume_to_pyvista")
+        grid = pyvista.UnstructuredGrid({pyvista.CellType.HEXAHEDRON: v.hexahedra}, v.positions)
+        grid.point_data["displacement"] = v.displacement
+        for name, values in v.cell_data.items():
+            grid.cell_data[name] = values
+        return grid
+
+    def _volume(self) -> Volume:
+        if self.volume is None:
+            raise Error("this result has no volume: only a finite-element run (method=\"fem\") has one")
+        return self.volume
 
     def to_meshio(self) -> Any:
         """The deformed surface as a ``meshio.Mesh`` (metres): triangles, and the point data
         ``displacement`` (m) and ``displacement_magnitude``. The arrays are shared, not
         copied. Needs ``meshio`` (``pip install meshio``)."""
-        import meshio
+        meshio = _optional("meshio", "Result.to_meshio")
         return meshio.Mesh(
             self.positions,
             [("triangle", self._faces())],
@@ -368,7 +492,7 @@ class Result:
         """The deformed surface as a ``pyvista.PolyData`` (metres) with the point data of
         :meth:`to_meshio`. The faces are copied once into VTK's ``[3, i, j, k, ...]`` layout.
         Needs ``pyvista`` (``pip install pyvista``)."""
-        import pyvista
+        pyvista = _optional("pyvista", "Result.to_pyvista")
         faces = self._faces()
         cells = np.hstack([np.full((len(faces), 1), 3, dtype=np.int64), faces]).ravel()
         mesh = pyvista.PolyData(self.positions, cells)
@@ -419,8 +543,9 @@ def run(scene: Scene, method: Optional[str] = None, progress: Progress = None,
     writing files) and returns a :class:`Result`.
 
     ``method`` may be None (the scene's own), ``"ffm"`` or ``"fem"`` (the finite-element
-    method with the scene's ``[tissue]`` law, linear or neo-Hookean; its ``pressure`` is 0
-    and ``progress`` is not called: Newton's load steps are in ``report["newton"]``).
+    method with the scene's ``[tissue]`` law, linear or neo-Hookean; its ``pressure`` is 0,
+    its :attr:`Result.volume` holds the answer inside the tissue, and ``progress`` is not
+    called: Newton's load steps are in ``report["newton"]``).
     ChainMail is interactive only, see :class:`Body`. ``progress`` is a callable
     ``(step, total)`` called after each load step, or True for a tqdm bar. The GIL is
     released during the solve. ``max_memory`` (bytes) refuses a scene whose plan needs
@@ -448,6 +573,7 @@ def run(scene: Scene, method: Optional[str] = None, progress: Progress = None,
         report=json.loads(out.report_json),
         warnings=list(out.warnings),
         faces=scene.faces,
+        volume=_volume(out.volume),
     )
 
 

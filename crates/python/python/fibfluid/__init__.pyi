@@ -13,7 +13,7 @@ METHODS: Tuple[str, ...]
 
 Vector = Union[Sequence[float], npt.NDArray[np.floating[Any]]]
 Progress = Union[None, bool, Callable[[int, int], Any]]
-MethodName = Literal["ffm", "tsve-chainmail", "generalized-chainmail"]
+MethodName = Literal["ffm", "fem", "tsve-chainmail", "generalized-chainmail"]
 
 class Error(ValueError):
     """Everything fibfluid refuses or fails at, with the command line's one-line message."""
@@ -79,6 +79,25 @@ class Scene:
     def ineffective(self) -> List[str]: ...
 
 @dataclass(frozen=True)
+class Volume:
+    nodes: npt.NDArray[np.float64]
+    displacement: npt.NDArray[np.float64]
+    hexahedra: npt.NDArray[np.int64]
+    J: npt.NDArray[np.float64]
+    max_principal_strain: npt.NDArray[np.float64]
+    von_mises_stress: npt.NDArray[np.float64]
+    fill: npt.NDArray[np.float64]
+    material_id: npt.NDArray[np.int32]
+    @property
+    def n_nodes(self) -> int: ...
+    @property
+    def n_cells(self) -> int: ...
+    @property
+    def positions(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def cell_data(self) -> Dict[str, npt.NDArray[Any]]: ...
+
+@dataclass(frozen=True)
 class Result:
     positions: npt.NDArray[np.float64]
     displacement: npt.NDArray[np.float64]
@@ -86,8 +105,11 @@ class Result:
     report: Dict[str, Any]
     warnings: List[str] = ...
     faces: Optional[npt.NDArray[np.int64]] = ...
+    volume: Optional[Volume] = ...
     def to_meshio(self) -> Any: ...
     def to_pyvista(self) -> Any: ...
+    def volume_to_meshio(self) -> Any: ...
+    def volume_to_pyvista(self) -> Any: ...
 
 def run(
     scene: Scene,

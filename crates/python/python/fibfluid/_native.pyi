@@ -38,12 +38,23 @@ class NativeScene:
     def ineffective(self) -> List[str]: ...
     def notes(self) -> List[str]: ...
 
+class VolumeOutput:
+    nodes: npt.NDArray[np.float64]
+    displacement: npt.NDArray[np.float64]
+    hexahedra: npt.NDArray[np.int64]
+    J: npt.NDArray[np.float64]
+    max_principal_strain: npt.NDArray[np.float64]
+    von_mises_stress: npt.NDArray[np.float64]
+    fill: npt.NDArray[np.float64]
+    material_id: npt.NDArray[np.int32]
+
 class RunOutput:
     positions: npt.NDArray[np.float64]
     displacement: npt.NDArray[np.float64]
     pressure: float
     report_json: str
     warnings: List[str]
+    volume: Optional[VolumeOutput]
 
 def run(
     scene: NativeScene,
