@@ -134,7 +134,7 @@ pub enum FemError {
     },
     /// Newton's method could not reach a load: the increment was cut below its minimum.
     #[error(
-        "Newton's method did not converge at load step {step} (load factor {load:.4}): relative residual {residual:.3e}; the body may be inverting or the load too large"
+        "Newton's method did not converge at load step {step} (load factor {load:.4}): relative residual {residual:.3e}; {why}"
     )]
     NotConverged {
         /// The load step (1-based) that failed.
@@ -143,6 +143,8 @@ pub enum FemError {
         load: f64,
         /// The relative residual when it stopped.
         residual: f64,
+        /// What the last iterations saw.
+        why: NotConvergedWhy,
     },
     /// A state inverts a cell (`J <= 0`): no step toward it could be taken.
     #[error("the body would invert (a cell's volume would reach zero); move the tool less far per step")]
@@ -167,5 +169,26 @@ impl From<LinalgError> for FemError {
             LinalgError::SparseNotPositiveDefinite { .. } => FemError::NotPositiveDefinite,
             other => FemError::Factorization { reason: other.to_string() },
         }
+    }
+}
+
+/// What the last Newton iterations of a failed load step saw.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NotConvergedWhy {
+    /// The tangent was positive definite: the steps inverted cells or stalled.
+    Stalled,
+    /// The tangent was indefinite (factored only with a diagonal shift): the equilibrium
+    /// is unstable there.
+    Indefinite,
+}
+
+impl std::fmt::Display for NotConvergedWhy {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            NotConvergedWhy::Stalled => "the body may be inverting or the load too large",
+            NotConvergedWhy::Indefinite => {
+                "the tangent stiffness was indefinite (the body buckles, swings about its supports or snaps there: an unstable equilibrium that load stepping cannot pass); support it more, or load it less"
+            }
+        })
     }
 }

@@ -58,7 +58,7 @@ mod tissue;
 pub use body::{FemBody, FemSolution, FemStats, Loads, RESIDUAL_LIMIT};
 pub use clamp::CLAMP_PENALTY;
 pub use clamp::fixed_surface_samples;
-pub use error::{FemError, Result};
+pub use error::{FemError, NotConvergedWhy, Result};
 pub use grid::{
     DEFAULT_RESOLUTION, Element, Embedded, FemOptions, GridEstimate, MAX_CELLS, MAX_RESOLUTION, MIN_FILL,
     SNAP, SUBSAMPLES, SparseGrid,

@@ -6,7 +6,7 @@ use crate::common::*;
 use fibfluid_fem::hyper::{
     CellMaterial, GRASP_TOLERANCE, Grasp, HyperBody, HyperCell, NewtonSettings, RigidPlate,
 };
-use fibfluid_fem::{FemBody, FemError, FemOptions, Loads, Tissue, TissueModel};
+use fibfluid_fem::{FemBody, FemError, FemOptions, Loads, NotConvergedWhy, Tissue, TissueModel};
 
 /// A smooth, non-trivial displacement of a cell of edge `h` (stretch, shear and twist of
 /// about 20 %).
@@ -224,6 +224,28 @@ fn unreachable_load_is_an_error() {
         Err(e @ FemError::NotConverged { step: 1, .. }) => {
             let text = e.to_string();
             assert!(text.contains("load step 1") && text.contains("residual"), "{text}");
+        }
+        other => panic!("{:?}", other.map(|s| s.steps.len())),
+    }
+}
+
+/// A slender column (1 x 1 x 8) clamped at its foot and pressed down by a plate to half
+/// its height buckles (Euler's load of this column is reached at about 1 % strain): the
+/// straight equilibrium Newton aims for is unstable, its tangent indefinite, and the error
+/// says so rather than "too large a load".
+#[test]
+fn buckling_is_reported_as_an_unstable_equilibrium() {
+    let (pos, tris) = box_surface([0.0; 3], [2, 2, 16], 0.5);
+    let fixed: Vec<[bool; 3]> = pos.iter().map(|p| [p[2] == 0.0; 3]).collect();
+    let tissue = Tissue::new(5000.0, 0.3, 0.0).unwrap().with_model(TissueModel::NeoHookean);
+    let options = FemOptions { resolution: 16, ..FemOptions::default() };
+    let settings = NewtonSettings { min_increment: 1.0 / 64.0, ..NewtonSettings::default() };
+    let mut body =
+        HyperBody::from_surface(&pos, &tris, &tissue, &fixed, &options).unwrap().with_settings(settings);
+    let plate = RigidPlate { start: [0.0, 0.0, 8.0], end: [0.0, 0.0, 4.0], normal: [0.0, 0.0, -1.0] };
+    match body.solve(&Loads::default(), &[plate]) {
+        Err(e @ FemError::NotConverged { why: NotConvergedWhy::Indefinite, .. }) => {
+            assert!(e.to_string().contains("unstable equilibrium"), "{e}");
         }
         other => panic!("{:?}", other.map(|s| s.steps.len())),
     }

@@ -50,6 +50,16 @@ pub(super) struct Evaluation {
 /// Why a Newton solve stopped without converging.
 pub(super) struct Failure {
     pub(super) residual: f64,
+    /// Whether the last tangent was indefinite (factored only with a shift): the
+    /// equilibrium sought is unstable there (buckling, a swing, a snap).
+    pub(super) indefinite: bool,
+}
+
+impl crate::error::NotConvergedWhy {
+    /// What `failure` saw.
+    pub(super) fn of(failure: &Failure) -> Self {
+        if failure.indefinite { Self::Indefinite } else { Self::Stalled }
+    }
 }
 
 impl HyperBody {
@@ -279,10 +289,11 @@ impl HyperBody {
         history: &mut Vec<f64>,
         stats: &mut HyperStats,
     ) -> Result<std::result::Result<usize, Failure>> {
+        let mut indefinite = false;
         for iteration in 0..=self.settings.max_iterations {
             let start = Instant::now();
             let Some(eval) = self.evaluate(x, state, true) else {
-                return Ok(Err(Failure { residual: f64::INFINITY }));
+                return Ok(Err(Failure { residual: f64::INFINITY, indefinite }));
             };
             stats.assembly_seconds += start.elapsed().as_secs_f64();
             let residual = norm(&eval.gradient) / eval.scale;
@@ -291,12 +302,12 @@ impl HyperBody {
                 return Ok(Ok(iteration));
             }
             if iteration == self.settings.max_iterations || !residual.is_finite() {
-                return Ok(Err(Failure { residual }));
+                return Ok(Err(Failure { residual, indefinite }));
             }
             let start = Instant::now();
             match self.factor_tangent(factor) {
-                Ok(_) => {}
-                Err(FemError::NotPositiveDefinite) => return Ok(Err(Failure { residual })),
+                Ok(shift) => indefinite = shift > 0.0,
+                Err(FemError::NotPositiveDefinite) => return Ok(Err(Failure { residual, indefinite: true })),
                 Err(e) => return Err(e),
             }
             stats.factor_seconds += start.elapsed().as_secs_f64();
@@ -308,7 +319,7 @@ impl HyperBody {
             let accepted = self.line_search(x, &d, &eval, state);
             stats.solve_seconds += start.elapsed().as_secs_f64();
             if !accepted {
-                return Ok(Err(Failure { residual }));
+                return Ok(Err(Failure { residual, indefinite }));
             }
         }
         unreachable!("the loop returns at its last iteration")

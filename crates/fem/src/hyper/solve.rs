@@ -11,7 +11,7 @@ use super::grasp::GRASP_TOLERANCE;
 use super::newton::LoadState;
 use crate::assemble::FIXED;
 use crate::body::{Loads, load_vector};
-use crate::error::{FemError, Result};
+use crate::error::{FemError, NotConvergedWhy, Result};
 
 /// The state of a solve between load steps.
 struct Progress {
@@ -95,6 +95,7 @@ impl HyperBody {
                         step: run.steps.len() + 1,
                         load: 1.0,
                         residual: f.residual,
+                        why: NotConvergedWhy::of(&f),
                     });
                 }
             }
@@ -146,6 +147,7 @@ impl HyperBody {
                             step: run.steps.len() + 1,
                             load: target,
                             residual: f.residual,
+                            why: NotConvergedWhy::of(&f),
                         });
                     }
                 }
