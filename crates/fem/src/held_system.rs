@@ -147,8 +147,9 @@ struct SurfaceProjection {
     unheld: Vec<f64>,
     /// `C u0`: the unheld solution along each row.
     rows_unheld: Vec<f64>,
-    /// `S Z`: each row's compliance column at the surface vertices (3 per vertex).
-    columns: Vec<Vec<f64>>,
+    /// `S Z`: each row's compliance column at the surface vertices (3 per vertex), one
+    /// matrix column per row.
+    columns: Mat<f64>,
 }
 
 /// A constraint row's identity: its vertex and direction (bit for bit).
@@ -170,7 +171,7 @@ impl HoldCache {
     /// Bytes of the cached compliance columns and their surface projection.
     pub(crate) fn bytes(&self) -> usize {
         let columns: usize = self.columns.values().map(|c| 8 * 3 * c[0].len()).sum();
-        let surface = self.surface.as_ref().map_or(0, |p| 8 * p.columns.iter().map(Vec::len).sum::<usize>());
+        let surface = self.surface.as_ref().map_or(0, |p| 8 * p.columns.nrows() * p.columns.ncols());
         columns + surface
     }
 }
@@ -289,7 +290,7 @@ impl HeldSystem<'_> {
             let projection = SurfaceProjection {
                 unheld: self.at_surface(u0),
                 rows_unheld: rows.iter().map(|r| row_dot(&r.entries, u0)).collect(),
-                columns: columns.iter().map(|c| self.at_surface(c)).collect(),
+                columns: self.columns_at_surface(&columns),
                 keys,
             };
             cache.surface = Some(projection);
@@ -299,27 +300,39 @@ impl HeldSystem<'_> {
         let (pushes, uncovered) = penalty_pushes(penalty, &rows);
         // Along the rows, u = u0 + Z (pushes - r) is C u0 + (C Z)(pushes - r).
         let cz = capacitance.matrix();
-        let along = |i: usize, w: &[f64]| -> f64 { (0..w.len()).map(|j| cz[(i, j)] * w[j]).sum() };
-        let gap: Vec<f64> =
-            (0..rows.len()).map(|i| projection.rows_unheld[i] + along(i, &pushes) - rows[i].target).collect();
+        let along = |w: &[f64]| -> Vec<f64> {
+            let mut out = Mat::<f64>::from_fn(w.len(), 1, |i, _| projection.rows_unheld[i]);
+            let w = Mat::<f64>::from_fn(w.len(), 1, |j, _| w[j]);
+            faer::linalg::matmul::matmul(out.as_mut(), faer::Accum::Add, cz, w.as_ref(), 1.0, faer::Par::Seq);
+            out.col_as_slice(0).to_vec()
+        };
+        let gap: Vec<f64> = along(&pushes).iter().zip(&rows).map(|(c, row)| c - row.target).collect();
         let r = capacitance.multipliers(&gap);
         let weights: Vec<f64> = pushes.iter().zip(&r).map(|(p, r)| p - r).collect();
         if ridged {
-            let met: Vec<f64> =
-                (0..rows.len()).map(|i| projection.rows_unheld[i] + along(i, &weights)).collect();
-            check_met(&rows, &met)?;
+            check_met(&rows, &along(&weights))?;
         }
-        let mut surface = projection.unheld.clone();
-        for (&w, column) in weights.iter().zip(&projection.columns).filter(|(w, _)| **w != 0.0) {
-            surface.iter_mut().zip(column).for_each(|(s, c)| *s += w * c);
-        }
+        // S u = S u0 + (S Z) weights: one dense product (faer's vectorized kernel).
+        let mut surface = Mat::<f64>::from_fn(projection.unheld.len(), 1, |i, _| projection.unheld[i]);
+        let w = Mat::<f64>::from_fn(weights.len(), 1, |j, _| weights[j]);
+        faer::linalg::matmul::matmul(
+            surface.as_mut(),
+            faer::Accum::Add,
+            projection.columns.as_ref(),
+            w.as_ref(),
+            1.0,
+            faer::Par::Seq,
+        );
         let lambda: Vec<f64> = r.iter().map(|x| -x).collect();
         let reactions = reactions_of(holds, &rows, &lambda);
-        Ok(SurfaceSolve {
-            surface: surface.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
-            reactions,
-            uncovered,
-        })
+        let displacement = (0..surface.nrows() / 3).map(|v| std::array::from_fn(|a| surface[(3 * v + a, 0)]));
+        Ok(SurfaceSolve { surface: displacement.collect(), reactions, uncovered })
+    }
+
+    /// The surface vertices' values of each column (3 per vertex, a matrix column each).
+    fn columns_at_surface(&self, columns: &[Cow<'_, [f64]>]) -> Mat<f64> {
+        let projected: Vec<Vec<f64>> = columns.iter().map(|c| self.at_surface(c)).collect();
+        Mat::from_fn(3 * self.embedding.len(), columns.len(), |i, j| projected[j][i])
     }
 
     /// The surface vertices' values of the free-dof vector `x` (3 per vertex; fixed dofs
@@ -375,9 +388,15 @@ fn reactions_of(holds: &[(usize, FemHold)], rows: &[Row], lambda: &[f64]) -> Vec
 fn penalty_pushes(penalty: Option<&Penalty>, rows: &[Row]) -> (Vec<f64>, usize) {
     let Some(p) = penalty else { return (vec![0.0; rows.len()], 0) };
     let keys: Vec<RowKey> = rows.iter().map(Row::key).collect();
+    if p.keys == keys {
+        // The holds the linearization was made for (the usual frame): every row penalized.
+        return (rows.iter().map(|r| p.stiffness * r.target).collect(), 0);
+    }
+    let penalized: std::collections::HashSet<&RowKey> = p.keys.iter().collect();
+    let held: std::collections::HashSet<&RowKey> = keys.iter().collect();
     let pushes =
-        rows.iter().zip(&keys).map(|(r, k)| if p.keys.contains(k) { p.stiffness * r.target } else { 0.0 });
-    (pushes.collect(), p.keys.iter().filter(|k| !keys.contains(k)).count())
+        rows.iter().zip(&keys).map(|(r, k)| if penalized.contains(k) { p.stiffness * r.target } else { 0.0 });
+    (pushes.collect(), p.keys.iter().filter(|k| !held.contains(k)).count())
 }
 
 /// Displacement of every embedded surface vertex of the free-dof vector `x` (fixed dofs
