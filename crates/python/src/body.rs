@@ -225,6 +225,18 @@ impl NativeBody {
         })
     }
 
+    /// Makes the next `count` refreshes of a neo-Hookean finite-element body fail (see
+    /// `HyperInteractive::fail_next_refreshes`): for testing what a caller does then.
+    fn fail_next_refreshes(&mut self, count: u32) -> PyResult<()> {
+        match &mut self.body {
+            MethodBody::Hyper(b) => {
+                b.fail_next_refreshes(count);
+                Ok(())
+            }
+            _ => Err(error("only a neo-Hookean finite-element body has refreshes")),
+        }
+    }
+
     /// Applies the holds and computes the frame (the GIL released), then checks it with the
     /// result guards (see `warnings`): returns the positions `(N, 3)` in file order and the
     /// reactions `(k, 4)`: file vertex, force x, y, z. A non-finite answer is an error.

@@ -124,6 +124,25 @@ def test_a_finite_element_body_of_a_neo_hookean_scene_runs_at_two_rates(tmp_path
         raise AssertionError(f"no converged refresh: {body.linearization}")
     held = body.positions[v] - rest[v]
     assert np.allclose(held, [0.0, -0.15 * size, 0.0], atol=1e-9 * size), held
+    # Refreshes that fail (on purpose): every step still answers, the grab is met, and the
+    # linearization names the failure; then the refreshes recover and converge.
+    body._fail_next_refreshes(3)
+    body.grab(v, [0.0, -0.2 * size, 0.0])
+    failures = []
+    for _ in range(2000):
+        body.step()
+        lin = body.linearization
+        if lin["failure"] is not None:
+            failures.append(lin["failure"])
+            assert np.allclose(body.positions[v] - rest[v], [0.0, -0.2 * size, 0.0], atol=1e-9 * size)
+        elif failures and lin["estimated_error"] < 1e-9 * size:
+            break
+        time.sleep(0.005)
+    else:
+        raise AssertionError(f"no recovery after the failed refreshes: {body.linearization}")
+    assert failures and "failed" in failures[0], failures
+    with pytest.raises(fibfluid.Error, match="refreshes"):
+        fibfluid.Body(scene, method="ffm")._fail_next_refreshes(1)
     # Released, the body is back at its own equilibrium at once.
     body.release_all()
     body.step()

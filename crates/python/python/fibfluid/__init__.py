@@ -643,6 +643,12 @@ class Body:
         """Drops every hold, grasp and the tip from the next step."""
         self._native.release_all()
 
+    def _fail_next_refreshes(self, count: int) -> None:
+        """Makes the next ``count`` refreshes of a neo-Hookean ``"fem"`` body fail, for
+        testing what a caller does then: steps go on with the last good linearization and
+        :attr:`linearization` names the failure. Raises :class:`Error` for other bodies."""
+        self._native.fail_next_refreshes(_index(count))
+
     def step(self) -> Tuple[np.ndarray, np.ndarray]:
         """Applies the holds and computes a frame (the GIL released). Returns the positions
         ``(N, 3)`` and the reactions ``(k, 4)``: one row per held vertex, sorted, with the
