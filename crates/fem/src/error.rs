@@ -173,19 +173,32 @@ impl From<LinalgError> for FemError {
 }
 
 /// What the last Newton iterations of a failed load step saw.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum NotConvergedWhy {
     /// The tangent was positive definite: the steps inverted cells or stalled.
     Stalled,
     /// The tangent was indefinite (factored only with a diagonal shift): the equilibrium
     /// is unstable there.
     Indefinite,
+    /// A cell at least half inside the body grew its volume `j` times, past `e`, where the
+    /// volumetric energy `kappa / 2 (ln J)^2` gives its largest pressure: the tissue model
+    /// is unstable in dilation there.
+    Dilatation {
+        /// The largest volume ratio `J` over those cells.
+        j: f64,
+    },
 }
 
 impl std::fmt::Display for NotConvergedWhy {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {
             NotConvergedWhy::Stalled => "the body may be inverting or the load too large",
+            NotConvergedWhy::Dilatation { j } => {
+                return write!(
+                    f,
+                    "a cell's volume grew {j:.2} times, past e = 2.72 where the neo-Hookean volumetric energy's pressure peaks: the tissue model is unstable in dilation there (a support too small for the load pulls the tissue apart); support it more, load it less, or raise Poisson's ratio"
+                );
+            }
             NotConvergedWhy::Indefinite => {
                 "the tangent stiffness was indefinite (the body buckles, swings about its supports or snaps there: an unstable equilibrium that load stepping cannot pass); support it more, or load it less"
             }

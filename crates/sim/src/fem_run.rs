@@ -25,7 +25,9 @@ pub use crate::fem_inputs::{
     FemPlate, build_body, estimate, fixed_axes, full_loads, refuse_plates, tissue_of,
 };
 use crate::model::{Model, Shape};
-use crate::result_guards::{LINEAR_STRAIN_LIMIT, ResultChecks, ResultGuard, ResultWarning, check_answer};
+use crate::result_guards::{
+    DILATATION_LIMIT, LINEAR_STRAIN_LIMIT, ResultChecks, ResultGuard, ResultWarning, check_answer,
+};
 use crate::stages::{StageLog, StageRecord, names};
 use crate::{Error, Result};
 
@@ -102,6 +104,13 @@ impl FemRun {
                 guard: ResultGuard::Strain,
                 value: strain,
                 limit: LINEAR_STRAIN_LIMIT,
+            });
+        }
+        if !small_strain && answer.strain.j_max > DILATATION_LIMIT {
+            warnings.push(ResultWarning {
+                guard: ResultGuard::Dilatation,
+                value: answer.strain.j_max,
+                limit: DILATATION_LIMIT,
             });
         }
         Ok(Self {

@@ -10,6 +10,7 @@
 //! | `residual` | the solve's relative residual | above [`RESULT_RESIDUAL_LIMIT`] |
 //! | `linear` | largest `|u|` over the diagonal, for a small-strain (linear) FEM answer | above [`LINEAR_DISPLACEMENT_LIMIT`] |
 //! | `strain` | largest principal Green–Lagrange strain over the cells, of a linear FEM batch answer (its own displacement field at each cell's centre) | above [`LINEAR_STRAIN_LIMIT`] |
+//! | `dilatation` | largest `J` over the tissue's cells, of a neo-Hookean FEM batch answer | above [`DILATATION_LIMIT`] (`e`) |
 //!
 //! The `linear` guard is the small-strain model's own validity, estimated from the answer:
 //! a displacement of a tenth of the body's size means strains of that order or more where
@@ -44,6 +45,11 @@ pub const LINEAR_DISPLACEMENT_LIMIT: f64 = 0.1;
 /// The largest principal strain a small-strain answer may reach before it warns: at 5 %
 /// the linear force is about 5 % off the neo-Hookean one in uniaxial compression.
 pub const LINEAR_STRAIN_LIMIT: f64 = 0.05;
+/// The largest volume ratio `J` a neo-Hookean answer's cell may reach before it warns: the
+/// volumetric energy `kappa / 2 (ln J)^2` gives its largest pressure, `kappa / e`, at
+/// `J = e`; stretched further a cell's volume grows under a falling pressure (the model is
+/// unstable in dilation there, not the tissue).
+pub const DILATATION_LIMIT: f64 = std::f64::consts::E;
 /// The largest relative residual `|K u - f| / |f|` an answer may have.
 pub const RESULT_RESIDUAL_LIMIT: f64 = 1e-8;
 
@@ -64,6 +70,8 @@ pub enum ResultGuard {
     /// A small-strain (linear FEM) answer's largest principal Green–Lagrange strain, over
     /// its cells, is above [`LINEAR_STRAIN_LIMIT`].
     Strain,
+    /// A neo-Hookean answer's cell grew its volume past [`DILATATION_LIMIT`] times.
+    Dilatation,
 }
 
 impl Choice for ResultGuard {
@@ -75,6 +83,7 @@ impl Choice for ResultGuard {
         ResultGuard::Residual,
         ResultGuard::Linear,
         ResultGuard::Strain,
+        ResultGuard::Dilatation,
     ];
     fn name(self) -> &'static str {
         match self {
@@ -84,6 +93,7 @@ impl Choice for ResultGuard {
             ResultGuard::Residual => "residual",
             ResultGuard::Linear => "linear",
             ResultGuard::Strain => "strain",
+            ResultGuard::Dilatation => "dilatation",
         }
     }
 }
@@ -126,6 +136,10 @@ impl std::fmt::Display for ResultWarning {
             ResultGuard::Strain => (
                 "the linear answer's largest principal strain is {value} (limit {limit})",
                 "against the neo-Hookean model a linear answer is then off by about 10 % in force at 10 % strain and 20-55 % at 20-50 % (docs/fem.md): set [tissue] model = \"neo-hookean\"",
+            ),
+            ResultGuard::Dilatation => (
+                "a cell's volume grew {value} times (limit {limit}, where the volumetric energy's pressure peaks)",
+                "past it the neo-Hookean model is unstable in dilation and the answer near that cell is not physical: support the body more, load it less, or raise Poisson's ratio",
             ),
         };
         let what = what

@@ -58,7 +58,15 @@ pub struct LoadStep {
     pub residuals: Vec<f64>,
 }
 
-/// Extremes of the deformed cells.
+/// Cells at least this fraction inside the surface are the tissue the strain summary
+/// reports on. A cell mostly outside the body is mostly the fictitious material that
+/// holds its outer nodes ([`super::cell::EMPTY_STIFFNESS`]); its strain and stress can be
+/// many times the tissue's without meaning anything about the tissue (their per-cell
+/// values are still in `volume.vtu`, with the fill beside them).
+pub const SUMMARY_FILL: f64 = 0.5;
+
+/// Extremes of the deformed cells at least [`SUMMARY_FILL`] inside the surface (of every
+/// cell when none is).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct StrainSummary {
     /// Smallest `J = det F` over every cell's Gauss points.
@@ -323,8 +331,9 @@ impl HyperBody {
 }
 
 /// Each cell's strain, `J` and stress (of its own law) for node displacements `u` on `grid`,
-/// and their extremes: the large-strain measures of any answer, a linear one included
-/// (whose Green–Lagrange strain then shows the rotations it cannot represent).
+/// and their extremes over the cells at least [`SUMMARY_FILL`] inside: the large-strain
+/// measures of any answer, a linear one included (whose Green–Lagrange strain then shows
+/// the rotations it cannot represent).
 ///
 /// # Panics
 /// When `u` does not have one entry per grid node or `materials` one per cell.
@@ -350,7 +359,9 @@ pub fn cell_states(
         max_strain_magnitude: 0.0,
         max_von_mises: 0.0,
     };
-    for c in &cells {
+    let tissue =
+        |c: &(&CellState, &f64)| *c.1 >= SUMMARY_FILL || grid.fill().iter().all(|&f| f < SUMMARY_FILL);
+    for (c, _) in cells.iter().zip(grid.fill()).filter(tissue) {
         s.j_min = s.j_min.min(c.j_min);
         s.j_max = s.j_max.max(c.j_max);
         s.max_principal_strain = s.max_principal_strain.max(c.max_principal_strain);

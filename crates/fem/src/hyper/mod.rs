@@ -26,7 +26,9 @@ mod newton;
 mod solve;
 mod tracking;
 
-pub use body::{HyperBody, HyperSolution, HyperStats, LoadStep, NewtonSettings, StrainSummary, cell_states};
+pub use body::{
+    HyperBody, HyperSolution, HyperStats, LoadStep, NewtonSettings, SUMMARY_FILL, StrainSummary, cell_states,
+};
 pub use cell::{CellMaterial, CellState, CellTangent, HyperCell};
 pub use contact::{
     CONTACT_FORCE_TOLERANCE, CONTACT_GAP_TOLERANCE, CONTACT_PENALTY, CONTACT_SMOOTHING, MAX_AUGMENTATIONS,

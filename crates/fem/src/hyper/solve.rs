@@ -95,7 +95,7 @@ impl HyperBody {
                         step: run.steps.len() + 1,
                         load: 1.0,
                         residual: f.residual,
-                        why: NotConvergedWhy::of(&f),
+                        why: self.failure_why(&run.x, &f),
                     });
                 }
             }
@@ -147,13 +147,24 @@ impl HyperBody {
                             step: run.steps.len() + 1,
                             load: target,
                             residual: f.residual,
-                            why: NotConvergedWhy::of(&f),
+                            why: self.failure_why(&trial, &f),
                         });
                     }
                 }
             }
         }
         Ok(())
+    }
+
+    /// Why Newton failed at the state `x` it stopped at: a tissue cell dilated past the
+    /// volumetric energy's pressure peak, or the tangent it saw.
+    fn failure_why(&self, x: &[f64], failure: &super::newton::Failure) -> NotConvergedWhy {
+        let largest = self.cell_states(&self.node_field(x)).1.j_max;
+        if largest > std::f64::consts::E {
+            NotConvergedWhy::Dilatation { j: largest }
+        } else {
+            NotConvergedWhy::of(failure)
+        }
     }
 
     /// The secant predictor: the last converged increment scaled to this one, when the
