@@ -12,6 +12,32 @@ REPO = Path(__file__).resolve().parents[3]
 SCENES = REPO / "fixtures" / "scenes"
 
 
+#: The level-2 icosphere (162 vertices, 320 faces).
+SPHERE_MESH = REPO / "fixtures" / "meshes" / "icosphere-2.obj"
+
+#: That icosphere in centimetres (lengths in the command line's files are in cm), a linear
+#: tissue hanging from its cap under gravity, solved by the finite-element method on a
+#: coarse grid (a second or so). `.format(mesh=...)` puts the mesh's path in.
+SPHERE_FEM_CM = """\
+[mesh]
+path = "{mesh}"
+unit = "cm"
+[tissue]
+young = 5000.0
+poisson = 0.45
+density = 1000.0
+[gravity]
+acceleration = [0.0, -9.81, 0.0]
+[[fix]]
+axis = "y"
+above = 0.8
+[solver]
+method = "fem"
+[fem]
+resolution = 8
+"""
+
+
 @pytest.fixture(scope="session")
 def repo() -> Path:
     return REPO

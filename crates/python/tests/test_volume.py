@@ -12,30 +12,7 @@ import numpy as np
 import pytest
 
 import fibfluid
-from conftest import REPO, SCENES, run_cli
-
-MESH = REPO / "fixtures" / "meshes" / "icosphere-2.obj"
-
-# The level-2 icosphere in centimetres (lengths in volume.vtu are in cm: the package's are
-# converted to compare), a linear tissue hanging from its cap, on a coarse grid.
-SPHERE_CM = """\
-[mesh]
-path = "{mesh}"
-unit = "cm"
-[tissue]
-young = 5000.0
-poisson = 0.45
-density = 1000.0
-[gravity]
-acceleration = [0.0, -9.81, 0.0]
-[[fix]]
-axis = "y"
-above = 0.8
-[solver]
-method = "fem"
-[fem]
-resolution = 8
-"""
+from conftest import SCENES, SPHERE_FEM_CM, SPHERE_MESH, run_cli
 
 FAT = {"young": 3250.0, "poisson": 0.45, "density": 930.0}
 LESION = {"young": 22000.0, "poisson": 0.45, "density": 1000.0}
@@ -89,7 +66,7 @@ def run_both(cli, scene_path, out):
 def sphere(cli, tmp_path_factory):
     tmp = tmp_path_factory.mktemp("volume-sphere")
     scene = tmp / "sphere-fem.toml"
-    scene.write_text(SPHERE_CM.format(mesh=MESH.as_posix()))
+    scene.write_text(SPHERE_FEM_CM.format(mesh=SPHERE_MESH.as_posix()))
     return run_both(cli, scene, tmp / "out")
 
 

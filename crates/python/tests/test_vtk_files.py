@@ -10,30 +10,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from conftest import REPO, read_obj_vertices, run_cli
-
-MESH = REPO / "fixtures" / "meshes" / "icosphere-2.obj"
-
-# The level-2 icosphere (162 vertices, 320 faces) in centimetres, hanging from its cap under
-# gravity, solved by the finite-element method on a coarse grid (a second or so).
-SCENE = """\
-[mesh]
-path = "{mesh}"
-unit = "cm"
-[tissue]
-young = 5000.0
-poisson = 0.45
-density = 1000.0
-[gravity]
-acceleration = [0.0, -9.81, 0.0]
-[[fix]]
-axis = "y"
-above = 0.8
-[solver]
-method = "fem"
-[fem]
-resolution = 8
-"""
+from conftest import SPHERE_FEM_CM, SPHERE_MESH, read_obj_vertices, run_cli
 
 
 def needs(module: str):
@@ -43,10 +20,10 @@ def needs(module: str):
 
 @pytest.fixture(scope="module")
 def fem_run(cli, tmp_path_factory):
-    """`fibfluid run` of the scene above: its output directory and report.json."""
+    """`fibfluid run` of conftest's `SPHERE_FEM_CM`: its output directory and report.json."""
     tmp = tmp_path_factory.mktemp("vtk")
     scene = tmp / "sphere-fem.toml"
-    scene.write_text(SCENE.format(mesh=MESH.as_posix()))
+    scene.write_text(SPHERE_FEM_CM.format(mesh=SPHERE_MESH.as_posix()))
     out = tmp / "out"
     done = run_cli(cli, "run", str(scene), "--out", str(out))
     assert done.returncode == 0, done.stderr
@@ -62,7 +39,7 @@ def check_surface(out, points, triangles, displacement, magnitude):
     assert triangles.shape == (320, 3)
     assert triangles.min() == 0 and triangles.max() == 161
     assert displacement.shape == (162, 3)
-    rest = np.array(read_obj_vertices(MESH))
+    rest = np.array(read_obj_vertices(SPHERE_MESH))
     np.testing.assert_allclose(displacement, obj - rest, rtol=0, atol=1e-12)
     np.testing.assert_allclose(magnitude, np.linalg.norm(displacement, axis=1), rtol=1e-14, atol=0)
     assert np.abs(displacement).max() > 0
