@@ -6,7 +6,8 @@
 fibfluid's deformed.obj has the input OBJ's vertices in order, in the mesh's unit after
 `scale`; the displacement is deformed - SCALE * rest, over the vertices the faces use (the
 reference's rows). Prints the relative L2 error sqrt(sum |u - u_ref|^2 / sum |u_ref|^2),
-the largest |u| and the mean u_y (and mean u) of both.
+the largest |u|, the mean u of both and the ratio of its largest component, and the
+mean error in five bands of height along that component's axis.
 """
 import sys
 
@@ -35,10 +36,12 @@ def main():
              np.linalg.norm(u, axis=1).max() / np.linalg.norm(r, axis=1).max()))
     print("mean u: fibfluid %s, reference %s" % (np.array2string(u.mean(0), precision=5),
                                                np.array2string(r.mean(0), precision=5)))
-    print("mean u_y ratio %.4f, mean |u| ratio %.4f"
-          % (u[:, 1].mean() / r[:, 1].mean(), np.linalg.norm(u, axis=1).mean() / np.linalg.norm(r, axis=1).mean()))
-    # where the difference sits: by height along the axis of the largest mean displacement
+    # along the axis of the largest mean displacement (gravity's)
     axis = int(np.argmax(np.abs(r.mean(0))))
+    print("mean u_%s ratio %.4f, mean |u| ratio %.4f"
+          % ("xyz"[axis], u[:, axis].mean() / r[:, axis].mean(),
+             np.linalg.norm(u, axis=1).mean() / np.linalg.norm(r, axis=1).mean()))
+    # where the difference sits: by height along that axis
     h = (rest[:, axis] - rest[:, axis].min()) / np.ptp(rest[:, axis])
     bands = np.minimum((h * 5).astype(int), 4)
     for b in range(5):

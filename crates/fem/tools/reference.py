@@ -33,8 +33,9 @@ rigid-body modes (pyamg), or SuperLU (`--solver direct`).
 
 `--model neo-hookean` solves fibfluid's compressible neo-Hookean tissue instead (same mesh,
 clamp and loads; Newton's method with load stepping, see reference_nh.py, which states the
-energy; its linear systems by AMG-CG, or SuperLU with `--solver direct`). `--scale S` multiplies the OBJ's coordinates by S first (the clamp's values,
-`--maxvolume` and the written displacements are then in the scaled unit).
+energy; its linear systems by AMG-CG, or SuperLU with `--solver direct`). `--scale S`
+multiplies the OBJ's coordinates by S first (the clamp's values, `--maxvolume` and the
+written displacements are then in the scaled unit).
 
 Needs: pip install scikit-fem tetgen meshio (numpy, scipy come with them); pyamg for
 `--solver amg`.
