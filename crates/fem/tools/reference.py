@@ -31,6 +31,12 @@ Solver: conjugate gradients to a relative residual of 1e-10, preconditioned by J
 (`--solver amg`) by a smoothed-aggregation algebraic multigrid V-cycle built on the six
 rigid-body modes (pyamg), or SuperLU (`--solver direct`).
 
+`--model neo-hookean` solves fibfluid's compressible neo-Hookean tissue instead (same mesh,
+clamp and loads; Newton's method with load stepping, see reference_nh.py, which states the
+energy; its linear systems by AMG-CG, or SuperLU with `--solver direct`). `--scale S`
+multiplies the OBJ's coordinates by S first (the clamp's values, `--maxvolume` and the
+written displacements are then in the scaled unit).
+
 Needs: pip install scikit-fem tetgen meshio (numpy, scipy come with them); pyamg for
 `--solver amg`.
 """
@@ -172,9 +178,14 @@ def main():
                     help="after --subdivide, LEVELS more splits of the triangles within RADIUS "
                          "(halved at each level) of a fixed vertex (red-green, conforming)")
     ap.add_argument("--minratio", type=float, default=1.5, help="TetGen radius-edge bound (-q)")
+    ap.add_argument("--scale", type=float, default=1.0, help="multiply the OBJ's coordinates by this")
+    ap.add_argument("--model", choices=["linear", "neo-hookean"], default="linear")
+    ap.add_argument("--load-steps", type=int, default=4, help="neo-Hookean: initial load increments")
+    ap.add_argument("--tol", type=float, default=1e-8, help="neo-Hookean: relative residual")
     args = ap.parse_args()
 
     pos, tris = read_obj(args.mesh)
+    pos = pos * args.scale
     n_surface = len(pos)
     axis = {"x": 0, "y": 1, "z": 2}
     if args.fix_above:
@@ -207,6 +218,8 @@ def main():
     print("TetGen: %d tets in %.1f s" % (len(elems), time.time() - t0))
     assert np.allclose(nodes[: len(fine_pos)], fine_pos), "TetGen must keep the surface vertices first"
     mesh = MeshTet(np.ascontiguousarray(nodes.T), np.ascontiguousarray(elems.T))
+    if args.model == "neo-hookean":
+        return neo_hookean(args, mesh, pos, tris, fine_tris, parent, fixed, switches)
 
     basis = Basis(mesh, ElementVector(ElementTetP2()), intorder=4)
     modes = rigid_modes(basis)
@@ -243,16 +256,9 @@ def main():
         return rho_g[0] * v[0] + rho_g[1] * v[1] + rho_g[2] * v[2]
 
     f = asm(weight, basis)
-    bfacets = mesh.boundary_facets()
     # Clamped: the boundary facets that are (pieces of) input triangles with three fixed
     # vertices, and every fixed input vertex.
-    clamped_tri = np.all(fixed[tris], axis=1)
-    clamped_piece = {tuple(sorted(t)) for t, p in zip(fine_tris.tolist(), parent) if clamped_tri[p]}
-    is_clamped = np.array([tuple(sorted(t)) in clamped_piece for t in mesh.facets[:, bfacets].T.tolist()],
-                          dtype=bool)
-    clamp_facets = bfacets[is_clamped]
-    assert len(clamp_facets) == len(clamped_piece), "every clamped piece is a boundary facet"
-    lone = np.setdiff1d(np.flatnonzero(fixed), np.unique(tris[clamped_tri]))
+    clamp_facets, clamped_tri, lone = clamp(mesh, tris, fine_tris, parent, fixed)
     dofs = set(basis.get_dofs(facets=clamp_facets).all().tolist())
     dofs |= set(basis.nodal_dofs[:, np.flatnonzero(fixed)].ravel().tolist())
     D = np.array(sorted(dofs), dtype=int)
@@ -272,6 +278,51 @@ def main():
         for d in disp:
             out.write("%.12e %.12e %.12e\n" % tuple(d))
     print("max |u| = %.6e, tets %d" % (np.linalg.norm(disp, axis=1).max(), mesh.nelements))
+
+
+def clamp(mesh, tris, fine_tris, parent, fixed):
+    """The boundary facets that are (pieces of) input triangles with three fixed vertices,
+    and the fixed input vertices in no such triangle (as main's linear path selects)."""
+    bfacets = mesh.boundary_facets()
+    clamped_tri = np.all(fixed[tris], axis=1)
+    clamped_piece = {tuple(sorted(t)) for t, p in zip(fine_tris.tolist(), parent) if clamped_tri[p]}
+    is_clamped = np.array([tuple(sorted(t)) in clamped_piece for t in mesh.facets[:, bfacets].T.tolist()],
+                          dtype=bool)
+    clamp_facets = bfacets[is_clamped]
+    assert len(clamp_facets) == len(clamped_piece), "every clamped piece is a boundary facet"
+    lone = np.setdiff1d(np.flatnonzero(fixed), np.unique(tris[clamped_tri]))
+    return clamp_facets, clamped_tri, lone
+
+
+def neo_hookean(args, mesh, pos, tris, fine_tris, parent, fixed, switches):
+    import reference_nh as nh
+
+    n_surface = len(pos)
+    clamp_facets, clamped_tri, lone = clamp(mesh, tris, fine_tris, parent, fixed)
+    t0 = time.time()
+    body = nh.Body(mesh, args.young, args.poisson)
+    sD = np.union1d(body.sb.get_dofs(facets=clamp_facets).all(), body.sb.nodal_dofs[0, np.flatnonzero(fixed)])
+    D = body.vector_dofs(sD)
+    f = body.load(args.density * np.array(args.gravity))
+    solver = "direct" if args.solver == "direct" else "amg"
+    u, history = nh.newton_solve(body, f, D, steps=args.load_steps, tol=args.tol, solver=solver)
+    seconds = time.time() - t0
+    disp = body.nodal(u)[:n_surface]
+    iterations = sum(h[1] for h in history)
+    print("neo-Hookean: %d dofs, %d load steps, %d Newton iterations, %.1f s"
+          % (body.N, len(history), iterations, seconds))
+    with open(args.out, "w") as out:
+        out.write("# neo-Hookean (reference_nh.py), P2 tetrahedra (scikit-fem), TetGen mesh: %d nodes, %d tets,"
+                  " %d dofs; %d load steps, %d Newton iterations, %.0f s\n"
+                  % (mesh.nvertices, mesh.nelements, body.N, len(history), iterations, seconds))
+        out.write("# %s\n" % " ".join(sys.argv[1:]))
+        out.write("# TetGen switches: %s\n" % switches)
+        out.write("# fixed surface vertices: %d (%d in no clamped triangle); clamped input triangles: %d,"
+                  " clamped facets: %d\n" % (fixed.sum(), len(lone), clamped_tri.sum(), len(clamp_facets)))
+        for d in disp:
+            out.write("%.12e %.12e %.12e\n" % tuple(d))
+    print("max |u| = %.6e, mean u = %s, tets %d"
+          % (np.linalg.norm(disp, axis=1).max(), np.array2string(disp.mean(axis=0), precision=6), mesh.nelements))
 
 
 if __name__ == "__main__":
