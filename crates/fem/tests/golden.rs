@@ -5,7 +5,8 @@
 use std::path::PathBuf;
 
 use crate::common::*;
-use fibfluid_fem::{DEFAULT_RESOLUTION, FemBody, FemOptions, Loads, Tissue};
+use fibfluid_fem::hyper::HyperBody;
+use fibfluid_fem::{DEFAULT_RESOLUTION, FemBody, FemOptions, Loads, Tissue, TissueModel};
 use fibfluid_geometry::load_mesh;
 
 struct Case {
@@ -43,12 +44,11 @@ fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// Relative L2 error of our surface displacement at `resolution` against the golden file.
-fn error(case: &Case, resolution: usize) -> f64 {
-    let file = load_mesh(root().join("../../fixtures/meshes").join(case.mesh)).unwrap();
-    assert_eq!(file.file_vertex_count(), file.mesh.n_vertices(), "every file vertex is used");
+/// A golden file's surface displacements, one per file vertex (`GOLDEN_DIR` or
+/// `tests/golden`).
+fn golden_field(name: &str) -> Vec<V3> {
     let dir = std::env::var("GOLDEN_DIR").map(PathBuf::from).unwrap_or_else(|_| root().join("tests/golden"));
-    let golden: Vec<V3> = std::fs::read_to_string(dir.join(case.golden))
+    std::fs::read_to_string(dir.join(name))
         .unwrap()
         .lines()
         .filter(|l| !l.starts_with('#'))
@@ -56,7 +56,14 @@ fn error(case: &Case, resolution: usize) -> f64 {
             let v: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
             [v[0], v[1], v[2]]
         })
-        .collect();
+        .collect()
+}
+
+/// Relative L2 error of our surface displacement at `resolution` against the golden file.
+fn error(case: &Case, resolution: usize) -> f64 {
+    let file = load_mesh(root().join("../../fixtures/meshes").join(case.mesh)).unwrap();
+    assert_eq!(file.file_vertex_count(), file.mesh.n_vertices(), "every file vertex is used");
+    let golden = golden_field(case.golden);
     let pos = file.mesh.positions();
     assert_eq!(golden.len(), pos.len());
     let tissue = Tissue::new(5e4, 0.45, 1000.0).unwrap();
@@ -158,4 +165,94 @@ fn doubling_the_default_resolution_is_no_worse() {
 fn sphere_doubling_is_no_worse() {
     let e = [error(&SPHERE, DEFAULT_RESOLUTION), error(&SPHERE, 2 * DEFAULT_RESOLUTION)];
     assert!(e[1] <= e[0], "{e:?}");
+}
+
+/// A body of neo-Hookean tissue hanging under gravity, with its independent reference.
+struct HyperCase {
+    mesh: &'static str,
+    golden: &'static str,
+    /// The mesh file's coordinates times this are metres.
+    scale: f64,
+    young: f64,
+    gravity: V3,
+    /// Which vertices are fixed, from the scaled rest positions.
+    fixed: fn(&[V3]) -> Vec<[bool; 3]>,
+}
+
+/// `tongue.obj` at 2 cm per unit (3.6 x 2.7 x 6.2 cm), E = 2 kPa, hanging along z from its
+/// top 5 mm (as `[[fix]] axis = "z" top = 0.005`: 174 vertices).
+const TONGUE_NH: HyperCase = HyperCase {
+    mesh: "tongue.obj",
+    golden: "tongue-hanging-nh.txt",
+    scale: 0.02,
+    young: 2000.0,
+    gravity: [0.0, 0.0, -9.81],
+    fixed: |pos| {
+        let top = pos.iter().map(|p| p[2]).fold(f64::MIN, f64::max);
+        pos.iter().map(|p| [p[2] >= top - 0.005; 3]).collect()
+    },
+};
+
+/// `icosphere-3.obj` 10 cm across, E = 3 kPa, hanging from its cap above 4 cm (as
+/// `[[fix]] axis = "y" above = 0.04`).
+const SPHERE_NH: HyperCase = HyperCase {
+    mesh: "icosphere-3.obj",
+    golden: "sphere-gravity-nh.txt",
+    scale: 0.05,
+    young: 3000.0,
+    gravity: [0.0, -9.81, 0.0],
+    fixed: |pos| pos.iter().map(|p| [p[1] > 0.04; 3]).collect(),
+};
+
+/// Relative L2 error of the neo-Hookean FEM's surface displacement at `resolution` against
+/// the case's independent neo-Hookean reference (nu = 0.45, density 1000).
+fn hyper_error(case: &HyperCase, resolution: usize) -> f64 {
+    let file = load_mesh(root().join("../../fixtures/meshes").join(case.mesh)).unwrap();
+    let golden = golden_field(case.golden);
+    let pos: Vec<V3> = file.mesh.positions().iter().map(|p| p.map(|x| x * case.scale)).collect();
+    assert_eq!(golden.len(), pos.len());
+    let tissue = Tissue::new(case.young, 0.45, 1000.0).unwrap().with_model(TissueModel::NeoHookean);
+    let opts = FemOptions { resolution, ..Default::default() };
+    let fixed = (case.fixed)(&pos);
+    let mut body = HyperBody::from_surface(&pos, file.mesh.triangles(), &tissue, &fixed, &opts).unwrap();
+    let s = body.solve(&Loads { gravity: case.gravity, ..Default::default() }, &[]).unwrap();
+    let theirs: Vec<V3> = (0..pos.len()).map(|i| golden[file.from_file_index(i).unwrap()]).collect();
+    // As the command line reports it: a fixed axis of a fixed vertex is exactly at rest
+    // (the clamp's penalty slip is an error inside the body).
+    let ours: Vec<V3> = s
+        .surface_displacements
+        .iter()
+        .zip(&fixed)
+        .map(|(u, f)| std::array::from_fn(|a| if f[a] { 0.0 } else { u[a] }))
+        .collect();
+    let e = rel_l2(&ours, &theirs, |_| true);
+    let fixed_count = fixed.iter().filter(|f| f[0]).count();
+    eprintln!(
+        "{} (neo-Hookean), resolution {resolution}: relative L2 error {e:.4} ({fixed_count} fixed)",
+        case.mesh
+    );
+    e
+}
+
+/// Against the independent neo-Hookean references (P2 tetrahedra, `tools/reference_nh.py`,
+/// `tests/golden/NEO_HOOKEAN.md`), at the default resolution: the tongue hanging from its
+/// top within 4 % (measured 0.026; 0.006 at resolution 48) and the 10 cm sphere within
+/// 1.5 % (measured 0.0074), where the issue asks 10 %.
+#[test]
+fn neo_hookean_bodies_match_an_independent_reference() {
+    let tongue = hyper_error(&TONGUE_NH, DEFAULT_RESOLUTION);
+    assert!(tongue < 0.04, "tongue: {tongue}");
+    let sphere = hyper_error(&SPHERE_NH, DEFAULT_RESOLUTION);
+    assert!(sphere < 0.015, "sphere: {sphere}");
+}
+
+/// Doubling the resolution is no worse against the neo-Hookean references (slow: the
+/// sphere at 48 has about 200,000 unknowns; run with `--ignored --nocapture`).
+#[test]
+#[ignore]
+fn neo_hookean_doubling_is_no_worse() {
+    for case in [&TONGUE_NH, &SPHERE_NH] {
+        let (coarse, fine) = (hyper_error(case, 24), hyper_error(case, 48));
+        assert!(fine <= coarse * 1.05, "{}: {coarse} then {fine}", case.mesh);
+    }
 }
