@@ -220,10 +220,7 @@ impl HeldSystem<'_> {
         base: Option<&[f64]>,
         penalty: Option<&Penalty>,
     ) -> Result<HeldSolve> {
-        let mut rows = constraint_rows(self.embedding, self.free, holds)?;
-        if let Some(base) = base {
-            rows.iter_mut().for_each(|r| r.target -= row_dot(&r.entries, base));
-        }
+        let rows = self.rows(holds, base)?;
         let vertices: Vec<usize> = holds.iter().map(|h| h.0).collect();
         self.cache_compliance(cache, &vertices)?;
         self.solve_unheld(cache, &f);
@@ -244,6 +241,16 @@ impl HeldSystem<'_> {
             }
         }
         Ok(HeldSolve { u, reactions, applied, uncovered })
+    }
+
+    /// The constraint rows of `holds`, their targets taken from `base` when given (the
+    /// state the solution adds to).
+    fn rows(&self, holds: &[(usize, FemHold)], base: Option<&[f64]>) -> Result<Vec<Row>> {
+        let mut rows = constraint_rows(self.embedding, self.free, holds)?;
+        if let Some(base) = base {
+            rows.iter_mut().for_each(|r| r.target -= row_dot(&r.entries, base));
+        }
+        Ok(rows)
     }
 
     /// Keeps `A^-1 f` in `cache.unheld`, solved again only when `f` changed (which drops
@@ -272,10 +279,7 @@ impl HeldSystem<'_> {
         base: Option<&[f64]>,
         penalty: Option<&Penalty>,
     ) -> Result<SurfaceSolve> {
-        let mut rows = constraint_rows(self.embedding, self.free, holds)?;
-        if let Some(base) = base {
-            rows.iter_mut().for_each(|r| r.target -= row_dot(&r.entries, base));
-        }
+        let rows = self.rows(holds, base)?;
         self.solve_unheld(cache, f);
         let keys: Vec<RowKey> = rows.iter().map(Row::key).collect();
         if cache.surface.as_ref().is_none_or(|p| p.keys != keys)
@@ -331,14 +335,18 @@ impl HeldSystem<'_> {
 
     /// The surface vertices' values of each column (3 per vertex, a matrix column each).
     fn columns_at_surface(&self, columns: &[Cow<'_, [f64]>]) -> Mat<f64> {
-        let projected: Vec<Vec<f64>> = columns.iter().map(|c| self.at_surface(c)).collect();
-        Mat::from_fn(3 * self.embedding.len(), columns.len(), |i, j| projected[j][i])
+        let mut projected = Mat::<f64>::zeros(3 * self.embedding.len(), columns.len());
+        for (j, column) in columns.iter().enumerate() {
+            let at = interpolate_surface(self.embedding, self.free, column);
+            projected.col_as_slice_mut(j).copy_from_slice(at.as_flattened());
+        }
+        projected
     }
 
     /// The surface vertices' values of the free-dof vector `x` (3 per vertex; fixed dofs
     /// are 0).
     fn at_surface(&self, x: &[f64]) -> Vec<f64> {
-        interpolate_surface(self.embedding, self.free, x).into_iter().flatten().collect()
+        interpolate_surface(self.embedding, self.free, x).into_flattened()
     }
 
     /// Computes `A^-1 C_v^T` for every held vertex not cached yet, in one solve pass.

@@ -268,16 +268,24 @@ def main():
     print("solved %d dofs in %.1f s" % (basis.N, time.time() - t0))
     disp = u[basis.nodal_dofs[:, :n_surface]].T
 
-    with open(args.out, "w") as out:
-        out.write("# P2 tetrahedra (scikit-fem), TetGen mesh: %d nodes, %d tets, %d dofs\n"
-                  % (mesh.nvertices, mesh.nelements, basis.N))
+    write_surface(args.out, "P2 tetrahedra (scikit-fem), TetGen mesh: %d nodes, %d tets, %d dofs"
+                  % (mesh.nvertices, mesh.nelements, basis.N),
+                  switches, (fixed.sum(), len(lone), clamped_tri.sum(), len(clamp_facets)), disp)
+    print("max |u| = %.6e, tets %d" % (np.linalg.norm(disp, axis=1).max(), mesh.nelements))
+
+
+def write_surface(path, what, switches, clamp_counts, disp):
+    """Writes a golden: `#` header lines (what was solved, the command, TetGen's switches,
+    the clamp's counts: fixed vertices, those in no clamped triangle, clamped input
+    triangles, clamped facets), then one `ux uy uz` line per input vertex (metres)."""
+    with open(path, "w") as out:
+        out.write("# %s\n" % what)
         out.write("# %s\n" % " ".join(sys.argv[1:]))
         out.write("# TetGen switches: %s\n" % switches)
         out.write("# fixed surface vertices: %d (%d in no clamped triangle); clamped input triangles: %d,"
-                  " clamped facets: %d\n" % (fixed.sum(), len(lone), clamped_tri.sum(), len(clamp_facets)))
+                  " clamped facets: %d\n" % clamp_counts)
         for d in disp:
             out.write("%.12e %.12e %.12e\n" % tuple(d))
-    print("max |u| = %.6e, tets %d" % (np.linalg.norm(disp, axis=1).max(), mesh.nelements))
 
 
 def clamp(mesh, tris, fine_tris, parent, fixed):
@@ -311,16 +319,10 @@ def neo_hookean(args, mesh, pos, tris, fine_tris, parent, fixed, switches):
     iterations = sum(h[1] for h in history)
     print("neo-Hookean: %d dofs, %d load steps, %d Newton iterations, %.1f s"
           % (body.N, len(history), iterations, seconds))
-    with open(args.out, "w") as out:
-        out.write("# neo-Hookean (reference_nh.py), P2 tetrahedra (scikit-fem), TetGen mesh: %d nodes, %d tets,"
-                  " %d dofs; %d load steps, %d Newton iterations, %.0f s\n"
-                  % (mesh.nvertices, mesh.nelements, body.N, len(history), iterations, seconds))
-        out.write("# %s\n" % " ".join(sys.argv[1:]))
-        out.write("# TetGen switches: %s\n" % switches)
-        out.write("# fixed surface vertices: %d (%d in no clamped triangle); clamped input triangles: %d,"
-                  " clamped facets: %d\n" % (fixed.sum(), len(lone), clamped_tri.sum(), len(clamp_facets)))
-        for d in disp:
-            out.write("%.12e %.12e %.12e\n" % tuple(d))
+    write_surface(args.out, "neo-Hookean (reference_nh.py), P2 tetrahedra (scikit-fem), TetGen mesh: %d nodes,"
+                  " %d tets, %d dofs; %d load steps, %d Newton iterations, %.0f s"
+                  % (mesh.nvertices, mesh.nelements, body.N, len(history), iterations, seconds),
+                  switches, (fixed.sum(), len(lone), clamped_tri.sum(), len(clamp_facets)), disp)
     print("max |u| = %.6e, mean u = %s, tets %d"
           % (np.linalg.norm(disp, axis=1).max(), np.array2string(disp.mean(axis=0), precision=6), mesh.nelements))
 

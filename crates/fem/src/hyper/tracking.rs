@@ -78,6 +78,21 @@ struct Core {
     penalty: Option<Penalty>,
 }
 
+impl Core {
+    /// The held system of this linearization's factor.
+    fn system(&self) -> HeldSystem<'_> {
+        HeldSystem { factor: &self.factor, embedding: &self.layout.embedding, free: &self.layout.free }
+    }
+
+    /// The surface displaced by `step_field` from this state, and the step's largest
+    /// surface motion (m).
+    fn stepped(&self, step_field: &[Vec3]) -> (Vec<Vec3>, f64) {
+        let step = step_field.iter().map(|d| fibfluid_geometry::vec3::norm(*d)).fold(0.0, f64::max);
+        let surface = self.surface.iter().zip(step_field).map(|(p, d)| fibfluid_geometry::vec3::add(*p, *d));
+        (surface.collect(), step)
+    }
+}
+
 /// The body linearized at one state (see the module docs). Cheap to clone: the factor
 /// is shared, the compliance columns cached for held vertices are copied.
 #[derive(Clone)]
@@ -161,18 +176,17 @@ impl Linearization {
         holds: &[(usize, FemHold)],
     ) -> Result<TrackedResponse> {
         let f = self.respond_force(pushes)?;
-        let layout = &self.core.layout;
-        let system =
-            HeldSystem { factor: &self.core.factor, embedding: &layout.embedding, free: &layout.free };
-        let solved =
-            system.solve(&mut self.cache, f, holds, Some(&self.core.x), self.core.penalty.as_ref())?;
-        let step_field = interpolate(layout, &solved.u);
-        let step = step_field.iter().map(|d| fibfluid_geometry::vec3::norm(*d)).fold(0.0, f64::max);
+        let solved = self.core.system().solve(
+            &mut self.cache,
+            f,
+            holds,
+            Some(&self.core.x),
+            self.core.penalty.as_ref(),
+        )?;
+        let (surface_displacements, step) = self.core.stepped(&interpolate(&self.core.layout, &solved.u));
         let state: Vec<f64> = self.core.x.iter().zip(&solved.u).map(|(a, b)| a + b).collect();
-        let surface =
-            self.core.surface.iter().zip(&step_field).map(|(p, d)| fibfluid_geometry::vec3::add(*p, *d));
         Ok(TrackedResponse {
-            surface_displacements: surface.collect(),
+            surface_displacements,
             state,
             reactions: solved.reactions,
             step,
@@ -195,21 +209,16 @@ impl Linearization {
         holds: &[(usize, FemHold)],
     ) -> Result<SurfaceResponse> {
         let f = self.respond_force(pushes)?;
-        let layout = &self.core.layout;
-        let system =
-            HeldSystem { factor: &self.core.factor, embedding: &layout.embedding, free: &layout.free };
-        let solved = system.solve_surface(
+        let solved = self.core.system().solve_surface(
             &mut self.cache,
             &f,
             holds,
             Some(&self.core.x),
             self.core.penalty.as_ref(),
         )?;
-        let step = solved.surface.iter().map(|d| fibfluid_geometry::vec3::norm(*d)).fold(0.0, f64::max);
-        let surface =
-            self.core.surface.iter().zip(&solved.surface).map(|(p, d)| fibfluid_geometry::vec3::add(*p, *d));
+        let (surface_displacements, step) = self.core.stepped(&solved.surface);
         Ok(SurfaceResponse {
-            surface_displacements: surface.collect(),
+            surface_displacements,
             reactions: solved.reactions,
             step,
             approximate: solved.uncovered > 0,
