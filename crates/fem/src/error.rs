@@ -180,9 +180,9 @@ pub enum NotConvergedWhy {
     /// The tangent was indefinite (factored only with a diagonal shift): the equilibrium
     /// is unstable there.
     Indefinite,
-    /// A cell at least half inside the body grew its volume `j` times, past `e`, where the
-    /// volumetric energy `kappa / 2 (ln J)^2` gives its largest pressure: the tissue model
-    /// is unstable in dilation there.
+    /// A cell at least half inside the body grew its volume `j` times, past `e`: the load
+    /// pulls the tissue apart there (no tissue dilates so far; a support or a grasp too
+    /// small for its load concentrates it).
     Dilatation {
         /// The largest volume ratio `J` over those cells.
         j: f64,
@@ -196,7 +196,7 @@ impl std::fmt::Display for NotConvergedWhy {
             NotConvergedWhy::Dilatation { j } => {
                 return write!(
                     f,
-                    "a cell's volume grew {j:.2} times, past e = 2.72 where the neo-Hookean volumetric energy's pressure peaks: the tissue model is unstable in dilation there (a support too small for the load pulls the tissue apart); support it more, load it less, or raise Poisson's ratio"
+                    "a cell's volume grew {j:.2} times, past e = 2.72: the load pulls the tissue apart there (a support or grasp too small for it); support it more, or load it less"
                 );
             }
             NotConvergedWhy::Indefinite => {

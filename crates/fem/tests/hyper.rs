@@ -111,7 +111,8 @@ fn compressed_cube(n: usize, resolution: usize, stretch: f64, tissue: &Tissue) -
     (sol.plate_forces[0], lateral, residuals)
 }
 
-/// The closed form of uniaxial stress for `W = mu / 2 (J^(-2/3) I1 - 3) + kappa / 2 (ln J)^2`
+/// The closed form of uniaxial stress for
+/// `W = mu / 2 (J^(-2/3) I1 - 3) + kappa / 4 (J^2 - 1 - 2 ln J)`
 /// at axial stretch `l`: the lateral stretch `s` solves `dW/ds = 0` (bisection), and the
 /// nominal stress is `dW/dl`. Returns `(nominal stress, s)`.
 fn uniaxial_closed_form(tissue: &Tissue, l: f64) -> (f64, f64) {
@@ -120,9 +121,9 @@ fn uniaxial_closed_form(tissue: &Tissue, l: f64) -> (f64, f64) {
         let (j, i1) = (s * s * l, 2.0 * s * s + l * l);
         let ds =
             0.5 * mu * (-2.0 / 3.0 * j.powf(-5.0 / 3.0) * 2.0 * s * l * i1 + j.powf(-2.0 / 3.0) * 4.0 * s)
-                + kappa * j.ln() / j * 2.0 * s * l;
+                + 0.5 * kappa * (j - 1.0 / j) * 2.0 * s * l;
         let dl = 0.5 * mu * (-2.0 / 3.0 * j.powf(-5.0 / 3.0) * s * s * i1 + j.powf(-2.0 / 3.0) * 2.0 * l)
-            + kappa * j.ln() / j * s * s;
+            + 0.5 * kappa * (j - 1.0 / j) * s * s;
         (ds, dl)
     };
     let (mut lo, mut hi) = (0.5, 3.0);

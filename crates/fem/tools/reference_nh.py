@@ -6,7 +6,7 @@ The energy is fibfluid's (docs/fem.md, "Large deformation: the neo-Hookean tissu
 uncoupled compressible neo-Hookean solid of FEBio (Maas, Ellis, Ateshian and Weiss, J Biomech
 Eng 134:011005, 2012; the split of Simo and Taylor, CMAME 85:273, 1991), total Lagrangian,
 
-    W(F) = mu / 2 (J^(-2/3) I1 - 3) + kappa / 2 (ln J)^2,   I1 = F : F,  J = det F,
+    W(F) = mu / 2 (J^(-2/3) I1 - 3) + kappa / 4 (J^2 - 1 - 2 ln J),   I1 = F : F,  J = det F,
     mu = E / (2 (1 + nu)),   kappa = E / (3 (1 - 2 nu)),
 
 per unit rest volume, with dead loads (gravity `rho g` per unit rest volume). Unlike
@@ -16,9 +16,9 @@ volumetric term is integrated pointwise like the rest: P2 tetrahedra, 4th-order 
 
 First Piola-Kirchhoff stress and its derivative (G = F^-T):
 
-    P = mu J^(-2/3) (F - I1/3 G) + kappa ln J G
+    P = mu J^(-2/3) (F - I1/3 G) + kappa / 2 (J^2 - 1) G
     dP[H] = mu J^(-2/3) (H - 2/3 (G:H) F - 2/3 (F:H) G + 2/9 I1 (G:H) G + I1/3 G H^T G)
-          + kappa ((G:H) G - ln J G H^T G)
+          + kappa (J^2 (G:H) G - (J^2 - 1) / 2 G H^T G)
 
 Residual r(u) = int P : grad v - t f, tangent its derivative, both assembled here (numpy,
 vectorized over elements and quadrature points) on scikit-fem's scalar P2 basis (shape
@@ -63,21 +63,20 @@ def energy_density(F, mu, kappa):
     J, _, I1 = kinematics(F)
     if np.any(J <= 0):
         return None
-    lnJ = np.log(J)
-    return mu / 2 * (J ** (-2 / 3) * I1 - 3) + kappa / 2 * lnJ**2
+    return mu / 2 * (J ** (-2 / 3) * I1 - 3) + kappa / 4 * (J**2 - 1 - 2 * np.log(J))
 
 
 def stress(F, mu, kappa):
     """First Piola-Kirchhoff stress."""
     J, G, I1 = kinematics(F)
     a = (mu * J ** (-2 / 3))[..., None, None]
-    return a * (F - I1[..., None, None] / 3 * G) + (kappa * np.log(J))[..., None, None] * G
+    return a * (F - I1[..., None, None] / 3 * G) + (kappa / 2 * (J**2 - 1))[..., None, None] * G
 
 
 def tangent(F, mu, kappa):
     """A[..., i, j, k, l] = dP_ij / dF_kl."""
     J, G, I1 = kinematics(F)
-    lnJ = np.log(J)
+    J2 = (J**2)[..., None, None, None, None]
     a = mu * J ** (-2 / 3)
     eye = np.eye(3)
     I1 = I1[..., None, None, None, None]
@@ -87,7 +86,7 @@ def tangent(F, mu, kappa):
     A -= 2 / 3 * (np.einsum("...ij,...kl->...ijkl", F, G) + np.einsum("...ij,...kl->...ijkl", G, F))
     A += 2 / 9 * I1 * GG + I1 / 3 * GxG
     A *= a[..., None, None, None, None]
-    A += kappa * (GG - lnJ[..., None, None, None, None] * GxG)
+    A += kappa * (J2 * GG - (J2 - 1) / 2 * GxG)
     return A
 
 

@@ -45,10 +45,10 @@ pub const LINEAR_DISPLACEMENT_LIMIT: f64 = 0.1;
 /// The largest principal strain a small-strain answer may reach before it warns: at 5 %
 /// the linear force is about 5 % off the neo-Hookean one in uniaxial compression.
 pub const LINEAR_STRAIN_LIMIT: f64 = 0.05;
-/// The largest volume ratio `J` a neo-Hookean answer's cell may reach before it warns: the
-/// volumetric energy `kappa / 2 (ln J)^2` gives its largest pressure, `kappa / e`, at
-/// `J = e`; stretched further a cell's volume grows under a falling pressure (the model is
-/// unstable in dilation there, not the tissue).
+/// The largest volume ratio `J` a neo-Hookean answer's cell may reach before it warns. Soft
+/// tissue keeps its volume within a few per cent (nu 0.45 to 0.49); a cell whose volume
+/// nearly tripled is torn apart by its load (a support or a grasp too small for it
+/// concentrates it there), which the continuum model does not represent.
 pub const DILATATION_LIMIT: f64 = std::f64::consts::E;
 /// The largest relative residual `|K u - f| / |f|` an answer may have.
 pub const RESULT_RESIDUAL_LIMIT: f64 = 1e-8;
@@ -138,8 +138,8 @@ impl std::fmt::Display for ResultWarning {
                 "against the neo-Hookean model a linear answer is then off by about 10 % in force at 10 % strain and 20-55 % at 20-50 % (docs/fem.md): set [tissue] model = \"neo-hookean\"",
             ),
             ResultGuard::Dilatation => (
-                "a cell's volume grew {value} times (limit {limit}, where the volumetric energy's pressure peaks)",
-                "past it the neo-Hookean model is unstable in dilation and the answer near that cell is not physical: support the body more, load it less, or raise Poisson's ratio",
+                "a cell's volume grew {value} times (limit {limit}; tissue keeps its volume within a few per cent)",
+                "the load pulls the tissue apart there and the answer near that cell is not physical (a support or grasp too small for its load): support the body more, or load it less",
             ),
         };
         let what = what

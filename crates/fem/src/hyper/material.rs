@@ -2,8 +2,9 @@
 //! stress and its tangent.
 //!
 //! `W(F) = mu / 2 (J^(-2/3) I1 - 3) + U(J)`, `I1 = F : F`, `J = det F`,
-//! `U(J) = kappa / 2 (ln J)^2` (FEBio's uncoupled neo-Hookean, Maas et al. 2012; Simo and
-//! Taylor 1991 for the split). The isochoric part is evaluated here per Gauss point; the
+//! `U(J) = kappa / 4 (J^2 - 1 - 2 ln J)` (the uncoupled neo-Hookean solid of FEBio, Maas et
+//! al. 2012, and of Simo and Taylor 1991 for the split; this `U` is Simo and Miehe's, 1992,
+//! convex for every `J > 0`, where `kappa / 2 (ln J)^2` softens past `J = e`). The isochoric part is evaluated here per Gauss point; the
 //! volumetric part `U` is evaluated on a cell's mean dilatation (see [`super::cell`]).
 //! At `F = I` the tangent is `mu (dev) + kappa (vol)`: the linear model with the same
 //! `mu = E / (2 (1 + nu))`, `kappa = E / (3 (1 - 2 nu))`.
@@ -63,14 +64,19 @@ pub(crate) fn isochoric_stress_tangent(f: &M3, mu: f64) -> (M3, [[f64; 9]; 9]) {
     (p, t)
 }
 
-/// The volumetric energy `U(theta) = kappa / 2 (ln theta)^2` and its first two derivatives,
-/// or `None` when `theta <= 0`.
+/// The volumetric energy `U(theta) = kappa / 4 (theta^2 - 1 - 2 ln theta)` and its first two
+/// derivatives (`kappa / 2 (theta - 1 / theta)`, `kappa / 2 (1 + theta^-2)`, positive: the
+/// pressure rises with the dilatation at every `theta`), or `None` when `theta <= 0`.
 pub(crate) fn volumetric(theta: f64, kappa: f64) -> Option<[f64; 3]> {
     if !(theta > 0.0) {
         return None;
     }
-    let l = theta.ln();
-    Some([0.5 * kappa * l * l, kappa * l / theta, kappa * (1.0 - l) / (theta * theta)])
+    let inv = 1.0 / theta;
+    Some([
+        0.25 * kappa * (theta * theta - 1.0 - 2.0 * theta.ln()),
+        0.5 * kappa * (theta - inv),
+        0.5 * kappa * (1.0 + inv * inv),
+    ])
 }
 
 /// The symmetric 3 x 3 matrix's eigenvalues, ascending (closed form, trigonometric).

@@ -2,7 +2,7 @@
 //! embedding as the linear body, solved by Newton's method with load stepping.
 //!
 //! - Energy: [`material`]'s uncoupled neo-Hookean `W = mu / 2 (J^(-2/3) I1 - 3) +
-//!   kappa / 2 (ln J)^2`, total Lagrangian, the volumetric part on each cell's mean
+//!   kappa / 4 (J^2 - 1 - 2 ln J)`, total Lagrangian, the volumetric part on each cell's mean
 //!   dilatation (the nonlinear counterpart of the linear body's B-bar, [`cell`]).
 //! - Loads: gravity and point forces are dead loads (fixed in direction and size) scaled by
 //!   the load factor `t` in `[0, 1]`; [`RigidPlate`]s move with `t`; the clamp is the
