@@ -33,6 +33,10 @@ use crate::held_system::{
     FemHold, HeldSystem, HoldCache, Penalty, Row, constraint_rows, interpolate_surface,
 };
 
+/// A factored tangent: the factor, the diagonal shift it needed (relative to the median
+/// diagonal entry) and the holds' penalty it carries.
+type Factored = (SparseCholesky, f64, Option<Penalty>);
+
 /// Halvings of a tracking step tried while it would invert a cell or (holds met) raise
 /// the energy.
 pub const MAX_STEP_HALVINGS: usize = 12;
@@ -288,13 +292,28 @@ impl HyperBody {
         loads: &Loads,
         holds: &[(usize, FemHold)],
     ) -> Result<Linearization> {
+        self.linearize_if(x, loads, holds, true)?.ok_or(FemError::NotPositiveDefinite)
+    }
+
+    /// [`HyperBody::linearize_holding`]; without `shift_allowed`, `None` where the tangent
+    /// would need a diagonal shift (no shifted factorization is tried: a tracking step
+    /// halves instead, and each try is a factorization).
+    fn linearize_if(
+        &mut self,
+        x: Vec<f64>,
+        loads: &Loads,
+        holds: &[(usize, FemHold)],
+        shift_allowed: bool,
+    ) -> Result<Option<Linearization>> {
         if x.len() != self.n_free {
             return Err(FemError::LengthMismatch { what: "state", expected: self.n_free, found: x.len() });
         }
         let external = load_vector(&self.grid, |c| self.densities[c], &self.free, self.n_free, loads)?;
         let eval = self.evaluate(&x, &dead_loads(&external), true).ok_or(FemError::Inverted)?;
         let rows = constraint_rows(self.grid.embedding(), &self.free, holds)?;
-        let (factor, shift, penalty) = self.factor_holding(&rows)?;
+        let Some((factor, shift, penalty)) = self.factor_holding(&rows, shift_allowed)? else {
+            return Ok(None);
+        };
         let layout = Arc::clone(self.layout.get_or_insert_with(|| {
             Arc::new(Layout {
                 embedding: self.grid.embedding().to_vec(),
@@ -305,14 +324,15 @@ impl HyperBody {
         let force = eval.gradient.iter().map(|g| -g).collect();
         let surface = interpolate(&layout, &x);
         let core = Core { layout, x, force, factor, shift, surface, penalty };
-        Ok(Linearization { core: Arc::new(core), cache: HoldCache::default() })
+        Ok(Some(Linearization { core: Arc::new(core), cache: HoldCache::default() }))
     }
 
-    /// Factors the assembled tangent as [`HyperBody::linearize_holding`] says.
-    fn factor_holding(&mut self, rows: &[Row]) -> Result<(SparseCholesky, f64, Option<Penalty>)> {
+    /// Factors the assembled tangent as [`HyperBody::linearize_holding`] says; `None`
+    /// when it needs a shift that is not `shift_allowed`.
+    fn factor_holding(&mut self, rows: &[Row], shift_allowed: bool) -> Result<Option<Factored>> {
         if rows.is_empty() {
             match SparseCholesky::factor(&self.symbolic, self.tangent.as_ref()) {
-                Ok(f) => return Ok((f, 0.0, None)),
+                Ok(f) => return Ok(Some((f, 0.0, None))),
                 Err(fibfluid_linalg::LinalgError::SparseNotPositiveDefinite { .. }) => {}
                 Err(e) => return Err(e.into()),
             }
@@ -327,7 +347,8 @@ impl HyperBody {
         // First the holds' penalty (exact for frames that hold them), then a shift of the
         // diagonal (a damped step, exact nowhere: the refreshes converge linearly then).
         let penalties = if rows.is_empty() { &[][..] } else { &HOLD_PENALTIES[..] };
-        let attempts = penalties.iter().map(|&p| (p, 0.0)).chain(SHIFTS.iter().map(|&s| (0.0, s)));
+        let shifts = if shift_allowed { &SHIFTS[..] } else { &[][..] };
+        let attempts = penalties.iter().map(|&p| (p, 0.0)).chain(shifts.iter().map(|&s| (0.0, s)));
         for (penalty, shift) in attempts {
             let stiffness = penalty * median;
             for row in rows.iter().filter(|_| penalty > 0.0) {
@@ -339,14 +360,14 @@ impl HyperBody {
             match made {
                 Ok(f) if penalty > 0.0 => {
                     let keys = rows.iter().map(Row::key).collect();
-                    return Ok((f, 0.0, Some(Penalty { keys, stiffness })));
+                    return Ok(Some((f, 0.0, Some(Penalty { keys, stiffness }))));
                 }
-                Ok(f) => return Ok((f, shift, None)),
+                Ok(f) => return Ok(Some((f, shift, None))),
                 Err(fibfluid_linalg::LinalgError::SparseNotPositiveDefinite { .. }) => {}
                 Err(e) => return Err(e.into()),
             }
         }
-        Err(FemError::NotPositiveDefinite)
+        if shift_allowed { Err(FemError::NotPositiveDefinite) } else { Ok(None) }
     }
 
     /// Adds `stiffness r r^T` of a hold row `r` to the tangent's lower triangle.
@@ -420,13 +441,13 @@ impl HyperBody {
             // A step that restores holds must also land where the held tangent is positive
             // definite (its penalty suffices, no shift): a state reached by a long stride
             // can be wildly unstable without inverting a cell.
-            if accepted {
-                let mut linearization = self.linearize_holding(trial, loads, holds)?;
-                if merit.is_some() || linearization.shift() == 0.0 || fraction < RESTORE_FLOOR {
-                    // The frames' projection is made here, off the frame thread.
-                    linearization.respond_at_surface(pushes, holds)?;
-                    return Ok(TrackStep { linearization, fraction, step: answer.step });
-                }
+            let shift_allowed = merit.is_some() || fraction < RESTORE_FLOOR;
+            if accepted
+                && let Some(mut linearization) = self.linearize_if(trial, loads, holds, shift_allowed)?
+            {
+                // The frames' projection is made here, off the frame thread.
+                linearization.respond_at_surface(pushes, holds)?;
+                return Ok(TrackStep { linearization, fraction, step: answer.step });
             }
             fraction *= 0.5;
         }
