@@ -27,7 +27,12 @@ impl FemBody {
     /// [`respond_held`](Self::respond_held).
     pub fn respond_holds(&mut self, loads: &Loads, holds: &[(usize, FemHold)]) -> Result<HeldResponse> {
         let f = self.load_vector(loads)?;
-        let system = HeldSystem { factor: &self.factor, embedding: self.grid.embedding(), free: &self.free };
+        let system = HeldSystem {
+            factor: &self.factor,
+            embedding: self.grid.embedding(),
+            free: &self.free,
+            rest: self.grid.surface_positions(),
+        };
         let solved = system.solve(&mut self.held, f, holds, None, None)?;
         let residual = self.residual(&solved.u, &solved.applied)?;
         let node_displacements = self.node_values(&solved.u);
@@ -43,5 +48,11 @@ impl FemBody {
     /// Number of vertices whose compliance columns are cached.
     pub fn cached_holds(&self) -> usize {
         self.held.vertices()
+    }
+
+    /// Bytes of the cached compliance columns (one solve each: a held vertex's three axes,
+    /// or, for many vertices in few cells, the free dofs their rows touch).
+    pub fn cached_bytes(&self) -> usize {
+        self.held.bytes()
     }
 }

@@ -14,12 +14,14 @@
 //! (the columns by the factor's `fibfluid_linalg::ComplianceSource`), the same code as the
 //! fiber–fluid method's contact rows.
 
-use std::borrow::Cow;
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 use faer::Mat;
 use fibfluid_geometry::Vec3;
 use fibfluid_linalg::{ComplianceSource, LinalgError, RowCapacitance, SparseCholesky, SparseRow, row_dot};
+
+use crate::held_affine::{AffineFrames, FrameParts};
+use crate::held_basis::{BasisKey, Combination, Combined, basis_row};
 
 use crate::assemble::FIXED;
 use crate::error::{FemError, Result};
@@ -89,7 +91,7 @@ const DEPENDENT_RIDGE: f64 = 1e-12;
 
 /// Largest constraint residual (relative to the largest target, at least 1) accepted after
 /// the ridge: above it the holds contradict each other.
-const CONSTRAINT_TOLERANCE: f64 = 1e-9;
+pub(crate) const CONSTRAINT_TOLERANCE: f64 = 1e-9;
 
 /// One constraint row: a held vertex's displacement along a direction as a combination of
 /// free dofs.
@@ -123,8 +125,11 @@ pub(crate) struct Penalty {
 /// Compliance columns and the last unheld solve of one factor, kept between frames.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct HoldCache {
-    /// `A^-1 C^T` columns of held vertices, computed on first hold: per vertex, 3 columns.
-    columns: HashMap<usize, [Vec<f64>; 3]>,
+    /// `A^-1 B^T` columns of the basis rows held vertices were answered from
+    /// (`crate::held_basis`), computed on first hold.
+    columns: HashMap<BasisKey, Vec<f64>>,
+    /// The vertices whose holds the columns answer.
+    vertices: HashSet<usize>,
     /// The last right-hand side solved without holds and its solution: a frame that
     /// changes only the holds reuses it.
     unheld: Option<(Vec<f64>, Vec<f64>)>,
@@ -135,6 +140,8 @@ pub(crate) struct HoldCache {
     /// surface-only frame ([`HeldSystem::solve_surface`]) with the same rows and
     /// right-hand side reuses it.
     surface: Option<SurfaceProjection>,
+    /// Whether the last surface-only frame took the affine path (`crate::held_affine`).
+    affine_frame: bool,
 }
 
 /// What a surface-only frame needs of one set of rows and one right-hand side: the held
@@ -147,9 +154,14 @@ struct SurfaceProjection {
     unheld: Vec<f64>,
     /// `C u0`: the unheld solution along each row.
     rows_unheld: Vec<f64>,
-    /// `S Z`: each row's compliance column at the surface vertices (3 per vertex), one
-    /// matrix column per row.
+    /// The rows over their basis (`C = A B`).
+    combination: Combination,
+    /// `S G`: each basis element's compliance column at the surface vertices (3 per
+    /// vertex), one matrix column per element.
     columns: Mat<f64>,
+    /// The frames of a patch held at the targets of one affine map (a grasp), when the
+    /// rows are such a patch (`crate::held_affine`).
+    affine: Option<AffineFrames>,
 }
 
 /// A constraint row's identity: its vertex and direction (bit for bit).
@@ -158,19 +170,30 @@ pub(crate) type RowKey = (usize, [u64; 3]);
 impl HoldCache {
     /// Number of vertices whose columns are cached.
     pub(crate) fn vertices(&self) -> usize {
-        self.columns.len()
+        self.vertices.len()
     }
 
     /// Drops every cached column (and the capacitance and projection made of them).
     pub(crate) fn clear_columns(&mut self) {
         self.columns.clear();
+        self.vertices.clear();
         self.capacitance = None;
         self.surface = None;
     }
 
+    /// The columns the last surface-only frame read: `3k` on the affine path, else one per
+    /// basis element (0 before any).
+    pub(crate) fn frame_columns(&self) -> usize {
+        let Some(p) = &self.surface else { return 0 };
+        match (&p.affine, self.affine_frame) {
+            (Some(a), true) => a.parameters(),
+            _ => p.columns.ncols(),
+        }
+    }
+
     /// Bytes of the cached compliance columns and their surface projection.
     pub(crate) fn bytes(&self) -> usize {
-        let columns: usize = self.columns.values().map(|c| 8 * 3 * c[0].len()).sum();
+        let columns: usize = self.columns.values().map(|c| 8 * c.len()).sum();
         let surface = self.surface.as_ref().map_or(0, |p| 8 * p.columns.nrows() * p.columns.ncols());
         columns + surface
     }
@@ -185,6 +208,8 @@ pub(crate) struct HeldSystem<'a> {
     pub(crate) embedding: &'a [Embedded],
     /// Free-dof number of each node axis ([`FIXED`] when eliminated).
     pub(crate) free: &'a [usize],
+    /// Rest position of each surface vertex (m).
+    pub(crate) rest: &'a [Vec3],
 }
 
 /// The surface-only solution of a held system ([`HeldSystem::solve_surface`]).
@@ -221,18 +246,18 @@ impl HeldSystem<'_> {
         penalty: Option<&Penalty>,
     ) -> Result<HeldSolve> {
         let rows = self.rows(holds, base)?;
-        let vertices: Vec<usize> = holds.iter().map(|h| h.0).collect();
-        self.cache_compliance(cache, &vertices)?;
+        let combination = Combination::of(&rows);
+        self.cache_compliance(cache, &combination.basis, holds)?;
         self.solve_unheld(cache, &f);
         let mut u = cache.unheld.as_ref().expect("solved above").1.clone();
-        let columns: Vec<Cow<'_, [f64]>> =
-            rows.iter().map(|r| row_column(&cache.columns[&r.vertex], r)).collect();
+        let source = self.source(&cache.columns, &combination);
         let (pushes, uncovered) = penalty_pushes(penalty, &rows);
         // A held penalized row: A^-1 (stiffness C^T g) is its column times stiffness g.
-        for (&scale, column) in pushes.iter().zip(&columns).filter(|(s, _)| **s != 0.0) {
-            u.iter_mut().zip(column.iter()).for_each(|(ui, ci)| *ui += scale * ci);
+        if pushes.iter().any(|&p| p != 0.0) {
+            let negated: Vec<f64> = pushes.iter().map(|p| -p).collect();
+            fibfluid_linalg::CapacitanceSource::correct(&source, &combination.rows, &negated, &mut u);
         }
-        let lambda = impose_rows(&mut cache.capacitance, &rows, &columns, &mut u)?;
+        let lambda = impose_rows(&mut cache.capacitance, &rows, &source, &combination.rows, &mut u)?;
         let reactions = reactions_of(holds, &rows, &lambda);
         let mut applied = f;
         for (row, l) in rows.iter().zip(&lambda) {
@@ -279,25 +304,48 @@ impl HeldSystem<'_> {
         base: Option<&[f64]>,
         penalty: Option<&Penalty>,
     ) -> Result<SurfaceSolve> {
-        let rows = self.rows(holds, base)?;
         self.solve_unheld(cache, f);
+        let affine = cache.surface.as_ref().and_then(|p| p.affine.as_ref());
+        if let Some(answer) = affine.and_then(|a| a.frame(holds)) {
+            cache.affine_frame = true;
+            return answer;
+        }
+        cache.affine_frame = false;
+        let rows = self.rows(holds, base)?;
         let keys: Vec<RowKey> = rows.iter().map(Row::key).collect();
         if cache.surface.as_ref().is_none_or(|p| p.keys != keys)
             || cache.capacitance.as_ref().is_none_or(|c| c.0 != keys)
         {
-            let vertices: Vec<usize> = holds.iter().map(|h| h.0).collect();
-            self.cache_compliance(cache, &vertices)?;
-            let columns: Vec<Cow<'_, [f64]>> =
-                rows.iter().map(|r| row_column(&cache.columns[&r.vertex], r)).collect();
-            capacitance_of(&mut cache.capacitance, &rows, &columns)?;
+            let combination = Combination::of(&rows);
+            self.cache_compliance(cache, &combination.basis, holds)?;
+            let source = self.source(&cache.columns, &combination);
+            let (capacitance, ridged) =
+                capacitance_of(&mut cache.capacitance, &rows, &source, &combination.rows)?;
             let u0 = &cache.unheld.as_ref().expect("solved above").1;
-            let projection = SurfaceProjection {
-                unheld: self.at_surface(u0),
-                rows_unheld: rows.iter().map(|r| row_dot(&r.entries, u0)).collect(),
-                columns: self.columns_at_surface(&columns),
-                keys,
-            };
+            let unheld = self.at_surface(u0);
+            let rows_unheld: Vec<f64> = rows.iter().map(|r| row_dot(&r.entries, u0)).collect();
+            let columns = self.columns_at_surface(&source.columns);
+            let (weights, uncovered) = penalty_weights(penalty, &rows);
+            let affine = AffineFrames::new(&FrameParts {
+                holds,
+                rows: &rows,
+                rest: self.rest,
+                capacitance,
+                ridged,
+                penalty: &weights,
+                uncovered,
+                rows_unheld: &rows_unheld,
+                surface_unheld: &unheld,
+                combination: &combination,
+                columns: columns.as_ref(),
+            });
+            let projection = SurfaceProjection { unheld, rows_unheld, columns, combination, affine, keys };
+            let answer = projection.affine.as_ref().and_then(|a| a.frame(holds));
             cache.surface = Some(projection);
+            if let Some(answer) = answer {
+                cache.affine_frame = true;
+                return answer;
+            }
         }
         let projection = cache.surface.as_ref().expect("made above");
         let (capacitance, ridged) = cache.capacitance.as_ref().map(|c| (&c.1, c.2)).expect("made above");
@@ -316,9 +364,10 @@ impl HeldSystem<'_> {
         if ridged {
             check_met(&rows, &along(&weights))?;
         }
-        // S u = S u0 + (S Z) weights: one dense product (faer's vectorized kernel).
+        // S u = S u0 + (S G)(A^T weights): one dense product (faer's vectorized kernel).
         let mut surface = Mat::<f64>::from_fn(projection.unheld.len(), 1, |i, _| projection.unheld[i]);
-        let w = Mat::<f64>::from_fn(weights.len(), 1, |j, _| weights[j]);
+        let at_basis = projection.combination.transpose_times(&weights);
+        let w = Mat::<f64>::from_fn(at_basis.len(), 1, |j, _| at_basis[j]);
         faer::linalg::matmul::matmul(
             surface.as_mut(),
             faer::Accum::Add,
@@ -334,7 +383,7 @@ impl HeldSystem<'_> {
     }
 
     /// The surface vertices' values of each column (3 per vertex, a matrix column each).
-    fn columns_at_surface(&self, columns: &[Cow<'_, [f64]>]) -> Mat<f64> {
+    fn columns_at_surface(&self, columns: &[&[f64]]) -> Mat<f64> {
         let mut projected = Mat::<f64>::zeros(3 * self.embedding.len(), columns.len());
         for (j, column) in columns.iter().enumerate() {
             let at = interpolate_surface(self.embedding, self.free, column);
@@ -349,31 +398,37 @@ impl HeldSystem<'_> {
         interpolate_surface(self.embedding, self.free, x).into_flattened()
     }
 
-    /// Computes `A^-1 C_v^T` for every held vertex not cached yet, in one solve pass.
-    fn cache_compliance(&self, cache: &mut HoldCache, held: &[usize]) -> Result<()> {
-        let new: Vec<usize> = held.iter().copied().filter(|v| !cache.columns.contains_key(v)).collect();
+    /// Computes `A^-1 B_k^T` for every basis row not cached yet, in one solve pass, and
+    /// records `holds`' vertices as answered.
+    fn cache_compliance(
+        &self,
+        cache: &mut HoldCache,
+        basis: &[BasisKey],
+        holds: &[(usize, FemHold)],
+    ) -> Result<()> {
+        cache.vertices.extend(holds.iter().map(|h| h.0));
+        let new: Vec<BasisKey> = basis.iter().copied().filter(|k| !cache.columns.contains_key(k)).collect();
         if new.is_empty() {
             return Ok(());
         }
-        let mut rows: Vec<Vec<(usize, f64)>> = Vec::with_capacity(3 * new.len());
-        for &v in &new {
-            let e = self.embedding[v];
-            for a in 0..3 {
-                let row = (0..8)
-                    .map(|b| (self.free[3 * e.nodes[b] + a], e.weights[b]))
-                    .filter(|&(dof, _)| dof != FIXED)
-                    .collect();
-                rows.push(row);
-            }
-        }
+        let rows: Vec<Vec<(usize, f64)>> =
+            new.iter().map(|&k| basis_row(k, self.embedding, self.free)).collect();
         let refs: Vec<&SparseRow> = rows.iter().map(Vec::as_slice).collect();
-        let mut columns = self.factor.compliance_columns(&refs)?.into_iter();
-        for &v in &new {
-            let mut next = || columns.next().expect("three columns per vertex");
-            let cols = [next(), next(), next()];
-            cache.columns.insert(v, cols);
-        }
+        let columns = self.factor.compliance_columns(&refs)?;
+        cache.columns.extend(new.into_iter().zip(columns));
         Ok(())
+    }
+
+    /// The capacitance source of `combination` on the cached columns.
+    fn source<'c>(
+        &self,
+        columns: &'c HashMap<BasisKey, Vec<f64>>,
+        combination: &Combination,
+    ) -> Combined<'c> {
+        Combined {
+            basis_rows: combination.basis.iter().map(|&k| basis_row(k, self.embedding, self.free)).collect(),
+            columns: combination.basis.iter().map(|k| columns[k].as_slice()).collect(),
+        }
     }
 }
 
@@ -394,17 +449,23 @@ fn reactions_of(holds: &[(usize, FemHold)], rows: &[Row], lambda: &[f64]) -> Vec
 /// (`stiffness x target`: `A^-1 (stiffness C^T g)`; 0 for a row not penalized), and the
 /// penalized rows no hold covers.
 fn penalty_pushes(penalty: Option<&Penalty>, rows: &[Row]) -> (Vec<f64>, usize) {
+    let (weights, uncovered) = penalty_weights(penalty, rows);
+    (rows.iter().zip(&weights).map(|(r, w)| w * r.target).collect(), uncovered)
+}
+
+/// Per row, the stiffness of its penalty (0 for a row not penalized), and the penalized
+/// rows no hold covers.
+fn penalty_weights(penalty: Option<&Penalty>, rows: &[Row]) -> (Vec<f64>, usize) {
     let Some(p) = penalty else { return (vec![0.0; rows.len()], 0) };
     let keys: Vec<RowKey> = rows.iter().map(Row::key).collect();
     if p.keys == keys {
         // The holds the linearization was made for (the usual frame): every row penalized.
-        return (rows.iter().map(|r| p.stiffness * r.target).collect(), 0);
+        return (vec![p.stiffness; rows.len()], 0);
     }
-    let penalized: std::collections::HashSet<&RowKey> = p.keys.iter().collect();
-    let held: std::collections::HashSet<&RowKey> = keys.iter().collect();
-    let pushes =
-        rows.iter().zip(&keys).map(|(r, k)| if penalized.contains(k) { p.stiffness * r.target } else { 0.0 });
-    (pushes.collect(), p.keys.iter().filter(|k| !held.contains(k)).count())
+    let penalized: HashSet<&RowKey> = p.keys.iter().collect();
+    let held: HashSet<&RowKey> = keys.iter().collect();
+    let weights = keys.iter().map(|k| if penalized.contains(k) { p.stiffness } else { 0.0 });
+    (weights.collect(), p.keys.iter().filter(|k| !held.contains(k)).count())
 }
 
 /// Displacement of every embedded surface vertex of the free-dof vector `x` (fixed dofs
@@ -420,26 +481,6 @@ pub(crate) fn interpolate_surface(embedding: &[Embedded], free: &[usize], x: &[f
         .collect()
 }
 
-/// `A^-1 C_row^T` from the cached axis columns of the row's vertex (the column itself for a
-/// row along an axis).
-fn row_column<'a>(cols: &'a [Vec<f64>; 3], row: &Row) -> Cow<'a, [f64]> {
-    if let Some(a) =
-        (0..3).find(|&a| row.direction[a] == 1.0 && row.direction.iter().filter(|&&d| d != 0.0).count() == 1)
-    {
-        return Cow::Borrowed(&cols[a]);
-    }
-    let mut z = vec![0.0; cols[0].len()];
-    for (a, col) in cols.iter().enumerate() {
-        let n = row.direction[a];
-        if n != 0.0 {
-            for (zi, ci) in z.iter_mut().zip(col) {
-                *zi += n * ci;
-            }
-        }
-    }
-    Cow::Owned(z)
-}
-
 /// Imposes the rows on `u` (`A^-1 f` on entry) by the capacitance update of
 /// `fibfluid_linalg` and returns the multipliers `lambda` (`u = u0 + Z lambda`, the
 /// reactions `C^T lambda`). A singular `C Z` (dependent rows) is retried with a tiny
@@ -448,19 +489,19 @@ fn row_column<'a>(cols: &'a [Vec<f64>; 3], row: &Row) -> Cow<'a, [f64]> {
 fn impose_rows(
     kept: &mut Option<(Vec<RowKey>, RowCapacitance, bool)>,
     rows: &[Row],
-    columns: &[Cow<'_, [f64]>],
+    source: &Combined<'_>,
+    combined: &[Vec<(usize, f64)>],
     u: &mut [f64],
 ) -> Result<Vec<f64>> {
     if rows.is_empty() {
         return Ok(Vec::new());
     }
-    let entries: Vec<&SparseRow> = rows.iter().map(|r| r.entries.as_slice()).collect();
     let targets: Vec<f64> = rows.iter().map(|r| r.target).collect();
-    let (capacitance, ridged) = capacitance_of(kept, rows, columns)?;
+    let (capacitance, ridged) = capacitance_of(kept, rows, source, combined)?;
     // The update's multipliers r are the negated reactions: u = u0 - Z r.
-    let r = capacitance.correct(&entries, columns, &targets, u);
+    let r = capacitance.correct_with(source, combined, &targets, u);
     if ridged {
-        let met: Vec<f64> = entries.iter().map(|e| row_dot(e, u)).collect();
+        let met: Vec<f64> = rows.iter().map(|row| row_dot(&row.entries, u)).collect();
         check_met(rows, &met)?;
     }
     Ok(r.into_iter().map(|x| -x).collect())
@@ -471,17 +512,18 @@ fn impose_rows(
 fn capacitance_of<'k>(
     kept: &'k mut Option<(Vec<RowKey>, RowCapacitance, bool)>,
     rows: &[Row],
-    columns: &[Cow<'_, [f64]>],
+    source: &Combined<'_>,
+    combined: &[Vec<(usize, f64)>],
 ) -> Result<(&'k RowCapacitance, bool)> {
     let keys: Vec<RowKey> = rows.iter().map(Row::key).collect();
     if kept.as_ref().is_none_or(|k| k.0 != keys) {
         *kept = None;
-        let entries: Vec<&SparseRow> = rows.iter().map(|r| r.entries.as_slice()).collect();
-        let made = match RowCapacitance::new(&entries, columns, 0.0) {
+        let made = match RowCapacitance::from_source(source, combined, 0.0, None) {
             Ok(c) => (c, false),
             Err(LinalgError::CapacitanceNotPositiveDefinite { .. }) => {
                 let dependent = FemError::DependentHolds { vertex: rows[0].vertex };
-                (RowCapacitance::new(&entries, columns, DEPENDENT_RIDGE).map_err(|_| dependent)?, true)
+                let ridged = RowCapacitance::from_source(source, combined, DEPENDENT_RIDGE, None);
+                (ridged.map_err(|_| dependent)?, true)
             }
             Err(other) => return Err(other.into()),
         };

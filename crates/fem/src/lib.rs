@@ -48,6 +48,8 @@ mod element;
 mod error;
 mod grid;
 mod held;
+mod held_affine;
+mod held_basis;
 mod held_system;
 pub mod hyper;
 mod ordering;

@@ -140,3 +140,45 @@ fn surface_frames_equal_the_full_response() {
     }
     eprintln!("linearizations with a hold penalty: {penalized} of 8");
 }
+
+/// Frames of a patch held at the targets of one rigid motion (a grasp turned 20 degrees
+/// about the vertical and lifted) read at most 12 columns (`frame_columns`: the affine
+/// path), and answer what the full solve of `respond` answers (an independent route: the
+/// rows imposed on the whole state) to 1e-10, at every linearization of the pull,
+/// penalized ones included. With a bilinear twist added to the targets (still met by the
+/// cells' nodes, but no affine map), the frame takes the general path and still agrees.
+#[test]
+fn rigid_patch_frames_read_a_dozen_columns_and_equal_the_full_response() {
+    let (pos, tris, fixed, patch) = cube();
+    let options = FemOptions { resolution: 4, ..FemOptions::default() };
+    let loads = Loads { gravity: [0.0, 0.0, -0.3], ..Default::default() };
+    let mut body = HyperBody::from_surface(&pos, &tris, &tissue(), &fixed, &options).unwrap();
+    let (c, s) = (20f64.to_radians().cos(), 20f64.to_radians().sin());
+    let rigid = |v: usize, lift: f64| -> [f64; 3] {
+        let [x, y] = [pos[v][0] - 0.5, pos[v][1] - 0.5];
+        [c * x - s * y - x + 0.03, s * x + c * y - y, lift]
+    };
+    let mut lin = body.linearize_at_rest(&loads).unwrap();
+    for k in 0..6 {
+        for (lift, off) in [(0.2, 0.0), (0.22, 0.0), (0.22, 0.1)] {
+            // A bilinear field is met by the cells' nodes (the patch's rows are dependent:
+            // more vertices than nodes per cell), but is no affine map.
+            let twisted = |v: usize| {
+                let mut d = rigid(v, lift);
+                d[2] += off * (pos[v][0] - 0.5) * (pos[v][1] - 0.5);
+                d
+            };
+            let holds: Vec<(usize, FemHold)> = patch.iter().map(|&v| (v, FemHold::At(twisted(v)))).collect();
+            let full = lin.respond(&[], &holds).unwrap();
+            let surface = lin.respond_at_surface(&[], &holds).unwrap();
+            let affine = lin.frame_columns() <= 12;
+            assert_eq!(affine, off == 0.0, "iteration {k}: {} columns with {off} off", lin.frame_columns());
+            let shape = relative_difference(&full.surface_displacements, &surface.surface_displacements);
+            let total = |r: &[[f64; 3]]| [std::array::from_fn::<f64, 3, _>(|a| r.iter().map(|x| x[a]).sum())];
+            let force = relative_difference(&total(&full.reactions), &total(&surface.reactions));
+            assert!(shape < 1e-10 && force < 1e-10, "iteration {k}, off {off}: {shape:e} {force:e}");
+        }
+        let holds: Vec<(usize, FemHold)> = patch.iter().map(|&v| (v, FemHold::At(rigid(v, 0.2)))).collect();
+        lin = body.track(&mut lin, &loads, &[], &holds).unwrap().linearization;
+    }
+}

@@ -120,6 +120,6 @@ impl Interactive for FemInteractive {
 
     fn memory_bytes(&self) -> usize {
         let s = self.body.stats();
-        8 * s.factor_nonzeros + 12 * s.nonzeros + 24 * self.body.cached_holds() * s.dofs
+        8 * s.factor_nonzeros + 12 * s.nonzeros + self.body.cached_bytes()
     }
 }

@@ -136,6 +136,8 @@ pub(crate) struct Layout {
     pub(crate) embedding: Vec<crate::grid::Embedded>,
     pub(crate) free: Vec<usize>,
     pub(crate) n_nodes: usize,
+    /// Rest position of each surface vertex (m).
+    pub(crate) rest: Vec<fibfluid_geometry::Vec3>,
 }
 
 /// A sparse-grid body of compressible neo-Hookean tissue (see the module docs).

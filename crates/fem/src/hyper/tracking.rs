@@ -85,7 +85,13 @@ struct Core {
 impl Core {
     /// The held system of this linearization's factor.
     fn system(&self) -> HeldSystem<'_> {
-        HeldSystem { factor: &self.factor, embedding: &self.layout.embedding, free: &self.layout.free }
+        let layout = &self.layout;
+        HeldSystem {
+            factor: &self.factor,
+            embedding: &layout.embedding,
+            free: &layout.free,
+            rest: &layout.rest,
+        }
     }
 
     /// The surface displaced by `step_field` from this state, and the step's largest
@@ -149,6 +155,14 @@ impl Linearization {
     /// tangent alone was positive definite).
     pub fn hold_penalty(&self) -> f64 {
         self.core.penalty.as_ref().map_or(0.0, |p| p.stiffness)
+    }
+
+    /// The compliance columns the last [`Linearization::respond_at_surface`] read: a
+    /// frame's cost is `3 x surface vertices x` this. A patch held at the targets of one
+    /// rigid (or affine) motion, a grasp, reads at most 12 whatever its size; other holds
+    /// read `min(3 x held vertices, free dofs their rows touch)` (0 before any frame).
+    pub fn frame_columns(&self) -> usize {
+        self.cache.frame_columns()
     }
 
     /// Bytes of the factor and the cached columns.
@@ -319,6 +333,7 @@ impl HyperBody {
                 embedding: self.grid.embedding().to_vec(),
                 free: self.free.clone(),
                 n_nodes: self.grid.n_nodes(),
+                rest: self.grid.surface_positions().to_vec(),
             })
         }));
         let force = eval.gradient.iter().map(|g| -g).collect();
