@@ -20,7 +20,7 @@ use fibfluid_linalg::RowCapacitance;
 
 use crate::error::{FemError, Result};
 use crate::held_basis::Combination;
-use crate::held_system::{FemHold, Row, SurfaceSolve};
+use crate::held_system::{FemHold, Row, SurfaceSolve, refined_multipliers};
 
 /// Fewest held vertices worth the affine frames: below, the rows are no more than the
 /// parameters.
@@ -118,7 +118,7 @@ impl AffineFrames {
         // gap = C u0 + (C Z) pushes - t; r = (C Z)^-1 gap; w = pushes - r.
         let gap0 = plus(parts.rows_unheld, &(times(cz, p0.as_ref()) - &t0));
         let gap = times(cz, pe.as_ref()) - &e;
-        let solve = |g: &[f64]| parts.capacitance.multipliers(g);
+        let solve = |g: &[f64]| refined_multipliers(parts.capacitance, parts.ridged, g);
         let r0 = column(&solve(&gap0));
         let mut r = Mat::zeros(m, p);
         for j in 0..p {

@@ -18,7 +18,9 @@ use std::collections::{HashMap, HashSet};
 
 use faer::Mat;
 use fibfluid_geometry::Vec3;
-use fibfluid_linalg::{ComplianceSource, LinalgError, RowCapacitance, SparseCholesky, SparseRow, row_dot};
+use fibfluid_linalg::{
+    CapacitanceSource, ComplianceSource, LinalgError, RowCapacitance, SparseCholesky, SparseRow, row_dot,
+};
 
 use crate::held_affine::{AffineFrames, FrameParts};
 use crate::held_basis::{BasisKey, Combination, Combined, basis_row};
@@ -84,10 +86,19 @@ impl FemHold {
     }
 }
 
-/// Relative ridge added to a capacitance matrix that is singular because more vertices of
-/// one cell are held than its nodes can satisfy independently (consistent targets, such as
-/// a patch moved rigidly, are still met: the constraint residual is checked after).
-const DEPENDENT_RIDGE: f64 = 1e-12;
+/// Relative ridges tried in turn on a capacitance matrix that is singular because more
+/// vertices of one cell are held than its nodes can satisfy independently (consistent
+/// targets, such as a patch moved rigidly, are still met: the multipliers are refined
+/// against the unridged matrix, [`RIDGE_REFINEMENTS`], and the constraint residual is
+/// checked after).
+const DEPENDENT_RIDGES: [f64; 3] = [1e-12, 1e-9, 1e-6];
+
+/// Refinements of a ridged capacitance solve against the matrix without the ridge. A
+/// ridge `delta` leaves a fraction `delta / mu` of a consistent gap along an eigenvalue
+/// `mu` of the capacitance: about 1e-6 when the tangent carries a strong hold penalty
+/// (its held compliance is small), nanometres on a millimetre gap; each refinement
+/// multiplies it by that fraction again.
+const RIDGE_REFINEMENTS: usize = 3;
 
 /// Largest constraint residual (relative to the largest target, at least 1) accepted after
 /// the ridge: above it the holds contradict each other.
@@ -266,7 +277,7 @@ impl HeldSystem<'_> {
         // A held penalized row: A^-1 (stiffness C^T g) is its column times stiffness g.
         if pushes.iter().any(|&p| p != 0.0) {
             let negated: Vec<f64> = pushes.iter().map(|p| -p).collect();
-            fibfluid_linalg::CapacitanceSource::correct(&source, &combination.rows, &negated, &mut u);
+            source.correct(&combination.rows, &negated, &mut u);
         }
         let lambda = impose_rows(&mut cache.capacitance, &rows, &source, &combination.rows, &mut u)?;
         let reactions = reactions_of(holds, &rows, &lambda);
@@ -370,7 +381,7 @@ impl HeldSystem<'_> {
             out.col_as_slice(0).to_vec()
         };
         let gap: Vec<f64> = along(&pushes).iter().zip(&rows).map(|(c, row)| c - row.target).collect();
-        let r = capacitance.multipliers(&gap);
+        let r = refined_multipliers(capacitance, ridged, &gap);
         let weights: Vec<f64> = pushes.iter().zip(&r).map(|(p, r)| p - r).collect();
         if ridged {
             check_met(&rows, &along(&weights))?;
@@ -507,10 +518,12 @@ fn impose_rows(
     if rows.is_empty() {
         return Ok(Vec::new());
     }
-    let targets: Vec<f64> = rows.iter().map(|r| r.target).collect();
     let (capacitance, ridged) = capacitance_of(kept, rows, source, combined)?;
     // The update's multipliers r are the negated reactions: u = u0 - Z r.
-    let r = capacitance.correct_with(source, combined, &targets, u);
+    let along = source.row_values(combined, u);
+    let gap: Vec<f64> = along.iter().zip(rows).map(|(a, row)| a - row.target).collect();
+    let r = refined_multipliers(capacitance, ridged, &gap);
+    source.correct(combined, &r, u);
     if ridged {
         let met: Vec<f64> = rows.iter().map(|row| row_dot(&row.entries, u)).collect();
         check_met(rows, &met)?;
@@ -533,8 +546,10 @@ fn capacitance_of<'k>(
             Ok(c) => (c, false),
             Err(LinalgError::CapacitanceNotPositiveDefinite { .. }) => {
                 let dependent = FemError::DependentHolds { vertex: rows[0].vertex };
-                let ridged = RowCapacitance::from_source(source, combined, DEPENDENT_RIDGE, None);
-                (ridged.map_err(|_| dependent)?, true)
+                let mut ridged = DEPENDENT_RIDGES
+                    .iter()
+                    .filter_map(|&ridge| RowCapacitance::from_source(source, combined, ridge, None).ok());
+                (ridged.next().ok_or(dependent)?, true)
             }
             Err(other) => return Err(other.into()),
         };
@@ -542,6 +557,28 @@ fn capacitance_of<'k>(
     }
     let (_, capacitance, ridged) = kept.as_ref().expect("made above");
     Ok((capacitance, *ridged))
+}
+
+/// The multipliers of `capacitance r = gap`; a ridged capacitance's refined
+/// [`RIDGE_REFINEMENTS`] times against the matrix without the ridge.
+pub(crate) fn refined_multipliers(capacitance: &RowCapacitance, ridged: bool, gap: &[f64]) -> Vec<f64> {
+    let mut r = capacitance.multipliers(gap);
+    for _ in 0..if ridged { RIDGE_REFINEMENTS } else { 0 } {
+        let mut residual = Mat::<f64>::from_fn(gap.len(), 1, |i, _| gap[i]);
+        let current = Mat::<f64>::from_fn(r.len(), 1, |i, _| r[i]);
+        let m = capacitance.matrix();
+        faer::linalg::matmul::matmul(
+            residual.as_mut(),
+            faer::Accum::Add,
+            m,
+            current.as_ref(),
+            -1.0,
+            faer::Par::Seq,
+        );
+        let correction = capacitance.multipliers(residual.col_as_slice(0));
+        r.iter_mut().zip(&correction).for_each(|(a, b)| *a += b);
+    }
+    r
 }
 
 /// Checks that the values `met` the rows take after a ridged update equal their targets

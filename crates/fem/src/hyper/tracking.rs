@@ -74,6 +74,8 @@ struct Core {
     force: Vec<f64>,
     /// Shared with the chord linearizations made from it.
     factor: Arc<SparseCholesky>,
+    /// Whether the factor is another state's (a chord linearization).
+    chord: bool,
     /// The shift added to the tangent's diagonal to factor it (0: the exact tangent).
     shift: f64,
     /// Displacement of every surface vertex at `x` (m).
@@ -346,7 +348,7 @@ impl HyperBody {
         }));
         let force = eval.gradient.iter().map(|g| -g).collect();
         let surface = interpolate(&layout, &x);
-        let core = Core { layout, x, force, factor: Arc::new(factor), shift, surface, penalty };
+        let core = Core { layout, x, force, factor: Arc::new(factor), chord: false, shift, surface, penalty };
         Ok(Some(Linearization { core: Arc::new(core), cache: HoldCache::default() }))
     }
 
@@ -429,7 +431,15 @@ impl HyperBody {
         pushes: &[(usize, Vec3)],
         holds: &[(usize, FemHold)],
     ) -> Result<TrackStep> {
-        self.track_with(current, loads, pushes, holds, Tangent::Refactor)
+        match self.track_with(current, loads, pushes, holds, Tangent::Refactor) {
+            // A chord linearization's step is made on another state's tangent: where it
+            // cannot step, Newton's step on the state's own tangent may.
+            Err(FemError::Inverted) if current.core.chord => {
+                let mut own = self.linearize_holding(current.state().to_vec(), loads, holds)?;
+                self.track_with(&mut own, loads, pushes, holds, Tangent::Refactor)
+            }
+            other => other,
+        }
     }
 
     /// A chord iteration (modified Newton): [`HyperBody::track`]'s step, but the new
@@ -526,6 +536,7 @@ impl HyperBody {
             surface: interpolate(&kept.layout, &x),
             x,
             factor: Arc::clone(&kept.factor),
+            chord: true,
             shift: kept.shift,
             penalty: kept.penalty.clone(),
         };
