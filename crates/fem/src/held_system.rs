@@ -562,23 +562,7 @@ fn capacitance_of<'k>(
 /// The multipliers of `capacitance r = gap`; a ridged capacitance's refined
 /// [`RIDGE_REFINEMENTS`] times against the matrix without the ridge.
 pub(crate) fn refined_multipliers(capacitance: &RowCapacitance, ridged: bool, gap: &[f64]) -> Vec<f64> {
-    let mut r = capacitance.multipliers(gap);
-    for _ in 0..if ridged { RIDGE_REFINEMENTS } else { 0 } {
-        let mut residual = Mat::<f64>::from_fn(gap.len(), 1, |i, _| gap[i]);
-        let current = Mat::<f64>::from_fn(r.len(), 1, |i, _| r[i]);
-        let m = capacitance.matrix();
-        faer::linalg::matmul::matmul(
-            residual.as_mut(),
-            faer::Accum::Add,
-            m,
-            current.as_ref(),
-            -1.0,
-            faer::Par::Seq,
-        );
-        let correction = capacitance.multipliers(residual.col_as_slice(0));
-        r.iter_mut().zip(&correction).for_each(|(a, b)| *a += b);
-    }
-    r
+    capacitance.refined_multipliers(gap, if ridged { RIDGE_REFINEMENTS } else { 0 })
 }
 
 /// Checks that the values `met` the rows take after a ridged update equal their targets

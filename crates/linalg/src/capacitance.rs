@@ -289,6 +289,34 @@ impl RowCapacitance {
         self.factor.solve(gap)
     }
 
+    /// [`multipliers`](Self::multipliers) refined `refinements` times against `C`
+    /// itself: `r += (C + ridge)^-1 (gap - C r)`. A ridged factor of a singular `C`
+    /// (dependent rows) leaves a fraction `ridge / mu` of a consistent gap along each
+    /// eigenvalue `mu` of `C`; each refinement multiplies it by that fraction again. An
+    /// inconsistent gap is not met by any number (the caller checks the rows).
+    ///
+    /// # Panics
+    /// As [`multipliers`](Self::multipliers).
+    #[track_caller]
+    pub fn refined_multipliers(&self, gap: &[f64], refinements: usize) -> Vec<f64> {
+        let mut r = self.factor.solve(gap);
+        for _ in 0..refinements {
+            let mut residual = Mat::<f64>::from_fn(gap.len(), 1, |i, _| gap[i]);
+            let current = Mat::<f64>::from_fn(r.len(), 1, |i, _| r[i]);
+            faer::linalg::matmul::matmul(
+                residual.as_mut(),
+                faer::Accum::Add,
+                self.matrix.as_ref(),
+                current.as_ref(),
+                -1.0,
+                Par::Seq,
+            );
+            let correction = self.factor.solve(residual.col_as_slice(0));
+            r.iter_mut().zip(&correction).for_each(|(a, b)| *a += b);
+        }
+        r
+    }
+
     /// Imposes `row_i . x = values[i]` on `y = A^-1 b` in place with dense compliance
     /// columns: [`correct_with`](Self::correct_with) the columns as the source.
     ///

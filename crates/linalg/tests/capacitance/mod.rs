@@ -101,3 +101,34 @@ fn the_factor_solves_and_refuses_as_documented() {
     let err = CapacitanceFactor::new(near.as_ref(), Some(1e-10)).expect_err("below the tolerance");
     assert_eq!(err, LinalgError::CapacitanceNotPositiveDefinite { constraint: 1, constraints: 2 });
 }
+
+/// Three dependent rows over two unknowns whose compliances differ by 1e6 (a strongly
+/// penalized direction, as a held tangent with a hold penalty has), and a consistent gap
+/// (`C x` for a known `x`, the reference): the ridged solve alone misses it by about
+/// `ridge / 1e-6` of the gap; refined twice, to the rounding of `C r` (1e-10).
+#[test]
+fn refined_multipliers_meet_a_consistent_gap_of_dependent_rows() {
+    let rows: Vec<Vec<(usize, f64)>> = vec![vec![(0, 1.0)], vec![(1, 1.0)], vec![(0, 1.0), (1, 1.0)]];
+    let compliance = [1.0, 1e-6];
+    let column = |r: &Vec<(usize, f64)>| -> Vec<f64> {
+        (0..2).map(|i| r.iter().filter(|e| e.0 == i).map(|e| e.1 * compliance[i]).sum()).collect()
+    };
+    let columns: Vec<Vec<f64>> = rows.iter().map(column).collect();
+    assert!(RowCapacitance::new(&rows, &columns, 0.0).is_err(), "the rows are dependent");
+    let capacitance = RowCapacitance::new(&rows, &columns, 1e-12).unwrap();
+    let c = capacitance.matrix();
+    // A large multiplier on the stiff row, as a hold penalty's push: a gap of order 1 along
+    // the eigenvalue near 1e-6.
+    let x = [0.3, 1e6, -0.2];
+    let gap: Vec<f64> = (0..3).map(|i| (0..3).map(|j| c[(i, j)] * x[j]).sum()).collect();
+    let scale = gap.iter().fold(0.0_f64, |a, g| a.max(g.abs()));
+    let miss = |r: &[f64]| -> f64 {
+        let row = |i: usize| ((0..3).map(|j| c[(i, j)] * r[j]).sum::<f64>() - gap[i]).abs();
+        (0..3).map(row).fold(0.0, f64::max) / scale
+    };
+    let plain = miss(&capacitance.multipliers(&gap));
+    let refined = miss(&capacitance.refined_multipliers(&gap, 2));
+    assert!(plain > 1e-7, "the ridge alone misses by {plain:e}");
+    // Rounding floor: eps |C| |r| with multipliers near 1e6, about 1e-10 of the gap.
+    assert!(refined < 1e-9 && refined < 1e-3 * plain, "refined: {refined:e} (plain {plain:e})");
+}
