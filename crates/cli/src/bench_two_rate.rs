@@ -4,11 +4,9 @@
 //! Both bodies replay the path with a frame every [`FRAME_PERIOD`] (the time a frame does
 //! not use is slept, as a haptic loop waits for its device). The two-rate body refreshes
 //! on its second thread meanwhile. Reported, as ratios measured in the same run: the
-//! frame p99 of the two-rate body over the linear body's, and the mean refresh that
-//! factors a new tangent (one Newton iteration: the step, the tangent's assembly and
-//! factorization, the held vertices' columns) over one iteration of the batch Newton solve
-//! of the body's own loads. The refreshes between those (chord iterations on the last
-//! factor) count in the refresh rate.
+//! frame p99 of the two-rate body over the linear body's, and the mean refresh (one
+//! Newton iteration: the step, the tangent's assembly and factorization, the held
+//! vertices' columns) over one iteration of the batch Newton solve of the body's own loads.
 
 use std::time::{Duration, Instant};
 
@@ -43,15 +41,9 @@ pub struct TwoRateBench {
     pub refresh_hz: f64,
     /// Mean seconds of one refresh.
     pub refresh_seconds: f64,
-    /// Refreshes that factored a new tangent.
-    pub factorizations: u64,
-    /// Those per second over the two-rate replay.
-    pub factorization_hz: f64,
-    /// Mean seconds of one refresh that factored a new tangent.
-    pub factor_refresh_seconds: f64,
     /// Seconds of one Newton iteration of the batch solve (the body's own loads).
     pub newton_iteration_seconds: f64,
-    /// Mean refresh that factored a new tangent over one batch Newton iteration.
+    /// Mean refresh over one batch Newton iteration.
     pub refresh_ratio: f64,
     /// Refreshes that failed.
     pub failures: usize,
@@ -91,14 +83,8 @@ pub fn bench_two_rate(scene: &Scene, path: &ToolPath, max_memory: Option<u64>) -
         paced(k, b);
     })?;
     let wall = start.elapsed().as_secs_f64();
-    let RefreshSummary {
-        refreshes,
-        refresh_seconds,
-        factorizations,
-        factor_refresh_seconds,
-        failures,
-        first_failure,
-    } = RefreshSummary::of(&statuses);
+    let RefreshSummary { refreshes, refresh_seconds, failures, first_failure } =
+        RefreshSummary::of(&statuses);
     let (linear_latency_us, two_rate_latency_us) =
         (Latency::of(&linear_replay.latency_us), Latency::of(&replay.latency_us));
     Ok(TwoRateBench {
@@ -109,11 +95,8 @@ pub fn bench_two_rate(scene: &Scene, path: &ToolPath, max_memory: Option<u64>) -
         refreshes,
         refresh_hz: refreshes as f64 / wall,
         refresh_seconds,
-        factorizations,
-        factorization_hz: factorizations as f64 / wall,
-        factor_refresh_seconds,
         newton_iteration_seconds,
-        refresh_ratio: factor_refresh_seconds / newton_iteration_seconds,
+        refresh_ratio: refresh_seconds / newton_iteration_seconds,
         failures,
         first_failure,
     })

@@ -771,17 +771,10 @@ fn bench_two_rate(scene: &Path, path: &Path, json: bool) -> Result<(), CliError>
     say!("two-rate frame       p50 {:>9.1} us  p99 {:>9.1} us  max {:>9.1} us", t.p50, t.p99, t.max);
     say!("frame p99 ratio      {:.2} (two-rate over linear)", b.frame_p99_ratio);
     say!(
-        "refreshes            {} at {:.1} Hz, {:.3} s each (over one batch Newton iteration: {:.2})",
+        "refreshes            {} at {:.1} Hz, {:.3} s each; one batch Newton iteration {:.3} s; ratio {:.2}",
         b.refreshes,
         b.refresh_hz,
         b.refresh_seconds,
-        b.refresh_seconds / b.newton_iteration_seconds
-    );
-    say!(
-        "new tangents         {} at {:.1} Hz, {:.3} s each; one batch Newton iteration {:.3} s; ratio {:.2}",
-        b.factorizations,
-        b.factorization_hz,
-        b.factor_refresh_seconds,
         b.newton_iteration_seconds,
         b.refresh_ratio
     );

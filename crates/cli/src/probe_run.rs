@@ -398,10 +398,6 @@ pub struct RefreshSummary {
     pub refreshes: u64,
     /// Mean seconds of the refreshes swapped in (0 when none was).
     pub refresh_seconds: f64,
-    /// Refreshes among them that factored a new tangent.
-    pub factorizations: u64,
-    /// Mean seconds of those (0 when none was).
-    pub factor_refresh_seconds: f64,
     /// Refreshes that failed (a new failure message in a frame).
     pub failures: usize,
     /// Why the first failed refresh failed.
@@ -411,22 +407,17 @@ pub struct RefreshSummary {
 impl RefreshSummary {
     /// The summary of the frames' statuses, in frame order.
     pub fn of(statuses: &[LinearizationStatus]) -> Self {
-        let (mut seconds, mut factor_seconds): (Vec<f64>, Vec<f64>) = (Vec::new(), Vec::new());
+        let mut seconds: Vec<f64> = Vec::new();
         let mut failures = 0;
         for w in statuses.windows(2) {
             if w[1].refreshes > w[0].refreshes {
                 seconds.push(w[1].refresh_seconds);
-            }
-            if w[1].factorizations > w[0].factorizations {
-                factor_seconds.push(w[1].factor_refresh_seconds);
             }
             failures += usize::from(w[1].failure.is_some() && w[1].failure != w[0].failure);
         }
         Self {
             refreshes: statuses.last().map_or(0, |s| s.refreshes),
             refresh_seconds: mean(&seconds),
-            factorizations: statuses.last().map_or(0, |s| s.factorizations),
-            factor_refresh_seconds: mean(&factor_seconds),
             failures,
             first_failure: statuses.iter().find_map(|s| s.failure.clone()),
         }

@@ -202,17 +202,6 @@ impl HoldCache {
         }
     }
 
-    /// The compliance columns and capacitances alone (what depends only on the factor and
-    /// the rows), for another right-hand side on the same factor.
-    pub(crate) fn columns_only(&self) -> Self {
-        Self {
-            columns: self.columns.clone(),
-            vertices: self.vertices.clone(),
-            capacitance: self.capacitance.clone(),
-            ..Self::default()
-        }
-    }
-
     /// Bytes of the cached compliance columns and their surface projection.
     pub(crate) fn bytes(&self) -> usize {
         let columns: usize = self.columns.values().map(|c| 8 * c.len()).sum();

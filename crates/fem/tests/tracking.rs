@@ -84,23 +84,6 @@ fn held_grasp_converges_to_the_batch_answer_and_release_returns_to_rest() {
     assert!(error < AGREEMENT, "{error}");
     assert!(force_error < AGREEMENT, "{force_error}");
 
-    // Chord iterations (the tangent of the second Newton iterate kept) reach the same
-    // answer, linearly.
-    let mut chord = free.linearize_at_rest(&loads).unwrap();
-    for _ in 0..2 {
-        chord = free.track(&mut chord, &loads, &[], &holds).unwrap().linearization;
-    }
-    let mut chord_steps = Vec::new();
-    while chord_steps.last().is_none_or(|&s| s >= 1e-12) && chord_steps.len() < 200 {
-        let next = free.track_chord(&mut chord, &loads, &[], &holds).unwrap();
-        chord_steps.push(next.step);
-        chord = next.linearization;
-    }
-    let chorded = chord.respond(&[], &holds).unwrap();
-    let error = rel_l2(&chorded.surface_displacements, &pulled.surface_displacements, |_| true);
-    eprintln!("chord iterations: {}, {error:.2e} from the batch answer", chord_steps.len());
-    assert!(error < AGREEMENT, "chord iterations after {} steps: {error}", chord_steps.len());
-
     let (released, steps) = converge(&mut free, lin, &loads, &[]);
     let back = released.surface_displacements();
     let error = rel_l2(&back, &hanging.surface_displacements, |_| true);

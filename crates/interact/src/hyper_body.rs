@@ -79,7 +79,7 @@ struct Request {
 
 /// What a refresh produced.
 enum Outcome {
-    Done { linearization: Box<Linearization>, step: f64, frame: u64, seconds: f64, factored: bool },
+    Done { linearization: Box<Linearization>, step: f64, frame: u64, seconds: f64 },
     Failed { message: String, frame: u64 },
 }
 
@@ -126,9 +126,6 @@ struct Current {
     retired: Option<Linearization>,
     refreshes: u64,
     refresh_seconds: f64,
-    /// Refreshes that factored a new tangent, and the seconds of the last one.
-    factorizations: u64,
-    factor_refresh_seconds: f64,
     failure: Option<String>,
 }
 
@@ -216,8 +213,6 @@ impl HyperInteractive {
             retired: None,
             refreshes: 0,
             refresh_seconds: 0.0,
-            factorizations: 0,
-            factor_refresh_seconds: 0.0,
             failure: None,
         };
         Ok(Self {
@@ -352,7 +347,7 @@ impl HyperInteractive {
             Refresher::Inline { body, converge, .. } => {
                 let iterations = if *converge { MAX_CONVERGE_ITERATIONS } else { 1 };
                 for _ in 0..iterations {
-                    let outcome = refresh(body, &mut self.current.linearization, &self.loads, &asked, false);
+                    let outcome = refresh(body, &mut self.current.linearization, &self.loads, &asked);
                     let failed = matches!(outcome, Outcome::Failed { .. });
                     self.current.accept(outcome);
                     if failed || self.current.converged {
@@ -386,7 +381,7 @@ impl Current {
     /// Swaps in a finished refresh, or records its failure (keeping the linearization).
     fn accept(&mut self, outcome: Outcome) {
         match outcome {
-            Outcome::Done { linearization, step, frame, seconds, factored } => {
+            Outcome::Done { linearization, step, frame, seconds } => {
                 let retired = std::mem::replace(&mut self.linearization, *linearization);
                 self.retired = Some(retired);
                 self.at_base = false;
@@ -397,10 +392,6 @@ impl Current {
                 self.step = step;
                 self.refreshes += 1;
                 self.refresh_seconds = seconds;
-                if factored {
-                    self.factorizations += 1;
-                    self.factor_refresh_seconds = seconds;
-                }
                 self.failure = None;
             }
             Outcome::Failed { message, frame } => {
@@ -415,96 +406,56 @@ impl Current {
     }
 }
 
-/// One tracking iteration from `current` for `request`, timed: a chord iteration (the
-/// tangent factor kept) when `chord`, else Newton's.
-fn refresh(
-    body: &mut HyperBody,
-    current: &mut Linearization,
-    loads: &Loads,
-    request: &Request,
-    chord: bool,
-) -> Outcome {
+/// One tracking iteration from `current` for `request`, timed.
+fn refresh(body: &mut HyperBody, current: &mut Linearization, loads: &Loads, request: &Request) -> Outcome {
     let start = Instant::now();
     if request.fail {
         let message = "failed as asked by fail_next_refreshes".to_string();
         return Outcome::Failed { message, frame: request.frame };
     }
-    let stepped = if chord {
-        body.track_chord(current, loads, &request.pushes, &request.holds)
-    } else {
-        body.track(current, loads, &request.pushes, &request.holds)
-    };
-    match stepped {
+    match body.track(current, loads, &request.pushes, &request.holds) {
         Ok(s) => Outcome::Done {
             linearization: Box::new(s.linearization),
             step: s.step,
             frame: request.frame,
             seconds: start.elapsed().as_secs_f64(),
-            factored: !chord,
         },
         Err(e) => Outcome::Failed { message: e.to_string(), frame: request.frame },
     }
 }
 
-/// Whether two sets of holds have the same rows (the same vertices, each held the same
-/// way): a linearization's held columns for one answer the other.
-fn same_rows(a: &[(usize, FemHold)], b: &[(usize, FemHold)]) -> bool {
-    let shape = |h: &FemHold| match h {
-        FemHold::At(_) => None,
-        FemHold::Along { normal, .. } => Some(*normal),
-    };
-    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.0 == y.0 && shape(&x.1) == shape(&y.1))
-}
-
 /// Starts the refresh thread: it answers each request (the newest waiting) with one
 /// tracking iteration from its last linearization, on one thread of its own (the frames
 /// keep the other cores), and ends when the body is dropped.
-///
-/// After a Newton iteration (a new tangent factor), it makes chord iterations on that
-/// factor (an assembly of forces and a solve each, [`HyperBody::track_chord`]) for as
-/// long as the Newton iteration took, while the rows held stay the same; then a Newton
-/// iteration again. Half its time goes to new tangents (quadratic convergence while a
-/// tool is held still), the other half to keeping the state up with a moving tool at
-/// several times the rate of factorizations.
 fn spawn_worker(mut body: HyperBody, mut linearization: Linearization, loads: Loads) -> Worker {
     let (requests, inbox) = mpsc::channel::<Message>();
     let (outbox, outcomes) = mpsc::channel();
     std::thread::spawn(move || {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().ok();
-        // Seconds of chord iterations left before the next Newton iteration, and the
-        // holds the last linearization's columns were made for.
-        let mut chord_budget = 0.0;
-        let mut made_for: Vec<(usize, FemHold)> = Vec::new();
         while let Ok(first) = inbox.recv() {
             let mut request = match first {
                 Message::Refresh(r) => r,
                 Message::Retire(_) => continue,
                 Message::Restart(base) => {
-                    (linearization, chord_budget) = (base, 0.0);
+                    linearization = base;
                     continue;
                 }
             };
             while let Ok(newer) = inbox.try_recv() {
                 match newer {
                     Message::Refresh(r) => request = r,
-                    Message::Restart(base) => (linearization, chord_budget) = (base, 0.0),
+                    Message::Restart(base) => linearization = base,
                     Message::Retire(_) => {}
                 }
             }
-            let chord = chord_budget > 0.0 && same_rows(&made_for, &request.holds);
-            let mut run = || refresh(&mut body, &mut linearization, &loads, &request, chord);
+            let mut run = || refresh(&mut body, &mut linearization, &loads, &request);
             let outcome = match &pool {
                 Some(pool) => pool.install(run),
                 None => run(),
             };
-            chord_budget = match &outcome {
-                Outcome::Done { linearization: made, seconds, factored, .. } => {
-                    linearization = (**made).clone();
-                    made_for = request.holds.clone();
-                    if *factored { *seconds } else { chord_budget - seconds }
-                }
-                Outcome::Failed { .. } => 0.0,
-            };
+            if let Outcome::Done { linearization: made, .. } = &outcome {
+                linearization = (**made).clone();
+            }
             if outbox.send(outcome).is_err() {
                 break;
             }
@@ -546,8 +497,6 @@ impl Interactive for HyperInteractive {
             step: response.step,
             estimated_error: response.step * response.step / self.cell_size,
             refresh_seconds: self.current.refresh_seconds,
-            factorizations: self.current.factorizations,
-            factor_refresh_seconds: self.current.factor_refresh_seconds,
             approximate: response.approximate,
             failure: self.current.failure.clone(),
         };

@@ -172,11 +172,6 @@ pub struct LinearizationStatus {
     pub estimated_error: f64,
     /// Seconds the last refresh took.
     pub refresh_seconds: f64,
-    /// Refreshes among them that factored a new tangent (the others, chord iterations,
-    /// kept the last factor: see `HyperInteractive`).
-    pub factorizations: u64,
-    /// Seconds the last refresh that factored a new tangent took.
-    pub factor_refresh_seconds: f64,
     /// Whether the frame kept springs on vertices the linearization was made holding and
     /// the frame released (until the next refresh).
     pub approximate: bool,

@@ -324,7 +324,6 @@ impl NativeBody {
                 "step": s.step,
                 "estimated_error": s.estimated_error,
                 "refresh_seconds": s.refresh_seconds,
-                "factorizations": s.factorizations,
                 "failure": s.failure,
             })
         });

@@ -228,7 +228,6 @@ pub fn frame_json(
             "age_frames": s.age_frames,
             "age_ms": (s.age_seconds * 1e4).round() / 10.0,
             "refresh_ms": (s.refresh_seconds * 1e4).round() / 10.0,
-            "factorizations": s.factorizations,
             "estimated_error": s.estimated_error,
             "failure": s.failure,
         });

@@ -72,10 +72,7 @@ struct Core {
     layout: Arc<Layout>,
     x: Vec<f64>,
     force: Vec<f64>,
-    /// Shared with the chord linearizations made from it.
-    factor: Arc<SparseCholesky>,
-    /// Whether the factor is another state's (a chord linearization).
-    chord: bool,
+    factor: SparseCholesky,
     /// The shift added to the tangent's diagonal to factor it (0: the exact tangent).
     shift: f64,
     /// Displacement of every surface vertex at `x` (m).
@@ -272,13 +269,6 @@ fn interpolate(layout: &Layout, x: &[f64]) -> Vec<Vec3> {
     interpolate_surface(&layout.embedding, &layout.free, x)
 }
 
-/// Whether a tracking iteration refactors the tangent at its end.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Tangent {
-    Refactor,
-    Keep,
-}
-
 /// One tracking iteration's outcome.
 #[derive(Debug, Clone)]
 pub struct TrackStep {
@@ -348,7 +338,7 @@ impl HyperBody {
         }));
         let force = eval.gradient.iter().map(|g| -g).collect();
         let surface = interpolate(&layout, &x);
-        let core = Core { layout, x, force, factor: Arc::new(factor), chord: false, shift, surface, penalty };
+        let core = Core { layout, x, force, factor, shift, surface, penalty };
         Ok(Some(Linearization { core: Arc::new(core), cache: HoldCache::default() }))
     }
 
@@ -431,43 +421,6 @@ impl HyperBody {
         pushes: &[(usize, Vec3)],
         holds: &[(usize, FemHold)],
     ) -> Result<TrackStep> {
-        match self.track_with(current, loads, pushes, holds, Tangent::Refactor) {
-            // A chord linearization's step is made on another state's tangent: where it
-            // cannot step, Newton's step on the state's own tangent may.
-            Err(FemError::Inverted) if current.core.chord => {
-                let mut own = self.linearize_holding(current.state().to_vec(), loads, holds)?;
-                self.track_with(&mut own, loads, pushes, holds, Tangent::Refactor)
-            }
-            other => other,
-        }
-    }
-
-    /// A chord iteration (modified Newton): [`HyperBody::track`]'s step, but the new
-    /// linearization keeps `current`'s tangent factor, and the held vertices' columns on
-    /// it, with the state and out-of-balance force of the step's end. It costs an
-    /// assembly of forces and one solve instead of a tangent assembly, a factorization and
-    /// the held columns; the iterations it makes converge linearly to the same equilibrium.
-    ///
-    /// Errors: as [`HyperBody::track`].
-    pub fn track_chord(
-        &mut self,
-        current: &mut Linearization,
-        loads: &Loads,
-        pushes: &[(usize, Vec3)],
-        holds: &[(usize, FemHold)],
-    ) -> Result<TrackStep> {
-        self.track_with(current, loads, pushes, holds, Tangent::Keep)
-    }
-
-    /// [`HyperBody::track`] with the tangent refactored at the step's end or kept.
-    fn track_with(
-        &mut self,
-        current: &mut Linearization,
-        loads: &Loads,
-        pushes: &[(usize, Vec3)],
-        holds: &[(usize, FemHold)],
-        tangent: Tangent,
-    ) -> Result<TrackStep> {
         let answer = current.respond(pushes, holds)?;
         let x0 = current.state().to_vec();
         let direction: Vec<f64> = answer.state.iter().zip(&x0).map(|(a, b)| a - b).collect();
@@ -504,12 +457,9 @@ impl HyperBody {
             // definite (its penalty suffices, no shift): a state reached by a long stride
             // can be wildly unstable without inverting a cell.
             let shift_allowed = merit.is_some() || fraction < RESTORE_FLOOR;
-            let made = match (accepted, tangent) {
-                (false, _) => None,
-                (true, Tangent::Refactor) => self.linearize_if(trial, loads, holds, shift_allowed)?,
-                (true, Tangent::Keep) => Some(self.keeping_factor(current, trial, loads)?),
-            };
-            if let Some(mut linearization) = made {
+            if accepted
+                && let Some(mut linearization) = self.linearize_if(trial, loads, holds, shift_allowed)?
+            {
                 // The frames' projection is made here, off the frame thread.
                 linearization.respond_at_surface(pushes, holds)?;
                 return Ok(TrackStep { linearization, fraction, step: answer.step });
@@ -517,30 +467,6 @@ impl HyperBody {
             fraction *= 0.5;
         }
         Err(FemError::Inverted)
-    }
-
-    /// The body at the free-dof state `x` with `current`'s tangent factor, penalty and held
-    /// columns kept: the state and out-of-balance force are `x`'s.
-    fn keeping_factor(
-        &mut self,
-        current: &Linearization,
-        x: Vec<f64>,
-        loads: &Loads,
-    ) -> Result<Linearization> {
-        let external = load_vector(&self.grid, |c| self.densities[c], &self.free, self.n_free, loads)?;
-        let eval = self.evaluate(&x, &dead_loads(&external), false).ok_or(FemError::Inverted)?;
-        let kept = &current.core;
-        let core = Core {
-            layout: Arc::clone(&kept.layout),
-            force: eval.gradient.iter().map(|g| -g).collect(),
-            surface: interpolate(&kept.layout, &x),
-            x,
-            factor: Arc::clone(&kept.factor),
-            chord: true,
-            shift: kept.shift,
-            penalty: kept.penalty.clone(),
-        };
-        Ok(Linearization { core: Arc::new(core), cache: current.cache.columns_only() })
     }
 
     /// How far the step moves the held vertices along their held directions (m, the
