@@ -159,9 +159,12 @@ def test_a_kernel_exponent_set_in_python_is_the_scene_files(cli, tmp_path, py_ru
 
 
 def test_ctrl_c_stops_a_long_run_between_load_steps():
-    """Ctrl-C during a run stops it before its next load step, within a second, as
-    KeyboardInterrupt; the scene stays usable. The run asked for (100,000 steps of the
-    paper's sphere) takes far longer than the bound.
+    """Ctrl-C during a run stops it before its next load step, as KeyboardInterrupt; the
+    scene stays usable. The run asked for (1,000,000 steps of the paper's sphere, the most
+    a scene allows) takes about 100 s on the 2-core development machine; a run that
+    ignored the interrupt until it ended would pass the 30 s deadline (a liveness bound,
+    not a speed claim: an honoured interrupt stops it within a load step, well under a
+    second there).
 
     The interrupt is a real signal from the kernel's interval timer (SIGALRM, whose handler
     raises KeyboardInterrupt as Python's SIGINT handler does), not a thread calling
@@ -174,7 +177,7 @@ def test_ctrl_c_stops_a_long_run_between_load_steps():
         raise KeyboardInterrupt
 
     scene = fibfluid.Scene.load(SCENES / "sphere.toml")
-    scene.steps = 100_000
+    scene.steps = 1_000_000
     previous = signal.signal(signal.SIGALRM, on_alarm)
     start = time.monotonic()
     signal.setitimer(signal.ITIMER_REAL, 0.5)
@@ -185,6 +188,6 @@ def test_ctrl_c_stops_a_long_run_between_load_steps():
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
     elapsed = time.monotonic() - start
-    assert elapsed < 0.5 + 1.5, f"stopped {elapsed:.2f} s after the start"
+    assert elapsed < 30.0, f"stopped {elapsed:.2f} s after the start"
     scene.steps = 1
     assert np.all(np.isfinite(fibfluid.run(scene).positions))
