@@ -5,7 +5,8 @@ use fibfluid_geometry::Vec3;
 
 use crate::body::{FemBody, Loads};
 use crate::error::Result;
-use crate::held_system::{FemHold, HeldResponse, HeldSystem};
+use crate::held_rows::FemHold;
+use crate::held_system::{HeldResponse, HeldSystem};
 
 impl FemBody {
     /// The response to `loads` with each `(vertex, displacement)` of `held` moved exactly to

@@ -20,7 +20,7 @@ use fibfluid_linalg::RowCapacitance;
 
 use crate::error::{FemError, Result};
 use crate::held_basis::Combination;
-use crate::held_system::{FemHold, Row, SurfaceSolve, refined_multipliers};
+use crate::held_rows::{CONSTRAINT_TOLERANCE, FemHold, Row, SurfaceSolve, refined_multipliers};
 
 /// Fewest held vertices worth the affine frames: below, the rows are no more than the
 /// parameters.
@@ -180,9 +180,7 @@ impl AffineFrames {
         if let Some((miss0, miss)) = &self.miss {
             let relative = |i: usize| targets[i / 3][i % 3] - self.base_values[i];
             let scale = (0..self.base_values.len()).fold(1.0_f64, |a, i| a.max(relative(i).abs()));
-            let missed = affine(miss0, miss)
-                .iter()
-                .position(|e| e.abs() > crate::held_system::CONSTRAINT_TOLERANCE * scale);
+            let missed = affine(miss0, miss).iter().position(|e| e.abs() > CONSTRAINT_TOLERANCE * scale);
             if let Some(i) = missed {
                 return Some(Err(FemError::DependentHolds { vertex: self.vertices[i / 3] }));
             }

@@ -19,7 +19,7 @@ use fibfluid_linalg::{CapacitanceSource, SparseRow, row_dot};
 
 use crate::assemble::FIXED;
 use crate::grid::Embedded;
-use crate::held_system::Row;
+use crate::held_rows::Row;
 
 /// One compliance column's identity: an axis of a held vertex (its trilinear row on that
 /// axis) or a free dof.

@@ -24,14 +24,11 @@ use fibfluid_linalg::{
 
 use crate::held_affine::{AffineFrames, FrameParts};
 use crate::held_basis::{BasisKey, Combination, Combined, basis_row};
+use crate::held_rows::{FemHold, Row, RowKey, SurfaceSolve, check_met, constraint_rows, refined_multipliers};
 
 use crate::assemble::FIXED;
 use crate::error::{FemError, Result};
 use crate::grid::Embedded;
-
-/// A target below this (relative to the largest target, or absolute when all are 0) counts
-/// as 0 on an axis whose nodes are all fixed.
-const ZERO_TARGET: f64 = 1e-12;
 
 /// The response with some surface vertices held.
 #[derive(Debug, Clone, PartialEq)]
@@ -48,77 +45,12 @@ pub struct HeldResponse {
     pub residual: f64,
 }
 
-/// How a vertex is held.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum FemHold {
-    /// Moved exactly to this displacement (every axis).
-    At(Vec3),
-    /// Frictionless contact: the displacement along the unit `normal` is `along`; the
-    /// vertex is free across the normal and its reaction is along it.
-    Along {
-        /// Unit direction.
-        normal: Vec3,
-        /// Displacement along `normal`.
-        along: f64,
-    },
-}
-
-impl FemHold {
-    /// The rows of the hold: (direction, target).
-    fn rows(&self) -> Vec<(Vec3, f64)> {
-        match *self {
-            FemHold::At(d) => (0..3)
-                .map(|a| {
-                    let mut e = [0.0; 3];
-                    e[a] = 1.0;
-                    (e, d[a])
-                })
-                .collect(),
-            FemHold::Along { normal, along } => vec![(normal, along)],
-        }
-    }
-
-    fn values(&self) -> Vec<f64> {
-        match *self {
-            FemHold::At(d) => d.to_vec(),
-            FemHold::Along { normal, along } => vec![normal[0], normal[1], normal[2], along],
-        }
-    }
-}
-
 /// Relative ridges tried in turn on a capacitance matrix that is singular because more
 /// vertices of one cell are held than its nodes can satisfy independently (consistent
 /// targets, such as a patch moved rigidly, are still met: the multipliers are refined
-/// against the unridged matrix, [`RIDGE_REFINEMENTS`], and the constraint residual is
+/// against the unridged matrix, `RIDGE_REFINEMENTS`, and the constraint residual is
 /// checked after).
 const DEPENDENT_RIDGES: [f64; 3] = [1e-12, 1e-9, 1e-6];
-
-/// Refinements of a ridged capacitance solve against the matrix without the ridge. A
-/// ridge `delta` leaves a fraction `delta / mu` of a consistent gap along an eigenvalue
-/// `mu` of the capacitance: about 1e-6 when the tangent carries a strong hold penalty
-/// (its held compliance is small), nanometres on a millimetre gap; each refinement
-/// multiplies it by that fraction again.
-const RIDGE_REFINEMENTS: usize = 3;
-
-/// Largest constraint residual (relative to the largest target, at least 1) accepted after
-/// the ridge: above it the holds contradict each other.
-pub(crate) const CONSTRAINT_TOLERANCE: f64 = 1e-9;
-
-/// One constraint row: a held vertex's displacement along a direction as a combination of
-/// free dofs.
-pub(crate) struct Row {
-    pub(crate) vertex: usize,
-    pub(crate) direction: Vec3,
-    pub(crate) target: f64,
-    pub(crate) entries: Vec<(usize, f64)>,
-}
-
-impl Row {
-    /// The row's identity.
-    pub(crate) fn key(&self) -> RowKey {
-        (self.vertex, self.direction.map(f64::to_bits))
-    }
-}
 
 /// Constraint rows whose `stiffness * C^T C` was added to the factored matrix (a tangent
 /// made positive definite on the held directions, an augmented Lagrangian): a hold on such
@@ -175,9 +107,6 @@ struct SurfaceProjection {
     affine: Option<AffineFrames>,
 }
 
-/// A constraint row's identity: its vertex and direction (bit for bit).
-pub(crate) type RowKey = (usize, [u64; 3]);
-
 impl HoldCache {
     /// Number of vertices whose columns are cached.
     pub(crate) fn vertices(&self) -> usize {
@@ -221,16 +150,6 @@ pub(crate) struct HeldSystem<'a> {
     pub(crate) free: &'a [usize],
     /// Rest position of each surface vertex (m).
     pub(crate) rest: &'a [Vec3],
-}
-
-/// The surface-only solution of a held system ([`HeldSystem::solve_surface`]).
-pub(crate) struct SurfaceSolve {
-    /// Displacement of every surface vertex added to the base state.
-    pub(crate) surface: Vec<Vec3>,
-    /// Per hold (in the order given), the force its holder puts on the body.
-    pub(crate) reactions: Vec<Vec3>,
-    /// Penalized rows that no hold covers (their springs stay in the answer).
-    pub(crate) uncovered: usize,
 }
 
 /// The solution of a held system.
@@ -521,7 +440,7 @@ fn impose_rows(
 }
 
 /// The factored capacitance of `rows` (made from `columns` unless `kept` has it for the
-/// same rows) and whether it needed [`DEPENDENT_RIDGE`].
+/// same rows) and whether it needed one of [`DEPENDENT_RIDGES`].
 fn capacitance_of<'k>(
     kept: &'k mut Option<(Vec<RowKey>, RowCapacitance, bool)>,
     rows: &[Row],
@@ -546,61 +465,4 @@ fn capacitance_of<'k>(
     }
     let (_, capacitance, ridged) = kept.as_ref().expect("made above");
     Ok((capacitance, *ridged))
-}
-
-/// The multipliers of `capacitance r = gap`; a ridged capacitance's refined
-/// [`RIDGE_REFINEMENTS`] times against the matrix without the ridge.
-pub(crate) fn refined_multipliers(capacitance: &RowCapacitance, ridged: bool, gap: &[f64]) -> Vec<f64> {
-    capacitance.refined_multipliers(gap, if ridged { RIDGE_REFINEMENTS } else { 0 })
-}
-
-/// Checks that the values `met` the rows take after a ridged update equal their targets
-/// (else the holds contradict each other).
-fn check_met(rows: &[Row], met: &[f64]) -> Result<()> {
-    let scale = rows.iter().fold(1.0_f64, |a, r| a.max(r.target.abs()));
-    match rows.iter().zip(met).find(|(r, m)| (*m - r.target).abs() > CONSTRAINT_TOLERANCE * scale) {
-        Some((r, _)) => Err(FemError::DependentHolds { vertex: r.vertex }),
-        None => Ok(()),
-    }
-}
-
-/// The constraint rows of `holds`, skipping rows carried only by fixed nodes (whose
-/// target must then be 0).
-pub(crate) fn constraint_rows(
-    embedding: &[Embedded],
-    free: &[usize],
-    holds: &[(usize, FemHold)],
-) -> Result<Vec<Row>> {
-    let scale = holds.iter().flat_map(|h| h.1.values()).fold(0.0_f64, |a, b| a.max(b.abs()));
-    let mut rows = Vec::new();
-    for (k, &(v, hold)) in holds.iter().enumerate() {
-        let e =
-            embedding.get(v).ok_or(FemError::VertexOutOfRange { vertex: v, vertices: embedding.len() })?;
-        if hold.values().iter().any(|x| !x.is_finite()) {
-            return Err(FemError::NonFinite { what: "held displacement" });
-        }
-        if holds[..k].iter().any(|h| h.0 == v) {
-            return Err(FemError::DependentHolds { vertex: v });
-        }
-        for (direction, target) in hold.rows() {
-            let mut entries: Vec<(usize, f64)> = Vec::new();
-            for b in (0..8).filter(|&b| e.weights[b] > 0.0) {
-                for a in (0..3).filter(|&a| direction[a] != 0.0) {
-                    let dof = free[3 * e.nodes[b] + a];
-                    if dof != FIXED {
-                        entries.push((dof, e.weights[b] * direction[a]));
-                    }
-                }
-            }
-            if entries.is_empty() {
-                if target.abs() > ZERO_TARGET * scale.max(1.0) {
-                    let axis = (0..3).max_by(|&a, &b| direction[a].abs().total_cmp(&direction[b].abs()));
-                    return Err(FemError::HeldOnFixed { vertex: v, axis: axis.unwrap_or(0) });
-                }
-                continue;
-            }
-            rows.push(Row { vertex: v, direction, target, entries });
-        }
-    }
-    Ok(rows)
 }

@@ -50,6 +50,7 @@ mod grid;
 mod held;
 mod held_affine;
 mod held_basis;
+mod held_rows;
 mod held_system;
 pub mod hyper;
 mod ordering;
@@ -65,7 +66,8 @@ pub use grid::{
     DEFAULT_RESOLUTION, Element, Embedded, FemOptions, GridEstimate, MAX_CELLS, MAX_RESOLUTION, MIN_FILL,
     SNAP, SUBSAMPLES, SparseGrid,
 };
-pub use held_system::{FemHold, HeldResponse};
+pub use held_rows::FemHold;
+pub use held_system::HeldResponse;
 pub use ordering::{ND_LEAF, Ordering};
 pub use region::{CellBlend, Region, RegionShape, blend_regions};
 pub use rigid::{RIGID_MODE_TOLERANCE, RigidMode, check_rigid_modes, free_rigid_modes};

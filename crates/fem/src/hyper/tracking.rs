@@ -29,9 +29,8 @@ use super::newton::LoadState;
 use crate::assemble::FIXED;
 use crate::body::{Loads, add_point_forces, load_vector};
 use crate::error::{FemError, Result};
-use crate::held_system::{
-    FemHold, HeldSystem, HoldCache, Penalty, Row, constraint_rows, interpolate_surface,
-};
+use crate::held_rows::{FemHold, Row, constraint_rows};
+use crate::held_system::{HeldSystem, HoldCache, Penalty, interpolate_surface};
 
 /// A factored tangent: the factor, the diagonal shift it needed (relative to the median
 /// diagonal entry) and the holds' penalty it carries.
