@@ -6,13 +6,15 @@
 //! `(v, a)`: the trilinear weights of `v` on axis `a` of its cell's free nodes) and the
 //! unknown reactions `lambda`: `K u = f + C^T lambda`. With `u0 = K^-1 f` and the
 //! compliance columns `Z = K^-1 C^T`, `(C Z) lambda = d - C u0` and `u = u0 + Z lambda`.
-//! `Z` costs one solve per new held axis and is cached per vertex; each frame then costs
-//! one solve for `u0`, the dense `m x m` capacitance `C Z` (8 m^2 flops from the sparse
-//! rows) and its Cholesky (`m^3 / 3`), against a refactorization of K (its factor flops,
-//! see [`crate::FemStats`]) for eliminating the held dofs.
-//! The capacitance is formed, factored and applied by `fibfluid_linalg::RowCapacitance`
-//! (the columns by the factor's `fibfluid_linalg::ComplianceSource`), the same code as the
-//! fiber–fluid method's contact rows.
+//! `Z` is solved over the smaller basis of the rows (`crate::held_basis`: each held
+//! vertex's axes, or the free dofs the rows touch) and cached; each frame then costs one
+//! solve for `u0`, the dense `m x m` capacitance `C Z` and its Cholesky (`m^3 / 3`),
+//! against a refactorization of K (its factor flops, see [`crate::FemStats`]) for
+//! eliminating the held dofs. The capacitance is formed, factored and applied by
+//! `fibfluid_linalg::RowCapacitance` (the columns by the factor's
+//! `fibfluid_linalg::ComplianceSource`), the same code as the fiber–fluid method's contact
+//! rows. A patch held at the targets of one affine motion (a grasp) answers its
+//! surface-only frames from a dozen columns (`crate::held_affine`).
 
 use std::collections::{HashMap, HashSet};
 
@@ -224,8 +226,9 @@ impl HeldSystem<'_> {
     /// The surface-only answer of [`HeldSystem::solve`]: the same holds met, the same
     /// reactions, but only the surface vertices' displacements, from the rows' columns
     /// projected onto the surface once per set of rows and right-hand side. A frame that
-    /// keeps both costs `3 x surface vertices x rows` flops and the `rows x rows`
-    /// capacitance solve, whatever the number of unknowns.
+    /// keeps both costs `3 x surface vertices x min(rows, dofs)` flops and the
+    /// `rows x rows` capacitance solve, whatever the number of unknowns; a grasp's
+    /// `3 x surface vertices x 3k` (`k <= 4`, `crate::held_affine`).
     pub(crate) fn solve_surface(
         &self,
         cache: &mut HoldCache,

@@ -214,10 +214,10 @@ impl Linearization {
 
 impl Linearization {
     /// What a frame needs of [`Linearization::respond`]: the same surface, reactions and
-    /// step, without the state inside the body. It costs `3 x surface vertices x held
-    /// rows` flops while the held rows and the pushes stay the same (the rows' columns are
-    /// projected onto the surface once, on the first such frame), whatever the number of
-    /// unknowns.
+    /// step, without the state inside the body. It costs `3 x surface vertices x` the
+    /// columns it reads ([`Linearization::frame_columns`]) while the held rows and the
+    /// pushes stay the same (the columns are projected onto the surface once, on the first
+    /// such frame), whatever the number of unknowns.
     ///
     /// Errors: those of [`Linearization::respond`].
     pub fn respond_at_surface(
