@@ -174,6 +174,8 @@ struct HyperCase {
     /// The mesh file's coordinates times this are metres.
     scale: f64,
     young: f64,
+    /// kg/m^3.
+    density: f64,
     gravity: V3,
     /// Which vertices are fixed, from the scaled rest positions.
     fixed: fn(&[V3]) -> Vec<[bool; 3]>,
@@ -186,6 +188,7 @@ const TONGUE_NH: HyperCase = HyperCase {
     golden: "tongue-hanging-nh.txt",
     scale: 0.02,
     young: 2000.0,
+    density: 1000.0,
     gravity: [0.0, 0.0, -9.81],
     fixed: |pos| {
         let top = pos.iter().map(|p| p[2]).fold(f64::MIN, f64::max);
@@ -200,18 +203,35 @@ const SPHERE_NH: HyperCase = HyperCase {
     golden: "sphere-gravity-nh.txt",
     scale: 0.05,
     young: 3000.0,
+    density: 1000.0,
     gravity: [0.0, -9.81, 0.0],
     fixed: |pos| pos.iter().map(|p| [p[1] > 0.04; 3]).collect(),
 };
 
+/// The bundled liver-hanging scene: `liver2.obj` at 10 cm per unit (21.5 cm across),
+/// E = 5 kPa, density 1060, hanging along y from its top 8 mm (as `[[fix]] axis = "y"
+/// top = 0.008`: 39 vertices).
+const LIVER_NH: HyperCase = HyperCase {
+    mesh: "liver2.obj",
+    golden: "liver-hanging-nh.txt",
+    scale: 0.1,
+    young: 5000.0,
+    density: 1060.0,
+    gravity: [0.0, -9.81, 0.0],
+    fixed: |pos| {
+        let top = pos.iter().map(|p| p[1]).fold(f64::MIN, f64::max);
+        pos.iter().map(|p| [p[1] >= top - 0.008; 3]).collect()
+    },
+};
+
 /// Relative L2 error of the neo-Hookean FEM's surface displacement at `resolution` against
-/// the case's independent neo-Hookean reference (nu = 0.45, density 1000).
+/// the case's independent neo-Hookean reference (nu = 0.45).
 fn hyper_error(case: &HyperCase, resolution: usize) -> f64 {
     let file = load_mesh(root().join("../../fixtures/meshes").join(case.mesh)).unwrap();
     let golden = golden_field(case.golden);
     let pos: Vec<V3> = file.mesh.positions().iter().map(|p| p.map(|x| x * case.scale)).collect();
     assert_eq!(golden.len(), pos.len());
-    let tissue = Tissue::new(case.young, 0.45, 1000.0).unwrap().with_model(TissueModel::NeoHookean);
+    let tissue = Tissue::new(case.young, 0.45, case.density).unwrap().with_model(TissueModel::NeoHookean);
     let opts = FemOptions { resolution, ..Default::default() };
     let fixed = (case.fixed)(&pos);
     let mut body = HyperBody::from_surface(&pos, file.mesh.triangles(), &tissue, &fixed, &opts).unwrap();
@@ -236,14 +256,18 @@ fn hyper_error(case: &HyperCase, resolution: usize) -> f64 {
 
 /// Against the independent neo-Hookean references (P2 tetrahedra, `tools/reference_nh.py`,
 /// `tests/golden/NEO_HOOKEAN.md`), at the default resolution: the tongue hanging from its
-/// top within 3 % (measured 0.0187; 0.0093 at resolution 48) and the 10 cm sphere within
-/// 5 % (measured 0.0366; 0.0083 at resolution 48), where the issue asks 10 %.
+/// top within 3 % (measured 0.0187; 0.0093 at resolution 48), the 10 cm sphere within
+/// 5 % (measured 0.0366; 0.0083 at resolution 48), where the issue asks 10 %, and the
+/// bundled liver-hanging scene within 3 % (measured 0.0116; its reference is not refined
+/// at the clamp, and at resolution 48 fibfluid hangs the liver 3 % further: 0.0392).
 #[test]
 fn neo_hookean_bodies_match_an_independent_reference() {
     let tongue = hyper_error(&TONGUE_NH, DEFAULT_RESOLUTION);
     assert!(tongue < 0.03, "tongue: {tongue}");
     let sphere = hyper_error(&SPHERE_NH, DEFAULT_RESOLUTION);
     assert!(sphere < 0.05, "sphere: {sphere}");
+    let liver = hyper_error(&LIVER_NH, DEFAULT_RESOLUTION);
+    assert!(liver < 0.03, "liver: {liver}");
 }
 
 /// Doubling the resolution is no worse against the neo-Hookean references (slow: the
