@@ -97,23 +97,39 @@ impl Combination {
 
     /// `A^T r`: the basis coefficients of the rows' combination with weights `r`.
     pub(crate) fn transpose_times(&self, r: &[f64]) -> Vec<f64> {
-        let mut v = vec![0.0; self.basis.len()];
-        for (row, &ri) in self.rows.iter().zip(r) {
-            for &(k, c) in row {
-                v[k] += c * ri;
-            }
-        }
-        v
+        transpose_times(&self.rows, r, self.basis.len())
     }
+}
+
+/// `A^T r` for the rows `rows` of `A` over a basis of `size` elements.
+fn transpose_times<R: AsRef<SparseRow>>(rows: &[R], r: &[f64], size: usize) -> Vec<f64> {
+    let mut v = vec![0.0; size];
+    for (row, &ri) in rows.iter().zip(r) {
+        for &(k, c) in row.as_ref() {
+            v[k] += c * ri;
+        }
+    }
+    v
 }
 
 /// The capacitance source of rows over a basis: the basis rows and their compliance
 /// columns (see the module docs). Its rows are those of `A`.
 pub(crate) struct Combined<'a> {
     /// `B`, one sparse row per basis element.
-    pub(crate) basis_rows: Vec<Vec<(usize, f64)>>,
+    basis_rows: &'a [Vec<(usize, f64)>],
     /// `G`, one column of every unknown per basis element.
     pub(crate) columns: Vec<&'a [f64]>,
+}
+
+impl<'a> Combined<'a> {
+    /// The source of the basis rows `basis_rows` of `basis`, on its cached `columns`.
+    pub(crate) fn new(
+        basis_rows: &'a [Vec<(usize, f64)>],
+        basis: &[BasisKey],
+        columns: &'a HashMap<BasisKey, Vec<f64>>,
+    ) -> Self {
+        Self { basis_rows, columns: basis.iter().map(|k| columns[k].as_slice()).collect() }
+    }
 }
 
 impl Combined<'_> {
@@ -144,12 +160,7 @@ impl<R: AsRef<SparseRow>> CapacitanceSource<R> for Combined<'_> {
     }
 
     fn correct(&self, rows: &[R], r: &[f64], x: &mut [f64]) {
-        let mut v = vec![0.0; self.columns.len()];
-        for (row, &ri) in rows.iter().zip(r) {
-            for &(k, c) in row.as_ref() {
-                v[k] += c * ri;
-            }
-        }
+        let v = transpose_times(rows, r, self.columns.len());
         for (column, &vk) in self.columns.iter().zip(&v).filter(|(_, v)| **v != 0.0) {
             x.iter_mut().zip(column.iter()).for_each(|(xi, ci)| *xi -= vk * ci);
         }

@@ -78,15 +78,34 @@ pub(crate) struct HoldCache {
     /// The last right-hand side solved without holds and its solution: a frame that
     /// changes only the holds reuses it.
     unheld: Option<(Vec<f64>, Vec<f64>)>,
-    /// The last rows' capacitance (and whether it needed the ridge), by the rows' vertices
-    /// and directions: a frame that moves the same holds reuses it.
-    capacitance: Option<(Vec<RowKey>, RowCapacitance, bool)>,
+    /// The last rows over their basis and their factored capacitance: a frame that moves
+    /// the same holds reuses them.
+    rows: Option<RowSet>,
     /// The surface's share of the unheld solution and of the last rows' columns: a
     /// surface-only frame ([`HeldSystem::solve_surface`]) with the same rows and
     /// right-hand side reuses it.
     surface: Option<SurfaceProjection>,
     /// Whether the last surface-only frame took the affine path (`crate::held_affine`).
     affine_frame: bool,
+}
+
+/// One set of rows as frames answer them: their identity, the rows over their basis
+/// (`C = A B`), the basis rows `B`, and the factored capacitance `C Z` (and whether it
+/// needed one of [`DEPENDENT_RIDGES`]).
+#[derive(Debug, Clone)]
+struct RowSet {
+    keys: Vec<RowKey>,
+    combination: Combination,
+    basis_rows: Vec<Vec<(usize, f64)>>,
+    capacitance: RowCapacitance,
+    ridged: bool,
+}
+
+impl RowSet {
+    /// The capacitance source of these rows on the cached columns.
+    fn source<'c>(&'c self, columns: &'c HashMap<BasisKey, Vec<f64>>) -> Combined<'c> {
+        Combined::new(&self.basis_rows, &self.combination.basis, columns)
+    }
 }
 
 /// What a surface-only frame needs of one set of rows and one right-hand side: the held
@@ -99,8 +118,6 @@ struct SurfaceProjection {
     unheld: Vec<f64>,
     /// `C u0`: the unheld solution along each row.
     rows_unheld: Vec<f64>,
-    /// The rows over their basis (`C = A B`).
-    combination: Combination,
     /// `S G`: each basis element's compliance column at the surface vertices (3 per
     /// vertex), one matrix column per element.
     columns: Mat<f64>,
@@ -119,7 +136,7 @@ impl HoldCache {
     pub(crate) fn clear_columns(&mut self) {
         self.columns.clear();
         self.vertices.clear();
-        self.capacitance = None;
+        self.rows = None;
         self.surface = None;
     }
 
@@ -178,18 +195,18 @@ impl HeldSystem<'_> {
         penalty: Option<&Penalty>,
     ) -> Result<HeldSolve> {
         let rows = self.rows(holds, base)?;
-        let combination = Combination::of(&rows);
-        self.cache_compliance(cache, &combination.basis, holds)?;
+        self.keep_row_set(cache, &rows, holds)?;
         self.solve_unheld(cache, &f);
         let mut u = cache.unheld.as_ref().expect("solved above").1.clone();
-        let source = self.source(&cache.columns, &combination);
+        let set = cache.rows.as_ref().expect("kept above");
+        let source = set.source(&cache.columns);
         let (pushes, uncovered) = penalty_pushes(penalty, &rows);
         // A held penalized row: A^-1 (stiffness C^T g) is its column times stiffness g.
         if pushes.iter().any(|&p| p != 0.0) {
             let negated: Vec<f64> = pushes.iter().map(|p| -p).collect();
-            source.correct(&combination.rows, &negated, &mut u);
+            source.correct(&set.combination.rows, &negated, &mut u);
         }
-        let lambda = impose_rows(&mut cache.capacitance, &rows, &source, &combination.rows, &mut u)?;
+        let lambda = impose_rows(set, &rows, &source, &mut u)?;
         let reactions = reactions_of(holds, &rows, &lambda);
         let mut applied = f;
         for (row, l) in rows.iter().zip(&lambda) {
@@ -247,13 +264,11 @@ impl HeldSystem<'_> {
         let rows = self.rows(holds, base)?;
         let keys: Vec<RowKey> = rows.iter().map(Row::key).collect();
         if cache.surface.as_ref().is_none_or(|p| p.keys != keys)
-            || cache.capacitance.as_ref().is_none_or(|c| c.0 != keys)
+            || cache.rows.as_ref().is_none_or(|set| set.keys != keys)
         {
-            let combination = Combination::of(&rows);
-            self.cache_compliance(cache, &combination.basis, holds)?;
-            let source = self.source(&cache.columns, &combination);
-            let (capacitance, ridged) =
-                capacitance_of(&mut cache.capacitance, &rows, &source, &combination.rows)?;
+            self.keep_row_set(cache, &rows, holds)?;
+            let set = cache.rows.as_ref().expect("kept above");
+            let source = set.source(&cache.columns);
             let u0 = &cache.unheld.as_ref().expect("solved above").1;
             let unheld = self.at_surface(u0);
             let rows_unheld: Vec<f64> = rows.iter().map(|r| row_dot(&r.entries, u0)).collect();
@@ -263,16 +278,16 @@ impl HeldSystem<'_> {
                 holds,
                 rows: &rows,
                 rest: self.rest,
-                capacitance,
-                ridged,
+                capacitance: &set.capacitance,
+                ridged: set.ridged,
                 penalty: &weights,
                 uncovered,
                 rows_unheld: &rows_unheld,
                 surface_unheld: &unheld,
-                combination: &combination,
+                combination: &set.combination,
                 columns: columns.as_ref(),
             });
-            let projection = SurfaceProjection { unheld, rows_unheld, columns, combination, affine, keys };
+            let projection = SurfaceProjection { unheld, rows_unheld, columns, affine, keys };
             let answer = projection.affine.as_ref().and_then(|a| a.frame(holds));
             cache.surface = Some(projection);
             if let Some(answer) = answer {
@@ -281,7 +296,8 @@ impl HeldSystem<'_> {
             }
         }
         let projection = cache.surface.as_ref().expect("made above");
-        let (capacitance, ridged) = cache.capacitance.as_ref().map(|c| (&c.1, c.2)).expect("made above");
+        let set = cache.rows.as_ref().expect("made above");
+        let (capacitance, ridged) = (&set.capacitance, set.ridged);
         let (pushes, uncovered) = penalty_pushes(penalty, &rows);
         // Along the rows, u = u0 + Z (pushes - r) is C u0 + (C Z)(pushes - r).
         let cz = capacitance.matrix();
@@ -299,7 +315,7 @@ impl HeldSystem<'_> {
         }
         // S u = S u0 + (S G)(A^T weights): one dense product (faer's vectorized kernel).
         let mut surface = Mat::<f64>::from_fn(projection.unheld.len(), 1, |i, _| projection.unheld[i]);
-        let at_basis = projection.combination.transpose_times(&weights);
+        let at_basis = set.combination.transpose_times(&weights);
         let w = Mat::<f64>::from_fn(at_basis.len(), 1, |j, _| at_basis[j]);
         faer::linalg::matmul::matmul(
             surface.as_mut(),
@@ -352,16 +368,35 @@ impl HeldSystem<'_> {
         Ok(())
     }
 
-    /// The capacitance source of `combination` on the cached columns.
-    fn source<'c>(
-        &self,
-        columns: &'c HashMap<BasisKey, Vec<f64>>,
-        combination: &Combination,
-    ) -> Combined<'c> {
-        Combined {
-            basis_rows: combination.basis.iter().map(|&k| basis_row(k, self.embedding, self.free)).collect(),
-            columns: combination.basis.iter().map(|k| columns[k].as_slice()).collect(),
+    /// Keeps `rows`' set in `cache.rows`: made again (their basis, its missing columns
+    /// and the factored capacitance) only when the rows differ from the kept ones. A
+    /// singular `C Z` (dependent rows) is factored with the first of [`DEPENDENT_RIDGES`]
+    /// that makes it positive definite.
+    fn keep_row_set(&self, cache: &mut HoldCache, rows: &[Row], holds: &[(usize, FemHold)]) -> Result<()> {
+        let keys: Vec<RowKey> = rows.iter().map(Row::key).collect();
+        if cache.rows.as_ref().is_some_and(|set| set.keys == keys) {
+            return Ok(());
         }
+        cache.rows = None;
+        let combination = Combination::of(rows);
+        self.cache_compliance(cache, &combination.basis, holds)?;
+        let basis_rows: Vec<Vec<(usize, f64)>> =
+            combination.basis.iter().map(|&k| basis_row(k, self.embedding, self.free)).collect();
+        let source = Combined::new(&basis_rows, &combination.basis, &cache.columns);
+        let combined = &combination.rows;
+        let (capacitance, ridged) = match RowCapacitance::from_source(&source, combined, 0.0, None) {
+            Ok(c) => (c, false),
+            Err(LinalgError::CapacitanceNotPositiveDefinite { .. }) => {
+                let dependent = FemError::DependentHolds { vertex: rows[0].vertex };
+                let mut ridged = DEPENDENT_RIDGES
+                    .iter()
+                    .filter_map(|&ridge| RowCapacitance::from_source(&source, combined, ridge, None).ok());
+                (ridged.next().ok_or(dependent)?, true)
+            }
+            Err(other) => return Err(other.into()),
+        };
+        cache.rows = Some(RowSet { keys, combination, basis_rows, capacitance, ridged });
+        Ok(())
     }
 }
 
@@ -414,58 +449,23 @@ pub(crate) fn interpolate_surface(embedding: &[Embedded], free: &[usize], x: &[f
         .collect()
 }
 
-/// Imposes the rows on `u` (`A^-1 f` on entry) by the capacitance update of
+/// Imposes the rows of `set` on `u` (`A^-1 f` on entry) by the capacitance update of
 /// `fibfluid_linalg` and returns the multipliers `lambda` (`u = u0 + Z lambda`, the
-/// reactions `C^T lambda`). A singular `C Z` (dependent rows) is retried with a tiny
-/// ridge and accepted only if the constraints are then met. The factored capacitance is
-/// kept in `kept` for the next call with the same rows.
-fn impose_rows(
-    kept: &mut Option<(Vec<RowKey>, RowCapacitance, bool)>,
-    rows: &[Row],
-    source: &Combined<'_>,
-    combined: &[Vec<(usize, f64)>],
-    u: &mut [f64],
-) -> Result<Vec<f64>> {
+/// reactions `C^T lambda`). A ridged capacitance (dependent rows) is accepted only if the
+/// constraints are then met.
+fn impose_rows(set: &RowSet, rows: &[Row], source: &Combined<'_>, u: &mut [f64]) -> Result<Vec<f64>> {
     if rows.is_empty() {
         return Ok(Vec::new());
     }
-    let (capacitance, ridged) = capacitance_of(kept, rows, source, combined)?;
+    let combined = &set.combination.rows;
     // The update's multipliers r are the negated reactions: u = u0 - Z r.
     let along = source.row_values(combined, u);
     let gap: Vec<f64> = along.iter().zip(rows).map(|(a, row)| a - row.target).collect();
-    let r = refined_multipliers(capacitance, ridged, &gap);
+    let r = refined_multipliers(&set.capacitance, set.ridged, &gap);
     source.correct(combined, &r, u);
-    if ridged {
+    if set.ridged {
         let met: Vec<f64> = rows.iter().map(|row| row_dot(&row.entries, u)).collect();
         check_met(rows, &met)?;
     }
     Ok(r.into_iter().map(|x| -x).collect())
-}
-
-/// The factored capacitance of `rows` (made from `columns` unless `kept` has it for the
-/// same rows) and whether it needed one of [`DEPENDENT_RIDGES`].
-fn capacitance_of<'k>(
-    kept: &'k mut Option<(Vec<RowKey>, RowCapacitance, bool)>,
-    rows: &[Row],
-    source: &Combined<'_>,
-    combined: &[Vec<(usize, f64)>],
-) -> Result<(&'k RowCapacitance, bool)> {
-    let keys: Vec<RowKey> = rows.iter().map(Row::key).collect();
-    if kept.as_ref().is_none_or(|k| k.0 != keys) {
-        *kept = None;
-        let made = match RowCapacitance::from_source(source, combined, 0.0, None) {
-            Ok(c) => (c, false),
-            Err(LinalgError::CapacitanceNotPositiveDefinite { .. }) => {
-                let dependent = FemError::DependentHolds { vertex: rows[0].vertex };
-                let mut ridged = DEPENDENT_RIDGES
-                    .iter()
-                    .filter_map(|&ridge| RowCapacitance::from_source(source, combined, ridge, None).ok());
-                (ridged.next().ok_or(dependent)?, true)
-            }
-            Err(other) => return Err(other.into()),
-        };
-        *kept = Some((keys, made.0, made.1));
-    }
-    let (_, capacitance, ridged) = kept.as_ref().expect("made above");
-    Ok((capacitance, *ridged))
 }
