@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 
 use crate::common::*;
-use fibfluid_fem::hyper::HyperBody;
+use fibfluid_fem::hyper::{Grasp, HyperBody, RigidPlate};
 use fibfluid_fem::{DEFAULT_RESOLUTION, FemBody, FemOptions, Loads, Tissue, TissueModel};
 use fibfluid_geometry::load_mesh;
 
@@ -57,6 +57,16 @@ fn golden_field(name: &str) -> Vec<V3> {
             [v[0], v[1], v[2]]
         })
         .collect()
+}
+
+/// The plate forces a golden's header records (N, on the body along each plate's normal,
+/// in the plates' order): its first line ends `...; plate forces on the body along their
+/// normals F1 F2 N`.
+fn golden_plate_forces(name: &str) -> Vec<f64> {
+    let text = std::fs::read_to_string(root().join("tests/golden").join(name)).unwrap();
+    let header = text.lines().next().unwrap();
+    let (_, tail) = header.split_once("plate forces on the body along their normals").unwrap();
+    tail.split_whitespace().filter_map(|x| x.parse().ok()).collect()
 }
 
 /// Relative L2 error of our surface displacement at `resolution` against the golden file.
@@ -167,7 +177,8 @@ fn sphere_doubling_is_no_worse() {
     assert!(e[1] <= e[0], "{e:?}");
 }
 
-/// A body of neo-Hookean tissue hanging under gravity, with its independent reference.
+/// A body of neo-Hookean tissue under gravity, a grasp or plates, with its independent
+/// reference.
 struct HyperCase {
     mesh: &'static str,
     golden: &'static str,
@@ -179,6 +190,11 @@ struct HyperCase {
     gravity: V3,
     /// Which vertices are fixed, from the scaled rest positions.
     fixed: fn(&[V3]) -> Vec<[bool; 3]>,
+    /// A grasp: the centre vertex (file order), the patch's radius (m) and its translation
+    /// at the full load (m).
+    grasp: Option<(usize, f64, V3)>,
+    /// Frictionless rigid plates.
+    plates: &'static [RigidPlate],
 }
 
 /// `tongue.obj` at 2 cm per unit (3.6 x 2.7 x 6.2 cm), E = 2 kPa, hanging along z from its
@@ -194,6 +210,8 @@ const TONGUE_NH: HyperCase = HyperCase {
         let top = pos.iter().map(|p| p[2]).fold(f64::MIN, f64::max);
         pos.iter().map(|p| [p[2] >= top - 0.005; 3]).collect()
     },
+    grasp: None,
+    plates: &[],
 };
 
 /// `icosphere-3.obj` 10 cm across, E = 3 kPa, hanging from its cap above 4 cm (as
@@ -206,6 +224,8 @@ const SPHERE_NH: HyperCase = HyperCase {
     density: 1000.0,
     gravity: [0.0, -9.81, 0.0],
     fixed: |pos| pos.iter().map(|p| [p[1] > 0.04; 3]).collect(),
+    grasp: None,
+    plates: &[],
 };
 
 /// The bundled liver-hanging scene: `liver2.obj` at 10 cm per unit (21.5 cm across),
@@ -222,11 +242,45 @@ const LIVER_NH: HyperCase = HyperCase {
         let top = pos.iter().map(|p| p[1]).fold(f64::MIN, f64::max);
         pos.iter().map(|p| [p[1] >= top - 0.008; 3]).collect()
     },
+    grasp: None,
+    plates: &[],
+};
+/// The tongue of `TONGUE_NH` hanging, grasped 6 mm around vertex 2543 (near its tip, 72
+/// vertices) and pulled 2 cm along +y and 2 cm down, as `[[grasp]] vertex = 2543
+/// radius = 0.006 translation = [0.0, 0.02, -0.02]` (the grasp pulled far: 2.8 cm on a
+/// 6.2 cm body).
+const TONGUE_GRASP_NH: HyperCase =
+    HyperCase { golden: "tongue-grasp-nh.txt", grasp: Some((2543, 0.006, [0.0, 0.02, -0.02])), ..TONGUE_NH };
+
+/// The bundled breast-compression scene: `dome.obj` (a 6 cm hemisphere on the chest plane
+/// y = 0), E = 3.25 kPa, glued within 1 mm of the chest plane, the paddle coming up 3 cm
+/// from the apex (half the thickness), the chest wall a fixed plate; no gravity.
+const DOME_NH: HyperCase = HyperCase {
+    mesh: "dome.obj",
+    golden: "dome-half-nh.txt",
+    scale: 1.0,
+    young: 3250.0,
+    density: 930.0,
+    gravity: [0.0; 3],
+    fixed: |pos| {
+        let top = pos.iter().map(|p| p[1]).fold(f64::MIN, f64::max);
+        pos.iter().map(|p| [p[1] >= top - 0.001; 3]).collect()
+    },
+    grasp: None,
+    plates: &[
+        RigidPlate { start: [0.0; 3], end: [0.0; 3], normal: [0.0, -1.0, 0.0] },
+        RigidPlate { start: [0.0, -0.06, 0.0], end: [0.0, -0.03, 0.0], normal: [0.0, 1.0, 0.0] },
+    ],
 };
 
 /// Relative L2 error of the neo-Hookean FEM's surface displacement at `resolution` against
 /// the case's independent neo-Hookean reference (nu = 0.45).
 fn hyper_error(case: &HyperCase, resolution: usize) -> f64 {
+    hyper_solve(case, resolution).0
+}
+
+/// [`hyper_error`] and the plates' forces on the body (N).
+fn hyper_solve(case: &HyperCase, resolution: usize) -> (f64, Vec<f64>) {
     let file = load_mesh(root().join("../../fixtures/meshes").join(case.mesh)).unwrap();
     let golden = golden_field(case.golden);
     let pos: Vec<V3> = file.mesh.positions().iter().map(|p| p.map(|x| x * case.scale)).collect();
@@ -234,8 +288,19 @@ fn hyper_error(case: &HyperCase, resolution: usize) -> f64 {
     let tissue = Tissue::new(case.young, 0.45, case.density).unwrap().with_model(TissueModel::NeoHookean);
     let opts = FemOptions { resolution, ..Default::default() };
     let fixed = (case.fixed)(&pos);
-    let mut body = HyperBody::from_surface(&pos, file.mesh.triangles(), &tissue, &fixed, &opts).unwrap();
-    let s = body.solve(&Loads { gravity: case.gravity, ..Default::default() }, &[]).unwrap();
+    let grasps: Vec<Grasp> = case
+        .grasp
+        .iter()
+        .map(|&(vertex, radius, translation)| Grasp {
+            vertices: Grasp::patch(&pos, file.from_file_index(vertex).unwrap(), radius),
+            translation,
+            rotation: [0.0; 3],
+        })
+        .collect();
+    let mut body =
+        HyperBody::from_surface_grasped(&pos, file.mesh.triangles(), &tissue, &fixed, &grasps, &opts)
+            .unwrap();
+    let s = body.solve(&Loads { gravity: case.gravity, ..Default::default() }, case.plates).unwrap();
     let theirs: Vec<V3> = (0..pos.len()).map(|i| golden[file.from_file_index(i).unwrap()]).collect();
     // As the command line reports it: a fixed axis of a fixed vertex is exactly at rest
     // (the clamp's penalty slip is an error inside the body).
@@ -248,10 +313,10 @@ fn hyper_error(case: &HyperCase, resolution: usize) -> f64 {
     let e = rel_l2(&ours, &theirs, |_| true);
     let fixed_count = fixed.iter().filter(|f| f[0]).count();
     eprintln!(
-        "{} (neo-Hookean), resolution {resolution}: relative L2 error {e:.4} ({fixed_count} fixed)",
-        case.mesh
+        "{} (neo-Hookean, {}), resolution {resolution}: relative L2 error {e:.4} ({fixed_count} fixed), plate forces {:?} N",
+        case.mesh, case.golden, s.plate_forces
     );
-    e
+    (e, s.plate_forces)
 }
 
 /// Against the independent neo-Hookean references (P2 tetrahedra, `tools/reference_nh.py`,
@@ -270,13 +335,33 @@ fn neo_hookean_bodies_match_an_independent_reference() {
     assert!(liver < 0.03, "liver: {liver}");
 }
 
+/// A grasp pulled far and a compression between plates against independent neo-Hookean
+/// references (P2 tetrahedra, `tools/reference_nh.py`: the grasp's patch held by
+/// prescribed displacements, the plates as an active set of nodes held on their planes;
+/// `tests/golden/NEO_HOOKEAN.md`), at the default resolution: the tongue grasped near its
+/// tip and pulled 2.8 cm within 4 % (measured 0.0235), the dome pressed to half its
+/// thickness within 5 % (measured 0.0292; 0.0125 at resolution 48) and its paddle force
+/// within 5 % of the reference's 24.86 N (measured 24.23 N, -2.5 %; 24.51 N at 48), where the
+/// issue asks 10 % of both.
+#[test]
+fn neo_hookean_grasp_and_plates_match_an_independent_reference() {
+    let tongue = hyper_error(&TONGUE_GRASP_NH, DEFAULT_RESOLUTION);
+    assert!(tongue < 0.04, "tongue grasped: {tongue}");
+    let (dome, forces) = hyper_solve(&DOME_NH, DEFAULT_RESOLUTION);
+    assert!(dome < 0.05, "dome: {dome}");
+    let paddle = forces[1] / golden_plate_forces(DOME_NH.golden)[1];
+    assert!((paddle - 1.0).abs() < 0.05, "paddle force {} N: {paddle} of the reference", forces[1]);
+}
+
 /// Doubling the resolution is no worse against the neo-Hookean references (slow: the
 /// sphere at 48 has about 200,000 unknowns and takes half an hour; run with `--ignored
-/// --nocapture`). Measured: sphere 0.0366 then 0.0083, tongue 0.0187 then 0.0093.
+/// --nocapture`). Measured: sphere 0.0366 then 0.0083, tongue 0.0187 then 0.0093, the
+/// grasped tongue 0.0235 then 0.0103. (The dome between plates, 0.0292 then 0.0125, takes
+/// 27 minutes at 48 and is measured from the command line: NEO_HOOKEAN.md.)
 #[test]
 #[ignore]
 fn neo_hookean_doubling_is_no_worse() {
-    for case in [&TONGUE_NH, &SPHERE_NH] {
+    for case in [&TONGUE_NH, &SPHERE_NH, &TONGUE_GRASP_NH] {
         let (coarse, fine) = (hyper_error(case, 24), hyper_error(case, 48));
         assert!(fine <= coarse * 1.05, "{}: {coarse} then {fine}", case.mesh);
     }

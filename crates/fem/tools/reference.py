@@ -35,7 +35,14 @@ rigid-body modes (pyamg), or SuperLU (`--solver direct`).
 clamp and loads; Newton's method with load stepping, see reference_nh.py, which states the
 energy; its linear systems by AMG-CG, or SuperLU with `--solver direct`). `--scale S`
 multiplies the OBJ's coordinates by S first (the clamp's values, `--maxvolume` and the
-written displacements are then in the scaled unit).
+written displacements are then in the scaled unit). With the neo-Hookean model,
+`--grasp VERTEX RADIUS TX TY TZ` holds the input vertices within RADIUS of input vertex
+VERTEX (fibfluid's `[[grasp]]` patch) and the P2 nodes of the boundary facets that are
+pieces of input triangles with three patch vertices at the translation ramped with the
+load; `--plate AXIS SIGN POSITION TRAVEL` (repeatable) adds a frictionless rigid plate, the
+plane `x[AXIS] = POSITION + SIGN t TRAVEL` with the body on its SIGN side (an active set
+of nodes held on the plane, reference_nh.contact_solve), and the plates' forces go into
+the header's first line.
 
 Needs: pip install scikit-fem tetgen meshio (numpy, scipy come with them); pyamg for
 `--solver amg`.
@@ -182,6 +189,12 @@ def main():
     ap.add_argument("--model", choices=["linear", "neo-hookean"], default="linear")
     ap.add_argument("--load-steps", type=int, default=4, help="neo-Hookean: initial load increments")
     ap.add_argument("--tol", type=float, default=1e-8, help="neo-Hookean: relative residual")
+    ap.add_argument("--plate", nargs=4, action="append", metavar=("AXIS", "SIGN", "POSITION", "TRAVEL"),
+                    help="neo-Hookean: a frictionless rigid plate, the plane x[AXIS] = POSITION + SIGN t "
+                         "TRAVEL (scaled unit), the body on its SIGN side (+1 or -1); repeatable")
+    ap.add_argument("--grasp", nargs=5, type=float, metavar=("VERTEX", "RADIUS", "TX", "TY", "TZ"),
+                    help="neo-Hookean: the surface within RADIUS of input vertex VERTEX (scaled unit) "
+                         "moved by (TX, TY, TZ) at the full load, as fibfluid's [[grasp]]")
     args = ap.parse_args()
 
     pos, tris = read_obj(args.mesh)
@@ -311,20 +324,51 @@ def neo_hookean(args, mesh, pos, tris, fine_tris, parent, fixed, switches):
     body = nh.Body(mesh, args.young, args.poisson)
     sD = np.union1d(body.sb.get_dofs(facets=clamp_facets).all(), body.sb.nodal_dofs[0, np.flatnonzero(fixed)])
     D = body.vector_dofs(sD)
+    uD = None
+    if args.grasp:
+        D, uD = grasped(args.grasp, body, mesh, pos, tris, fine_tris, parent, fixed, D)
     f = body.load(args.density * np.array(args.gravity))
     solver = "direct" if args.solver == "direct" else "amg"
-    u, history = nh.newton_solve(body, f, D, steps=args.load_steps, tol=args.tol, solver=solver)
+    note = ""
+    if args.plate:
+        axis = {"x": 0, "y": 1, "z": 2}
+        plates = [(axis[a], float(s), float(p), float(d)) for a, s, p, d in args.plate]
+        u, history, forces = nh.contact_solve(body, f, D, plates, steps=args.load_steps, tol=args.tol,
+                                              solver=solver)
+        note = "; plate forces on the body along their normals %s N" % " ".join("%.6g" % x for x in forces)
+        print(note[2:])
+    else:
+        u, history = nh.newton_solve(body, f, D, uD=uD, steps=args.load_steps, tol=args.tol, solver=solver)
     seconds = time.time() - t0
     disp = body.nodal(u)[:n_surface]
     iterations = sum(h[1] for h in history)
     print("neo-Hookean: %d dofs, %d load steps, %d Newton iterations, %.1f s"
           % (body.N, len(history), iterations, seconds))
     write_surface(args.out, "neo-Hookean (reference_nh.py), P2 tetrahedra (scikit-fem), TetGen mesh: %d nodes,"
-                  " %d tets, %d dofs; %d load steps, %d Newton iterations, %.0f s"
-                  % (mesh.nvertices, mesh.nelements, body.N, len(history), iterations, seconds),
+                  " %d tets, %d dofs; %d load steps, %d Newton iterations, %.0f s%s"
+                  % (mesh.nvertices, mesh.nelements, body.N, len(history), iterations, seconds, note),
                   switches, (fixed.sum(), len(lone), clamped_tri.sum(), len(clamp_facets)), disp)
     print("max |u| = %.6e, mean u = %s, tets %d"
           % (np.linalg.norm(disp, axis=1).max(), np.array2string(disp.mean(axis=0), precision=6), mesh.nelements))
+
+
+def grasped(grasp, body, mesh, pos, tris, fine_tris, parent, fixed, D):
+    """The held dofs with a grasp's patch added (every input vertex within the radius of the
+    centre vertex, as fibfluid's `Grasp::patch`, and the P2 nodes of the boundary facets
+    that are pieces of input triangles with three patch vertices), and their prescribed
+    displacements at the full load (the translation on the patch, 0 on the clamp)."""
+    centre, radius, translation = int(grasp[0]), grasp[1], np.array(grasp[2:5])
+    patch = np.linalg.norm(pos - pos[centre], axis=1) <= radius
+    patch[centre] = True
+    assert not np.any(patch & fixed), "the grasp's patch holds a clamped vertex"
+    facets = clamp(mesh, tris, fine_tris, parent, patch)[0]
+    sG = np.union1d(body.sb.get_dofs(facets=facets).all(), body.sb.nodal_dofs[0, np.flatnonzero(patch)])
+    G = body.vector_dofs(sG)
+    print("grasp: %d input vertices, %d boundary facets, %d dofs" % (patch.sum(), len(facets), len(G)))
+    held = np.concatenate([D, G])
+    uD = np.concatenate([np.zeros(len(D)), translation[G % 3]])
+    order = np.argsort(held)
+    return held[order], uD[order]
 
 
 if __name__ == "__main__":

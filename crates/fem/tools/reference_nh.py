@@ -60,9 +60,9 @@ def kinematics(F):
 
 
 def energy_density(F, mu, kappa):
-    J, _, I1 = kinematics(F)
-    if np.any(J <= 0):
+    if np.any(np.linalg.det(F) <= 0):
         return None
+    J, _, I1 = kinematics(F)
     return mu / 2 * (J ** (-2 / 3) * I1 - 3) + kappa / 4 * (J**2 - 1 - 2 * np.log(J))
 
 
@@ -227,11 +227,102 @@ def newton_solve(body, f, D, uD=None, steps=4, tol=1e-8, solver="amg", max_iter=
             if len(hist) - 1 <= 6:
                 dt *= 2
         else:
+            active = settled
             dt /= 2
             log("  load %.4f failed (%s); increment %.4g" % (t_new, hist, dt))
             if dt < 1e-4:
                 raise RuntimeError("Newton's method did not converge at load %.4f" % t_new)
     return u, history
+
+
+def held_predictor(body, u, D, uD_new, free, solver, modes):
+    """`u` with the held dofs `D` moved to `uD_new` and that motion carried into the free
+    dofs by the tangent at `u` (the first Newton iterate of a displacement-driven step); `u`
+    with only the held dofs moved when that inverts an element or CG fails."""
+    v = u.copy()
+    du = uD_new - u[D]
+    K = body.stiffness(u)
+    d, _ = linear_solve(K[free][:, free], -(K[free][:, D] @ du), solver, modes, 1e-10)
+    if d is not None:
+        v[free] += d
+    v[D] = uD_new
+    if body.energy(v) is None:
+        v = u.copy()
+        v[D] = uD_new
+    return v
+
+
+def contact_solve(body, f, D0, plates, steps=8, tol=1e-8, solver="amg", max_iter=30, log=print):
+    """Equilibrium under t f with dofs D0 held at 0 and frictionless rigid plates, each
+    `(axis, sign, position, travel)`: the plane `x[axis] = position + sign t travel`, the
+    body on the side `sign (x[axis] - plane) >= 0`. Contact is an active set on the P2
+    nodes of the boundary: a node past a plate has its normal component held on the plane;
+    a held node whose reaction pulls the plate (below -RELEASE of the largest reaction) is
+    let go; each load step repeats until the set is stable. Returns u, the history and the
+    plates' forces on the body along their normals (the sum of the held nodes' reactions)."""
+    RELEASE = 1e-2
+    X = body.sb.doflocs.T  # (Ns, 3) scalar dof positions
+    boundary = np.unique(body.sb.get_dofs(body.mesh.boundary_facets()).all())
+    D0 = np.asarray(D0, dtype=int)
+    held0 = np.zeros(body.N, dtype=bool)
+    held0[D0] = True
+    size = np.ptp(X, axis=0).max()
+    active = [np.zeros(body.sb.N, dtype=bool) for _ in plates]
+    u = np.zeros(body.N)
+    t, dt, history = 0.0, 1.0 / steps, []
+    while t < 1 - 1e-14:
+        dt = min(dt, 1 - t)
+        t_new, ok, current = t + dt, False, u
+        settled = [a.copy() for a in active]
+        for sweep in range(40):
+            held, values = [D0], [np.zeros(len(D0))]
+            for (axis, sign, position, travel), on in zip(plates, active):
+                s = np.flatnonzero(on)
+                held.append(3 * s + axis)
+                values.append(position + sign * t_new * travel - X[s, axis])
+            D = np.concatenate(held)
+            order = np.argsort(D)
+            D, uD = D[order], np.concatenate(values)[order]
+            free = np.setdiff1d(np.arange(body.N), D)
+            modes = body.rigid_modes()[free] if solver == "amg" else None
+            u0 = held_predictor(body, current, D, uD, free, solver, modes)
+            ok, v, hist = newton(body, u0, t_new * f, free, tol, solver, modes, max_iter, log)
+            if not ok:
+                break
+            r = body.internal(v) - t_new * f
+            changed = False
+            reactions = []
+            for (axis, sign, position, travel), on in zip(plates, active):
+                x = X[:, axis] + v[axis::3]
+                gap = sign * (x - (position + sign * t_new * travel))
+                past = ~on & ~held0[axis::3] & (gap < -1e-9 * size)
+                past[np.setdiff1d(np.arange(body.sb.N), boundary)] = False
+                reaction = sign * r[axis::3]  # the plate's push on the body, along its normal
+                largest = max(np.abs(reaction[on]).max(initial=0.0), 1e-300)
+                pulls = on & (reaction < -RELEASE * largest)
+                if past.any() or pulls.any():
+                    changed = True
+                on |= past
+                on &= ~pulls
+                reactions.append(reaction[on].sum())
+            current = v
+            if not changed:
+                break
+            log("  load %.4f, sweep %d: contact set changed (%s nodes)"
+                % (t_new, sweep, ", ".join(str(int(a.sum())) for a in active)))
+        if ok and not changed:
+            u, t = v, t_new
+            history.append((t, len(hist) - 1, hist))
+            log("  load %.4f: %d Newton iterations (last sweep), plate forces %s N, nodes in contact %s"
+                % (t, len(hist) - 1, " ".join("%.6g" % x for x in reactions),
+                   " ".join(str(int(a.sum())) for a in active)))
+        else:
+            active = settled
+            dt /= 2
+            log("  load %.4f failed (%s); increment %.4g" % (t_new, hist if not ok else "contact set", dt))
+            if dt < 1e-4:
+                raise RuntimeError("the contact solve did not converge at load %.4f" % t_new)
+    return u, history, reactions
 
 
 def newton(body, u, f, free, tol, solver, modes, max_iter, log):
@@ -329,6 +420,20 @@ def verify():
         print("  stretch %.1f: nominal stress %.6f Pa (closed form %.6f, %+.1e), lateral stretch %.7f"
               " (%.7f, %+.1e); %d steps, %s Newton iterations, %.1f s"
               % (stretch, force, P11, e1, lateral, s, e2, len(hist), [h[1] for h in hist], time.time() - t0))
+
+    # the same compression by a frictionless plate on x = 1 (contact_solve's active set)
+    for stretch in (0.7, 0.5):
+        D = np.unique(np.concatenate([3 * on(0, 0) + 0, 3 * on(1, 0) + 1, 3 * on(2, 0) + 2]))
+        t0 = time.time()
+        u, hist, forces = contact_solve(body, np.zeros(body.N), D, [(0, -1.0, 1.0, 1 - stretch)], steps=2,
+                                        solver="direct", log=lambda s: None)
+        lateral = 1 + u[3 * on(1, 1) + 1].mean()
+        P11, s = uniaxial_closed_form(stretch, body.mu, body.kappa)
+        e1, e2 = -forces[0] / P11 - 1, lateral / s - 1
+        ok &= abs(e1) < 1e-6 and abs(e2) < 1e-6
+        print("  plate to stretch %.1f: force %.6f N (closed form %.6f, %+.1e), lateral stretch %.7f"
+              " (%.7f, %+.1e); %d steps, %.1f s"
+              % (stretch, forces[0], -P11, e1, lateral, s, e2, len(hist), time.time() - t0))
 
     # residual and tangent against central differences, at a random finite strain
     rng = np.random.default_rng(1)
