@@ -252,6 +252,39 @@ fn buckling_is_reported_as_an_unstable_equilibrium() {
     }
 }
 
+/// A 10 cm sphere (`icosphere-3.obj`, E = 3 kPa, resolution 10) glued at its bottom and
+/// pressed from above by a frictionless plate to 70 % of its height: on a base 1 cm deep
+/// (a cap 6 cm across) the straight-down answer Newton converges to is unstable (the body
+/// would sway on its narrow base; its last tangent factors only shifted, `final_shift` > 0,
+/// which the `unstable` result guard reads); on a base 3 cm deep it is stable (no shift).
+/// (Which branch Newton reaches past a buckling load depends on its path: at resolution 12
+/// it ends on a stable one, unshifted.)
+#[test]
+fn an_unstable_equilibrium_is_told_by_its_tangent() {
+    let file = fibfluid_geometry::load_mesh(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/meshes/icosphere-3.obj"),
+    )
+    .unwrap();
+    let pos: Vec<[f64; 3]> = file.mesh.positions().iter().map(|p| p.map(|x| 0.05 * x)).collect();
+    let tissue = Tissue::new(3000.0, 0.45, 1000.0).unwrap().with_model(TissueModel::NeoHookean);
+    let options = FemOptions { resolution: 10, ..FemOptions::default() };
+    let plates = [
+        RigidPlate { start: [0.0, -0.05, 0.0], end: [0.0, -0.05, 0.0], normal: [0.0, 1.0, 0.0] },
+        RigidPlate { start: [0.0, 0.05, 0.0], end: [0.0, 0.02, 0.0], normal: [0.0, -1.0, 0.0] },
+    ];
+    let shift = |depth: f64| {
+        let bottom = pos.iter().map(|p| p[1]).fold(f64::MAX, f64::min);
+        let fixed: Vec<[bool; 3]> = pos.iter().map(|p| [p[1] <= bottom + depth; 3]).collect();
+        let mut body =
+            HyperBody::from_surface(&pos, file.mesh.triangles(), &tissue, &fixed, &options).unwrap();
+        let s = body.solve(&Loads::default(), &plates).unwrap();
+        eprintln!("base {depth} m deep: final shift {}", s.stats.final_shift);
+        s.stats.final_shift
+    };
+    assert!(shift(0.01) > 0.0);
+    assert_eq!(shift(0.03), 0.0);
+}
+
 /// The linear law through the same contact: a plate pressing the unit cube (top face 9 x 9
 /// vertices over 4 x 4 cells, so most vertices sit between nodes) by 1 % gives E A d / L
 /// within 2 % (uniaxial stress is homogeneous, so the linear answer is exact on any grid);

@@ -106,6 +106,9 @@ impl FemRun {
                 limit: LINEAR_STRAIN_LIMIT,
             });
         }
+        if let Some(shift) = answer.newton.as_ref().map(|n| n.stats.final_shift).filter(|&s| s > 0.0) {
+            warnings.push(ResultWarning { guard: ResultGuard::Unstable, value: shift, limit: 0.0 });
+        }
         if !small_strain && answer.strain.j_max > DILATATION_LIMIT {
             warnings.push(ResultWarning {
                 guard: ResultGuard::Dilatation,

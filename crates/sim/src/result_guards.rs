@@ -11,6 +11,7 @@
 //! | `linear` | largest `|u|` over the diagonal, for a small-strain (linear) FEM answer | above [`LINEAR_DISPLACEMENT_LIMIT`] |
 //! | `strain` | largest principal Green–Lagrange strain over the cells, of a linear FEM batch answer (its own displacement field at each cell's centre) | above [`LINEAR_STRAIN_LIMIT`] |
 //! | `dilatation` | largest `J` over the tissue's cells, of a neo-Hookean FEM batch answer | above [`DILATATION_LIMIT`] (`e`) |
+//! | `unstable` | the diagonal shift (over the largest diagonal entry) the last Newton tangent of a neo-Hookean FEM batch answer needed to factor | above 0: the equilibrium found is unstable |
 //!
 //! The `linear` guard is the small-strain model's own validity, estimated from the answer:
 //! a displacement of a tenth of the body's size means strains of that order or more where
@@ -72,6 +73,9 @@ pub enum ResultGuard {
     Strain,
     /// A neo-Hookean answer's cell grew its volume past [`DILATATION_LIMIT`] times.
     Dilatation,
+    /// A neo-Hookean answer is an unstable equilibrium: its tangent is not positive
+    /// definite (the Newton iterations next to it factored it only with a diagonal shift).
+    Unstable,
 }
 
 impl Choice for ResultGuard {
@@ -84,6 +88,7 @@ impl Choice for ResultGuard {
         ResultGuard::Linear,
         ResultGuard::Strain,
         ResultGuard::Dilatation,
+        ResultGuard::Unstable,
     ];
     fn name(self) -> &'static str {
         match self {
@@ -94,6 +99,7 @@ impl Choice for ResultGuard {
             ResultGuard::Linear => "linear",
             ResultGuard::Strain => "strain",
             ResultGuard::Dilatation => "dilatation",
+            ResultGuard::Unstable => "unstable",
         }
     }
 }
@@ -140,6 +146,10 @@ impl std::fmt::Display for ResultWarning {
             ResultGuard::Dilatation => (
                 "a cell's volume grew {value} times (limit {limit}; tissue keeps its volume within a few per cent)",
                 "the load pulls the tissue apart there and the answer near that cell is not physical (a support or grasp too small for its load): support the body more, or load it less",
+            ),
+            ResultGuard::Unstable => (
+                "the equilibrium found is unstable: its tangent needed a diagonal shift of {value} of its largest entry to factor (limit {limit})",
+                "the body is past a buckling load and would sway or fold to a shape this answer does not show: support it more widely, or load it less",
             ),
         };
         let what = what

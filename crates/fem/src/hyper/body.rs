@@ -98,6 +98,11 @@ pub struct HyperStats {
     pub factor_seconds: f64,
     /// Seconds of triangular solves and line searches.
     pub solve_seconds: f64,
+    /// The diagonal shift (a fraction of the largest diagonal entry) the last factored
+    /// tangent needed to be positive definite, the last Newton iteration's, next to the
+    /// answer: 0 at a stable equilibrium; above 0 the equilibrium found is unstable (a body
+    /// pressed or hung past buckling, which would sway to another shape).
+    pub final_shift: f64,
 }
 
 /// The converged large-deformation answer.

@@ -306,7 +306,10 @@ impl HyperBody {
             }
             let start = Instant::now();
             match self.factor_tangent(factor) {
-                Ok(shift) => indefinite = shift > 0.0,
+                Ok(shift) => {
+                    indefinite = shift > 0.0;
+                    stats.final_shift = shift;
+                }
                 Err(FemError::NotPositiveDefinite) => return Ok(Err(Failure { residual, indefinite: true })),
                 Err(e) => return Err(e),
             }
