@@ -47,9 +47,7 @@ fn root() -> PathBuf {
 /// A golden file's surface displacements, one per file vertex (`GOLDEN_DIR` or
 /// `tests/golden`).
 fn golden_field(name: &str) -> Vec<V3> {
-    let dir = std::env::var("GOLDEN_DIR").map(PathBuf::from).unwrap_or_else(|_| root().join("tests/golden"));
-    std::fs::read_to_string(dir.join(name))
-        .unwrap()
+    golden_text(name)
         .lines()
         .filter(|l| !l.starts_with('#'))
         .map(|l| {
@@ -59,11 +57,17 @@ fn golden_field(name: &str) -> Vec<V3> {
         .collect()
 }
 
+/// A golden file's text, from `GOLDEN_DIR` when set, else `tests/golden`.
+fn golden_text(name: &str) -> String {
+    let dir = std::env::var("GOLDEN_DIR").map(PathBuf::from).unwrap_or_else(|_| root().join("tests/golden"));
+    std::fs::read_to_string(dir.join(name)).unwrap()
+}
+
 /// The plate forces a golden's header records (N, on the body along each plate's normal,
 /// in the plates' order): its first line ends `...; plate forces on the body along their
 /// normals F1 F2 N`.
 fn golden_plate_forces(name: &str) -> Vec<f64> {
-    let text = std::fs::read_to_string(root().join("tests/golden").join(name)).unwrap();
+    let text = golden_text(name);
     let header = text.lines().next().unwrap();
     let (_, tail) = header.split_once("plate forces on the body along their normals").unwrap();
     tail.split_whitespace().filter_map(|x| x.parse().ok()).collect()

@@ -203,20 +203,13 @@ def newton_solve(body, f, D, uD=None, steps=4, tol=1e-8, solver="amg", max_iter=
     while t < 1 - 1e-14:
         dt = min(dt, 1 - t)
         t_new = t + dt
-        u0 = u.copy()
         if np.any(uD):
-            # the held dofs' increment carried into the free ones by the tangent
-            K = body.stiffness(u)
-            du = t_new * uD - u[D]
-            d, _ = linear_solve(K[free][:, free], -(K[free][:, D] @ du), solver, modes, 1e-10)
-            if d is not None:
-                u0[free] += d
-        elif u_prev is not None:
-            u0 = u + dt / dt_prev * (u - u_prev)
-        u0[D] = t_new * uD
-        if body.energy(u0) is None:
-            u0 = u.copy()
-            u0[D] = t_new * uD
+            u0 = held_predictor(body, u, D, t_new * uD, free, solver, modes)
+        else:
+            u0 = u.copy() if u_prev is None else u + dt / dt_prev * (u - u_prev)
+            u0[D] = 0.0
+            if body.energy(u0) is None:
+                u0 = u.copy()
         ok, v, hist = newton(body, u0, t_new * f, free, tol, solver, modes, max_iter, log)
         if ok:
             u_prev, dt_prev, u = u, dt, v
@@ -227,7 +220,6 @@ def newton_solve(body, f, D, uD=None, steps=4, tol=1e-8, solver="amg", max_iter=
             if len(hist) - 1 <= 6:
                 dt *= 2
         else:
-            active = settled
             dt /= 2
             log("  load %.4f failed (%s); increment %.4g" % (t_new, hist, dt))
             if dt < 1e-4:
@@ -262,7 +254,9 @@ def contact_solve(body, f, D0, plates, steps=8, tol=1e-8, solver="amg", max_iter
     plates' forces on the body along their normals (the sum of the held nodes' reactions)."""
     RELEASE = 1e-2
     X = body.sb.doflocs.T  # (Ns, 3) scalar dof positions
-    boundary = np.unique(body.sb.get_dofs(body.mesh.boundary_facets()).all())
+    on_boundary = np.zeros(body.sb.N, dtype=bool)
+    on_boundary[body.sb.get_dofs(body.mesh.boundary_facets()).all()] = True
+    all_modes = body.rigid_modes() if solver == "amg" else None
     D0 = np.asarray(D0, dtype=int)
     held0 = np.zeros(body.N, dtype=bool)
     held0[D0] = True
@@ -284,7 +278,7 @@ def contact_solve(body, f, D0, plates, steps=8, tol=1e-8, solver="amg", max_iter
             order = np.argsort(D)
             D, uD = D[order], np.concatenate(values)[order]
             free = np.setdiff1d(np.arange(body.N), D)
-            modes = body.rigid_modes()[free] if solver == "amg" else None
+            modes = None if all_modes is None else all_modes[free]
             u0 = held_predictor(body, current, D, uD, free, solver, modes)
             ok, v, hist = newton(body, u0, t_new * f, free, tol, solver, modes, max_iter, log)
             if not ok:
@@ -295,8 +289,7 @@ def contact_solve(body, f, D0, plates, steps=8, tol=1e-8, solver="amg", max_iter
             for (axis, sign, position, travel), on in zip(plates, active):
                 x = X[:, axis] + v[axis::3]
                 gap = sign * (x - (position + sign * t_new * travel))
-                past = ~on & ~held0[axis::3] & (gap < -1e-9 * size)
-                past[np.setdiff1d(np.arange(body.sb.N), boundary)] = False
+                past = ~on & ~held0[axis::3] & on_boundary & (gap < -1e-9 * size)
                 reaction = sign * r[axis::3]  # the plate's push on the body, along its normal
                 largest = max(np.abs(reaction[on]).max(initial=0.0), 1e-300)
                 pulls = on & (reaction < -RELEASE * largest)
