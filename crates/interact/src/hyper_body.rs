@@ -79,8 +79,19 @@ struct Request {
 
 /// What a refresh produced.
 enum Outcome {
-    Done { linearization: Box<Linearization>, step: f64, frame: u64, seconds: f64 },
-    Failed { message: String, frame: u64 },
+    Done {
+        linearization: Box<Linearization>,
+        step: f64,
+        frame: u64,
+        seconds: f64,
+    },
+    Failed {
+        message: String,
+        frame: u64,
+    },
+    /// The thread's latest linearization with the columns of newly held vertices made (sent
+    /// before the refresh for those holds): the frames answer the new holds from it at once.
+    Prepared(Box<Linearization>),
 }
 
 /// What the frames send the refresh thread.
@@ -297,12 +308,15 @@ impl HyperInteractive {
         let Refresher::Thread(worker) = &mut self.refresher else { return };
         let outcomes = worker.outcomes.get_mut().unwrap_or_else(std::sync::PoisonError::into_inner);
         while let Ok(outcome) = outcomes.try_recv() {
-            worker.busy = false;
             let frame = match &outcome {
-                Outcome::Done { frame, .. } | Outcome::Failed { frame, .. } => *frame,
+                Outcome::Done { frame, .. } | Outcome::Failed { frame, .. } => Some(*frame),
+                Outcome::Prepared(_) => None,
             };
+            if frame.is_some() {
+                worker.busy = false;
+            }
             // A refresh asked before the body went back to its own equilibrium is stale.
-            if frame >= self.reset_frame {
+            if frame.is_none_or(|f| f >= self.reset_frame) {
                 self.current.accept(outcome);
             }
         }
@@ -378,7 +392,8 @@ impl HyperInteractive {
 }
 
 impl Current {
-    /// Swaps in a finished refresh, or records its failure (keeping the linearization).
+    /// Swaps in a finished refresh or a prepared linearization, or records a refresh's
+    /// failure (keeping the linearization).
     fn accept(&mut self, outcome: Outcome) {
         match outcome {
             Outcome::Done { linearization, step, frame, seconds } => {
@@ -393,6 +408,13 @@ impl Current {
                 self.refreshes += 1;
                 self.refresh_seconds = seconds;
                 self.failure = None;
+            }
+            Outcome::Prepared(prepared) => {
+                // Taken only onto the state it was made from (not a stale one).
+                if prepared.same_state(&self.linearization) {
+                    let retired = std::mem::replace(&mut self.linearization, *prepared);
+                    self.retired = Some(retired);
+                }
             }
             Outcome::Failed { message, frame } => {
                 // Not converged for the holds asked: the next frame asks again.
@@ -424,6 +446,17 @@ fn refresh(body: &mut HyperBody, current: &mut Linearization, loads: &Loads, req
     }
 }
 
+/// `linearization` with the columns of `request`'s holds made, when it lacks some (`None`
+/// when it has them all, or when a hold cannot be answered: the refresh then says why).
+fn prepare(linearization: &Linearization, request: &Request) -> Option<Linearization> {
+    if request.fail || request.holds.iter().all(|(v, _)| linearization.has_columns_for(*v)) {
+        return None;
+    }
+    let mut prepared = linearization.clone();
+    prepared.respond_at_surface(&request.pushes, &request.holds).ok()?;
+    Some(prepared)
+}
+
 /// Starts the refresh thread: it answers each request (the newest waiting) with one
 /// tracking iteration from its last linearization, on one thread of its own (the frames
 /// keep the other cores), and ends when the body is dropped.
@@ -446,6 +479,12 @@ fn spawn_worker(mut body: HyperBody, mut linearization: Linearization, loads: Lo
                     Message::Refresh(r) => request = r,
                     Message::Restart(base) => linearization = base,
                     Message::Retire(_) => {}
+                }
+            }
+            if let Some(prepared) = prepare(&linearization, &request) {
+                linearization = prepared.clone();
+                if outbox.send(Outcome::Prepared(Box::new(prepared))).is_err() {
+                    break;
                 }
             }
             let mut run = || refresh(&mut body, &mut linearization, &loads, &request);
@@ -482,14 +521,26 @@ impl Interactive for HyperInteractive {
         if matches!(self.refresher, Refresher::Inline { .. }) {
             self.schedule(&request);
         }
+        // On the thread, holds whose columns the linearization lacks wait for it (the
+        // thread makes them first); the frame answers the others.
+        let thread = matches!(self.refresher, Refresher::Thread(_));
+        let answered: Vec<bool> = request
+            .holds
+            .iter()
+            .map(|(v, _)| !thread || self.current.linearization.has_columns_for(*v))
+            .collect();
+        let holds: Vec<(usize, FemHold)> =
+            request.holds.iter().zip(&answered).filter(|(_, a)| **a).map(|(h, _)| *h).collect();
         let response = self
             .current
             .linearization
-            .respond_at_surface(&request.pushes, &request.holds)
+            .respond_at_surface(&request.pushes, &holds)
             .map_err(|e| InteractError::Singular { what: e.to_string() })?;
         self.field = response.surface_displacements;
         self.positions = self.holds.rest().iter().zip(&self.field).map(|(p, u)| add(*p, *u)).collect();
-        self.reactions = PendingHolds::reactions(&request.holds, response.reactions, &request.pushes);
+        let mut forces = response.reactions.into_iter();
+        let forces = answered.iter().map(|&a| if a { forces.next().unwrap_or_default() } else { [0.0; 3] });
+        self.reactions = PendingHolds::reactions(&request.holds, forces.collect(), &request.pushes);
         self.status = LinearizationStatus {
             refreshes: self.current.refreshes,
             age_frames: self.frame - self.current.frame.min(self.frame),
@@ -498,9 +549,10 @@ impl Interactive for HyperInteractive {
             estimated_error: response.step * response.step / self.cell_size,
             refresh_seconds: self.current.refresh_seconds,
             approximate: response.approximate,
+            pending: answered.iter().filter(|a| !**a).count(),
             failure: self.current.failure.clone(),
         };
-        if matches!(self.refresher, Refresher::Thread(_)) {
+        if thread {
             self.schedule(&request);
         }
         self.frame += 1;

@@ -175,6 +175,10 @@ pub struct LinearizationStatus {
     /// Whether the frame kept springs on vertices the linearization was made holding and
     /// the frame released (until the next refresh).
     pub approximate: bool,
+    /// Held vertices the frame left free because the linearization has no columns for
+    /// them yet: a tool just picked up, whose columns the refresh thread is making (the
+    /// frames never make them on their own thread; the frame after they arrive holds them).
+    pub pending: usize,
     /// Why the last refresh failed, when it did (the frame then used the last good one).
     pub failure: Option<String>,
 }

@@ -324,6 +324,7 @@ impl NativeBody {
                 "step": s.step,
                 "estimated_error": s.estimated_error,
                 "refresh_seconds": s.refresh_seconds,
+                "pending": s.pending,
                 "failure": s.failure,
             })
         });

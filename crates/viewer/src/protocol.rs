@@ -194,9 +194,10 @@ pub fn parse_message(text: &str) -> Result<ClientMessage, MessageError> {
 /// guards that fired on the frame, each `{"guard": name, "value": v, "limit": l,
 /// "message": text}`, empty when none did), plus `"tools": [...]` when a grasp or the tip is
 /// active (see [`ToolLoad`]), plus `"linearization": {"refreshes", "age_frames",
-/// "age_ms", "refresh_ms", "estimated_error", "failure"}` on a two-rate body (the
-/// neo-Hookean FEM: the linearization the frame used, its age, the last refresh's time and
-/// the frame's estimated distance from the converged answer, m).
+/// "age_ms", "refresh_ms", "estimated_error", "pending", "failure"}` on a two-rate body
+/// (the neo-Hookean FEM: the linearization the frame used, its age, the last refresh's
+/// time, the frame's estimated distance from the converged answer, m, and the held
+/// vertices it left free while their columns are made).
 pub fn frame_json(
     frame: u64,
     reactions: &[(usize, Vec3)],
@@ -229,6 +230,7 @@ pub fn frame_json(
             "age_ms": (s.age_seconds * 1e4).round() / 10.0,
             "refresh_ms": (s.refresh_seconds * 1e4).round() / 10.0,
             "estimated_error": s.estimated_error,
+            "pending": s.pending,
             "failure": s.failure,
         });
     }

@@ -35,7 +35,7 @@ fn settle(b: &mut HyperInteractive, frames: usize, pause: std::time::Duration) -
         b.update().unwrap();
         let s = b.linearization().unwrap();
         assert!(s.failure.is_none(), "{:?}", s.failure);
-        if s.estimated_error < 1e-12 && s.step < 1e-9 && k > 0 {
+        if s.estimated_error < 1e-12 && s.step < 1e-9 && s.pending == 0 && k > 0 {
             return k + 1;
         }
         std::thread::sleep(pause);
@@ -100,10 +100,19 @@ fn the_refresh_thread_reaches_the_same_answer_without_blocking_frames() {
     let mut threaded = HyperInteractive::new(&scene, None, RefreshMode::Background).unwrap();
     let g = Grasp::new(&inline, lowest(&inline), 0.45).unwrap();
     let m = RigidMotion::with_rotation_vector([0.05, -0.25, 0.0], [0.0, 0.0, 0.3]);
+    threaded.update().unwrap();
+    let unheld = threaded.positions().to_vec();
     for b in [&mut inline, &mut threaded] {
         g.hold(b, &m).unwrap();
     }
     settle(&mut inline, 40, std::time::Duration::ZERO);
+    // The grasp's first frame on the thread's body: no columns for the patch yet, so the
+    // frame leaves it free (the thread makes them) instead of solving for them itself.
+    threaded.update().unwrap();
+    let first = threaded.linearization().unwrap();
+    assert_eq!(first.pending, g.patch().len(), "{first:?}");
+    assert_eq!(threaded.positions(), &unheld[..]);
+    assert!(threaded.reactions().iter().all(|r| r.1 == [0.0; 3]), "{:?}", threaded.reactions());
     // The thread's frames come back at once with the linearization they have; keep asking
     // (at most 2,000 frames, 5 ms apart) until it has converged.
     let frames = settle(&mut threaded, 2000, std::time::Duration::from_millis(5));

@@ -725,8 +725,9 @@ class Body:
         ``refreshes`` (made so far), ``age_frames`` and ``age_seconds`` (how old it is),
         ``step`` (m: how far the step moved the surface from the linearization's state),
         ``estimated_error`` (m: Newton's next correction, the step's distance from the
-        converged answer for its holds), ``refresh_seconds`` (the last refresh) and
-        ``failure`` (why the last refresh failed, or None: the step then used the last good
+        converged answer for its holds), ``refresh_seconds`` (the last refresh),
+        ``pending`` (held vertices the step left free: a tool just picked up, whose
+        compliance columns the refresh thread is still making) and ``failure`` (why the last refresh failed, or None: the step then used the last good
         linearization). None for the other bodies, whose steps are exact for their model."""
         return json.loads(self._native.linearization_json())
 
