@@ -139,6 +139,10 @@ fn bad_plates_are_scene_errors() {
         }
         other => panic!("a plate through the body at rest must be refused: {other:?}"),
     }
+    // A plate 1e-5 through the lowest vertex (about 3e-6 of the diagonal, 2 sqrt 3): a
+    // coordinate rounded when written, taken as touching.
+    let (_dir, path) = sphere_scene(0.3, "[[plate]]\npoint = [0.0, -0.99999, 0.0]\nnormal = [0.0, 1.0, 0.0]");
+    Scene::load(&path).unwrap();
 }
 
 /// The force on the body at the final contacts of plate `plate`, recomputed from the final

@@ -874,6 +874,51 @@ fn fem_answers_beyond_the_possible_are_flagged() {
     }
 }
 
+/// Two grasps holding the same patch (the 6 vertices within 2 cm of vertex 0 of the 5 cm
+/// sphere) 1 cm apart cannot both be met: the answer comes back (each grasp 5 mm, half the
+/// gap, from its target, forces equal and opposite) with the `grasp` result guard's
+/// warning, its value the error in cells (resolution 6 over the 10 cm diameter, the
+/// sphere's largest extent: h = 1/60 m). One grasp alone is met.
+#[test]
+fn a_grasp_left_short_of_its_target_is_told() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mesh = root().join("fixtures/meshes/icosphere-2.obj");
+    let grasp = |x: f64| {
+        format!(
+            "[[grasp]]\nvertex = 0\nradius = 0.02\ntranslation = [{x}, 0.0, 0.0]\nrotation = [0.0, 0.0, 0.0]\n"
+        )
+    };
+    for (name, grasps, short) in [("both", grasp(0.005) + &grasp(-0.005), true), ("one", grasp(0.005), false)]
+    {
+        let text = format!(
+            "[mesh]\npath = \"{}\"\nunit = \"m\"\nscale = 0.05\n\n[tissue]\nmodel = \"neo-hookean\"\n\
+             young = 3000.0\npoisson = 0.45\n\n[fem]\nresolution = 6\n\n[solver]\nmethod = \"fem\"\n\n\
+             [[fix]]\naxis = \"y\"\nbottom = 0.01\n\n{grasps}",
+            mesh.display()
+        );
+        let scene = tmp.path().join(format!("{name}.toml"));
+        std::fs::write(&scene, text).unwrap();
+        let out = tmp.path().join(name);
+        let o = bin().arg("run").arg(&scene).arg("--out").arg(&out).output().unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{stderr}");
+        let report = read_json(&out.join("report.json"));
+        let errors: Vec<f64> =
+            report["grasps"].as_array().unwrap().iter().map(|g| g["error"].as_f64().unwrap()).collect();
+        let warning = report["warnings"].as_array().unwrap().iter().find(|w| w["guard"] == "grasp").cloned();
+        if short {
+            assert!(errors.iter().all(|e| (e - 0.005).abs() < 1e-4), "{errors:?}");
+            let w = warning.unwrap_or_else(|| panic!("no grasp warning: {report}"));
+            let cells = 0.005 / (0.1 / 6.0);
+            assert!((w["value"].as_f64().unwrap() / cells - 1.0).abs() < 0.02, "{w} against {cells}");
+            assert!(stderr.contains("warning: result guard `grasp`"), "{stderr}");
+        } else {
+            assert!(errors[0] < 1e-6, "{errors:?}");
+            assert!(warning.is_none(), "{report}");
+        }
+    }
+}
+
 /// A two-line path that declares frame 1,000,000: the frames between ask what the frame
 /// before them asked (nothing), so a body whose answer depends only on its holds computes
 /// three frames (0, the release at 1, and 1,000,000), for FFM and the FEM alike, and the

@@ -132,6 +132,11 @@ impl HoldCache {
         self.vertices.len()
     }
 
+    /// Whether the columns of `vertex`'s holds are cached.
+    pub(crate) fn answers(&self, vertex: usize) -> bool {
+        self.vertices.contains(&vertex)
+    }
+
     /// Drops every cached column (and the capacitance and projection made of them).
     pub(crate) fn clear_columns(&mut self) {
         self.columns.clear();

@@ -9,4 +9,5 @@ mod formats;
 mod image;
 mod properties;
 mod reader;
+mod turned;
 mod voxel;

@@ -26,7 +26,8 @@ pub use crate::fem_inputs::{
 };
 use crate::model::{Model, Shape};
 use crate::result_guards::{
-    DILATATION_LIMIT, LINEAR_STRAIN_LIMIT, ResultChecks, ResultGuard, ResultWarning, check_answer,
+    DILATATION_LIMIT, GRASP_ERROR_LIMIT, LINEAR_STRAIN_LIMIT, ResultChecks, ResultGuard, ResultWarning,
+    check_answer,
 };
 use crate::stages::{StageLog, StageRecord, names};
 use crate::{Error, Result};
@@ -106,16 +107,7 @@ impl FemRun {
                 limit: LINEAR_STRAIN_LIMIT,
             });
         }
-        if let Some(shift) = answer.newton.as_ref().map(|n| n.stats.final_shift).filter(|&s| s > 0.0) {
-            warnings.push(ResultWarning { guard: ResultGuard::Unstable, value: shift, limit: 0.0 });
-        }
-        if !small_strain && answer.strain.j_max > DILATATION_LIMIT {
-            warnings.push(ResultWarning {
-                guard: ResultGuard::Dilatation,
-                value: answer.strain.j_max,
-                limit: DILATATION_LIMIT,
-            });
-        }
+        warnings.extend(newton_guards(&answer, small_strain));
         Ok(Self {
             warnings,
             notes,
@@ -216,6 +208,27 @@ fn solve_linear(model: &Model, limit: u64, log: &mut StageLog) -> Result<FemAnsw
         newton: None,
         stats: body.stats(),
     })
+}
+
+/// The result guards only a Newton solve has: an unstable equilibrium, a cell torn apart
+/// (neo-Hookean), a grasp left short of its target.
+fn newton_guards(answer: &FemAnswer, small_strain: bool) -> Vec<ResultWarning> {
+    let mut warnings = Vec::new();
+    if let Some(shift) = answer.newton.as_ref().map(|n| n.stats.final_shift).filter(|&s| s > 0.0) {
+        warnings.push(ResultWarning { guard: ResultGuard::Unstable, value: shift, limit: 0.0 });
+    }
+    if !small_strain && answer.strain.j_max > DILATATION_LIMIT {
+        warnings.push(ResultWarning {
+            guard: ResultGuard::Dilatation,
+            value: answer.strain.j_max,
+            limit: DILATATION_LIMIT,
+        });
+    }
+    let cells = answer.grasps.iter().map(|g| g.error).fold(0.0, f64::max) / answer.grid.cell_size();
+    if cells > GRASP_ERROR_LIMIT {
+        warnings.push(ResultWarning { guard: ResultGuard::Grasp, value: cells, limit: GRASP_ERROR_LIMIT });
+    }
+    warnings
 }
 
 /// The result guards of a finite-element answer (every one of them: the FEM has no step

@@ -13,8 +13,7 @@
 //! `on_failure = "warn"` (default) records a [`GuardWarning`] and goes on;
 //! `on_failure = "error"` stops the run with [`Error::Guard`](crate::Error::Guard).
 
-use fibfluid_geometry::vec3::dot;
-use fibfluid_geometry::{Boundary, Vec3, face_area_vector};
+use fibfluid_geometry::{Boundary, Vec3};
 use fibfluid_linalg::{Choice, impl_choice};
 use serde::Serialize;
 
@@ -148,27 +147,13 @@ impl std::fmt::Display for GuardWarning {
     }
 }
 
-/// Faces of `boundary` whose area vector on `now` points against the one on `rest`
-/// (edges of a polygon whose normal flipped).
+/// Faces of `boundary` turned inside out between `rest` and `now`: the angle between their
+/// normal and their neighbourhood's grew by more than a right angle (edges of a polygon
+/// likewise), so a body that only rotated, however far, has none
+/// ([`fibfluid_geometry::faces_turned_inside_out`]).
 pub fn inverted_faces(boundary: &Boundary, rest: &[Vec3], now: &[Vec3]) -> usize {
     match boundary {
-        Boundary::Surface { triangles } => triangles
-            .iter()
-            .filter(|t| {
-                let corners = |p: &[Vec3]| [p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]];
-                dot(face_area_vector(corners(rest)), face_area_vector(corners(now))) <= 0.0
-            })
-            .count(),
-        Boundary::Polygon => {
-            let n = rest.len();
-            (0..n)
-                .filter(|&i| {
-                    let j = (i + 1) % n;
-                    let e0 = [rest[j][0] - rest[i][0], rest[j][1] - rest[i][1]];
-                    let e1 = [now[j][0] - now[i][0], now[j][1] - now[i][1]];
-                    e0[0] * e1[0] + e0[1] * e1[1] <= 0.0
-                })
-                .count()
-        }
+        Boundary::Surface { triangles } => fibfluid_geometry::faces_turned_inside_out(triangles, rest, now),
+        Boundary::Polygon => fibfluid_geometry::edges_turned_inside_out(rest, now),
     }
 }

@@ -237,8 +237,10 @@ pub const VOLUME_NEWTON_ITERATIONS: usize = 30;
 /// Relative volume error the correction aims for.
 pub const VOLUME_TOLERANCE: f64 = 1e-12;
 
-/// A plate may touch the body at rest by this fraction of the body's diagonal.
-pub const PLATE_REST_TOLERANCE: f64 = 1e-6;
+/// A plate may reach through the body at rest by this fraction of the body's diagonal (a
+/// coordinate rounded when the scene was written, a plate placed "at" a face): the
+/// vertices it reaches join its contact at the first step.
+pub const PLATE_REST_TOLERANCE: f64 = 1e-4;
 
 /// The largest number of load steps a scene may ask for.
 pub const MAX_STEPS: usize = 1_000_000;

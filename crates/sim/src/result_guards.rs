@@ -6,11 +6,12 @@
 //! |---|---|---|
 //! | `volume` | `V / V0`, the enclosed volume over the rest volume | `V <= 0`, or outside `[1 / VOLUME_RATIO_LIMIT, VOLUME_RATIO_LIMIT]` |
 //! | `displacement` | largest `|u|` over the rest bounding-box diagonal | above [`DISPLACEMENT_LIMIT`] |
-//! | `inverted` | faces whose normal turned against the rest shape's | any (methods without step guards) |
+//! | `inverted` | faces whose normal turned against their neighbourhood's (the faces around them) by more than a right angle since rest (a body that only rotated, however far, has none) | any (methods without step guards) |
 //! | `residual` | the solve's relative residual | above [`RESULT_RESIDUAL_LIMIT`] |
 //! | `linear` | largest `|u|` over the diagonal, for a small-strain (linear) FEM answer | above [`LINEAR_DISPLACEMENT_LIMIT`] |
 //! | `strain` | largest principal Green–Lagrange strain over the cells, of a linear FEM batch answer (its own displacement field at each cell's centre) | above [`LINEAR_STRAIN_LIMIT`] |
 //! | `dilatation` | largest `J` over the tissue's cells, of a neo-Hookean FEM batch answer | above [`DILATATION_LIMIT`] (`e`) |
+//! | `grasp` | the largest distance of a grasped vertex from its target over the grid's cell size, of a neo-Hookean FEM batch answer | above [`GRASP_ERROR_LIMIT`]: the grasp's augmentations stopped short |
 //! | `unstable` | the diagonal shift (over the largest diagonal entry) the last Newton tangent of a neo-Hookean FEM batch answer needed to factor | above 0: the equilibrium found is unstable |
 //!
 //! The `linear` guard is the small-strain model's own validity, estimated from the answer:
@@ -29,7 +30,7 @@
 //! and measured per frame in one pass over the vertices and one over the faces.
 
 use fibfluid_geometry::vec3::{cross, dist, dot, norm, sub};
-use fibfluid_geometry::{Boundary, Vec3, face_area_vector};
+use fibfluid_geometry::{Boundary, Vec3};
 use fibfluid_linalg::{Choice, impl_choice};
 use serde::Serialize;
 
@@ -51,6 +52,9 @@ pub const LINEAR_STRAIN_LIMIT: f64 = 0.05;
 /// nearly tripled is torn apart by its load (a support or a grasp too small for it
 /// concentrates it there), which the continuum model does not represent.
 pub const DILATATION_LIMIT: f64 = std::f64::consts::E;
+/// The largest distance of a grasped vertex from its target, in cells, a finite-element
+/// answer may end with: a hundredth of a cell is far below the discretization's error.
+pub const GRASP_ERROR_LIMIT: f64 = 1e-2;
 /// The largest relative residual `|K u - f| / |f|` an answer may have.
 pub const RESULT_RESIDUAL_LIMIT: f64 = 1e-8;
 
@@ -76,6 +80,8 @@ pub enum ResultGuard {
     /// A neo-Hookean answer is an unstable equilibrium: its tangent is not positive
     /// definite (the Newton iterations next to it factored it only with a diagonal shift).
     Unstable,
+    /// A grasped vertex ends further than [`GRASP_ERROR_LIMIT`] cells from its target.
+    Grasp,
 }
 
 impl Choice for ResultGuard {
@@ -89,6 +95,7 @@ impl Choice for ResultGuard {
         ResultGuard::Strain,
         ResultGuard::Dilatation,
         ResultGuard::Unstable,
+        ResultGuard::Grasp,
     ];
     fn name(self) -> &'static str {
         match self {
@@ -100,6 +107,7 @@ impl Choice for ResultGuard {
             ResultGuard::Strain => "strain",
             ResultGuard::Dilatation => "dilatation",
             ResultGuard::Unstable => "unstable",
+            ResultGuard::Grasp => "grasp",
         }
     }
 }
@@ -146,6 +154,10 @@ impl std::fmt::Display for ResultWarning {
             ResultGuard::Dilatation => (
                 "a cell's volume grew {value} times (limit {limit}; tissue keeps its volume within a few per cent)",
                 "the load pulls the tissue apart there and the answer near that cell is not physical (a support or grasp too small for its load): support the body more, or load it less",
+            ),
+            ResultGuard::Grasp => (
+                "a grasped vertex ends {value} cells from its target (limit {limit})",
+                "the grasp's augmentations stopped short of meeting it (report.json: each grasp's error, newton.stats.failed_augmentations): check that no two grasps hold the same vertices apart; else grasp a wider patch, move it less far, or raise [fem] resolution",
             ),
             ResultGuard::Unstable => (
                 "the equilibrium found is unstable: its tangent needed a diagonal shift of {value} of its largest entry to factor (limit {limit})",
@@ -298,15 +310,17 @@ pub enum FrameGuardError {
 }
 
 /// The result guards of every frame of a triangle surface: [`check_answer`]'s guards and
-/// limits, set up once (the rest volume, the body's size, each face's rest area vector) so
-/// that a frame costs one pass over the vertices (finiteness, the largest displacement) and
-/// one over the faces (the volume by the divergence theorem, the faces turned inside out),
-/// and allocates nothing unless a guard fires.
+/// limits, set up once (the rest volume, the body's size, the angle between each face's
+/// normal and its neighbourhood's at rest) so that a frame costs one pass over the vertices (finiteness, the
+/// largest displacement) and three over the faces (the volume by the divergence theorem,
+/// the faces turned inside out: each face's and its neighbourhood's normal).
 #[derive(Clone, Debug, PartialEq)]
 pub struct FrameGuards {
     rest: Vec<Vec3>,
     triangles: Vec<[u32; 3]>,
-    rest_areas: Vec<Vec3>,
+    /// Per face, the angle between its normal and its neighbourhood's at rest
+    /// ([`fibfluid_geometry::neighbourhood_angles`]).
+    rest_angles: Vec<f64>,
     rest_volume: f64,
     size: f64,
 }
@@ -321,13 +335,11 @@ impl FrameGuards {
                 return Err(FrameGuardError::FaceVertex { face, vertex, count });
             }
         }
-        let corners = |t: &[u32; 3]| [rest[t[0] as usize], rest[t[1] as usize], rest[t[2] as usize]];
-        let rest_areas = triangles.iter().map(|t| face_area_vector(corners(t))).collect();
         let (lo, hi) = fibfluid_geometry::bounding_box(rest);
         Ok(Self {
             rest: rest.to_vec(),
             triangles: triangles.to_vec(),
-            rest_areas,
+            rest_angles: fibfluid_geometry::neighbourhood_angles(triangles, rest),
             rest_volume: fibfluid_geometry::volume(rest, triangles),
             size: dist(lo, hi),
         })
@@ -353,16 +365,17 @@ impl FrameGuards {
             }
             largest = largest.max(length);
         }
-        let (mut six_volume, mut inverted) = (0.0, 0);
-        for (t, rest_area) in self.triangles.iter().zip(&self.rest_areas) {
-            let c = [positions[t[0] as usize], positions[t[1] as usize], positions[t[2] as usize]];
-            six_volume += dot(c[0], cross(c[1], c[2]));
-            inverted += usize::from(dot(*rest_area, face_area_vector(c)) <= 0.0);
-        }
+        let six_volume: f64 = self
+            .triangles
+            .iter()
+            .map(|t| dot(positions[t[0] as usize], cross(positions[t[1] as usize], positions[t[2] as usize])))
+            .sum();
+        let inverted = fibfluid_geometry::faces_turned_given(&self.rest_angles, &self.triangles, positions);
         let volume = six_volume / 6.0;
         if !volume.is_finite() {
             return Err(FrameGuardError::NonFinite { vertex: 0 });
         }
+
         let measures = Measures { rest_volume: self.rest_volume, volume, largest, size: self.size, inverted };
         Ok(judge(&measures, checks))
     }

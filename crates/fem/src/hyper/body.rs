@@ -103,6 +103,9 @@ pub struct HyperStats {
     /// answer: 0 at a stable equilibrium; above 0 the equilibrium found is unstable (a body
     /// pressed or hung past buckling, which would sway to another shape).
     pub final_shift: f64,
+    /// Augmentations whose Newton solve failed with the contact met (at most 1: the last
+    /// converged state then stands as the answer, its grasps met as far as it got).
+    pub failed_augmentations: usize,
 }
 
 /// The converged large-deformation answer.

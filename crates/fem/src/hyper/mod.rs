@@ -21,6 +21,7 @@ mod body;
 mod cell;
 mod contact;
 mod grasp;
+mod grasp_kkt;
 mod material;
 mod newton;
 mod solve;
@@ -35,6 +36,7 @@ pub use contact::{
     RigidPlate,
 };
 pub use grasp::{GRASP_PENALTY, GRASP_TOLERANCE, Grasp, GraspRecord};
+pub use grasp_kkt::{GRASP_COLUMNS_BYTES, GRASP_NEWTON_ITERATIONS};
 pub use tracking::{
     HOLD_PENALTIES, Linearization, MAX_RESTORE, MAX_STEP_HALVINGS, SHIFTS, SurfaceResponse, TrackStep,
     TrackedResponse,

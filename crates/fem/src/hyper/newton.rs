@@ -26,6 +26,12 @@ const NEAR_SOLUTION: f64 = 1e-8;
 /// the body).
 const RESIDUAL_FLOOR: f64 = 1e-9;
 
+/// A Newton iteration that cut the residual by at least this factor is converging fast:
+/// past the iteration limit, Newton goes on after it.
+const FAST_PROGRESS: f64 = 0.1;
+/// Iterations Newton may go on past the limit while it converges fast.
+const EXTRA_ITERATIONS: usize = 10;
+
 /// What a solve at one load factor works with.
 pub(super) struct LoadState<'a> {
     pub(super) t: f64,
@@ -44,7 +50,7 @@ pub(super) struct Evaluation {
     magnitude: f64,
     pub(super) gradient: Vec<f64>,
     /// `max(|t f|, |f_int|)`: the residual's scale.
-    scale: f64,
+    pub(super) scale: f64,
 }
 
 /// Why a Newton solve stopped without converging.
@@ -290,7 +296,7 @@ impl HyperBody {
         stats: &mut HyperStats,
     ) -> Result<std::result::Result<usize, Failure>> {
         let mut indefinite = false;
-        for iteration in 0..=self.settings.max_iterations {
+        for iteration in 0..=self.settings.max_iterations + EXTRA_ITERATIONS {
             let start = Instant::now();
             let Some(eval) = self.evaluate(x, state, true) else {
                 return Ok(Err(Failure { residual: f64::INFINITY, indefinite }));
@@ -301,7 +307,12 @@ impl HyperBody {
             if residual <= self.settings.tolerance {
                 return Ok(Ok(iteration));
             }
-            if iteration == self.settings.max_iterations || !residual.is_finite() {
+            // Past the iteration limit, Newton goes on only while it converges fast (its
+            // quadratic phase had just begun), up to EXTRA_ITERATIONS more.
+            let fast = history.len() >= 2 && residual <= FAST_PROGRESS * history[history.len() - 2];
+            let limit = self.settings.max_iterations;
+            if (iteration >= limit && !fast) || iteration == limit + EXTRA_ITERATIONS || !residual.is_finite()
+            {
                 return Ok(Err(Failure { residual, indefinite }));
             }
             let start = Instant::now();

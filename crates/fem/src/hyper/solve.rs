@@ -8,6 +8,7 @@ use super::body::{HyperBody, HyperSolution, HyperStats, LoadStep};
 
 use super::contact::{CONTACT_FORCE_TOLERANCE, CONTACT_GAP_TOLERANCE, MAX_AUGMENTATIONS, RigidPlate};
 use super::grasp::GRASP_TOLERANCE;
+use super::grasp_kkt::GraspKkt;
 use super::newton::LoadState;
 use crate::assemble::FIXED;
 use crate::body::{Loads, load_vector};
@@ -54,6 +55,7 @@ impl HyperBody {
         let mut force = self.plate_forces(&run.x, plates, &multipliers);
         // Contact is settled when nothing penetrates or the plate forces stopped changing.
         let mut contact_settled = false;
+        let mut newton_tried = false;
         for augmentation in 1..=MAX_AUGMENTATIONS {
             let h = self.grid.cell_size();
             let shallow =
@@ -64,6 +66,29 @@ impl HyperBody {
             if contact_done && grasp_done {
                 break;
             }
+            // With the contact settled, Newton's method meets the grasps (once: should it
+            // fail, Uzawa's augmentations go on from where it started).
+            if contact_done && !newton_tried {
+                newton_tried = true;
+                let saved = (run.x.clone(), held.clone());
+                let fixed = GraspKkt { external: &external, plates, multipliers: &multipliers };
+                let mut history = Vec::new();
+                let met = self.meet_grasps(
+                    &mut run.x,
+                    &fixed,
+                    &mut held,
+                    &mut run.factor,
+                    &mut history,
+                    &mut run.stats,
+                );
+                if let Some(iterations) = met {
+                    run.stats.augmentations += 1;
+                    run.steps.push(LoadStep { load: 1.0, augmentation, iterations, residuals: history });
+                    continue;
+                }
+                (run.x, held) = saved;
+            }
+            let before = (run.x.clone(), multipliers.clone(), held.clone());
             if !contact_done {
                 self.augment(&run.x, plates, &mut multipliers);
             }
@@ -90,13 +115,22 @@ impl HyperBody {
                         contact_settled = change <= CONTACT_FORCE_TOLERANCE * largest;
                     }
                 }
-                Err(f) => {
+                Err(f) if !contact_done => {
                     return Err(FemError::NotConverged {
                         step: run.steps.len() + 1,
                         load: 1.0,
                         residual: f.residual,
                         why: self.failure_why(&run.x, &f),
                     });
+                }
+                Err(_) => {
+                    // Only the grasps were left to meet: the last converged state stands
+                    // (the load stepping's, or an earlier augmentation's), its grasps met as
+                    // far as its record says (each grasp's error is reported, and guarded by
+                    // the `grasp` result guard).
+                    (run.x, multipliers, held) = before;
+                    run.stats.failed_augmentations += 1;
+                    break;
                 }
             }
         }

@@ -164,6 +164,19 @@ impl Linearization {
         self.cache.frame_columns()
     }
 
+    /// Whether a frame holding `vertex` reads compliance columns already made on this
+    /// linearization (by an earlier frame, or by the refresh that made it): a vertex not
+    /// yet held here costs its columns' triangular solves first, `3` per vertex at most.
+    pub fn has_columns_for(&self, vertex: usize) -> bool {
+        self.cache.answers(vertex)
+    }
+
+    /// Whether `other` is this linearization (the same state and factor), whatever columns
+    /// either has cached since.
+    pub fn same_state(&self, other: &Linearization) -> bool {
+        Arc::ptr_eq(&self.core, &other.core)
+    }
+
     /// Bytes of the factor and the cached columns.
     pub fn memory_bytes(&self) -> usize {
         let n = self.core.x.len();
