@@ -10,8 +10,9 @@
 //! their edge's two grid points; each triangle is oriented so its normal points from the
 //! inside end of an edge to the outside end (outward, also for an affine that mirrors).
 //!
-//! Options: a 3x3x3 box blur of the mask (a less staircase surface) and decimation to a
-//! target vertex count. The surface is extracted at full resolution (after the blur when
+//! Options: a 3x3x3 box blur of the mask (a less staircase surface; its level is then the
+//! one whose surface encloses the voxels' volume, not 0.5, which rounds the body's edges
+//! and corners off) and decimation to a target vertex count. The surface is extracted at full resolution (after the blur when
 //! asked) and then decimated by volume-preserving edge collapses ([`crate::decimate`]): the
 //! result encloses the full-resolution surface's volume (up to rounding) and stays one closed
 //! 2-manifold, outward. Only when the full-resolution surface is enormous, more than 20 times
@@ -144,15 +145,19 @@ pub fn extract_surface(image: &LabelImage, opts: &SurfaceOptions) -> Result<Labe
     if opts.smooth {
         box_blur(&mut mask, image.dims);
     }
-    let mut raw = march(image, &mask, 1);
+    let mut raw = march(image, &mask, 1, HALF);
     let mut block = 1;
     if let Some(target) = opts.target_vertices {
         let enough = target.saturating_mul(RESAMPLE_RATIO).max(RESAMPLE_ABOVE);
         let largest = image.dims.iter().copied().max().unwrap_or(1);
         while raw.0.len() > enough && block <= largest {
             block += 2;
-            raw = march(image, &mask, block);
+            raw = march(image, &mask, block, HALF);
         }
+    }
+    if opts.smooth {
+        let level = volume_keeping_level(image, &mask, block, voxels as f64 * image.voxel_volume());
+        raw = march(image, &mask, block, level);
     }
     let mut mesh = TriMesh::new(raw.0, raw.1)?;
     let mut validation = mesh.validate()?;
@@ -178,6 +183,42 @@ pub fn extract_surface(image: &LabelImage, opts: &SurfaceOptions) -> Result<Labe
         voxel_volume: voxels as f64 * image.voxel_volume(),
         volume,
     })
+}
+
+/// The level of the mask's plain surface.
+const HALF: f64 = 0.5;
+
+/// The blurred mask's level is sought until the surface's volume is within this fraction of
+/// the voxels' ([`volume_keeping_level`]).
+pub const SMOOTH_VOLUME_TOLERANCE: f64 = 1e-3;
+
+/// Bisections of the level at most (2^-40 of the level's range).
+const LEVEL_BISECTIONS: usize = 40;
+
+/// The level of the blurred `mask` (on `block`s) whose surface encloses `volume` (the
+/// voxels'): the blur rounds a body's edges and corners off, and its 0.5 level loses their
+/// volume (3.9 % on the phantom, a body 16 voxels thick); a lower level gives it back. By
+/// bisection on `(0, 1)`, the surface's volume falling as the level rises, to
+/// [`SMOOTH_VOLUME_TOLERANCE`]. The levels bisection visits are dyadic fractions, never
+/// equal to a blurred sample (multiples of `1 / (27 block^3)`, odd denominators), so the
+/// level set never passes through one and the surface stays a closed 2-manifold.
+fn volume_keeping_level(image: &LabelImage, mask: &[f64], block: usize, volume: f64) -> f64 {
+    let (mut lo, mut hi) = (0.0, 1.0);
+    let mut level = HALF;
+    for _ in 0..LEVEL_BISECTIONS {
+        let (positions, triangles) = march(image, mask, block, level);
+        let enclosed = crate::mesh::volume(&positions, &triangles).abs();
+        if (enclosed / volume - 1.0).abs() <= SMOOTH_VOLUME_TOLERANCE {
+            break;
+        }
+        if enclosed > volume {
+            lo = level;
+        } else {
+            hi = level;
+        }
+        level = 0.5 * (lo + hi);
+    }
+    level
 }
 
 /// Marks as inside (1) the outside voxels (< 0.5) that cannot reach the image border
@@ -273,9 +314,9 @@ fn coarse_field(image: &LabelImage, mask: &[f64], block: usize) -> (Vec<f64>, [u
 const TETS: [[usize; 4]; 6] =
     [[0, 1, 3, 7], [0, 1, 5, 7], [0, 2, 3, 7], [0, 2, 6, 7], [0, 4, 5, 7], [0, 4, 6, 7]];
 
-/// Marching tetrahedra on the padded block-mean field: positions (metres) and outward
-/// triangles.
-fn march(image: &LabelImage, mask: &[f64], block: usize) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+/// Marching tetrahedra on the padded block-mean field at `level`: positions (metres) and
+/// outward triangles.
+fn march(image: &LabelImage, mask: &[f64], block: usize, level: f64) -> (Vec<Vec3>, Vec<[u32; 3]>) {
     let (field, g) = coarse_field(image, mask, block);
     let half = (block as f64 - 1.0) / 2.0;
     let world = |n: usize| {
@@ -290,7 +331,7 @@ fn march(image: &LabelImage, mask: &[f64], block: usize) -> (Vec<Vec3>, Vec<[u32
         let key = (a.min(b), a.max(b));
         *vertex_of.entry(key).or_insert_with(|| {
             let (va, vb) = (field[a], field[b]);
-            let t = (0.5 - va) / (vb - va);
+            let t = (level - va) / (vb - va);
             let (pa, pb) = (world(a), world(b));
             positions.push(std::array::from_fn(|c| pa[c] + t * (pb[c] - pa[c])));
             (positions.len() - 1) as u32
@@ -302,13 +343,13 @@ fn march(image: &LabelImage, mask: &[f64], block: usize) -> (Vec<Vec3>, Vec<[u32
                 let base = i + g[0] * (j + g[1] * k);
                 let corner: [usize; 8] =
                     std::array::from_fn(|c| base + (c & 1) + g[0] * ((c >> 1) & 1) + g[0] * g[1] * (c >> 2));
-                let inside = corner.map(|n| field[n] > 0.5);
+                let inside = corner.map(|n| field[n] > level);
                 if inside.iter().all(|&x| x) || inside.iter().all(|&x| !x) {
                     continue;
                 }
                 for tet in TETS {
                     let (ins, outs): (Vec<usize>, Vec<usize>) =
-                        tet.iter().map(|&c| corner[c]).partition(|&n| field[n] > 0.5);
+                        tet.iter().map(|&c| corner[c]).partition(|&n| field[n] > level);
                     // Each polygon as its crossing edges (inside end, outside end), in order
                     // around the polygon.
                     let polys: Vec<Vec<(usize, usize)>> = match (ins.len(), outs.len()) {

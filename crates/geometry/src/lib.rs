@@ -60,7 +60,9 @@ pub use io::{
     max_file_bytes, parse_byte_count, read_file_limited, read_obj_bytes, read_off_bytes, read_ply_bytes,
     read_stl_bytes, set_max_file_bytes, write_obj, write_obj_to, write_off, write_ply,
 };
-pub use isosurface::{LabelSelection, LabelSurface, SurfaceError, SurfaceOptions, extract_surface};
+pub use isosurface::{
+    LabelSelection, LabelSurface, SMOOTH_VOLUME_TOLERANCE, SurfaceError, SurfaceOptions, extract_surface,
+};
 pub use mesh::{
     CONVEXITY_TOLERANCE, DEGENERATE_AREA, NEAR_DUPLICATE, TriMesh, Validation, bounding_box,
     face_area_vector, raw_vertex_vectors, vertex_area_vectors, volume,

@@ -5,7 +5,8 @@ use std::io::Write;
 
 use fibfluid_geometry::{
     ImageProblem, LabelImage, LabelSelection, LabelType, LengthUnit, MeshError, NiftiWriteOptions,
-    SurfaceError, SurfaceOptions, extract_surface, nifti_bytes, read_nifti, read_nifti_bytes, write_nifti,
+    SMOOTH_VOLUME_TOLERANCE, SurfaceError, SurfaceOptions, extract_surface, nifti_bytes, read_nifti,
+    read_nifti_bytes, write_nifti,
 };
 
 const LIMIT: u64 = 2 << 30;
@@ -57,11 +58,11 @@ fn ball_surface_is_closed_outward_and_has_the_voxel_volume() {
     );
     assert!(to_voxels < 0.03, "{to_voxels}");
     assert!(to_sphere < 0.05, "{to_sphere}");
-    // Smoothing keeps a valid surface and about the same volume.
+    // Smoothing keeps a valid surface and the voxels' volume (its level is sought for it).
     let smooth =
         extract_surface(&image, &SurfaceOptions { smooth: true, ..opts(LabelSelection::Label(1)) }).unwrap();
-    eprintln!("smoothed: {:.2} % from voxels", 100.0 * rel(smooth.volume, s.voxel_volume));
-    assert!(rel(smooth.volume, s.voxel_volume) < 0.05);
+    eprintln!("smoothed: {:.3} % from voxels", 100.0 * rel(smooth.volume, s.voxel_volume));
+    assert!(rel(smooth.volume, s.voxel_volume) <= SMOOTH_VOLUME_TOLERANCE);
 }
 
 #[test]
