@@ -189,7 +189,7 @@ pub enum SceneProblem {
     },
     /// Nothing is fixed along an axis.
     #[error(
-        "no vertex is fixed along {axis}; with the volume conserved the body could still translate freely (add a [[fix]] table)"
+        "no vertex is fixed along {axis}: the body could translate freely along it (add a [[fix]] table; a frictionless plate does not hold a body sideways)"
     )]
     Unconstrained {
         /// The axis.
