@@ -54,6 +54,22 @@ pub(super) struct GraspKkt<'a> {
     pub(super) multipliers: &'a [Vec<f64>],
 }
 
+impl<'a> GraspKkt<'a> {
+    /// The load state at the full load with the grasps' forces `held`.
+    fn state<'s>(&self, held: &'s [fibfluid_geometry::Vec3]) -> LoadState<'s>
+    where
+        'a: 's,
+    {
+        LoadState {
+            t: 1.0,
+            external: self.external,
+            plates: self.plates,
+            multipliers: self.multipliers,
+            grasp_multipliers: held,
+        }
+    }
+}
+
 impl HyperBody {
     /// The grasped vertices' rows over the free dofs: per point, per axis, the weights of
     /// its position on the free nodal dofs.
@@ -93,13 +109,7 @@ impl HyperBody {
         }
         let tolerance = GRASP_TOLERANCE * self.grid.cell_size();
         for iteration in 0..=GRASP_NEWTON_ITERATIONS {
-            let state = LoadState {
-                t: 1.0,
-                external: fixed.external,
-                plates: fixed.plates,
-                multipliers: fixed.multipliers,
-                grasp_multipliers: held,
-            };
+            let state = fixed.state(held);
             let start = Instant::now();
             let eval = self.evaluate(x, &state, true)?;
             stats.assembly_seconds += start.elapsed().as_secs_f64();
@@ -147,14 +157,7 @@ impl HyperBody {
         let mut alpha = 1.0;
         for _ in 0..=STEP_HALVINGS {
             let trial: Vec<f64> = x.iter().zip(dx).map(|(a, d)| a + alpha * d).collect();
-            let state = LoadState {
-                t: 1.0,
-                external: fixed.external,
-                plates: fixed.plates,
-                multipliers: fixed.multipliers,
-                grasp_multipliers: held,
-            };
-            if self.energy(&trial, &state).is_some() {
+            if self.energy(&trial, &fixed.state(held)).is_some() {
                 x.copy_from_slice(&trial);
                 for (p, force) in held.iter_mut().enumerate() {
                     (0..3).for_each(|a| force[a] += alpha * dlambda[3 * p + a]);
