@@ -16,7 +16,7 @@
 //! `A dx + C^T dlambda = -r`, `C dx = -g` with `A` the assembled tangent (`k C^T C`
 //! included): `dlambda = S^-1 (g - C A^-1 r)`, `S = C A^-1 C^T` (one multi-column solve for
 //! the rows' compliance columns), `dx = -A^-1 r - A^-1 C^T dlambda`. It converges
-//! quadratically: on the same liver, 3 iterations to the tolerance. Dependent rows (more
+//! quadratically: on the same liver, 4 iterations to the tolerance. Dependent rows (more
 //! grasped vertices in a cell than its nodes can move independently) make `S` singular; a
 //! ridge of [`RIDGES`] times its largest diagonal entry regularizes it (consistent targets,
 //! a rigid motion, keep the solution; the ridge picks the smallest multipliers).
@@ -32,8 +32,9 @@ use super::newton::LoadState;
 use crate::assemble::FIXED;
 
 /// Newton iterations on the grasps' optimality conditions at most, before Uzawa's
-/// augmentations take over.
-pub const GRASP_NEWTON_ITERATIONS: usize = 8;
+/// augmentations take over (a grasp pulled far from where the penalty left it can need
+/// a dozen damped ones on shifted tangents before the quadratic ones).
+pub const GRASP_NEWTON_ITERATIONS: usize = 30;
 
 /// The grasps' compliance columns may take at most this many bytes (`8 x rows x dofs`);
 /// larger grasps are met by Uzawa's augmentations alone.
@@ -91,8 +92,9 @@ impl HyperBody {
     /// (see the module docs), updating `x` and the grasps' forces `held`; pushes each
     /// relative residual on `history`. `Some(iterations)` once the residual and every
     /// grasp's error are within tolerance; `None` when it cannot get there (too large, a
-    /// tangent that needs a shift, a step that inverts, no convergence): the caller then
-    /// restores the state and goes on with Uzawa's augmentations.
+    /// tangent no shift makes positive definite, a step that inverts at every halving, no
+    /// convergence): the caller then restores the state and goes on with Uzawa's
+    /// augmentations.
     pub(super) fn meet_grasps(
         &mut self,
         x: &mut [f64],
@@ -120,9 +122,12 @@ impl HyperBody {
                 return Some(iteration);
             }
             let start = Instant::now();
-            if iteration == GRASP_NEWTON_ITERATIONS || self.factor_tangent(factor).ok()? > 0.0 {
+            if iteration == GRASP_NEWTON_ITERATIONS {
                 return None;
             }
+            // An indefinite tangent is factored shifted, as in Newton's solves: a damped
+            // step that still meets the grasps' rows (their capacitance takes the shift).
+            stats.final_shift = self.factor_tangent(factor).ok()?;
             stats.factor_seconds += start.elapsed().as_secs_f64();
             stats.newton_iterations += 1;
             let start = Instant::now();

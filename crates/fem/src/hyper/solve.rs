@@ -70,7 +70,7 @@ impl HyperBody {
             // fail, Uzawa's augmentations go on from where it started).
             if contact_done && !newton_tried {
                 newton_tried = true;
-                let saved = (run.x.clone(), held.clone());
+                let saved = (run.x.clone(), held.clone(), run.stats.final_shift);
                 let fixed = GraspKkt { external: &external, plates, multipliers: &multipliers };
                 let mut history = Vec::new();
                 let met = self.meet_grasps(
@@ -86,7 +86,7 @@ impl HyperBody {
                     run.steps.push(LoadStep { load: 1.0, augmentation, iterations, residuals: history });
                     continue;
                 }
-                (run.x, held) = saved;
+                (run.x, held, run.stats.final_shift) = saved;
             }
             let before = (run.x.clone(), multipliers.clone(), held.clone());
             if !contact_done {
