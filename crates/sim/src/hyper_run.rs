@@ -6,7 +6,9 @@
 
 use std::time::Instant;
 
-use fibfluid_fem::hyper::{Grasp, HyperBody, HyperSolution, HyperStats, LoadStep, RigidPlate};
+use fibfluid_fem::hyper::{
+    Grasp, HyperBody, HyperSolution, HyperStats, LoadStep, NewtonSettings, RigidPlate,
+};
 use fibfluid_fem::{FemOptions, FemStats, Tissue};
 use serde::Serialize;
 
@@ -89,7 +91,7 @@ fn build(
     limit: u64,
     log: &mut StageLog,
 ) -> Result<HyperBody> {
-    estimate(model, limit)?;
+    let grid = estimate(model, limit)?;
     let fixed = fixed_axes(model)?;
     let Shape::Surface(file) = &model.shape else { unreachable!("estimate refused a polygon") };
     let failed = |source| Error::Fem { scene: model.display_name(), source };
@@ -97,9 +99,16 @@ fn build(
     let start = Instant::now();
     let regions: Vec<_> = model.fem.regions.iter().map(|r| r.region.clone()).collect();
     let (positions, triangles) = (file.mesh.positions(), file.mesh.triangles());
+    // The grasps' compliance columns get what the memory limit leaves beside the factor.
+    let spare = (limit as f64 - grid.factor_bytes).max(0.0) as usize;
+    let settings = NewtonSettings {
+        grasp_columns_bytes: spare.min(fibfluid_fem::hyper::GRASP_COLUMNS_BYTES),
+        ..NewtonSettings::default()
+    };
     let body = HyperBody::from_surface_grasped(positions, triangles, tissue, &fixed, grasps, &options)
         .and_then(|b| b.with_regions(&regions))
-        .map_err(failed)?;
+        .map_err(failed)?
+        .with_settings(settings);
     log.add(names::VOXELIZATION, start.elapsed().as_secs_f64());
     Ok(body)
 }

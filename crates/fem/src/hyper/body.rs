@@ -31,6 +31,10 @@ pub struct NewtonSettings {
     pub min_increment: f64,
     /// A step that converged in at most this many iterations doubles the next increment.
     pub easy_iterations: usize,
+    /// The grasps' compliance columns (`8 x 3 x grasped vertices x dofs` bytes) Newton's
+    /// method on their optimality conditions may keep; above it Uzawa's augmentations
+    /// alone meet the grasps.
+    pub grasp_columns_bytes: usize,
 }
 
 impl Default for NewtonSettings {
@@ -41,6 +45,7 @@ impl Default for NewtonSettings {
             first_increment: 1.0,
             min_increment: 1.0 / 1024.0,
             easy_iterations: 5,
+            grasp_columns_bytes: super::grasp_kkt::GRASP_COLUMNS_BYTES,
         }
     }
 }

@@ -36,8 +36,9 @@ use crate::assemble::FIXED;
 /// a dozen damped ones on shifted tangents before the quadratic ones).
 pub const GRASP_NEWTON_ITERATIONS: usize = 30;
 
-/// The grasps' compliance columns may take at most this many bytes (`8 x rows x dofs`);
-/// larger grasps are met by Uzawa's augmentations alone.
+/// The grasps' compliance columns may take at most this many bytes (`8 x rows x dofs`) by
+/// default ([`super::NewtonSettings::grasp_columns_bytes`]); larger grasps are met by
+/// Uzawa's augmentations alone.
 pub const GRASP_COLUMNS_BYTES: usize = 256 << 20;
 
 /// Ridges tried, in turn, on the grasps' capacitance `S` (times its largest diagonal
@@ -106,7 +107,7 @@ impl HyperBody {
     ) -> Option<usize> {
         let rows = self.grasp_rows();
         let (n, m) = (self.n_free, rows.len());
-        if m == 0 || 8 * m * n > GRASP_COLUMNS_BYTES {
+        if m == 0 || 8 * m * n > self.settings.grasp_columns_bytes {
             return None;
         }
         let tolerance = GRASP_TOLERANCE * self.grid.cell_size();
