@@ -18,6 +18,11 @@ use crate::grid::{FemOptions, SparseGrid};
 use crate::ordering::{Ordering, symbolic_analysis};
 use crate::tissue::Tissue;
 
+/// The grasps' compliance columns may take at most this many bytes (`8 x rows x dofs`) by
+/// default ([`NewtonSettings::grasp_columns_bytes`]); larger grasps are met by Uzawa's
+/// augmentations alone.
+pub const GRASP_COLUMNS_BYTES: usize = 256 << 20;
+
 /// Newton's method and its load stepping.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct NewtonSettings {
@@ -45,7 +50,7 @@ impl Default for NewtonSettings {
             first_increment: 1.0,
             min_increment: 1.0 / 1024.0,
             easy_iterations: 5,
-            grasp_columns_bytes: super::grasp_kkt::GRASP_COLUMNS_BYTES,
+            grasp_columns_bytes: GRASP_COLUMNS_BYTES,
         }
     }
 }

@@ -36,11 +36,6 @@ use crate::assemble::FIXED;
 /// a dozen damped ones on shifted tangents before the quadratic ones).
 pub const GRASP_NEWTON_ITERATIONS: usize = 30;
 
-/// The grasps' compliance columns may take at most this many bytes (`8 x rows x dofs`) by
-/// default ([`super::NewtonSettings::grasp_columns_bytes`]); larger grasps are met by
-/// Uzawa's augmentations alone.
-pub const GRASP_COLUMNS_BYTES: usize = 256 << 20;
-
 /// Ridges tried, in turn, on the grasps' capacitance `S` (times its largest diagonal
 /// entry): none first, then growing ones for dependent rows.
 const RIDGES: [f64; 4] = [0.0, 1e-12, 1e-9, 1e-6];

@@ -28,7 +28,8 @@ mod solve;
 mod tracking;
 
 pub use body::{
-    HyperBody, HyperSolution, HyperStats, LoadStep, NewtonSettings, SUMMARY_FILL, StrainSummary, cell_states,
+    GRASP_COLUMNS_BYTES, HyperBody, HyperSolution, HyperStats, LoadStep, NewtonSettings, SUMMARY_FILL,
+    StrainSummary, cell_states,
 };
 pub use cell::{CellMaterial, CellState, CellTangent, HyperCell};
 pub use contact::{
@@ -36,7 +37,7 @@ pub use contact::{
     RigidPlate,
 };
 pub use grasp::{GRASP_PENALTY, GRASP_TOLERANCE, Grasp, GraspRecord};
-pub use grasp_kkt::{GRASP_COLUMNS_BYTES, GRASP_NEWTON_ITERATIONS};
+pub use grasp_kkt::GRASP_NEWTON_ITERATIONS;
 pub use tracking::{
     HOLD_PENALTIES, Linearization, MAX_RESTORE, MAX_STEP_HALVINGS, SHIFTS, SurfaceResponse, TrackStep,
     TrackedResponse,
