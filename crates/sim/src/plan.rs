@@ -448,6 +448,10 @@ pub const EXPECTED_NEWTON_ITERATIONS: usize = 15;
 /// 26 for breast-compression at resolution 24).
 pub const EXPECTED_NEWTON_ITERATIONS_WITH_PLATES: usize = 30;
 
+/// Newton iterations a plan expects on the grasps' optimality conditions (measured: 4 on
+/// liver-grasp, 6 at resolution 12).
+pub const EXPECTED_GRASP_ITERATIONS: usize = 5;
+
 /// The voxelization of a grid estimate: its cells and their fill samples.
 fn voxelization_stage(e: &fibfluid_fem::GridEstimate) -> PlannedStage {
     let cells = e.cells as f64;
@@ -475,6 +479,18 @@ fn newton_stages(e: &fibfluid_fem::GridEstimate, scene: &Model) -> Vec<PlannedSt
     };
     let n = iterations as f64;
     let cells = e.cells as f64;
+    // The grasps' rows and their compliance columns (hyper/grasp_kkt.rs), a few iterations.
+    let rows = 3 * scene.fem.grasps.iter().map(|g| g.vertices.len()).sum::<usize>();
+    let columns = (8 * rows * e.dofs).min(fibfluid_fem::hyper::GRASP_COLUMNS_BYTES) as f64;
+    let grasps = if rows > 0 {
+        format!(
+            "; the grasps' {rows} rows met by Newton on their conditions (~{EXPECTED_GRASP_ITERATIONS} iterations), their compliance columns {:.1} MiB",
+            columns / (1 << 20) as f64
+        )
+    } else {
+        String::new()
+    };
+    let grasp_flops = (EXPECTED_GRASP_ITERATIONS * rows) as f64 * 4.0 * e.factor_nonzeros;
     vec![
         voxelization_stage(e),
         stage(
@@ -501,10 +517,10 @@ fn newton_stages(e: &fibfluid_fem::GridEstimate, scene: &Model) -> Vec<PlannedSt
             names::SOLVE,
             true,
             format!(
-                "Newton's method, load steps and contact augmentations: ~{iterations} iterations expected (docs/performance.md)"
+                "Newton's method, load steps and contact augmentations: ~{iterations} iterations expected (docs/performance.md){grasps}"
             ),
-            e.dofs as f64 * 8.0 * 4.0,
-            n * 4.0 * e.factor_nonzeros,
+            e.dofs as f64 * 8.0 * 4.0 + columns,
+            n * 4.0 * e.factor_nonzeros + grasp_flops,
         ),
     ]
 }
@@ -517,7 +533,8 @@ fn fem_plan(scene: &Model) -> Plan {
     let positions = scene.rest_positions();
     let newton = scene.tissue.is_some_and(|t| t.model() == fibfluid_fem::TissueModel::NeoHookean)
         || !scene.plates.is_empty()
-        || !scene.fem.regions.is_empty();
+        || !scene.fem.regions.is_empty()
+        || !scene.fem.grasps.is_empty();
     let st = match fibfluid_fem::GridEstimate::of(&positions, scene.fem.resolution) {
         Ok(e) if newton => newton_stages(&e, scene),
         Ok(e) => {
