@@ -156,8 +156,7 @@ pub fn extract_surface(image: &LabelImage, opts: &SurfaceOptions) -> Result<Labe
         }
     }
     if opts.smooth {
-        let level = volume_keeping_level(image, &mask, block, voxels as f64 * image.voxel_volume());
-        raw = march(image, &mask, block, level);
+        raw = volume_keeping_surface(image, &mask, block, voxels as f64 * image.voxel_volume(), raw);
     }
     let mut mesh = TriMesh::new(raw.0, raw.1)?;
     let mut validation = mesh.validate()?;
@@ -189,25 +188,32 @@ pub fn extract_surface(image: &LabelImage, opts: &SurfaceOptions) -> Result<Labe
 const HALF: f64 = 0.5;
 
 /// The blurred mask's level is sought until the surface's volume is within this fraction of
-/// the voxels' ([`volume_keeping_level`]).
+/// the voxels' ([`volume_keeping_surface`]).
 pub const SMOOTH_VOLUME_TOLERANCE: f64 = 1e-3;
 
 /// Bisections of the level at most (2^-40 of the level's range).
 const LEVEL_BISECTIONS: usize = 40;
 
-/// The level of the blurred `mask` (on `block`s) whose surface encloses `volume` (the
-/// voxels'): the blur rounds a body's edges and corners off, and its 0.5 level loses their
-/// volume (3.9 % on the phantom, a body 16 voxels thick); a lower level gives it back. By
-/// bisection on `(0, 1)`, the surface's volume falling as the level rises, to
-/// [`SMOOTH_VOLUME_TOLERANCE`]. The levels bisection visits are dyadic fractions, never
-/// equal to a blurred sample (multiples of `1 / (27 block^3)`, odd denominators), so the
-/// level set never passes through one and the surface stays a closed 2-manifold.
-fn volume_keeping_level(image: &LabelImage, mask: &[f64], block: usize, volume: f64) -> f64 {
-    let (mut lo, mut hi) = (0.0, 1.0);
-    let mut level = HALF;
+/// The surface of the blurred `mask` (on `block`s) at the level whose surface encloses
+/// `volume` (the voxels'), from `half`, its surface at 0.5: the blur rounds a body's edges
+/// and corners off, and its 0.5 level loses their volume (3.9 % on the phantom, a body 16
+/// voxels thick); a lower level gives it back. By bisection on `(0, 1)`, the surface's
+/// volume falling as the level rises, to [`SMOOTH_VOLUME_TOLERANCE`] (the last surface
+/// made when [`LEVEL_BISECTIONS`] do not get there). The levels bisection visits are
+/// dyadic fractions, never equal to a blurred sample (multiples of `1 / (27 block^3)`, odd
+/// denominators), so the level set never passes through one and the surface stays a
+/// closed 2-manifold.
+fn volume_keeping_surface(
+    image: &LabelImage,
+    mask: &[f64],
+    block: usize,
+    volume: f64,
+    half: (Vec<Vec3>, Vec<[u32; 3]>),
+) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let (mut lo, mut hi, mut level) = (0.0, 1.0, HALF);
+    let mut surface = half;
     for _ in 0..LEVEL_BISECTIONS {
-        let (positions, triangles) = march(image, mask, block, level);
-        let enclosed = crate::mesh::volume(&positions, &triangles).abs();
+        let enclosed = crate::mesh::volume(&surface.0, &surface.1).abs();
         if (enclosed / volume - 1.0).abs() <= SMOOTH_VOLUME_TOLERANCE {
             break;
         }
@@ -217,8 +223,9 @@ fn volume_keeping_level(image: &LabelImage, mask: &[f64], block: usize, volume: 
             hi = level;
         }
         level = 0.5 * (lo + hi);
+        surface = march(image, mask, block, level);
     }
-    level
+    surface
 }
 
 /// Marks as inside (1) the outside voxels (< 0.5) that cannot reach the image border

@@ -71,8 +71,7 @@ pub use off::write_off_to;
 pub use ply::{PlyFormat, write_ply_to};
 pub use polygon::Polygon;
 pub use turned::{
-    TURN_LIMIT, edges_turned_inside_out, face_and_neighbourhood_normals, faces_turned_given,
-    faces_turned_inside_out, neighbourhood_angles,
+    TURN_LIMIT, edges_turned_inside_out, faces_turned_given, faces_turned_inside_out, neighbourhood_angles,
 };
 pub use vec3::{AXES, Vec3};
 pub use voxel::{PointLattice, for_each_inside_line, inside_lattice};

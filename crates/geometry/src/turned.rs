@@ -26,45 +26,30 @@ use crate::vec3::{Vec3, dot, scale, sub};
 /// face to count as turned inside out (radians): a right angle.
 pub const TURN_LIMIT: f64 = std::f64::consts::FRAC_PI_2;
 
-/// Per face of `triangles` on `positions`: its area vector and its neighbourhood's (the
-/// area vectors of the faces touching its corners, each counted once per corner it shares,
-/// the face itself left out).
-pub fn face_and_neighbourhood_normals(triangles: &[[u32; 3]], positions: &[Vec3]) -> Vec<(Vec3, Vec3)> {
-    let raw = raw_vertex_vectors(positions, triangles);
-    triangles
-        .iter()
-        .map(|t| {
-            let own = face_area_vector([
-                positions[t[0] as usize],
-                positions[t[1] as usize],
-                positions[t[2] as usize],
-            ]);
-            let around = t.iter().fold([0.0; 3], |s, &v| crate::vec3::add(s, raw[v as usize]));
-            (own, sub(around, scale(own, 3.0)))
-        })
-        .collect()
-}
-
 /// The angle (radians) between two vectors; 0 when either is zero.
 fn angle_between(a: Vec3, b: Vec3) -> f64 {
     crate::vec3::norm(crate::vec3::cross(a, b)).atan2(dot(a, b))
 }
 
+/// The angle between face `t`'s normal on `positions` and its neighbourhood's: the area
+/// vectors of the faces touching its corners (`raw`, the raw vertex vectors of
+/// `positions`), each counted once per corner it shares, the face itself left out. NaN,
+/// never counted as turned, where the neighbourhood's summed area vector is shorter than
+/// the face's own (faces around a spike or a thin edge, whose directions cancel: no
+/// direction to judge by).
+fn neighbourhood_angle(t: &[u32; 3], positions: &[Vec3], raw: &[Vec3]) -> f64 {
+    let own = face_area_vector(t.map(|v| positions[v as usize]));
+    let around = t.iter().fold([0.0; 3], |s, &v| crate::vec3::add(s, raw[v as usize]));
+    let around = sub(around, scale(own, 3.0));
+    if crate::vec3::norm(around) < crate::vec3::norm(own) { f64::NAN } else { angle_between(own, around) }
+}
+
 /// Per face of `triangles` on `positions`, the angle (radians) between its normal and its
-/// neighbourhood's ([`face_and_neighbourhood_normals`]); NaN, never counted as turned,
-/// where the neighbourhood's summed area vector is shorter than the face's own (faces
-/// around a spike or a thin edge, whose directions cancel: no direction to judge by).
+/// neighbourhood's (see [`faces_turned_inside_out`]; NaN where the neighbourhood's
+/// directions cancel).
 pub fn neighbourhood_angles(triangles: &[[u32; 3]], positions: &[Vec3]) -> Vec<f64> {
-    face_and_neighbourhood_normals(triangles, positions)
-        .into_iter()
-        .map(|(own, around)| {
-            if crate::vec3::norm(around) < crate::vec3::norm(own) {
-                f64::NAN
-            } else {
-                angle_between(own, around)
-            }
-        })
-        .collect()
+    let raw = raw_vertex_vectors(positions, triangles);
+    triangles.iter().map(|t| neighbourhood_angle(t, positions, &raw)).collect()
 }
 
 /// Faces of `triangles` turned inside out between `rest` and `now` (see the module docs):
@@ -76,10 +61,11 @@ pub fn faces_turned_inside_out(triangles: &[[u32; 3]], rest: &[Vec3], now: &[Vec
 
 /// [`faces_turned_inside_out`] with the rest shape's [`neighbourhood_angles`] made once.
 pub fn faces_turned_given(rest_angles: &[f64], triangles: &[[u32; 3]], now: &[Vec3]) -> usize {
-    neighbourhood_angles(triangles, now)
-        .into_iter()
+    let raw = raw_vertex_vectors(now, triangles);
+    triangles
+        .iter()
         .zip(rest_angles)
-        .filter(|(now, rest)| *now > *rest + TURN_LIMIT)
+        .filter(|(t, rest)| neighbourhood_angle(t, now, &raw) > **rest + TURN_LIMIT)
         .count()
 }
 

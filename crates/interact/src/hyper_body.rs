@@ -524,13 +524,13 @@ impl Interactive for HyperInteractive {
         // On the thread, holds whose columns the linearization lacks wait for it (the
         // thread makes them first); the frame answers the others.
         let thread = matches!(self.refresher, Refresher::Thread(_));
-        let answered: Vec<bool> = request
-            .holds
-            .iter()
-            .map(|(v, _)| !thread || self.current.linearization.has_columns_for(*v))
-            .collect();
-        let holds: Vec<(usize, FemHold)> =
-            request.holds.iter().zip(&answered).filter(|(_, a)| **a).map(|(h, _)| *h).collect();
+        let lacks = |v: usize| thread && !self.current.linearization.has_columns_for(v);
+        let pending: Vec<usize> = (0..request.holds.len()).filter(|&k| lacks(request.holds[k].0)).collect();
+        let holds: std::borrow::Cow<'_, [(usize, FemHold)]> = if pending.is_empty() {
+            std::borrow::Cow::Borrowed(&request.holds)
+        } else {
+            request.holds.iter().enumerate().filter(|(k, _)| !pending.contains(k)).map(|(_, h)| *h).collect()
+        };
         let response = self
             .current
             .linearization
@@ -538,9 +538,10 @@ impl Interactive for HyperInteractive {
             .map_err(|e| InteractError::Singular { what: e.to_string() })?;
         self.field = response.surface_displacements;
         self.positions = self.holds.rest().iter().zip(&self.field).map(|(p, u)| add(*p, *u)).collect();
-        let mut forces = response.reactions.into_iter();
-        let forces = answered.iter().map(|&a| if a { forces.next().unwrap_or_default() } else { [0.0; 3] });
-        self.reactions = PendingHolds::reactions(&request.holds, forces.collect(), &request.pushes);
+        let mut forces = response.reactions;
+        // A pending hold's vertex is free this frame: no force.
+        pending.iter().for_each(|&k| forces.insert(k, [0.0; 3]));
+        self.reactions = PendingHolds::reactions(&request.holds, forces, &request.pushes);
         self.status = LinearizationStatus {
             refreshes: self.current.refreshes,
             age_frames: self.frame - self.current.frame.min(self.frame),
@@ -549,7 +550,7 @@ impl Interactive for HyperInteractive {
             estimated_error: response.step * response.step / self.cell_size,
             refresh_seconds: self.current.refresh_seconds,
             approximate: response.approximate,
-            pending: answered.iter().filter(|a| !**a).count(),
+            pending: pending.len(),
             failure: self.current.failure.clone(),
         };
         if thread {

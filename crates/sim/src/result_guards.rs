@@ -311,9 +311,11 @@ pub enum FrameGuardError {
 
 /// The result guards of every frame of a triangle surface: [`check_answer`]'s guards and
 /// limits, set up once (the rest volume, the body's size, the angle between each face's
-/// normal and its neighbourhood's at rest) so that a frame costs one pass over the vertices (finiteness, the
-/// largest displacement) and three over the faces (the volume by the divergence theorem,
-/// the faces turned inside out: each face's and its neighbourhood's normal).
+/// normal and its neighbourhood's at rest) so that a frame costs one pass over the vertices
+/// (finiteness, the largest displacement) and three over the faces (the volume by the
+/// divergence theorem; the faces turned inside out: the raw vertex vectors, then each
+/// face's angle to its neighbourhood), and allocates one vector of the vertices' raw
+/// vectors.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FrameGuards {
     rest: Vec<Vec3>,

@@ -28,7 +28,7 @@ use fibfluid_linalg::{CapacitanceFactor, ComplianceSource, SparseCholesky, row_d
 
 use super::body::{HyperBody, HyperStats};
 use super::grasp::GRASP_TOLERANCE;
-use super::newton::LoadState;
+use super::newton::{LoadState, norm};
 use crate::assemble::FIXED;
 
 /// Newton iterations on the grasps' optimality conditions at most, before Uzawa's
@@ -105,6 +105,7 @@ impl HyperBody {
         if m == 0 || 8 * m * n > self.settings.grasp_columns_bytes {
             return None;
         }
+        let refs: Vec<&[(usize, f64)]> = rows.iter().map(Vec::as_slice).collect();
         let tolerance = GRASP_TOLERANCE * self.grid.cell_size();
         for iteration in 0..=GRASP_NEWTON_ITERATIONS {
             let state = fixed.state(held);
@@ -128,7 +129,6 @@ impl HyperBody {
             stats.newton_iterations += 1;
             let start = Instant::now();
             let f = factor.as_ref()?;
-            let refs: Vec<&[(usize, f64)]> = rows.iter().map(Vec::as_slice).collect();
             let columns = f.compliance_columns(&refs).ok()?;
             let mut free = Mat::<f64>::from_fn(n, 1, |i, _| -eval.gradient[i]);
             f.solve_in_place(free.as_mut());
@@ -182,8 +182,4 @@ fn capacitance(rows: &[Vec<(usize, f64)>], columns: &[Vec<f64>]) -> Option<Capac
         (0..m).for_each(|i| ridged[(i, i)] += ridge * largest);
         CapacitanceFactor::new(ridged.as_ref(), None).ok()
     })
-}
-
-fn norm(v: &[f64]) -> f64 {
-    v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }

@@ -399,6 +399,7 @@ impl HyperBody {
     }
 }
 
-fn norm(v: &[f64]) -> f64 {
+/// The Euclidean norm of `v`.
+pub(super) fn norm(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
