@@ -364,7 +364,7 @@ impl Reference {
 /// moves a vertex by the path's displacement from where the scene's loads left it, so a
 /// method that carries gravity and one that does not (ChainMail) are pulled by the same
 /// tool. A press's tip is placed in absolute coordinates.
-fn from_own_base(checked: &CheckedPath, base: &[Vec3], rest: &[Vec3]) -> CheckedPath {
+pub(crate) fn from_own_base(checked: &CheckedPath, base: &[Vec3], rest: &[Vec3]) -> CheckedPath {
     let mut shifted = checked.clone();
     match checked.kind {
         PathKind::Grab => {

@@ -765,27 +765,62 @@ fn bench_two_rate(scene: &Path, path: &Path, json: bool) -> Result<(), CliError>
         say!("{}", serde_json::to_string(&b).unwrap_or_default());
         return Ok(());
     }
-    say!("{}: {} frames per body, one every 1 ms", scene.name, b.frames);
-    let (l, t) = (b.linear_latency_us, b.two_rate_latency_us);
-    say!("linear FEM frame     p50 {:>9.1} us  p99 {:>9.1} us  max {:>9.1} us", l.p50, l.p99, l.max);
-    say!("two-rate frame       p50 {:>9.1} us  p99 {:>9.1} us  max {:>9.1} us", t.p50, t.p99, t.max);
-    say!("frame p99 ratio      {:.2} (two-rate over linear)", b.frame_p99_ratio);
     say!(
-        "refreshes            {} at {:.1} Hz, {:.3} s each; one batch Newton iteration {:.3} s; ratio {:.2}",
-        b.refreshes,
-        b.refresh_hz,
-        b.refresh_seconds,
-        b.newton_iteration_seconds,
-        b.refresh_ratio
+        "{}: {} frames per body, one every 1 ms; tracking error at {} frames (every {}) against Newton converged",
+        scene.name,
+        b.frames,
+        b.samples,
+        fibfluid_cli::bench_two_rate::SAMPLE_EVERY
     );
-    if b.failures > 0 {
-        let why = b.first_failure.as_deref().unwrap_or("");
-        tell!(
-            "warning: {} refreshes failed (the frames kept the last good linearization): {why}",
-            b.failures
-        );
+    let (l, e) = (b.linear_latency_us, &b.linear_tracking);
+    say!("linear FEM           frame p50 {:>8.1} us  p99 {:>8.1} us  max {:>9.1} us", l.p50, l.p99, l.max);
+    say!(
+        "                     tracking error mean {:.4}  largest {:.4}  last {:.4}",
+        e.mean,
+        e.largest,
+        e.last
+    );
+    say!("one batch Newton iteration {:.3} s", b.newton_iteration_seconds);
+    for run in [&b.newton_only, &b.two_rate] {
+        print_two_rate_run(run);
     }
     Ok(())
+}
+
+/// One two-rate body's lines of `bench --two-rate`.
+fn print_two_rate_run(r: &fibfluid_cli::bench_two_rate::TwoRateRun) {
+    let t = r.latency_us;
+    say!("two-rate, {} chord refreshes per refactorization", r.chord_refreshes);
+    say!("                     frame p50 {:>8.1} us  p99 {:>8.1} us  max {:>9.1} us", t.p50, t.p99, t.max);
+    say!("                     frame p99 ratio {:.2} (over the linear body's)", r.frame_p99_ratio);
+    say!(
+        "                     refreshes {} ({} refactorizations), {:.1} Hz over the replay, {:.1} Hz running",
+        r.refreshes,
+        r.refactorizations,
+        r.refresh_hz,
+        r.running_hz
+    );
+    say!(
+        "                     refresh {:.3} s mean (chord {:.3} s, refactorization {:.3} s), ratio {:.2} to a batch Newton iteration",
+        r.refresh_seconds,
+        r.chord_seconds,
+        r.refactor_seconds,
+        r.refresh_ratio
+    );
+    let e = &r.tracking;
+    say!(
+        "                     tracking error mean {:.4}  largest {:.4}  last {:.4}",
+        e.mean,
+        e.largest,
+        e.last
+    );
+    if r.failures > 0 {
+        let why = r.first_failure.as_deref().unwrap_or("");
+        tell!(
+            "warning: {} refreshes failed (the frames kept the last good linearization): {why}",
+            r.failures
+        );
+    }
 }
 
 /// `fibfluid bench --stages SCENE --threads-sweep T,..`: one table, a column per count.

@@ -26,6 +26,11 @@ pub struct ResponseFlags {
     /// body's counts (reproducible); `view` refreshes on a second thread.
     #[arg(long, value_name = "K")]
     pub refresh_every: Option<u64>,
+    /// Neo-Hookean FEM body: refreshes that keep the tangent's factor and move only the
+    /// state (chord iterations) between two that factor it; 0: every refresh is a Newton
+    /// iteration. Default: 4.
+    #[arg(long, value_name = "N")]
+    pub chord_refreshes: Option<usize>,
 }
 
 impl ResponseFlags {
@@ -36,6 +41,7 @@ impl ResponseFlags {
             precompute: self.precompute,
             max_memory_bytes: self.max_memory,
             refresh: self.refresh_every.map_or(refresh, RefreshMode::EveryFrames),
+            chord_refreshes: self.chord_refreshes,
         }
     }
 }

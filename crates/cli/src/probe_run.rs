@@ -51,6 +51,8 @@ pub struct RefreshStats {
     pub every: u64,
     /// Linearizations made along the path.
     pub refreshes: u64,
+    /// Those that factored the tangent (the others kept the factor: chord refreshes).
+    pub refactorizations: u64,
     /// Mean seconds of one refresh.
     pub refresh_seconds: f64,
     /// Refreshes per second a second thread would run back to back.
@@ -396,8 +398,14 @@ impl MethodDetails {
 pub struct RefreshSummary {
     /// Linearizations made by the last frame.
     pub refreshes: u64,
+    /// Those that factored the tangent (the others kept the factor: chord refreshes).
+    pub refactorizations: u64,
     /// Mean seconds of the refreshes swapped in (0 when none was).
     pub refresh_seconds: f64,
+    /// Mean seconds of the chord refreshes (0 when none).
+    pub chord_seconds: f64,
+    /// Mean seconds of the refreshes that factored the tangent (0 when none).
+    pub refactor_seconds: f64,
     /// Refreshes that failed (a new failure message in a frame).
     pub failures: usize,
     /// Why the first failed refresh failed.
@@ -407,17 +415,22 @@ pub struct RefreshSummary {
 impl RefreshSummary {
     /// The summary of the frames' statuses, in frame order.
     pub fn of(statuses: &[LinearizationStatus]) -> Self {
-        let mut seconds: Vec<f64> = Vec::new();
+        let (mut seconds, mut chords, mut refactors) = (Vec::new(), Vec::new(), Vec::new());
         let mut failures = 0;
         for w in statuses.windows(2) {
             if w[1].refreshes > w[0].refreshes {
                 seconds.push(w[1].refresh_seconds);
+                let refactored = w[1].refactorizations > w[0].refactorizations;
+                if refactored { &mut refactors } else { &mut chords }.push(w[1].refresh_seconds);
             }
             failures += usize::from(w[1].failure.is_some() && w[1].failure != w[0].failure);
         }
         Self {
             refreshes: statuses.last().map_or(0, |s| s.refreshes),
+            refactorizations: statuses.last().map_or(0, |s| s.refactorizations),
             refresh_seconds: mean(&seconds),
+            chord_seconds: mean(&chords),
+            refactor_seconds: mean(&refactors),
             failures,
             first_failure: statuses.iter().find_map(|s| s.failure.clone()),
         }
@@ -441,6 +454,7 @@ fn refresh_stats(
     Some(RefreshStats {
         every: b.refresh_every().unwrap_or(1),
         refreshes: last.refreshes,
+        refactorizations: last.refactorizations,
         refresh_seconds,
         refresh_hz: if refresh_seconds > 0.0 { 1.0 / refresh_seconds } else { 0.0 },
         frames_per_refresh: if frame_seconds > 0.0 { refresh_seconds / frame_seconds } else { 0.0 },

@@ -1,10 +1,13 @@
 //! Frames of a patch held as one body: a grasp's many rows answered from a dozen columns.
 //!
-//! A grasp holds `n` surface vertices at the targets of one rigid motion, `d_i = (R - I)
-//! (X_i - c) + t`: every target is an affine function of the vertex's rest position. With
-//! the rest positions' orthonormal coordinates `phi_i` (a constant and the patch's principal
-//! directions: `k <= 4` of them, 3 for a flat patch), the `3n` row targets are `E q` for
-//! `3k` parameters `q`. Everything a surface-only frame computes
+//! A grasp holds `n` surface vertices at the targets of one rigid motion of where it picked
+//! them up: `d_i = o_i + (R - I)(Y_i - c) + t` with `Y_i = X_i + o_i` the positions it took
+//! (`o_i` their displacement then: 0 for a grasp from the rest shape, the body's own
+//! equilibrium for one from there), so every target is an affine function of `Y_i` plus a
+//! fixed offset. The rows are made on a first frame's targets: `o_i` is taken as those, and
+//! `Y_i` as where they put the vertices. With the `Y_i`'s orthonormal coordinates `phi_i`
+//! (a constant and the patch's principal directions: `k <= 4` of them, 3 for a flat patch),
+//! the `3n` row targets are `o + E q` for `3k` parameters `q`. Everything a surface-only frame computes
 //! (`crate::held_system::HeldSystem::solve_surface`) is affine in the targets, so on the
 //! same rows it is affine in `q`: the surface `s0 + S q`, the multipliers `l0 + L q` and,
 //! with dependent rows, the constraints' miss `e0 + M q`, each made once per set of rows
@@ -26,8 +29,9 @@ use crate::held_rows::{CONSTRAINT_TOLERANCE, FemHold, Row, SurfaceSolve, refined
 /// parameters.
 pub const AFFINE_MIN_VERTICES: usize = 5;
 
-/// Largest misfit of the targets to an affine map of the rest positions, relative to the
-/// larger of the largest target and the patch's size, for a frame to take the affine path.
+/// Largest misfit of the targets (less the offset) to an affine map of the first frame's
+/// target positions, relative to the larger of the largest of them and the patch's size,
+/// for a frame to take the affine path.
 pub const AFFINE_FIT: f64 = 1e-12;
 
 /// A rest coordinate whose spread over the patch is below this fraction of the patch's
@@ -39,8 +43,10 @@ const FLAT: f64 = 1e-9;
 pub(crate) struct AffineFrames {
     /// The held vertices, in hold order.
     vertices: Vec<usize>,
-    /// Orthonormal rest coordinates, `n x k`.
+    /// Orthonormal coordinates of the first frame's target positions, `n x k`.
     phi: Mat<f64>,
+    /// The first frame's targets (displacements from rest), the offset the fit adds to.
+    offset: Vec<Vec3>,
     /// Largest distance of a held vertex from the patch's centroid (m).
     size: f64,
     /// Per row, its base state's value (the absolute target less the row's target).
@@ -100,18 +106,23 @@ impl AffineFrames {
         if n < AFFINE_MIN_VERTICES || !at_points || parts.rows.len() != 3 * n {
             return None;
         }
-        let (phi, size) = coordinates(holds.iter().map(|h| parts.rest[h.0]))?;
+        let offset: Vec<Vec3> = holds
+            .iter()
+            .map(|h| match h.1 {
+                FemHold::At(d) => d,
+                FemHold::Along { .. } => unreachable!("checked above"),
+            })
+            .collect();
+        let taken = holds.iter().zip(&offset).map(|(h, o)| fibfluid_geometry::vec3::add(parts.rest[h.0], *o));
+        let (phi, size) = coordinates(taken)?;
         let k = phi.ncols();
         let p = 3 * k;
         let m = 3 * n;
-        let absolute = |i: usize| match holds[i / 3].1 {
-            FemHold::At(d) => d[i % 3],
-            FemHold::Along { .. } => unreachable!("checked above"),
-        };
+        let absolute = |i: usize| offset[i / 3][i % 3];
         let base_values: Vec<f64> = (0..m).map(|i| absolute(i) - parts.rows[i].target).collect();
-        // t = E q - base_values; E[(3i + a), (a k + j)] = phi[i, j].
+        // t = o + E q - base_values; E[(3i + a), (a k + j)] = phi[i, j].
         let e = Mat::from_fn(m, p, |r, c| if c / k == r % 3 { phi[(r / 3, c % k)] } else { 0.0 });
-        let t0 = column(&base_values.iter().map(|b| -b).collect::<Vec<_>>());
+        let t0 = column(&(0..m).map(|i| absolute(i) - base_values[i]).collect::<Vec<_>>());
         let cz = parts.capacitance.matrix();
         let pushed = |x: &Mat<f64>| Mat::from_fn(m, x.ncols(), |i, j| parts.penalty[i] * x[(i, j)]);
         let (p0, pe) = (pushed(&t0), pushed(&e));
@@ -143,6 +154,7 @@ impl AffineFrames {
         Some(Self {
             vertices: holds.iter().map(|h| h.0).collect(),
             phi,
+            offset,
             size,
             base_values,
             surface0,
@@ -171,7 +183,9 @@ impl AffineFrames {
             .iter()
             .map(|h| if let FemHold::At(d) = h.1 { Some(d) } else { None })
             .collect::<Option<_>>()?;
-        let q = self.fit(&targets)?;
+        let moved: Vec<Vec3> =
+            targets.iter().zip(&self.offset).map(|(t, o)| fibfluid_geometry::vec3::sub(*t, *o)).collect();
+        let q = self.fit(&moved)?;
         let affine = |v0: &[f64], v: &Mat<f64>| -> Vec<f64> {
             let mut out = column(v0);
             faer::linalg::matmul::matmul(out.as_mut(), Accum::Add, v.as_ref(), q.as_ref(), 1.0, Par::Seq);
@@ -199,7 +213,8 @@ impl AffineFrames {
     }
 
     /// The parameters `q` (a column: per axis, the `k` coordinates' coefficients) of the
-    /// targets, or `None` when they miss the fit by more than [`AFFINE_FIT`].
+    /// targets less the offset, or `None` when they miss the fit by more than
+    /// [`AFFINE_FIT`].
     fn fit(&self, targets: &[Vec3]) -> Option<Mat<f64>> {
         let (n, k) = (self.phi.nrows(), self.phi.ncols());
         let q = Mat::from_fn(3 * k, 1, |c, _| (0..n).map(|i| self.phi[(i, c % k)] * targets[i][c / k]).sum());

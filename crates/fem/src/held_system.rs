@@ -17,6 +17,7 @@
 //! surface-only frames from a dozen columns (`crate::held_affine`).
 
 use std::collections::{HashMap, HashSet};
+use std::sync::Arc;
 
 use faer::Mat;
 use fibfluid_geometry::Vec3;
@@ -71,8 +72,9 @@ pub(crate) struct Penalty {
 #[derive(Debug, Clone, Default)]
 pub(crate) struct HoldCache {
     /// `A^-1 B^T` columns of the basis rows held vertices were answered from
-    /// (`crate::held_basis`), computed on first hold.
-    columns: HashMap<BasisKey, Vec<f64>>,
+    /// (`crate::held_basis`), computed on first hold; shared by the clones of a cache
+    /// (copied only when a clone adds columns).
+    columns: Arc<HashMap<BasisKey, Vec<f64>>>,
     /// The vertices whose holds the columns answer.
     vertices: HashSet<usize>,
     /// The last right-hand side solved without holds and its solution: a frame that
@@ -85,6 +87,10 @@ pub(crate) struct HoldCache {
     /// surface-only frame ([`HeldSystem::solve_surface`]) with the same rows and
     /// right-hand side reuses it.
     surface: Option<SurfaceProjection>,
+    /// The cached columns of one basis at the surface vertices (`S G`, 3 rows per vertex,
+    /// a column per basis element in the basis's order): made once per basis, kept when
+    /// only the right-hand side changes.
+    surface_columns: Option<(Vec<BasisKey>, Arc<Mat<f64>>)>,
     /// Whether the last surface-only frame took the affine path (`crate::held_affine`).
     affine_frame: bool,
 }
@@ -120,7 +126,7 @@ struct SurfaceProjection {
     rows_unheld: Vec<f64>,
     /// `S G`: each basis element's compliance column at the surface vertices (3 per
     /// vertex), one matrix column per element.
-    columns: Mat<f64>,
+    columns: Arc<Mat<f64>>,
     /// The frames of a patch held at the targets of one affine map (a grasp), when the
     /// rows are such a patch (`crate::held_affine`).
     affine: Option<AffineFrames>,
@@ -139,10 +145,11 @@ impl HoldCache {
 
     /// Drops every cached column (and the capacitance and projection made of them).
     pub(crate) fn clear_columns(&mut self) {
-        self.columns.clear();
+        self.columns = Arc::default();
         self.vertices.clear();
         self.rows = None;
         self.surface = None;
+        self.surface_columns = None;
     }
 
     /// The columns the last surface-only frame read: `3k` on the affine path, else one per
@@ -158,7 +165,7 @@ impl HoldCache {
     /// Bytes of the cached compliance columns and their surface projection.
     pub(crate) fn bytes(&self) -> usize {
         let columns: usize = self.columns.values().map(|c| 8 * c.len()).sum();
-        let surface = self.surface.as_ref().map_or(0, |p| 8 * p.columns.nrows() * p.columns.ncols());
+        let surface = self.surface_columns.as_ref().map_or(0, |p| 8 * p.1.nrows() * p.1.ncols());
         columns + surface
     }
 }
@@ -272,12 +279,11 @@ impl HeldSystem<'_> {
             || cache.rows.as_ref().is_none_or(|set| set.keys != keys)
         {
             self.keep_row_set(cache, &rows, holds)?;
+            let columns = self.keep_surface_columns(cache);
             let set = cache.rows.as_ref().expect("kept above");
-            let source = set.source(&cache.columns);
             let u0 = &cache.unheld.as_ref().expect("solved above").1;
             let unheld = self.at_surface(u0);
             let rows_unheld: Vec<f64> = rows.iter().map(|r| row_dot(&r.entries, u0)).collect();
-            let columns = self.columns_at_surface(&source.columns);
             let (weights, uncovered) = penalty_weights(penalty, &rows);
             let affine = AffineFrames::new(&FrameParts {
                 holds,
@@ -290,7 +296,7 @@ impl HeldSystem<'_> {
                 rows_unheld: &rows_unheld,
                 surface_unheld: &unheld,
                 combination: &set.combination,
-                columns: columns.as_ref(),
+                columns: columns.as_ref().as_ref(),
             });
             let projection = SurfaceProjection { unheld, rows_unheld, columns, affine, keys };
             let answer = projection.affine.as_ref().and_then(|a| a.frame(holds));
@@ -336,6 +342,21 @@ impl HeldSystem<'_> {
         Ok(SurfaceSolve { surface: displacement.collect(), reactions, uncovered })
     }
 
+    /// The kept rows' basis columns at the surface vertices, projected again only when the
+    /// basis changed.
+    fn keep_surface_columns(&self, cache: &mut HoldCache) -> Arc<Mat<f64>> {
+        let set = cache.rows.as_ref().expect("rows kept before their surface columns");
+        let basis = &set.combination.basis;
+        match &cache.surface_columns {
+            Some((kept, columns)) if kept == basis => Arc::clone(columns),
+            _ => {
+                let columns = Arc::new(self.columns_at_surface(&set.source(&cache.columns).columns));
+                cache.surface_columns = Some((basis.clone(), Arc::clone(&columns)));
+                columns
+            }
+        }
+    }
+
     /// The surface vertices' values of each column (3 per vertex, a matrix column each).
     fn columns_at_surface(&self, columns: &[&[f64]]) -> Mat<f64> {
         let mut projected = Mat::<f64>::zeros(3 * self.embedding.len(), columns.len());
@@ -369,7 +390,7 @@ impl HeldSystem<'_> {
             new.iter().map(|&k| basis_row(k, self.embedding, self.free)).collect();
         let refs: Vec<&SparseRow> = rows.iter().map(Vec::as_slice).collect();
         let columns = self.factor.compliance_columns(&refs)?;
-        cache.columns.extend(new.into_iter().zip(columns));
+        Arc::make_mut(&mut cache.columns).extend(new.into_iter().zip(columns));
         Ok(())
     }
 

@@ -5,7 +5,7 @@
 //! returns the body to its own equilibrium.
 
 use crate::common::*;
-use fibfluid_fem::hyper::{Grasp, HyperBody, Linearization};
+use fibfluid_fem::hyper::{Grasp, HyperBody, Linearization, Tangent};
 use fibfluid_fem::{FemHold, FemOptions, Loads, Tissue, TissueModel};
 
 /// Relative tolerance of the converged tracking against the batch answer (the batch
@@ -88,6 +88,52 @@ fn held_grasp_converges_to_the_batch_answer_and_release_returns_to_rest() {
     let back = released.surface_displacements();
     let error = rel_l2(&back, &hanging.surface_displacements, |_| true);
     eprintln!("released after {} iterations: {error:.2e} from the hanging equilibrium", steps.len());
+    assert!(error < AGREEMENT, "{error}");
+}
+
+/// Chord iterations (`Tangent::Keep`: the factor of an earlier tangent kept, only the
+/// state and its force moved) reach the same equilibrium as Newton's iterations: the grasp
+/// of the test above, tracked with the factor kept while its steps shrink by half (else
+/// refactored, as the two-rate body's refreshes do), ends at the batch answer within the
+/// same tolerance. The steps that kept it count their age in `chord_steps`.
+#[test]
+fn chord_iterations_on_a_kept_factor_reach_the_batch_answer() {
+    let (pos, tris, fixed, patch) = cube();
+    let options = FemOptions { resolution: 4, ..FemOptions::default() };
+    let loads = Loads { gravity: [0.0, 0.0, -0.3], ..Default::default() };
+    let translation = [0.05, 0.0, 0.25];
+    let grasp = Grasp { vertices: patch.clone(), translation, rotation: [0.0; 3] };
+    let mut batch =
+        HyperBody::from_surface_grasped(&pos, &tris, &tissue(), &fixed, &[grasp], &options).unwrap();
+    let pulled = batch.solve(&loads, &[]).unwrap();
+    let mut free = HyperBody::from_surface(&pos, &tris, &tissue(), &fixed, &options).unwrap();
+    let mut lin = free.linearize_at_rest(&loads).unwrap();
+    let holds: Vec<(usize, FemHold)> = patch.iter().map(|&v| (v, FemHold::At(translation))).collect();
+    let (mut chords, mut steps, mut slow) = (0, Vec::<f64>::new(), false);
+    for _ in 0..100 {
+        let tangent = if slow { Tangent::Refactor } else { Tangent::Keep };
+        let next = free.track_with(&mut lin, &loads, &[], &holds, tangent).unwrap();
+        let before = steps.last().copied().unwrap_or(f64::INFINITY);
+        slow = !next.refactored && next.step > 0.5 * before;
+        if next.refactored {
+            assert_eq!(next.linearization.chord_steps(), 0);
+        } else {
+            chords += 1;
+            assert_eq!(next.linearization.chord_steps(), lin.chord_steps() + 1);
+        }
+        steps.push(next.step);
+        lin = next.linearization;
+        if next.step < 1e-13 {
+            break;
+        }
+    }
+    let shown: Vec<String> = steps.iter().map(|s| format!("{s:.2e}")).collect();
+    eprintln!("{chords} chord steps of {}: {shown:?}", steps.len());
+    assert!(chords > 0, "the kept factor never stepped");
+    assert!(*steps.last().unwrap() < 1e-13, "not converged: {steps:?}");
+    let frame = lin.respond(&[], &holds).unwrap();
+    let error = rel_l2(&frame.surface_displacements, &pulled.surface_displacements, |_| true);
+    eprintln!("chord-tracked against batch: surface {error:.2e}");
     assert!(error < AGREEMENT, "{error}");
 }
 
@@ -180,5 +226,37 @@ fn rigid_patch_frames_read_a_dozen_columns_and_equal_the_full_response() {
         }
         let holds: Vec<(usize, FemHold)> = patch.iter().map(|&v| (v, FemHold::At(rigid(v, 0.2)))).collect();
         lin = body.track(&mut lin, &loads, &[], &holds).unwrap().linearization;
+    }
+}
+
+/// A patch picked up where the body had deformed it (its targets' offset `o_i` no affine
+/// map of the rest positions: a bilinear sag, as a grasp taken from a hanging body has)
+/// and moved rigidly from there, `o_i + (R - I)(X_i + o_i - c) + t`, still reads at most
+/// 12 columns (affine in the positions it was picked up at), and answers what the full
+/// solve answers to 1e-10.
+#[test]
+fn a_patch_picked_up_deformed_and_moved_rigidly_reads_a_dozen_columns() {
+    let (pos, tris, fixed, patch) = cube();
+    let options = FemOptions { resolution: 4, ..FemOptions::default() };
+    let loads = Loads { gravity: [0.0, 0.0, -0.3], ..Default::default() };
+    let mut body = HyperBody::from_surface(&pos, &tris, &tissue(), &fixed, &options).unwrap();
+    let mut lin = body.linearize_at_rest(&loads).unwrap();
+    let sag = |v: usize| [0.0, 0.0, -0.2 * (pos[v][0] - 0.5) * (pos[v][1] - 0.5) - 0.05];
+    let moved = |v: usize, angle: f64, lift: f64| -> [f64; 3] {
+        let o = sag(v);
+        let (c, s) = (angle.cos(), angle.sin());
+        let [x, y] = [pos[v][0] + o[0] - 0.5, pos[v][1] + o[1] - 0.5];
+        [o[0] + c * x - s * y - x, o[1] + s * x + c * y - y, o[2] + lift]
+    };
+    let picked: Vec<(usize, FemHold)> = patch.iter().map(|&v| (v, FemHold::At(sag(v)))).collect();
+    lin.respond_at_surface(&[], &picked).unwrap();
+    for (angle, lift) in [(0.0, 0.0), (0.1, 0.02), (0.35, 0.1)] {
+        let holds: Vec<(usize, FemHold)> =
+            patch.iter().map(|&v| (v, FemHold::At(moved(v, angle, lift)))).collect();
+        let full = lin.respond(&[], &holds).unwrap();
+        let surface = lin.respond_at_surface(&[], &holds).unwrap();
+        assert!(lin.frame_columns() <= 12, "{} columns at {angle} rad", lin.frame_columns());
+        let shape = relative_difference(&full.surface_displacements, &surface.surface_displacements);
+        assert!(shape < 1e-10, "{angle} rad: {shape:e}");
     }
 }

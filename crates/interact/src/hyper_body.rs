@@ -24,7 +24,7 @@ use std::sync::Mutex;
 use std::sync::mpsc::{self, Receiver, Sender};
 use std::time::Instant;
 
-use fibfluid_fem::hyper::{HyperBody, Linearization};
+use fibfluid_fem::hyper::{HyperBody, Linearization, Tangent, TrackStep};
 use fibfluid_fem::{FemHold, FemStats, Loads};
 use fibfluid_geometry::Vec3;
 use fibfluid_sim::{Method, Model};
@@ -42,6 +42,17 @@ pub const ROUNDING_STEP: f64 = 1e-6;
 
 /// The largest `k` [`RefreshMode::Scheduled`] picks.
 pub const MAX_SCHEDULED_EVERY: u64 = 1000;
+
+/// Refreshes that keep the factor ([`Tangent::Keep`], chord iterations) between two that
+/// factor the tangent, at most: a chord refresh costs a force evaluation and two solves,
+/// a refactorization the tangent's assembly, its factorization and the held vertices'
+/// columns (on the bundled liver about 0.03 s against 0.18 s), so the frames' state
+/// follows the tool several times as often, on a tangent at most this many refreshes old.
+pub const MAX_CHORD_REFRESHES: usize = 4;
+
+/// A chord refresh for unchanged holds whose step is more than this fraction of the step
+/// before it converges too slowly: the next refresh factors the tangent.
+pub const CHORD_CONTRACTION: f64 = 0.5;
 
 /// When the linearization is refreshed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -77,11 +88,68 @@ struct Request {
     fail: bool,
 }
 
+/// Whether each refresh keeps the factor or makes a new one: a chord refresh while the
+/// factor is fresh enough and the chord steps contract, else a refactorization.
+#[derive(Debug, Default)]
+struct Cadence {
+    /// Chord refreshes allowed between two refactorizations (0 in
+    /// [`RefreshMode::Converged`]: Newton's own iterations).
+    max_chords: usize,
+    /// The last refresh's request and full step (m).
+    last: Option<(Request, f64)>,
+    /// The last refresh was a chord step that contracted less than
+    /// [`CHORD_CONTRACTION`].
+    slow: bool,
+}
+
+impl Cadence {
+    /// At most `max_chords` chord refreshes between two refactorizations.
+    fn with_chords(max_chords: usize) -> Self {
+        Self { max_chords, ..Self::default() }
+    }
+
+    /// How the next refresh from `current` for `request` treats the tangent. A factor
+    /// made with the holds' penalty is kept only for the same rows (its springs belong to
+    /// the holds it was made for).
+    fn tangent(&self, current: &Linearization, request: &Request) -> Tangent {
+        let rows_kept = self.last.as_ref().is_some_and(|(last, _)| same_rows(&last.holds, &request.holds));
+        let stale = current.chord_steps() >= self.max_chords || (current.hold_penalty() > 0.0 && !rows_kept);
+        if self.slow || stale { Tangent::Refactor } else { Tangent::Keep }
+    }
+
+    /// Records a finished refresh for `request`.
+    fn record(&mut self, request: &Request, step: &TrackStep) {
+        let same =
+            self.last.as_ref().is_some_and(|(r, _)| r.holds == request.holds && r.pushes == request.pushes);
+        let previous = self.last.as_ref().map_or(f64::INFINITY, |last| last.1);
+        self.slow = !step.refactored && same && step.step > CHORD_CONTRACTION * previous;
+        self.last = Some((request.clone(), step.step));
+    }
+
+    /// Forgets the last refresh (the linearization went back to the body's own one).
+    fn restart(&mut self) {
+        self.last = None;
+        self.slow = false;
+    }
+}
+
+/// Whether two sets of holds make the same constraint rows (the same vertices, held the
+/// same way along the same normals), whatever their targets.
+fn same_rows(a: &[(usize, FemHold)], b: &[(usize, FemHold)]) -> bool {
+    let row = |h: &(usize, FemHold)| match h.1 {
+        FemHold::At(_) => (h.0, None),
+        FemHold::Along { normal, .. } => (h.0, Some(normal)),
+    };
+    a.len() == b.len() && a.iter().map(row).eq(b.iter().map(row))
+}
+
 /// What a refresh produced.
 enum Outcome {
     Done {
         linearization: Box<Linearization>,
         step: f64,
+        /// Whether it factored the tangent (else it kept the factor: a chord step).
+        refactored: bool,
         frame: u64,
         seconds: f64,
     },
@@ -115,7 +183,7 @@ struct Worker {
 
 /// Where refreshes run.
 enum Refresher {
-    Inline { body: Box<HyperBody>, every: u64, converge: bool },
+    Inline { body: Box<HyperBody>, cadence: Cadence, every: u64, converge: bool },
     Thread(Worker),
 }
 
@@ -136,6 +204,8 @@ struct Current {
     /// The linearization it replaced, to be dropped off the frame thread.
     retired: Option<Linearization>,
     refreshes: u64,
+    /// Refreshes that factored the tangent.
+    refactorizations: u64,
     refresh_seconds: f64,
     failure: Option<String>,
 }
@@ -180,6 +250,19 @@ impl HyperInteractive {
     /// Errors: a model with plates or scene grasps, without a tissue, or whose own loads
     /// Newton cannot reach. `EveryFrames(0)` refreshes every frame, as `EveryFrames(1)`.
     pub fn new(model: &Model, max_memory: Option<u64>, mode: RefreshMode) -> fibfluid_sim::Result<Self> {
+        Self::with_chord_refreshes(model, max_memory, mode, MAX_CHORD_REFRESHES)
+    }
+
+    /// [`HyperInteractive::new`] with at most `chords` chord refreshes between two
+    /// refactorizations (0: every refresh is a Newton iteration).
+    ///
+    /// Errors: those of [`HyperInteractive::new`].
+    pub fn with_chord_refreshes(
+        model: &Model,
+        max_memory: Option<u64>,
+        mode: RefreshMode,
+        chords: usize,
+    ) -> fibfluid_sim::Result<Self> {
         let start = Instant::now();
         let scene = model.display_name();
         let tissue = fibfluid_sim::fem_run::tissue_of(model)?;
@@ -197,17 +280,26 @@ impl HyperInteractive {
         let cell_size = body.grid().cell_size();
         let scheduled = (estimate.factor_flops / (4.0 * stats.factor_nonzeros.max(1) as f64)).ceil();
         let refresher = match mode {
-            RefreshMode::EveryFrames(every) => {
-                Refresher::Inline { body: Box::new(body), every: every.max(1), converge: false }
-            }
+            RefreshMode::EveryFrames(every) => Refresher::Inline {
+                body: Box::new(body),
+                cadence: Cadence::with_chords(chords),
+                every: every.max(1),
+                converge: false,
+            },
             RefreshMode::Scheduled => Refresher::Inline {
                 body: Box::new(body),
+                cadence: Cadence::with_chords(chords),
                 every: (scheduled as u64).clamp(1, MAX_SCHEDULED_EVERY),
                 converge: false,
             },
-            RefreshMode::Converged => Refresher::Inline { body: Box::new(body), every: 1, converge: true },
+            RefreshMode::Converged => Refresher::Inline {
+                body: Box::new(body),
+                cadence: Cadence::with_chords(0),
+                every: 1,
+                converge: true,
+            },
             RefreshMode::Background => {
-                Refresher::Thread(spawn_worker(body, linearization.clone(), loads.clone()))
+                Refresher::Thread(spawn_worker(body, linearization.clone(), loads.clone(), chords))
             }
         };
         let holds = PendingHolds::of(model);
@@ -223,6 +315,7 @@ impl HyperInteractive {
             cell_size,
             retired: None,
             refreshes: 0,
+            refactorizations: 0,
             refresh_seconds: 0.0,
             failure: None,
         };
@@ -337,8 +430,11 @@ impl HyperInteractive {
         self.current.frame = request.frame;
         self.current.since = Instant::now();
         self.reset_frame = request.frame;
-        if let Refresher::Thread(worker) = &mut self.refresher {
-            let _ = worker.requests.send(Message::Restart(self.base.clone()));
+        match &mut self.refresher {
+            Refresher::Thread(worker) => {
+                let _ = worker.requests.send(Message::Restart(self.base.clone()));
+            }
+            Refresher::Inline { cadence, .. } => cadence.restart(),
         }
         self.asked = Some(request.clone());
     }
@@ -358,10 +454,11 @@ impl HyperInteractive {
         }
         let asked = self.asking(request);
         match &mut self.refresher {
-            Refresher::Inline { body, converge, .. } => {
+            Refresher::Inline { body, cadence, converge, .. } => {
                 let iterations = if *converge { MAX_CONVERGE_ITERATIONS } else { 1 };
                 for _ in 0..iterations {
-                    let outcome = refresh(body, &mut self.current.linearization, &self.loads, &asked);
+                    let outcome =
+                        refresh(body, cadence, &mut self.current.linearization, &self.loads, &asked);
                     let failed = matches!(outcome, Outcome::Failed { .. });
                     self.current.accept(outcome);
                     if failed || self.current.converged {
@@ -396,11 +493,13 @@ impl Current {
     /// failure (keeping the linearization).
     fn accept(&mut self, outcome: Outcome) {
         match outcome {
-            Outcome::Done { linearization, step, frame, seconds } => {
+            Outcome::Done { linearization, step, refactored, frame, seconds } => {
                 let retired = std::mem::replace(&mut self.linearization, *linearization);
                 self.retired = Some(retired);
                 self.at_base = false;
-                let stalled = step <= ROUNDING_STEP * self.cell_size && step > 0.5 * self.step;
+                // Rounding is told by Newton's steps only (a chord step shrinks linearly).
+                let stalled = refactored && step <= ROUNDING_STEP * self.cell_size && step > 0.5 * self.step;
+                self.refactorizations += u64::from(refactored);
                 self.converged = step <= CONVERGED_STEP * self.cell_size || stalled;
                 self.frame = frame;
                 self.since = Instant::now();
@@ -428,20 +527,32 @@ impl Current {
     }
 }
 
-/// One tracking iteration from `current` for `request`, timed.
-fn refresh(body: &mut HyperBody, current: &mut Linearization, loads: &Loads, request: &Request) -> Outcome {
+/// One tracking iteration from `current` for `request`, its tangent as `cadence` says,
+/// timed.
+fn refresh(
+    body: &mut HyperBody,
+    cadence: &mut Cadence,
+    current: &mut Linearization,
+    loads: &Loads,
+    request: &Request,
+) -> Outcome {
     let start = Instant::now();
     if request.fail {
         let message = "failed as asked by fail_next_refreshes".to_string();
         return Outcome::Failed { message, frame: request.frame };
     }
-    match body.track(current, loads, &request.pushes, &request.holds) {
-        Ok(s) => Outcome::Done {
-            linearization: Box::new(s.linearization),
-            step: s.step,
-            frame: request.frame,
-            seconds: start.elapsed().as_secs_f64(),
-        },
+    let tangent = cadence.tangent(current, request);
+    match body.track_with(current, loads, &request.pushes, &request.holds, tangent) {
+        Ok(s) => {
+            cadence.record(request, &s);
+            Outcome::Done {
+                refactored: s.refactored,
+                linearization: Box::new(s.linearization),
+                step: s.step,
+                frame: request.frame,
+                seconds: start.elapsed().as_secs_f64(),
+            }
+        }
         Err(e) => Outcome::Failed { message: e.to_string(), frame: request.frame },
     }
 }
@@ -460,24 +571,34 @@ fn prepare(linearization: &Linearization, request: &Request) -> Option<Lineariza
 /// Starts the refresh thread: it answers each request (the newest waiting) with one
 /// tracking iteration from its last linearization, on one thread of its own (the frames
 /// keep the other cores), and ends when the body is dropped.
-fn spawn_worker(mut body: HyperBody, mut linearization: Linearization, loads: Loads) -> Worker {
+fn spawn_worker(
+    mut body: HyperBody,
+    mut linearization: Linearization,
+    loads: Loads,
+    chords: usize,
+) -> Worker {
     let (requests, inbox) = mpsc::channel::<Message>();
     let (outbox, outcomes) = mpsc::channel();
     std::thread::spawn(move || {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().ok();
+        let mut cadence = Cadence::with_chords(chords);
         while let Ok(first) = inbox.recv() {
             let mut request = match first {
                 Message::Refresh(r) => r,
                 Message::Retire(_) => continue,
                 Message::Restart(base) => {
                     linearization = base;
+                    cadence.restart();
                     continue;
                 }
             };
             while let Ok(newer) = inbox.try_recv() {
                 match newer {
                     Message::Refresh(r) => request = r,
-                    Message::Restart(base) => linearization = base,
+                    Message::Restart(base) => {
+                        linearization = base;
+                        cadence.restart();
+                    }
                     Message::Retire(_) => {}
                 }
             }
@@ -487,7 +608,7 @@ fn spawn_worker(mut body: HyperBody, mut linearization: Linearization, loads: Lo
                     break;
                 }
             }
-            let mut run = || refresh(&mut body, &mut linearization, &loads, &request);
+            let mut run = || refresh(&mut body, &mut cadence, &mut linearization, &loads, &request);
             let outcome = match &pool {
                 Some(pool) => pool.install(run),
                 None => run(),
@@ -544,6 +665,7 @@ impl Interactive for HyperInteractive {
         self.reactions = PendingHolds::reactions(&request.holds, forces, &request.pushes);
         self.status = LinearizationStatus {
             refreshes: self.current.refreshes,
+            refactorizations: self.current.refactorizations,
             age_frames: self.frame - self.current.frame.min(self.frame),
             age_seconds: self.current.since.elapsed().as_secs_f64(),
             step: response.step,

@@ -160,6 +160,9 @@ pub trait Interactive {
 pub struct LinearizationStatus {
     /// Linearizations made since the body was built (0: the starting state's).
     pub refreshes: u64,
+    /// Those refreshes that factored the tangent (Newton's iterations); the others kept the
+    /// factor and moved the state (chord iterations, a force evaluation and two solves).
+    pub refactorizations: u64,
     /// Frames since the frame whose holds the linearization was made for.
     pub age_frames: u64,
     /// Seconds since the linearization was swapped in.

@@ -106,7 +106,7 @@ pub use compliance::{Compliance, ComplianceOptions, MemoryEstimate, Precompute, 
 pub use error::{InteractError, Result};
 pub use fibfluid_linalg::memory_budget;
 pub use fibfluid_sim::Method;
-pub use hyper_body::{HyperInteractive, RefreshMode};
+pub use hyper_body::{CHORD_CONTRACTION, HyperInteractive, MAX_CHORD_REFRESHES, RefreshMode};
 pub use interactive::{Hold, Interactive, LinearizationStatus, NORMAL_TOLERANCE};
 pub use method_body::{MethodBody, ProbeBody, ProbeOptions, build_body, linearized};
 pub use replay::{

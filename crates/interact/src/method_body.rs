@@ -30,6 +30,9 @@ pub struct ProbeOptions {
     pub max_memory_bytes: Option<u64>,
     /// When a hyperelastic body refreshes its linearization.
     pub refresh: RefreshMode,
+    /// Chord refreshes of a hyperelastic body between two refactorizations (`None`:
+    /// [`crate::MAX_CHORD_REFRESHES`]; `Some(0)`: Newton's iterations only).
+    pub chord_refreshes: Option<usize>,
 }
 
 /// A scene's interactive body and what building it cost.
@@ -142,10 +145,11 @@ impl MethodBody {
     ) -> Result<Self, ProbeError> {
         match (method, Variant::of_method(method)) {
             (Method::Fem, _) if scene.tissue.is_some_and(|t| t.model() == TissueModel::NeoHookean) => {
-                Ok(MethodBody::Hyper(Box::new(HyperInteractive::new(
+                Ok(MethodBody::Hyper(Box::new(HyperInteractive::with_chord_refreshes(
                     scene,
                     opts.max_memory_bytes,
                     opts.refresh,
+                    opts.chord_refreshes.unwrap_or(crate::hyper_body::MAX_CHORD_REFRESHES),
                 )?)))
             }
             (Method::Fem, _) => {

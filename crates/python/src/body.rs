@@ -319,6 +319,7 @@ impl NativeBody {
         let status = self.body.interactive_ref().linearization().map(|s| {
             serde_json::json!({
                 "refreshes": s.refreshes,
+                "refactorizations": s.refactorizations,
                 "age_frames": s.age_frames,
                 "age_seconds": s.age_seconds,
                 "step": s.step,

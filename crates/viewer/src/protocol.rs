@@ -226,6 +226,7 @@ pub fn frame_json(
     if let Some(s) = linearization {
         msg["linearization"] = serde_json::json!({
             "refreshes": s.refreshes,
+            "refactorizations": s.refactorizations,
             "age_frames": s.age_frames,
             "age_ms": (s.age_seconds * 1e4).round() / 10.0,
             "refresh_ms": (s.refresh_seconds * 1e4).round() / 10.0,

@@ -66,12 +66,29 @@ const ARMIJO: f64 = 1e-4;
 /// Energy changes below this fraction of the energy are rounding.
 const ENERGY_ROUNDING: f64 = 1e-12;
 
+/// Whether a tracking iteration factors the tangent at its end.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Tangent {
+    /// Assemble and factor the tangent at the step's end: Newton's iteration (quadratic
+    /// convergence; a factorization, and the held vertices' compliance columns again).
+    Refactor,
+    /// Keep the factor (a tangent at an earlier state) and move only the state and its
+    /// out-of-balance force: a chord iteration, the kept factor preconditioning the current
+    /// tangent as in the asynchronous preconditioners of Courtecuisse et al. (2015). It
+    /// costs one force evaluation and two solves, converges linearly, and keeps the held
+    /// vertices' columns.
+    Keep,
+}
+
 /// The state, out-of-balance force and tangent factor of one linearization.
 struct Core {
     layout: Arc<Layout>,
     x: Vec<f64>,
     force: Vec<f64>,
-    factor: SparseCholesky,
+    /// Shared by the chord iterations made from it ([`Tangent::Keep`]).
+    factor: Arc<SparseCholesky>,
+    /// Chord iterations since the factor was made (0: factored at `x`).
+    chord_steps: usize,
     /// The shift added to the tangent's diagonal to factor it (0: the exact tangent).
     shift: f64,
     /// Displacement of every surface vertex at `x` (m).
@@ -141,6 +158,12 @@ impl Linearization {
     /// The free-dof state it was made at.
     pub fn state(&self) -> &[f64] {
         &self.core.x
+    }
+
+    /// Chord iterations ([`Tangent::Keep`]) since its factor was made at a state of its
+    /// own (0: the factor is the tangent at [`Linearization::state`]).
+    pub fn chord_steps(&self) -> usize {
+        self.core.chord_steps
     }
 
     /// The shift added to the tangent's diagonal to factor it (relative to its median
@@ -288,6 +311,9 @@ pub struct TrackStep {
     pub linearization: Linearization,
     /// The fraction of the Newton step taken (1: the full step).
     pub fraction: f64,
+    /// Whether the tangent was factored at the step's end ([`Tangent::Refactor`], or a
+    /// [`Tangent::Keep`] step the kept factor could not take).
+    pub refactored: bool,
     /// The largest surface motion of the full step (m): the distance to the equilibrium
     /// of the holds, to first order, before this iteration.
     pub step: f64,
@@ -350,7 +376,8 @@ impl HyperBody {
         }));
         let force = eval.gradient.iter().map(|g| -g).collect();
         let surface = interpolate(&layout, &x);
-        let core = Core { layout, x, force, factor, shift, surface, penalty };
+        let factor = Arc::new(factor);
+        let core = Core { layout, x, force, factor, chord_steps: 0, shift, surface, penalty };
         Ok(Some(Linearization { core: Arc::new(core), cache: HoldCache::default() }))
     }
 
@@ -433,6 +460,25 @@ impl HyperBody {
         pushes: &[(usize, Vec3)],
         holds: &[(usize, FemHold)],
     ) -> Result<TrackStep> {
+        self.track_with(current, loads, pushes, holds, Tangent::Refactor)
+    }
+
+    /// [`HyperBody::track`] with the tangent as `tangent` says: [`Tangent::Keep`] moves
+    /// the state along the step of the kept factor when its first trial is accepted
+    /// (no assembly, no factorization, no new compliance columns: the held vertices'
+    /// columns stay valid), and falls back to [`Tangent::Refactor`] (halving the same
+    /// step) when it is not.
+    ///
+    /// Errors: as [`HyperBody::track`].
+    pub fn track_with(
+        &mut self,
+        current: &mut Linearization,
+        loads: &Loads,
+        pushes: &[(usize, Vec3)],
+        holds: &[(usize, FemHold)],
+        tangent: Tangent,
+    ) -> Result<TrackStep> {
+        let mut keep = tangent == Tangent::Keep;
         let answer = current.respond(pushes, holds)?;
         let x0 = current.state().to_vec();
         let direction: Vec<f64> = answer.state.iter().zip(&x0).map(|(a, b)| a - b).collect();
@@ -456,6 +502,9 @@ impl HyperBody {
         // Restoring the holds moves them at most MAX_RESTORE cells per iteration: a tool
         // that ran far ahead is caught up over several, each from a state it can trust.
         let mut fraction = if merit.is_some() { 1.0 } else { (MAX_RESTORE * h / held_motion).min(1.0) };
+        // The kept factor steers near its own state only: a tool far ahead is caught up
+        // by Newton's steps.
+        keep &= fraction == 1.0;
         for _ in 0..=MAX_STEP_HALVINGS {
             let trial: Vec<f64> = x0.iter().zip(&direction).map(|(a, d)| a + fraction * d).collect();
             let accepted = match (&merit, start) {
@@ -469,16 +518,41 @@ impl HyperBody {
             // definite (its penalty suffices, no shift): a state reached by a long stride
             // can be wildly unstable without inverting a cell.
             let shift_allowed = merit.is_some() || fraction < RESTORE_FLOOR;
+            if accepted && keep {
+                let mut linearization = self.restate(current, trial, loads)?;
+                linearization.respond_at_surface(pushes, holds)?;
+                return Ok(TrackStep { linearization, fraction, step: answer.step, refactored: false });
+            }
+            keep = false;
             if accepted
                 && let Some(mut linearization) = self.linearize_if(trial, loads, holds, shift_allowed)?
             {
                 // The frames' projection is made here, off the frame thread.
                 linearization.respond_at_surface(pushes, holds)?;
-                return Ok(TrackStep { linearization, fraction, step: answer.step });
+                return Ok(TrackStep { linearization, fraction, step: answer.step, refactored: true });
             }
             fraction *= 0.5;
         }
         Err(FemError::Inverted)
+    }
+
+    /// `current`'s factor (and its held vertices' columns) at the free-dof state `x`:
+    /// the out-of-balance force evaluated there, no tangent assembled.
+    fn restate(&mut self, current: &Linearization, x: Vec<f64>, loads: &Loads) -> Result<Linearization> {
+        let external = load_vector(&self.grid, |c| self.densities[c], &self.free, self.n_free, loads)?;
+        let eval = self.evaluate(&x, &dead_loads(&external), false).ok_or(FemError::Inverted)?;
+        let kept = &current.core;
+        let core = Core {
+            layout: Arc::clone(&kept.layout),
+            force: eval.gradient.iter().map(|g| -g).collect(),
+            surface: interpolate(&kept.layout, &x),
+            x,
+            factor: Arc::clone(&kept.factor),
+            chord_steps: kept.chord_steps + 1,
+            shift: kept.shift,
+            penalty: kept.penalty.clone(),
+        };
+        Ok(Linearization { core: Arc::new(core), cache: current.cache.clone() })
     }
 
     /// How far the step moves the held vertices along their held directions (m, the

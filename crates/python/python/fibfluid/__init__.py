@@ -722,7 +722,8 @@ class Body:
     @property
     def linearization(self) -> Optional[dict]:
         """For a neo-Hookean ``"fem"`` body, the linearization the last step used:
-        ``refreshes`` (made so far), ``age_frames`` and ``age_seconds`` (how old it is),
+        ``refreshes`` (made so far), ``refactorizations`` (those that factored the
+        tangent; the others kept the factor and moved the state), ``age_frames`` and ``age_seconds`` (how old it is),
         ``step`` (m: how far the step moved the surface from the linearization's state),
         ``estimated_error`` (m: Newton's next correction, the step's distance from the
         converged answer for its holds), ``refresh_seconds`` (the last refresh),
