@@ -497,10 +497,11 @@ impl Current {
                 let retired = std::mem::replace(&mut self.linearization, *linearization);
                 self.retired = Some(retired);
                 self.at_base = false;
-                // Rounding is told by Newton's steps only (a chord step shrinks linearly).
-                let stalled = refactored && step <= ROUNDING_STEP * self.cell_size && step > 0.5 * self.step;
+                // Convergence and rounding are told by Newton's steps only: a chord step
+                // shrinks linearly, and the cadence ends a run of them with a Newton one.
+                let stalled = step <= ROUNDING_STEP * self.cell_size && step > 0.5 * self.step;
                 self.refactorizations += u64::from(refactored);
-                self.converged = step <= CONVERGED_STEP * self.cell_size || stalled;
+                self.converged = refactored && (step <= CONVERGED_STEP * self.cell_size || stalled);
                 self.frame = frame;
                 self.since = Instant::now();
                 self.step = step;
@@ -624,6 +625,15 @@ fn spawn_worker(
     Worker { requests, outcomes: Mutex::new(outcomes), busy: false }
 }
 
+/// A frame's estimated distance from the converged answer for its holds (m), from its
+/// `step` on `linearization`: Newton's next correction `step^2 / h` on a factor made at the
+/// linearization's state; on a kept factor (chord steps) at least `CHORD_CONTRACTION x
+/// step`, the contraction the cadence keeps them to.
+fn estimated_error(step: f64, cell_size: f64, linearization: &Linearization) -> f64 {
+    let newton = step * step / cell_size;
+    if linearization.chord_steps() > 0 { newton.max(CHORD_CONTRACTION * step) } else { newton }
+}
+
 fn add(a: Vec3, b: Vec3) -> Vec3 {
     [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
 }
@@ -669,7 +679,7 @@ impl Interactive for HyperInteractive {
             age_frames: self.frame - self.current.frame.min(self.frame),
             age_seconds: self.current.since.elapsed().as_secs_f64(),
             step: response.step,
-            estimated_error: response.step * response.step / self.cell_size,
+            estimated_error: estimated_error(response.step, self.cell_size, &self.current.linearization),
             refresh_seconds: self.current.refresh_seconds,
             approximate: response.approximate,
             pending: pending.len(),

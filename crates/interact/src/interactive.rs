@@ -171,7 +171,8 @@ pub struct LinearizationStatus {
     /// frame (m): the Newton step the frame took.
     pub step: f64,
     /// The frame's estimated distance from the converged answer for its holds (m):
-    /// Newton's next correction, `step^2 / h` (h the grid's cell size).
+    /// Newton's next correction, `step^2 / h` (h the grid's cell size); on a linearization
+    /// that kept an earlier factor (a chord refresh), at least half the step.
     pub estimated_error: f64,
     /// Seconds the last refresh took.
     pub refresh_seconds: f64,
