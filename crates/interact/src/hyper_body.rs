@@ -5,12 +5,15 @@
 //! (`fibfluid_fem::hyper`'s tracking: one solve on the kept tangent factor and the
 //! capacitance system of the held vertices, exactly as the linear body's frame), so it
 //! costs what a linear frame costs and never waits for a factorization. A refresh is one
-//! Newton iteration of the equilibrium for the holds the frame asked
-//! ([`HyperBody::track`]: the step, shortened while it would invert a cell, and the tangent
-//! assembled and factored at its end, with the held vertices' columns computed there).
-//! Holding a tool still, each refresh is one more Newton iteration and the frames converge
-//! quadratically to the batch hyperelastic answer for the same holds; with the tool moving,
-//! a frame is the linear response about a state at most one refresh old.
+//! iteration of the equilibrium for the holds the frame asked ([`HyperBody::track_with`]:
+//! the step, shortened while it would invert a cell). A Newton refresh then assembles and
+//! factors the tangent at the step's end and computes the held vertices' columns there; a
+//! chord refresh keeps the factor and its columns and moves only the state and its force
+//! (a few times cheaper). The cadence: at most [`MAX_CHORD_REFRESHES`] chord refreshes
+//! between two Newton ones, only with the holds within reach and while each chord step
+//! halves the one before. Holding a tool still, the frames converge to the batch
+//! hyperelastic answer for the same holds (a Newton refresh confirms it); with the tool
+//! moving, a frame is the linear response about a state at most one refresh old.
 //!
 //! [`RefreshMode::Background`] runs the refreshes on a second thread, back to back while
 //! the holds change or the last step was not converged, and swaps each new linearization
