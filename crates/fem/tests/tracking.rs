@@ -5,7 +5,7 @@
 //! returns the body to its own equilibrium.
 
 use crate::common::*;
-use fibfluid_fem::hyper::{Grasp, HyperBody, Linearization, Tangent};
+use fibfluid_fem::hyper::{Grasp, HyperBody, HyperSolution, Linearization, Tangent};
 use fibfluid_fem::{FemHold, FemOptions, Loads, Tissue, TissueModel};
 
 /// Relative tolerance of the converged tracking against the batch answer (the batch
@@ -50,8 +50,10 @@ fn converge(
     (lin, steps)
 }
 
-#[test]
-fn held_grasp_converges_to_the_batch_answer_and_release_returns_to_rest() {
+/// The cube of [`cube`] at resolution 4 under a gravity of 0.3 m/s^2, its patch pulled
+/// 25 cm up and 5 cm across: the batch answer (an augmented-Lagrangian grasp), the free
+/// body to track it on, its loads and the patch's holds.
+fn pulled_cube() -> (HyperSolution, HyperBody, Loads, Vec<(usize, FemHold)>) {
     let (pos, tris, fixed, patch) = cube();
     let options = FemOptions { resolution: 4, ..FemOptions::default() };
     let loads = Loads { gravity: [0.0, 0.0, -0.3], ..Default::default() };
@@ -60,11 +62,16 @@ fn held_grasp_converges_to_the_batch_answer_and_release_returns_to_rest() {
     let mut batch =
         HyperBody::from_surface_grasped(&pos, &tris, &tissue(), &fixed, &[grasp], &options).unwrap();
     let pulled = batch.solve(&loads, &[]).unwrap();
-    let mut free = HyperBody::from_surface(&pos, &tris, &tissue(), &fixed, &options).unwrap();
-    let hanging = free.solve(&loads, &[]).unwrap();
-
-    let rest = free.linearize_at_rest(&loads).unwrap();
+    let free = HyperBody::from_surface(&pos, &tris, &tissue(), &fixed, &options).unwrap();
     let holds: Vec<(usize, FemHold)> = patch.iter().map(|&v| (v, FemHold::At(translation))).collect();
+    (pulled, free, loads, holds)
+}
+
+#[test]
+fn held_grasp_converges_to_the_batch_answer_and_release_returns_to_rest() {
+    let (pulled, mut free, loads, holds) = pulled_cube();
+    let hanging = free.solve(&loads, &[]).unwrap();
+    let rest = free.linearize_at_rest(&loads).unwrap();
     let (mut lin, steps) = converge(&mut free, rest, &loads, &holds);
     eprintln!("tracking steps (m): {:?}", steps.iter().map(|s| format!("{s:.3e}")).collect::<Vec<_>>());
     assert!(*steps.last().unwrap() < 1e-13, "not converged: {steps:?}");
@@ -98,17 +105,8 @@ fn held_grasp_converges_to_the_batch_answer_and_release_returns_to_rest() {
 /// same tolerance. The steps that kept it count their age in `chord_steps`.
 #[test]
 fn chord_iterations_on_a_kept_factor_reach_the_batch_answer() {
-    let (pos, tris, fixed, patch) = cube();
-    let options = FemOptions { resolution: 4, ..FemOptions::default() };
-    let loads = Loads { gravity: [0.0, 0.0, -0.3], ..Default::default() };
-    let translation = [0.05, 0.0, 0.25];
-    let grasp = Grasp { vertices: patch.clone(), translation, rotation: [0.0; 3] };
-    let mut batch =
-        HyperBody::from_surface_grasped(&pos, &tris, &tissue(), &fixed, &[grasp], &options).unwrap();
-    let pulled = batch.solve(&loads, &[]).unwrap();
-    let mut free = HyperBody::from_surface(&pos, &tris, &tissue(), &fixed, &options).unwrap();
+    let (pulled, mut free, loads, holds) = pulled_cube();
     let mut lin = free.linearize_at_rest(&loads).unwrap();
-    let holds: Vec<(usize, FemHold)> = patch.iter().map(|&v| (v, FemHold::At(translation))).collect();
     let (mut chords, mut steps, mut slow) = (0, Vec::<f64>::new(), false);
     for _ in 0..100 {
         let tangent = if slow { Tangent::Refactor } else { Tangent::Keep };

@@ -464,10 +464,11 @@ impl HyperBody {
     }
 
     /// [`HyperBody::track`] with the tangent as `tangent` says: [`Tangent::Keep`] moves
-    /// the state along the step of the kept factor when its first trial is accepted
-    /// (no assembly, no factorization, no new compliance columns: the held vertices'
-    /// columns stay valid), and falls back to [`Tangent::Refactor`] (halving the same
-    /// step) when it is not.
+    /// the state along the step of the kept factor when the held vertices are within
+    /// reach (the step is not cut to restore them) and its first trial is accepted (no
+    /// assembly, no factorization, no new compliance columns: the held vertices' columns
+    /// stay valid), and falls back to [`Tangent::Refactor`] (halving the same step) when
+    /// not.
     ///
     /// Errors: as [`HyperBody::track`].
     pub fn track_with(
