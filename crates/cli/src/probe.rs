@@ -21,8 +21,9 @@ pub struct ResponseFlags {
     /// Memory budget in bytes (default: half the available memory).
     #[arg(long, value_name = "BYTES")]
     pub max_memory: Option<u64>,
-    /// The neo-Hookean FEM body's linearization is refreshed (one Newton iteration) before
-    /// every K-th frame, in the frame loop. Default: `probe` and `compare` pick K from the
+    /// The neo-Hookean FEM body's linearization is refreshed (one iteration: Newton's, or
+    /// a chord step on the kept factor, `--chord-refreshes`) before every K-th frame, in
+    /// the frame loop. Default: `probe` and `compare` pick K from the
     /// body's counts (reproducible); `view` refreshes on a second thread.
     #[arg(long, value_name = "K")]
     pub refresh_every: Option<u64>,

@@ -56,6 +56,10 @@ pub const HOLD_MET: f64 = 1e-9;
 /// cells.
 pub const MAX_RESTORE: f64 = 2.0;
 
+/// The longest step (largest surface motion, in cells) a [`Tangent::Keep`] iteration takes
+/// on the kept factor; a longer one is Newton's.
+pub const CHORD_REACH: f64 = 1.0;
+
 /// Below this fraction of the step, a restoring step is taken even where the tangent
 /// needs a shift.
 const RESTORE_FLOOR: f64 = 1.0 / 64.0;
@@ -504,8 +508,8 @@ impl HyperBody {
         // that ran far ahead is caught up over several, each from a state it can trust.
         let mut fraction = if merit.is_some() { 1.0 } else { (MAX_RESTORE * h / held_motion).min(1.0) };
         // The kept factor steers near its own state only: a tool far ahead is caught up
-        // by Newton's steps.
-        keep &= fraction == 1.0;
+        // by Newton's steps, and so is a step long against a cell.
+        keep &= fraction == 1.0 && answer.step <= CHORD_REACH * h;
         for _ in 0..=MAX_STEP_HALVINGS {
             let trial: Vec<f64> = x0.iter().zip(&direction).map(|(a, d)| a + fraction * d).collect();
             let accepted = match (&merit, start) {
