@@ -39,6 +39,6 @@ pub use contact::{
 pub use grasp::{GRASP_PENALTY, GRASP_TOLERANCE, Grasp, GraspRecord};
 pub use grasp_kkt::GRASP_NEWTON_ITERATIONS;
 pub use tracking::{
-    CHORD_REACH, HOLD_PENALTIES, Linearization, MAX_RESTORE, MAX_STEP_HALVINGS, SHIFTS, SurfaceResponse, Tangent,
-    TrackStep, TrackedResponse,
+    CHORD_REACH, HOLD_PENALTIES, Linearization, MAX_RESTORE, MAX_STEP_HALVINGS, SHIFTS, SurfaceResponse,
+    Tangent, TrackStep, TrackedResponse,
 };
