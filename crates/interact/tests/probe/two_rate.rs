@@ -126,6 +126,30 @@ fn the_refresh_thread_reaches_the_same_answer_without_blocking_frames() {
     assert!(d < 1e-9, "{d:e}");
 }
 
+/// Chord refreshes (the factor kept between Newton's) reach the answer Newton's refreshes
+/// alone reach, for a grasp moved and turned and held still (both refreshed every frame,
+/// in the frame loop), and some refreshes did keep the factor: fewer refactorizations
+/// than refreshes, where the Newton-only body refactors at every refresh.
+#[test]
+fn chord_refreshes_reach_the_newton_answer() {
+    let scene = neo_hookean_sphere();
+    let mut chords = HyperInteractive::new(&scene, None, RefreshMode::EveryFrames(1)).unwrap();
+    let mut newton =
+        HyperInteractive::with_chord_refreshes(&scene, None, RefreshMode::EveryFrames(1), 0).unwrap();
+    let g = Grasp::new(&chords, lowest(&chords), 0.45).unwrap();
+    let m = RigidMotion::with_rotation_vector([0.05, -0.1, 0.0], [0.0, 0.0, 0.2]);
+    for b in [&mut chords, &mut newton] {
+        g.hold(b, &m).unwrap();
+        settle(b, 60, std::time::Duration::ZERO);
+    }
+    let (c, n) = (chords.linearization().unwrap(), newton.linearization().unwrap());
+    eprintln!("chords: {c:?}\nnewton: {n:?}");
+    assert_eq!(n.refactorizations, n.refreshes, "{n:?}");
+    assert!(c.refactorizations < c.refreshes, "{c:?}");
+    let d = relative_difference(chords.positions(), newton.positions(), newton.rest_positions());
+    assert!(d < 1e-9, "{d:e}");
+}
+
 /// A pressing tip on the two-rate body (refreshed every frame), as on the linear bodies:
 /// no vertex is left inside the tip, the contact forces are frictionless and compressive
 /// and sum to the tip's force (`press_checks`), and pressing deeper never lowers the
