@@ -722,15 +722,16 @@ class Body:
     @property
     def linearization(self) -> Optional[dict]:
         """For a neo-Hookean ``"fem"`` body, the linearization the last step used:
-        ``refreshes`` (made so far), ``refactorizations`` (those that factored the
-        tangent; the others kept the factor and moved the state), ``age_frames`` and ``age_seconds`` (how old it is),
-        ``step`` (m: how far the step moved the surface from the linearization's state),
-        ``estimated_error`` (m: Newton's next correction, at least half the step on a
-        chord refresh's kept factor; the step's distance from the
-        converged answer for its holds), ``refresh_seconds`` (the last refresh),
-        ``pending`` (held vertices the step left free: a tool just picked up, whose
-        compliance columns the refresh thread is still making) and ``failure`` (why the last refresh failed, or None: the step then used the last good
-        linearization). None for the other bodies, whose steps are exact for their model."""
+        ``refreshes`` (made so far), ``refactorizations`` (those that factored the tangent;
+        the others kept the factor and moved the state), ``age_frames`` and
+        ``age_seconds`` (how old it is), ``step`` (m: how far the step moved the surface
+        from the linearization's state), ``estimated_error`` (m: the step's distance from
+        the converged answer for its holds, Newton's next correction, at least half the
+        step on a kept factor), ``refresh_seconds`` (the last refresh), ``pending`` (held
+        vertices the step left free: a tool just picked up, whose compliance columns the
+        refresh thread is still making) and ``failure`` (why the last refresh failed, or
+        None: the step then used the last good linearization). None for the other bodies,
+        whose steps are exact for their model."""
         return json.loads(self._native.linearization_json())
 
     def is_fixed(self, vertex: int) -> bool:
