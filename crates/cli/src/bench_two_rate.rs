@@ -107,6 +107,8 @@ struct Paced {
     samples: Vec<Vec<Vec3>>,
     latency_us: Vec<f64>,
     statuses: Vec<LinearizationStatus>,
+    /// Wall seconds of the replay.
+    seconds: f64,
 }
 
 /// Replays `path` on `scene` (a neo-Hookean tissue) with the linear and the two two-rate
@@ -146,8 +148,7 @@ pub fn bench_two_rate(scene: &Scene, path: &ToolPath, max_memory: Option<u64>) -
             latency_us,
             refreshes: summary.refreshes,
             refactorizations: summary.refactorizations,
-            refresh_hz: summary.refreshes as f64
-                / (paced.latency_us.len() as f64 * FRAME_PERIOD.as_secs_f64()),
+            refresh_hz: summary.refreshes as f64 / paced.seconds,
             running_hz: if summary.refresh_seconds > 0.0 { 1.0 / summary.refresh_seconds } else { 0.0 },
             refresh_seconds: summary.refresh_seconds,
             chord_seconds: summary.chord_seconds,
@@ -190,7 +191,8 @@ fn paced_replay(scene: &Scene, checked: &CheckedPath, opts: &ProbeOptions) -> Re
             std::thread::sleep(wait);
         }
     })?;
-    Ok((Paced { samples, latency_us: replay.latency_us, statuses }, newton_iteration_seconds))
+    let seconds = start.elapsed().as_secs_f64();
+    Ok((Paced { samples, latency_us: replay.latency_us, statuses, seconds }, newton_iteration_seconds))
 }
 
 /// `checked` taken from `body`'s own equilibrium (the grasps' origin, the grabs' offsets).

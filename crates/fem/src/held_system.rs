@@ -122,11 +122,9 @@ struct SurfaceProjection {
     keys: Vec<RowKey>,
     /// `S u0`: the unheld solution at the surface vertices (3 per vertex).
     unheld: Vec<f64>,
-    /// `C u0`: the unheld solution along each row.
+    /// `C u0`: the unheld solution along each row (`S G`, the rows' basis columns at the
+    /// surface, is the cache's `surface_columns`).
     rows_unheld: Vec<f64>,
-    /// `S G`: each basis element's compliance column at the surface vertices (3 per
-    /// vertex), one matrix column per element.
-    columns: Arc<Mat<f64>>,
     /// The frames of a patch held at the targets of one affine map (a grasp), when the
     /// rows are such a patch (`crate::held_affine`).
     affine: Option<AffineFrames>,
@@ -158,7 +156,7 @@ impl HoldCache {
         let Some(p) = &self.surface else { return 0 };
         match (&p.affine, self.affine_frame) {
             (Some(a), true) => a.parameters(),
-            _ => p.columns.ncols(),
+            _ => self.surface_columns.as_ref().map_or(0, |c| c.1.ncols()),
         }
     }
 
@@ -298,7 +296,7 @@ impl HeldSystem<'_> {
                 combination: &set.combination,
                 columns: columns.as_ref().as_ref(),
             });
-            let projection = SurfaceProjection { unheld, rows_unheld, columns, affine, keys };
+            let projection = SurfaceProjection { unheld, rows_unheld, affine, keys };
             let answer = projection.affine.as_ref().and_then(|a| a.frame(holds));
             cache.surface = Some(projection);
             if let Some(answer) = answer {
@@ -308,6 +306,7 @@ impl HeldSystem<'_> {
         }
         let projection = cache.surface.as_ref().expect("made above");
         let set = cache.rows.as_ref().expect("made above");
+        let columns = &cache.surface_columns.as_ref().expect("made with the projection").1;
         let (capacitance, ridged) = (&set.capacitance, set.ridged);
         let (pushes, uncovered) = penalty_pushes(penalty, &rows);
         // Along the rows, u = u0 + Z (pushes - r) is C u0 + (C Z)(pushes - r).
@@ -331,7 +330,7 @@ impl HeldSystem<'_> {
         faer::linalg::matmul::matmul(
             surface.as_mut(),
             faer::Accum::Add,
-            projection.columns.as_ref(),
+            columns.as_ref().as_ref(),
             w.as_ref(),
             1.0,
             faer::Par::Seq,

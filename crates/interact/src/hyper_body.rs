@@ -91,6 +91,13 @@ struct Request {
     fail: bool,
 }
 
+impl Request {
+    /// Whether `other` asks the same pushes and holds (targets included), whatever frame.
+    fn same_tools(&self, other: &Request) -> bool {
+        self.holds == other.holds && self.pushes == other.pushes
+    }
+}
+
 /// Whether each refresh keeps the factor or makes a new one: a chord refresh while the
 /// factor is fresh enough and the chord steps contract, else a refactorization.
 #[derive(Debug, Default)]
@@ -122,8 +129,7 @@ impl Cadence {
 
     /// Records a finished refresh for `request`.
     fn record(&mut self, request: &Request, step: &TrackStep) {
-        let same =
-            self.last.as_ref().is_some_and(|(r, _)| r.holds == request.holds && r.pushes == request.pushes);
+        let same = self.last.as_ref().is_some_and(|(r, _)| r.same_tools(request));
         let previous = self.last.as_ref().map_or(f64::INFINITY, |last| last.1);
         self.slow = !step.refactored && same && step.step > CHORD_CONTRACTION * previous;
         self.last = Some((request.clone(), step.step));
@@ -394,8 +400,7 @@ impl HyperInteractive {
     /// Whether a refresh is worth asking for `request`: its holds differ from the last
     /// asked, or the last refresh's step was not converged.
     fn wants_refresh(&self, request: &Request) -> bool {
-        let same =
-            self.asked.as_ref().is_some_and(|a| a.holds == request.holds && a.pushes == request.pushes);
+        let same = self.asked.as_ref().is_some_and(|a| a.same_tools(request));
         !same || !self.current.converged
     }
 

@@ -12,6 +12,7 @@ use super::cell::{CellMaterial, CellState, HyperCell};
 use super::contact::{ContactSample, surface_samples};
 use super::grasp::{GRASP_PENALTY, Grasp, GraspRecord, GraspSet};
 use crate::assemble::{lower_pattern, number_free_dofs};
+use crate::body::{Loads, load_vector};
 use crate::clamp::{Clamp, ClampPoint, clamp_stiffness};
 use crate::error::{FemError, Result};
 use crate::grid::{FemOptions, SparseGrid};
@@ -305,6 +306,12 @@ impl HyperBody {
     /// The grid.
     pub fn grid(&self) -> &SparseGrid {
         &self.grid
+    }
+
+    /// The free-dof vector of `loads` (gravity by each cell's density, point forces) on
+    /// this body.
+    pub(crate) fn external_loads(&self, loads: &Loads) -> Result<Vec<f64>> {
+        load_vector(&self.grid, |c| self.densities[c], &self.free, self.n_free, loads)
     }
 
     /// The tissue.

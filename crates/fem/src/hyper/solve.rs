@@ -11,7 +11,7 @@ use super::grasp::GRASP_TOLERANCE;
 use super::grasp_kkt::GraspKkt;
 use super::newton::LoadState;
 use crate::assemble::FIXED;
-use crate::body::{Loads, load_vector};
+use crate::body::Loads;
 use crate::error::{FemError, NotConvergedWhy, Result};
 
 /// The state of a solve between load steps.
@@ -34,7 +34,7 @@ impl HyperBody {
         if plates.iter().any(|p| p.start.iter().chain(&p.end).chain(&p.normal).any(|v| !v.is_finite())) {
             return Err(FemError::NonFinite { what: "plate" });
         }
-        let external = load_vector(&self.grid, |c| self.densities[c], &self.free, self.n_free, loads)?;
+        let external = self.external_loads(loads)?;
         let mut multipliers = vec![vec![0.0; self.samples.len()]; plates.len()];
         let mut held = vec![[0.0; 3]; self.grasps.points.len()];
         let mut run = Progress {

@@ -27,7 +27,7 @@ use fibfluid_linalg::SparseCholesky;
 use super::body::{HyperBody, Layout};
 use super::newton::LoadState;
 use crate::assemble::FIXED;
-use crate::body::{Loads, add_point_forces, load_vector};
+use crate::body::{Loads, add_point_forces};
 use crate::error::{FemError, Result};
 use crate::held_rows::{FemHold, Row, constraint_rows};
 use crate::held_system::{HeldSystem, HoldCache, Penalty, interpolate_surface};
@@ -364,7 +364,7 @@ impl HyperBody {
         if x.len() != self.n_free {
             return Err(FemError::LengthMismatch { what: "state", expected: self.n_free, found: x.len() });
         }
-        let external = load_vector(&self.grid, |c| self.densities[c], &self.free, self.n_free, loads)?;
+        let external = self.external_loads(loads)?;
         let eval = self.evaluate(&x, &dead_loads(&external), true).ok_or(FemError::Inverted)?;
         let rows = constraint_rows(self.grid.embedding(), &self.free, holds)?;
         let Some((factor, shift, penalty)) = self.factor_holding(&rows, shift_allowed)? else {
@@ -495,7 +495,7 @@ impl HyperBody {
         let merit = if held_motion <= HOLD_MET * h {
             let mut all = loads.clone();
             all.point_forces.extend_from_slice(pushes);
-            Some(load_vector(&self.grid, |c| self.densities[c], &self.free, self.n_free, &all)?)
+            Some(self.external_loads(&all)?)
         } else {
             None
         };
@@ -544,7 +544,7 @@ impl HyperBody {
     /// `current`'s factor (and its held vertices' columns) at the free-dof state `x`:
     /// the out-of-balance force evaluated there, no tangent assembled.
     fn restate(&mut self, current: &Linearization, x: Vec<f64>, loads: &Loads) -> Result<Linearization> {
-        let external = load_vector(&self.grid, |c| self.densities[c], &self.free, self.n_free, loads)?;
+        let external = self.external_loads(loads)?;
         let eval = self.evaluate(&x, &dead_loads(&external), false).ok_or(FemError::Inverted)?;
         let kept = &current.core;
         let core = Core {
