@@ -17,7 +17,6 @@
 use std::time::{Duration, Instant};
 
 use fibfluid::Scene;
-use fibfluid::fem::TissueModel;
 use fibfluid::geometry::Vec3;
 use fibfluid::interact::{
     CheckedPath, Latency, LinearizationStatus, Method, MethodBody, ProbeOptions, RefreshMode, ToolPath,
@@ -115,7 +114,7 @@ struct Paced {
 /// FEM bodies, frames paced at [`FRAME_PERIOD`], and measures each against the converged
 /// answer at every [`SAMPLE_EVERY`]-th frame.
 pub fn bench_two_rate(scene: &Scene, path: &ToolPath, max_memory: Option<u64>) -> Result<TwoRateBench> {
-    let nonlinear = scene.tissue.is_some_and(|t| t.model() == TissueModel::NeoHookean);
+    let nonlinear = scene.tissue.is_some_and(|t| !t.is_linear());
     if !nonlinear {
         return Err(fibfluid::sim::Error::MethodNeeds {
             scene: scene.display_name(),
@@ -126,7 +125,7 @@ pub fn bench_two_rate(scene: &Scene, path: &ToolPath, max_memory: Option<u64>) -
     }
     let checked = check_path(path, scene)?;
     let mut linear_scene = scene.clone();
-    linear_scene.model.tissue = linear_scene.model.tissue.map(|t| t.with_model(TissueModel::Linear));
+    linear_scene.model.tissue = linear_scene.model.tissue.map(|t| t.linearized());
     let opts = |refresh, chords| ProbeOptions {
         max_memory_bytes: max_memory,
         refresh,

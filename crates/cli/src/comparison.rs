@@ -26,7 +26,6 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use fibfluid::fem::TissueModel;
 use fibfluid::geometry::Vec3;
 use fibfluid::geometry::vec3::{dist, norm, sub};
 use fibfluid::interact::RefreshMode;
@@ -149,7 +148,7 @@ impl Contender {
             }
             Contender::LinearFem => {
                 let mut linear = scene.clone();
-                linear.model.tissue = linear.model.tissue.map(|t| t.with_model(TissueModel::Linear));
+                linear.model.tissue = linear.model.tissue.map(|t| t.linearized());
                 MethodBody::build(&linear, &scene.chainmail, Method::Fem, opts)?
             }
         };
@@ -176,7 +175,7 @@ fn methods_of(scene: &Scene) -> (Vec<Contender>, BTreeMap<String, String>) {
         .map(Contender::Method)
         .collect();
     match scene.tissue {
-        Some(t) if t.model() == TissueModel::NeoHookean => {
+        Some(t) if !t.is_linear() => {
             let fem = [Contender::ConvergedHyper, Contender::Method(Method::Fem), Contender::LinearFem];
             methods.splice(0..0, fem);
         }

@@ -152,8 +152,9 @@ pub struct PhysicalAxis {
     pub reference: Vec<fibfluid::geometry::Vec3>,
     /// The FEM at coarser resolutions.
     pub fem: Vec<FemPoint>,
-    /// The reference's law: neo-Hookean when the scene's `[tissue] model` says so.
-    pub reference_law: fibfluid::fem::TissueModel,
+    /// The reference's law, by its scene name: neo-Hookean when the scene's
+    /// `[tissue] model` says so.
+    pub reference_law: &'static str,
     /// With a neo-Hookean reference, the linear FEM at the same resolutions against it: what
     /// the small-strain answer costs in accuracy on this scene (empty otherwise).
     pub linear_fem: Vec<FemPoint>,
@@ -337,24 +338,23 @@ fn physical_axis(scene: &Scene, grid: &Grid) -> crate::Result<(Scene, PhysicalAx
         calibrated.ffm.calibrate = false;
         apply_calibration(&mut calibrated, &calibrations);
     }
-    use fibfluid::fem::TissueModel;
-    let fem_run =
-        |resolution: usize, law: Option<TissueModel>| -> crate::Result<fibfluid::sim::fem_run::FemRun> {
-            let mut m: fibfluid::sim::Model = scene.model.clone();
-            m.solver.method = fibfluid::Method::Fem;
-            m.fem.resolution = resolution;
-            if let Some(law) = law {
-                m.tissue = m.tissue.map(|t| t.with_model(law));
-                m.fem.auto_model = false;
-            }
-            Ok(fibfluid::sim::fem_run::FemRun::new(m, None)?)
-        };
-    let reference_run = fem_run(grid.fem_reference, None)?;
-    let reference_law = reference_run.tissue.model();
+    // `linearized`: the small-strain law in place of the scene's.
+    let fem_run = |resolution: usize, linearized: bool| -> crate::Result<fibfluid::sim::fem_run::FemRun> {
+        let mut m: fibfluid::sim::Model = scene.model.clone();
+        m.solver.method = fibfluid::Method::Fem;
+        m.fem.resolution = resolution;
+        if linearized {
+            m.tissue = m.tissue.map(|t| t.linearized());
+            m.fem.auto_model = false;
+        }
+        Ok(fibfluid::sim::fem_run::FemRun::new(m, None)?)
+    };
+    let reference_run = fem_run(grid.fem_reference, false)?;
+    let reference_law = reference_run.tissue.law().name();
     let reference: Vec<_> =
         fibfluid::sim::calibration::displacements(&reference_run.positions, &reference_run.rest);
-    let point = |law: Option<TissueModel>, r: usize| -> crate::Result<FemPoint> {
-        let run = fem_run(r, law)?;
+    let point = |linearized: bool, r: usize| -> crate::Result<FemPoint> {
+        let run = fem_run(r, linearized)?;
         Ok(FemPoint {
             resolution: r,
             dofs: run.stats.dofs,
@@ -362,12 +362,9 @@ fn physical_axis(scene: &Scene, grid: &Grid) -> crate::Result<(Scene, PhysicalAx
             error_vs_fem: relative_l2(&run.positions, &run.rest, &reference),
         })
     };
-    let fem = grid.fem_resolutions.iter().map(|&r| point(None, r)).collect::<crate::Result<Vec<_>>>()?;
-    let linear_fem = if reference_law == TissueModel::NeoHookean {
-        grid.fem_resolutions
-            .iter()
-            .map(|&r| point(Some(TissueModel::Linear), r))
-            .collect::<crate::Result<_>>()?
+    let fem = grid.fem_resolutions.iter().map(|&r| point(false, r)).collect::<crate::Result<Vec<_>>>()?;
+    let linear_fem = if !reference_run.tissue.is_linear() {
+        grid.fem_resolutions.iter().map(|&r| point(true, r)).collect::<crate::Result<_>>()?
     } else {
         Vec::new()
     };

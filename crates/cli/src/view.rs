@@ -4,7 +4,6 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use fibfluid::fem::TissueModel;
 use fibfluid::interact::chainmail_body::ChainmailBody;
 use fibfluid::interact::chainmail_settings::Variant;
 use fibfluid::interact::fem_body::FemInteractive;
@@ -102,7 +101,7 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
                     Some(variant) => ChainmailBody::from_model(scene, &scene.chainmail, variant, budget)
                         .map(|b| Box::new(b) as Box<dyn Interactive + Send>)
                         .map_err(|e| Box::new(e) as _),
-                    None if scene.tissue.is_some_and(|t| t.model() == TissueModel::NeoHookean) => {
+                    None if scene.tissue.is_some_and(|t| !t.is_linear()) => {
                         HyperInteractive::new(scene, max_memory, RefreshMode::Background)
                             .map(|b| Box::new(b) as Box<dyn Interactive + Send>)
                             .map_err(|e| Box::new(e) as _)

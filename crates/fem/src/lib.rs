@@ -53,6 +53,7 @@ mod held_basis;
 mod held_rows;
 mod held_system;
 pub mod hyper;
+pub mod law;
 mod ordering;
 mod region;
 mod rigid;

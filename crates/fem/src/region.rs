@@ -9,11 +9,14 @@
 //! materials strained alike), and its material id is the tissue with the most samples.
 //! Every cell keeps the body's law (linear or neo-Hookean).
 
+use std::sync::Arc;
+
 use fibfluid_geometry::{PointLattice, Vec3, for_each_inside_line};
 
 use crate::error::{FemError, Result};
 use crate::grid::{SUBSAMPLES, SparseGrid};
 use crate::hyper::CellMaterial;
+use crate::law::MaterialLaw;
 use crate::tissue::Tissue;
 
 /// Where a region is.
@@ -108,6 +111,7 @@ pub fn blend_regions(grid: &SparseGrid, base: &Tissue, regions: &[Region]) -> Re
         region_cells: vec![0; regions.len()],
     };
     let mut samples_in = vec![0usize; regions.len()];
+    let law = base.law();
     for c in grid.cell_coords() {
         let mut counts = vec![0usize; tissues.len()];
         for k in 0..s * s * s {
@@ -125,7 +129,7 @@ pub fn blend_regions(grid: &SparseGrid, base: &Tissue, regions: &[Region]) -> Re
         for r in 0..regions.len() {
             samples_in[r] += counts[r + 1];
         }
-        push_cell(&mut blend, &tissues, &counts);
+        push_cell(&mut blend, &law, &tissues, &counts);
     }
     if let Some(r) = samples_in.iter().position(|&n| n == 0) {
         return Err(FemError::RegionOutsideBody { region: r + 1 });
@@ -134,16 +138,16 @@ pub fn blend_regions(grid: &SparseGrid, base: &Tissue, regions: &[Region]) -> Re
 }
 
 /// Appends one cell's sample-weighted material.
-fn push_cell(blend: &mut CellBlend, tissues: &[Tissue], counts: &[usize]) {
+fn push_cell(blend: &mut CellBlend, law: &Arc<dyn MaterialLaw>, tissues: &[Tissue], counts: &[usize]) {
     let total = counts.iter().sum::<usize>() as f64;
     let mean = |f: &dyn Fn(&Tissue) -> f64| {
         tissues.iter().zip(counts).map(|(t, &n)| f(t) * n as f64).sum::<f64>() / total
     };
-    blend.materials.push(CellMaterial {
-        model: tissues[0].model(),
-        mu: mean(&|t| t.shear_modulus()),
-        kappa: mean(&|t| t.bulk_modulus()),
-    });
+    blend.materials.push(CellMaterial::new(
+        law.clone(),
+        mean(&|t| t.shear_modulus()),
+        mean(&|t| t.bulk_modulus()),
+    ));
     blend.densities.push(mean(&|t| t.density()));
     let id = (0..counts.len()).max_by_key(|&k| (counts[k], std::cmp::Reverse(k))).unwrap_or(0);
     blend.ids.push(id as u16);

@@ -98,6 +98,31 @@ impl Tissue {
         self.model
     }
 
+    /// The law of this tissue's model (shared by every cell that uses it).
+    pub fn law(&self) -> std::sync::Arc<dyn crate::law::MaterialLaw> {
+        match self.model {
+            TissueModel::Linear => std::sync::Arc::new(crate::law::LinearLaw),
+            TissueModel::NeoHookean => std::sync::Arc::new(crate::law::NeoHookean),
+        }
+    }
+
+    /// Whether the tissue's law is small-strain linear (one solve is its answer; its
+    /// strains say when that answer is untrue).
+    pub fn is_linear(&self) -> bool {
+        self.law().is_linear()
+    }
+
+    /// The same tissue with the small-strain linear law (the linearization of any law at
+    /// rest: the same `mu` and `kappa`).
+    pub fn linearized(&self) -> Self {
+        self.with_model(TissueModel::Linear)
+    }
+
+    /// The same tissue with the large-deformation (neo-Hookean) law, the same moduli at rest.
+    pub fn nonlinear(&self) -> Self {
+        self.with_model(TissueModel::NeoHookean)
+    }
+
     /// The same tissue with another constitutive model.
     pub fn with_model(&self, model: TissueModel) -> Self {
         Self { model, ..*self }

@@ -27,7 +27,7 @@ fn sample_displacement(h: f64) -> [[f64; 3]; 8] {
 fn tangent_matches_finite_differences() {
     let h = 0.01;
     let cell = HyperCell::new(h);
-    let m = CellMaterial { model: TissueModel::NeoHookean, mu: 1500.0, kappa: 40000.0 };
+    let m = CellMaterial::new(std::sync::Arc::new(fibfluid_fem::law::NeoHookean), 1500.0, 40000.0);
     let u = sample_displacement(h);
     let t = cell.tangent(&m, &u, 0.8, true).unwrap();
     let k = t.hessian.unwrap();

@@ -7,6 +7,7 @@ mod errors;
 mod golden;
 mod held;
 mod hyper;
+mod law;
 mod ordering;
 mod patch;
 mod point_force;

@@ -4,7 +4,6 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use fibfluid_fem::TissueModel;
 use fibfluid_geometry::Vec3;
 use fibfluid_linalg::{Backend, Precision};
 use fibfluid_sim::{Method, Mode, Model, RunOptions, Shape, Simulation};
@@ -144,7 +143,7 @@ impl MethodBody {
         opts: &ProbeOptions,
     ) -> Result<Self, ProbeError> {
         match (method, Variant::of_method(method)) {
-            (Method::Fem, _) if scene.tissue.is_some_and(|t| t.model() == TissueModel::NeoHookean) => {
+            (Method::Fem, _) if scene.tissue.is_some_and(|t| !t.is_linear()) => {
                 Ok(MethodBody::Hyper(Box::new(HyperInteractive::with_chord_refreshes(
                     scene,
                     opts.max_memory_bytes,

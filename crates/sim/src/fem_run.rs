@@ -15,7 +15,7 @@
 use std::time::Instant;
 
 use fibfluid_fem::hyper::{CellMaterial, CellState, GraspRecord, StrainSummary, cell_states};
-use fibfluid_fem::{FemStats, SparseGrid, Tissue, TissueModel};
+use fibfluid_fem::{FemStats, SparseGrid, Tissue};
 use fibfluid_geometry::{Boundary, Vec3};
 use serde::Serialize;
 
@@ -81,11 +81,11 @@ impl FemRun {
         let mut answer = solve_answer(&model, &tissue, limit, &mut log)?;
         let mut notes = Vec::new();
         let strain = answer.strain.max_strain_magnitude;
-        if model.fem.auto_model && tissue.model() == TissueModel::Linear && strain > LINEAR_STRAIN_LIMIT {
+        if model.fem.auto_model && tissue.is_linear() && strain > LINEAR_STRAIN_LIMIT {
             notes.push(format!(
                 "[tissue] model = \"auto\": the linear answer's largest strain {strain:.3} is above {LINEAR_STRAIN_LIMIT}; solved again neo-Hookean"
             ));
-            tissue = tissue.with_model(TissueModel::NeoHookean);
+            tissue = tissue.nonlinear();
             log = StageLog::default();
             answer = solve_answer(&model, &tissue, limit, &mut log)?;
         }
@@ -97,7 +97,7 @@ impl FemRun {
                 std::array::from_fn(|a| p[a] + if model.constraints.get(v, a).is_some() { 0.0 } else { u[a] })
             })
             .collect();
-        let small_strain = tissue.model() == TissueModel::Linear;
+        let small_strain = tissue.is_linear();
         let mut warnings = answer_guards(&model, &rest, &positions, answer.residual, small_strain)?;
         let strain = answer.strain.max_strain_magnitude;
         if small_strain && strain > LINEAR_STRAIN_LIMIT {
@@ -138,7 +138,7 @@ impl FemRun {
 /// (one iteration per change of the contact set); a plain linear body is one solve.
 fn solve_answer(model: &Model, tissue: &Tissue, limit: u64, log: &mut StageLog) -> Result<FemAnswer> {
     let plain = model.plates.is_empty() && model.fem.regions.is_empty() && model.fem.grasps.is_empty();
-    if tissue.model() == TissueModel::Linear && plain {
+    if tissue.is_linear() && plain {
         return solve_linear(model, limit, log);
     }
     let (body, sol, stats) = crate::hyper_run::solve(model, tissue, limit, log)?;

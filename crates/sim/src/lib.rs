@@ -57,5 +57,5 @@ pub use simulate::{
 pub use stages::{Stage, StageLog, StageRecord};
 
 pub use fibfluid_assembly::ConstraintKind;
-pub use fibfluid_fem::{Tissue, TissueModel};
+pub use fibfluid_fem::Tissue;
 pub use fibfluid_linalg::{Backend, Choice, ParseChoiceError, Precision, memory_budget};

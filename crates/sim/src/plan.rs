@@ -531,7 +531,7 @@ fn newton_stages(e: &fibfluid_fem::GridEstimate, scene: &Model) -> Vec<PlannedSt
 /// count.
 fn fem_plan(scene: &Model) -> Plan {
     let positions = scene.rest_positions();
-    let newton = scene.tissue.is_some_and(|t| t.model() == fibfluid_fem::TissueModel::NeoHookean)
+    let newton = scene.tissue.is_some_and(|t| !t.is_linear())
         || !scene.plates.is_empty()
         || !scene.fem.regions.is_empty()
         || !scene.fem.grasps.is_empty();

@@ -192,7 +192,7 @@ fn neo_hookean_server(failing: u32) -> (fibfluid_viewer::ServerHandle, Vec<Vec3>
     let Shape::Surface(file) = &scene.shape else { panic!("a surface scene") };
     let mesh = ViewMesh::new(file, &ffm).expect("mesh and body agree");
     let mut model = scene.model.clone();
-    model.tissue = model.tissue.map(|t| t.with_model(fibfluid_sim::TissueModel::NeoHookean));
+    model.tissue = model.tissue.map(|t| t.nonlinear());
     let factory: BodyFactory = Arc::new(move |method: Method| {
         fibfluid_interact::HyperInteractive::new(&model, None, fibfluid_interact::RefreshMode::Background)
             .map(|mut b| {

@@ -16,6 +16,7 @@ use crate::body::{Loads, load_vector};
 use crate::clamp::{Clamp, ClampPoint, clamp_stiffness};
 use crate::error::{FemError, Result};
 use crate::grid::{FemOptions, SparseGrid};
+use crate::law::{LawStates, MaterialLaw};
 use crate::ordering::{Ordering, symbolic_analysis};
 use crate::tissue::Tissue;
 
@@ -172,6 +173,8 @@ pub struct HyperBody {
     pub(crate) cell: HyperCell,
     /// Each cell's law and moduli.
     pub(crate) materials: Vec<CellMaterial>,
+    /// The laws' per-point state (empty when every law is stateless).
+    pub(crate) states: LawStates,
     /// Each cell's mass density (kg/m^3).
     pub(crate) densities: Vec<f64>,
     /// Each cell's material id (0: the body's tissue, `k`: region `k`).
@@ -261,6 +264,7 @@ impl HyperBody {
             samples: surface_samples(&grid, fixed),
             grasps: GraspSet::default(),
             cell: HyperCell::new(h),
+            states: LawStates::default(),
             materials: vec![CellMaterial::of(tissue); grid.n_cells()],
             densities: vec![tissue.density(); grid.n_cells()],
             material_ids: vec![0; grid.n_cells()],
@@ -287,9 +291,51 @@ impl HyperBody {
         }
         let blend = crate::blend_regions(&self.grid, &self.tissue, regions)?;
         self.materials = blend.materials;
+        self.states = LawStates::new(&self.materials);
         self.densities = blend.densities;
         self.material_ids = blend.ids;
         Ok(self)
+    }
+
+    /// The same body with every cell's law replaced by `law` (each cell keeps its moduli);
+    /// the laws' state starts at rest. A law defined outside this crate enters here.
+    pub fn with_law(mut self, law: Arc<dyn MaterialLaw>) -> Self {
+        for m in &mut self.materials {
+            m.law = law.clone();
+        }
+        self.states = LawStates::new(&self.materials);
+        self
+    }
+
+    /// The laws' per-point state.
+    pub fn law_states(&self) -> &LawStates {
+        &self.states
+    }
+
+    /// Commits every Gauss point's law state at the node displacements `u` (one per grid
+    /// node, m: a [`HyperSolution`]'s) after a converged step of `dt` seconds
+    /// ([`MaterialLaw::commit_state`]); nothing for stateless laws.
+    ///
+    /// # Panics
+    /// When `u` does not have one entry per grid node.
+    #[track_caller]
+    pub fn commit_law_states(&mut self, u: &[Vec3], dt: f64) {
+        assert_eq!(u.len(), self.grid.n_nodes(), "one displacement per node");
+        if self.states.is_empty() {
+            return;
+        }
+        for (c, nodes) in self.grid.cell_nodes().iter().enumerate() {
+            let m = &self.materials[c];
+            let len = m.law.state_len();
+            if len == 0 {
+                continue;
+            }
+            let local = nodes.map(|n| u[n]);
+            let fs = self.cell.deformation_gradients(&local);
+            for (p, state) in self.states.cell_mut(c).chunks_mut(len).enumerate() {
+                m.law.commit_state(&fs[p], &m.moduli(), state, dt);
+            }
+        }
     }
 
     /// Each cell's material id (0: the body's tissue, `k`: the `k`-th region).
@@ -348,7 +394,11 @@ impl HyperBody {
 
     /// Each cell's state and their extremes for node displacements `u`.
     pub(crate) fn cell_states(&self, u: &[Vec3]) -> (Vec<CellState>, StrainSummary) {
-        cell_states(&self.grid, &self.materials, u)
+        let cells = self.grid.cell_nodes().iter().enumerate();
+        let states = cells.map(|(c, nodes)| {
+            self.cell.state_with(&self.materials[c], &nodes.map(|n| u[n]), self.states.cell(c))
+        });
+        summarize(&self.grid, states.collect())
     }
 
     /// Each cell's law and moduli.
@@ -379,6 +429,11 @@ pub fn cell_states(
         .zip(materials)
         .map(|(nodes, m)| cell.state(m, &nodes.map(|n| u[n])))
         .collect();
+    summarize(grid, cells)
+}
+
+/// The cells' states and their extremes over the cells at least [`SUMMARY_FILL`] inside.
+fn summarize(grid: &SparseGrid, cells: Vec<CellState>) -> (Vec<CellState>, StrainSummary) {
     let mut s = StrainSummary {
         j_min: f64::INFINITY,
         j_max: f64::NEG_INFINITY,

@@ -10,26 +10,56 @@
 
 use fibfluid_geometry::Vec3;
 
-use super::material::{M3, cofactor, det, isochoric_energy, isochoric_stress_tangent, volumetric};
+use std::sync::Arc;
+
 use crate::element::{CELL_DOFS, CellMatrix, gauss_points, gradients, unit_cell_matrices};
 use crate::grid::Element;
-use crate::tissue::{Tissue, TissueModel};
+use crate::law::state::{POINTS_PER_CELL, point_state};
+use crate::law::tensor::{M3, cofactor, det, symmetric_eigenvalues};
+use crate::law::{MaterialLaw, Moduli};
+use crate::tissue::Tissue;
 
 /// A cell's constitutive law and moduli (a region's tissue, or a blend of tissues).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct CellMaterial {
-    /// Linear (the B-bar element's quadratic energy) or neo-Hookean.
-    pub model: TissueModel,
+    /// The law (shared by the cells of one tissue).
+    pub law: Arc<dyn MaterialLaw>,
     /// Shear modulus `mu`, Pa.
     pub mu: f64,
     /// Bulk modulus `kappa`, Pa.
     pub kappa: f64,
 }
 
+impl PartialEq for CellMaterial {
+    fn eq(&self, other: &Self) -> bool {
+        self.law.name() == other.law.name() && self.mu == other.mu && self.kappa == other.kappa
+    }
+}
+
 impl CellMaterial {
+    /// `law` with the moduli `mu` and `kappa` (Pa).
+    pub fn new(law: Arc<dyn MaterialLaw>, mu: f64, kappa: f64) -> Self {
+        Self { law, mu, kappa }
+    }
+
     /// The law and moduli of a tissue.
     pub fn of(tissue: &Tissue) -> Self {
-        Self { model: tissue.model(), mu: tissue.shear_modulus(), kappa: tissue.bulk_modulus() }
+        Self::new(tissue.law(), tissue.shear_modulus(), tissue.bulk_modulus())
+    }
+
+    /// The moduli the law is evaluated with.
+    pub fn moduli(&self) -> Moduli {
+        Moduli { mu: self.mu, kappa: self.kappa }
+    }
+
+    /// A cell's state at the law's initial state (`8 x state_len` values).
+    fn initial_cell_state(&self) -> Vec<f64> {
+        let len = self.law.state_len();
+        let mut v = vec![0.0; POINTS_PER_CELL * len];
+        if len > 0 {
+            v.chunks_mut(len).for_each(|s| self.law.initial_state(s));
+        }
+        v
     }
 }
 
@@ -120,10 +150,15 @@ impl HyperCell {
         std::array::from_fn(|r| std::array::from_fn(|s| c * (m.mu * dev[r][s] + m.kappa * vol[r][s])))
     }
 
-    /// The cell's energy (J) at node displacements `u`, times `fill`; `None` when a
-    /// neo-Hookean Gauss point or cell has `J <= 0`.
+    /// The cell's energy (J) at node displacements `u`, times `fill`, with its law at its
+    /// initial state; `None` when a Gauss point or the cell has `J <= 0` (a nonlinear law).
     pub fn energy(&self, m: &CellMaterial, u: &[Vec3; 8], fill: f64) -> Option<f64> {
-        if m.model == TissueModel::Linear {
+        self.energy_with(m, u, fill, &m.initial_cell_state())
+    }
+
+    /// [`HyperCell::energy`] with the cell's law state `state` (`8 x state_len` values).
+    pub fn energy_with(&self, m: &CellMaterial, u: &[Vec3; 8], fill: f64, state: &[f64]) -> Option<f64> {
+        if m.law.is_linear() {
             let k = self.linear_matrix(m, fill);
             let x: Vec<f64> = u.iter().flatten().copied().collect();
             return Some(
@@ -132,86 +167,131 @@ impl HyperCell {
                     .sum::<f64>(),
             );
         }
+        let (law, moduli, len) = (&*m.law, m.moduli(), m.law.state_len());
         let mut iso = 0.0;
         let mut theta = 0.0;
         let mut pointwise = 0.0;
-        for g in &self.grads {
+        for (p, g) in self.grads.iter().enumerate() {
             let f = deformation_gradient(u, g);
-            iso += W * isochoric_energy(&f, m.mu)?;
+            iso += W * law.isochoric_energy(&f, &moduli, point_state(state, len, p))?;
             theta += W * det(&f);
-            pointwise += W * volumetric(det(&f), m.kappa)?[0];
+            pointwise += W * law.volumetric(det(&f), &moduli)?[0];
         }
-        let [vol, _, _] = volumetric(theta, m.kappa)?;
+        let [vol, _, _] = law.volumetric(theta, &moduli)?;
         let empty = empty_weight(fill) * self.volume;
         Some(fill * self.volume * (iso + vol) + empty * (iso + pointwise))
     }
 
     /// The gradient and (with `hessian`) the Hessian of [`HyperCell::energy`]; `None` when
-    /// a neo-Hookean Gauss point or cell has `J <= 0`.
+    /// a Gauss point or the cell has `J <= 0` (a nonlinear law).
     pub fn tangent(&self, m: &CellMaterial, u: &[Vec3; 8], fill: f64, hessian: bool) -> Option<CellTangent> {
-        if m.model == TissueModel::Linear {
+        self.tangent_with(m, u, fill, hessian, &m.initial_cell_state())
+    }
+
+    /// [`HyperCell::tangent`] with the cell's law state `state` (`8 x state_len` values).
+    pub fn tangent_with(
+        &self,
+        m: &CellMaterial,
+        u: &[Vec3; 8],
+        fill: f64,
+        hessian: bool,
+        state: &[f64],
+    ) -> Option<CellTangent> {
+        if m.law.is_linear() {
             let k = self.linear_matrix(m, fill);
             let x: Vec<f64> = u.iter().flatten().copied().collect();
             let gradient = std::array::from_fn(|r| (0..CELL_DOFS).map(|c| k[r][c] * x[c]).sum());
             return Some(CellTangent { gradient, hessian: hessian.then(|| Box::new(k)) });
         }
-        let scale = fill * self.volume;
-        let empty = empty_weight(fill) * self.volume;
         let fs: [M3; 8] = std::array::from_fn(|p| deformation_gradient(u, &self.grads[p]));
         let js = fs.map(|f| det(&f));
         if js.iter().any(|&j| !(j > 0.0)) {
             return None;
         }
         let theta: f64 = js.iter().map(|j| W * j).sum();
-        let [_, du, ddu] = volumetric(theta, m.kappa)?;
+        let [_, du, ddu] = m.law.volumetric(theta, &m.moduli())?;
         let mut gradient = [0.0; CELL_DOFS];
         let mut dtheta = [0.0; CELL_DOFS];
         let mut k = hessian.then(|| Box::new([[0.0; CELL_DOFS]; CELL_DOFS]));
+        let weights = Weights { scale: fill * self.volume, empty: empty_weight(fill) * self.volume, du };
         for p in 0..8 {
-            let g = &self.grads[p];
-            let cof = cofactor(&fs[p]);
-            let (stress, a) = isochoric_stress_tangent(&fs[p], m.mu);
-            // The empty part's pointwise volumetric energy U(J) (see `EMPTY_STIFFNESS`).
-            let [_, du_p, ddu_p] = volumetric(js[p], m.kappa)?;
-            for b in 0..8 {
-                for i in 0..3 {
-                    let dot = |m: &M3| (0..3).map(|jj| m[i][jj] * g[b][jj]).sum::<f64>();
-                    gradient[3 * b + i] += (scale + empty) * W * dot(&stress) + empty * W * du_p * dot(&cof);
-                    dtheta[3 * b + i] += W * dot(&cof);
-                }
-            }
-            if let Some(k) = k.as_deref_mut() {
-                let mut c = a;
-                for (r, row) in c.iter_mut().enumerate() {
-                    let (i, jj) = (r / 3, r % 3);
-                    for (s, v) in row.iter_mut().enumerate() {
-                        let (kk, l) = (s / 3, s % 3);
-                        let geometric = (cof[i][jj] * cof[kk][l] - cof[i][l] * cof[kk][jj]) / js[p];
-                        let material = cof[i][jj] * cof[kk][l];
-                        *v = W
-                            * ((scale + empty) * *v
-                                + scale * du * geometric
-                                + empty * (du_p * geometric + ddu_p * material));
-                    }
-                }
-                add_gauss_point(k, &c, g, 1.0);
-            }
+            let point = Point {
+                g: &self.grads[p],
+                f: &fs[p],
+                j: js[p],
+                state: point_state(state, m.law.state_len(), p),
+            };
+            self.add_point(m, &point, &weights, &mut gradient, &mut dtheta, k.as_deref_mut())?;
         }
         for (gi, d) in gradient.iter_mut().zip(&dtheta) {
-            *gi += scale * du * d;
+            *gi += weights.scale * du * d;
         }
         if let Some(k) = k.as_deref_mut() {
             for r in 0..CELL_DOFS {
                 for s in 0..CELL_DOFS {
-                    k[r][s] += scale * ddu * dtheta[r] * dtheta[s];
+                    k[r][s] += weights.scale * ddu * dtheta[r] * dtheta[s];
                 }
             }
         }
         Some(CellTangent { gradient, hessian: k })
     }
 
-    /// Strain, stress (of the cell's own law) and `J` of a deformed cell.
+    /// One Gauss point's share of the gradient, of the dilatation's gradient and (with `k`)
+    /// of the Hessian; `None` when the law's volumetric energy is undefined there.
+    fn add_point(
+        &self,
+        m: &CellMaterial,
+        point: &Point<'_>,
+        w: &Weights,
+        gradient: &mut [f64; CELL_DOFS],
+        dtheta: &mut [f64; CELL_DOFS],
+        k: Option<&mut CellMatrix>,
+    ) -> Option<()> {
+        let (g, moduli) = (point.g, m.moduli());
+        let (scale, empty, du) = (w.scale, w.empty, w.du);
+        let cof = cofactor(point.f);
+        let (stress, a) = m.law.isochoric_stress(point.f, &moduli, point.state);
+        // The empty part's pointwise volumetric energy U(J) (see `EMPTY_STIFFNESS`).
+        let [_, du_p, ddu_p] = m.law.volumetric(point.j, &moduli)?;
+        for b in 0..8 {
+            for i in 0..3 {
+                let dot = |m: &M3| (0..3).map(|jj| m[i][jj] * g[b][jj]).sum::<f64>();
+                gradient[3 * b + i] += (scale + empty) * W * dot(&stress) + empty * W * du_p * dot(&cof);
+                dtheta[3 * b + i] += W * dot(&cof);
+            }
+        }
+        if let Some(k) = k {
+            let mut c = a;
+            for (r, row) in c.iter_mut().enumerate() {
+                let (i, jj) = (r / 3, r % 3);
+                for (s, v) in row.iter_mut().enumerate() {
+                    let (kk, l) = (s / 3, s % 3);
+                    let geometric = (cof[i][jj] * cof[kk][l] - cof[i][l] * cof[kk][jj]) / point.j;
+                    let material = cof[i][jj] * cof[kk][l];
+                    *v = W
+                        * ((scale + empty) * *v
+                            + scale * du * geometric
+                            + empty * (du_p * geometric + ddu_p * material));
+                }
+            }
+            add_gauss_point(k, &c, g, 1.0);
+        }
+        Some(())
+    }
+
+    /// The deformation gradient at each Gauss point for node displacements `u`.
+    pub fn deformation_gradients(&self, u: &[Vec3; 8]) -> [M3; 8] {
+        std::array::from_fn(|p| deformation_gradient(u, &self.grads[p]))
+    }
+
+    /// Strain, stress (of the cell's own law, at its initial state) and `J` of a deformed
+    /// cell.
     pub fn state(&self, m: &CellMaterial, u: &[Vec3; 8]) -> CellState {
+        self.state_with(m, u, &m.initial_cell_state())
+    }
+
+    /// [`HyperCell::state`] with the cell's law state (the centre reads point 0's).
+    pub fn state_with(&self, m: &CellMaterial, u: &[Vec3; 8], state: &[f64]) -> CellState {
         let js: Vec<f64> = self.grads.iter().map(|g| det(&deformation_gradient(u, g))).collect();
         let theta: f64 = js.iter().map(|j| W * j).sum();
         let f = deformation_gradient(u, &self.centre);
@@ -220,12 +300,8 @@ impl HyperCell {
                 0.5 * ((0..3).map(|k| f[k][i] * f[k][j]).sum::<f64>() - if i == j { 1.0 } else { 0.0 })
             })
         });
-        let eig = super::material::symmetric_eigenvalues(&green);
-        let von_mises = match m.model {
-            TissueModel::Linear => linear_von_mises(&f, m.mu),
-            TissueModel::NeoHookean if det(&f) > 0.0 => isochoric_von_mises(&f, m.mu),
-            TissueModel::NeoHookean => f64::NAN,
-        };
+        let eig = symmetric_eigenvalues(&green);
+        let von_mises = m.law.von_mises(&f, &m.moduli(), point_state(state, m.law.state_len(), 0));
         CellState {
             j_min: js.iter().copied().fold(f64::INFINITY, f64::min),
             j_max: js.iter().copied().fold(f64::NEG_INFINITY, f64::max),
@@ -237,38 +313,19 @@ impl HyperCell {
     }
 }
 
-/// The von Mises stress of the small-strain stress `2 mu dev eps` (`eps` the symmetric
-/// part of `F - I`).
-fn linear_von_mises(f: &M3, mu: f64) -> f64 {
-    let eps: M3 = std::array::from_fn(|i| {
-        std::array::from_fn(|k| 0.5 * (f[i][k] + f[k][i]) - if i == k { 1.0 } else { 0.0 })
-    });
-    let mean = (eps[0][0] + eps[1][1] + eps[2][2]) / 3.0;
-    let dev2: f64 = (0..9)
-        .map(|r| {
-            let (i, k) = (r / 3, r % 3);
-            (eps[i][k] - if i == k { mean } else { 0.0 }).powi(2)
-        })
-        .sum();
-    2.0 * mu * (1.5 * dev2).sqrt()
+/// One Gauss point's kinematics and law state.
+struct Point<'a> {
+    g: &'a [[f64; 3]; 8],
+    f: &'a M3,
+    j: f64,
+    state: &'a [f64],
 }
 
-/// The von Mises stress of the Cauchy stress `sigma = P F^T / J` (the volumetric part is a
-/// pressure and drops out).
-fn isochoric_von_mises(f: &M3, mu: f64) -> f64 {
-    let j = det(f);
-    let (p, _) = isochoric_stress_tangent(f, mu);
-    let sigma: M3 =
-        std::array::from_fn(|i| std::array::from_fn(|k| (0..3).map(|l| p[i][l] * f[k][l]).sum::<f64>() / j));
-    let mean = (sigma[0][0] + sigma[1][1] + sigma[2][2]) / 3.0;
-    let mut s2 = 0.0;
-    for i in 0..3 {
-        for k in 0..3 {
-            let d = sigma[i][k] - if i == k { mean } else { 0.0 };
-            s2 += d * d;
-        }
-    }
-    (1.5 * s2).sqrt()
+/// A cell's weights: the tissue's (`fill V`), the empty part's, and `U'(theta)`.
+struct Weights {
+    scale: f64,
+    empty: f64,
+    du: f64,
 }
 
 /// `K[(b, i)][(c, k)] += scale * sum_JL grad N_b,J C[iJ][kL] grad N_c,L` for one Gauss point.

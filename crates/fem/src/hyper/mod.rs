@@ -1,8 +1,8 @@
 //! Large deformation: the compressible neo-Hookean tissue on the same sparse grid and
 //! embedding as the linear body, solved by Newton's method with load stepping.
 //!
-//! - Energy: [`material`]'s uncoupled neo-Hookean `W = mu / 2 (J^(-2/3) I1 - 3) +
-//!   kappa / 4 (J^2 - 1 - 2 ln J)`, total Lagrangian, the volumetric part on each cell's mean
+//! - Energy: [`crate::law`]'s laws (the linear and the uncoupled neo-Hookean `W = mu / 2 (J^(-2/3) I1 - 3) +
+//!   kappa / 4 (J^2 - 1 - 2 ln J)`, or a law of the caller's), total Lagrangian, the volumetric part on each cell's mean
 //!   dilatation (the nonlinear counterpart of the linear body's B-bar, [`cell`]).
 //! - Loads: gravity and point forces are dead loads (fixed in direction and size) scaled by
 //!   the load factor `t` in `[0, 1]`; [`RigidPlate`]s move with `t`; the clamp is the
@@ -22,7 +22,6 @@ mod cell;
 mod contact;
 mod grasp;
 mod grasp_kkt;
-mod material;
 mod newton;
 mod solve;
 mod tracking;

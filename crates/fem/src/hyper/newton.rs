@@ -135,9 +135,9 @@ impl HyperBody {
             let fill = self.grid.fill()[c];
             let local = nodes.map(|n| u[n]);
             let dofs = self.cell_dofs(&nodes);
-            let material = self.materials[c];
-            elastic += self.cell.energy(&material, &local, fill)?;
-            let t = self.cell.tangent(&material, &local, fill, tangent)?;
+            let (material, law_state) = (&self.materials[c], self.states.cell(c));
+            elastic += self.cell.energy_with(material, &local, fill, law_state)?;
+            let t = self.cell.tangent_with(material, &local, fill, tangent, law_state)?;
             for (l, &g) in dofs.iter().enumerate() {
                 if g != FIXED {
                     gradient[g] += t.gradient[l];
@@ -378,8 +378,9 @@ impl HyperBody {
     pub(super) fn energy(&self, x: &[f64], state: &LoadState<'_>) -> Option<f64> {
         let u = self.node_field(x);
         let mut e = 0.0;
-        for ((nodes, &fill), m) in self.grid.cell_nodes().iter().zip(self.grid.fill()).zip(&self.materials) {
-            e += self.cell.energy(m, &nodes.map(|n| u[n]), fill)?;
+        for (c, (nodes, &fill)) in self.grid.cell_nodes().iter().zip(self.grid.fill()).enumerate() {
+            e +=
+                self.cell.energy_with(&self.materials[c], &nodes.map(|n| u[n]), fill, self.states.cell(c))?;
         }
         for p in &self.clamp {
             let d: f64 = (0..8).map(|b| p.weights[b] * u[p.nodes[b]][p.axis]).sum();

@@ -275,7 +275,10 @@ impl HyperBody {
         for (c, nodes) in self.grid.cell_nodes().iter().enumerate() {
             let fill = self.grid.fill()[c];
             let local = nodes.map(|n| u[n]);
-            let Some(t) = self.cell.tangent(&self.materials[c], &local, fill, false) else { continue };
+            let law_state = self.states.cell(c);
+            let Some(t) = self.cell.tangent_with(&self.materials[c], &local, fill, false, law_state) else {
+                continue;
+            };
             for (l, g) in t.gradient.iter().enumerate() {
                 let (n, a) = (nodes[l / 3], l % 3);
                 if fixed(n, a) {

@@ -587,8 +587,12 @@ impl HyperBody {
     /// Whether no cell is inverted at the free-dof state `x`.
     fn cell_states_valid(&self, x: &[f64]) -> bool {
         let u = self.node_field(x);
-        let cells = self.grid.cell_nodes().iter().zip(self.grid.fill()).zip(&self.materials);
-        cells.into_iter().all(|((nodes, &fill), m)| self.cell.energy(m, &nodes.map(|n| u[n]), fill).is_some())
+        let cells = self.grid.cell_nodes().iter().zip(self.grid.fill()).enumerate();
+        cells.into_iter().all(|(c, (nodes, &fill))| {
+            self.cell
+                .energy_with(&self.materials[c], &nodes.map(|n| u[n]), fill, self.states.cell(c))
+                .is_some()
+        })
     }
 }
 

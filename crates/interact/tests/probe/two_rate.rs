@@ -5,7 +5,6 @@
 //! returns the body to its own equilibrium; the refresh thread gives the same answer as the
 //! refresh in the frame loop.
 
-use fibfluid_fem::TissueModel;
 use fibfluid_geometry::Vec3;
 use fibfluid_geometry::vec3::{add, norm, sub};
 use fibfluid_interact::{Grasp, HyperInteractive, Interactive, RefreshMode, RigidMotion};
@@ -22,7 +21,7 @@ const AGREEMENT: f64 = 1e-6;
 /// The FEM sphere of neo-Hookean tissue under a tenth of the sphere scene's gravity.
 fn neo_hookean_sphere() -> Model {
     let mut m = fem_sphere();
-    m.tissue = m.tissue.map(|t| t.with_model(TissueModel::NeoHookean));
+    m.tissue = m.tissue.map(|t| t.nonlinear());
     m.load.gravity = [0.0, -1.0, 0.0];
     let _ = ConstraintKind::Eliminate;
     m
@@ -85,7 +84,7 @@ fn a_held_grasp_converges_to_the_batch_answer_and_release_returns_to_rest() {
 /// The linear FEM body's frame for the same grasp.
 fn lineared_frame(scene: &Model, g: &Grasp, t: Vec3) -> Vec<Vec3> {
     let mut linear = scene.clone();
-    linear.tissue = linear.tissue.map(|t| t.with_model(TissueModel::Linear));
+    linear.tissue = linear.tissue.map(|t| t.linearized());
     let mut b = fibfluid_interact::fem_body::FemInteractive::new(&linear, None).unwrap();
     let g2 = Grasp::new(&b, g.vertex(), g.radius()).unwrap();
     g2.hold(&mut b, &RigidMotion::translation(t)).unwrap();
