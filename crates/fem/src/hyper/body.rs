@@ -9,11 +9,12 @@ use fibfluid_linalg::SparseSymbolic;
 use serde::Serialize;
 
 use super::cell::{CellMaterial, CellState, HyperCell};
-use super::contact::{ContactSample, surface_samples};
+use super::contact::surface_samples;
 use super::grasp::{GRASP_PENALTY, Grasp, GraspRecord, GraspSet};
+use super::terms::{ClampTerm, ContactTerm, ForceTerms};
 use crate::assemble::{lower_pattern, number_free_dofs};
 use crate::body::{Loads, load_vector};
-use crate::clamp::{Clamp, ClampPoint, clamp_stiffness};
+use crate::clamp::{Clamp, clamp_stiffness};
 use crate::error::{FemError, Result};
 use crate::grid::{FemOptions, SparseGrid};
 use crate::law::{LawStates, MaterialLaw};
@@ -150,45 +151,49 @@ pub struct HyperSolution {
     pub stats: HyperStats,
 }
 
-/// What every linearization of one body shares: where the surface sits in the grid.
-#[derive(Debug)]
-pub(crate) struct Layout {
-    pub(crate) embedding: Vec<crate::grid::Embedded>,
-    pub(crate) free: Vec<usize>,
-    pub(crate) n_nodes: usize,
-    /// Rest position of each surface vertex (m).
-    pub(crate) rest: Vec<fibfluid_geometry::Vec3>,
-}
-
-/// A sparse-grid body of compressible neo-Hookean tissue (see the module docs).
-pub struct HyperBody {
+/// What a hyperelastic body is, fixed once it is built: the grid with its embedded surface,
+/// the free-dof numbering and each cell's law, moduli and density. Shared (behind an
+/// `Arc`) by the body and every linearization made from it.
+#[derive(Debug, Clone)]
+pub(crate) struct HyperModel {
     pub(crate) grid: SparseGrid,
     pub(crate) tissue: Tissue,
     pub(crate) free: Vec<usize>,
     pub(crate) n_free: usize,
-    pub(crate) clamp: Vec<ClampPoint>,
-    pub(crate) clamp_beta: f64,
-    pub(crate) samples: Vec<ContactSample>,
-    pub(crate) grasps: GraspSet,
     pub(crate) cell: HyperCell,
     /// Each cell's law and moduli.
     pub(crate) materials: Vec<CellMaterial>,
-    /// The laws' per-point state (empty when every law is stateless).
-    pub(crate) states: LawStates,
     /// Each cell's mass density (kg/m^3).
     pub(crate) densities: Vec<f64>,
     /// Each cell's material id (0: the body's tissue, `k`: region `k`).
     pub(crate) material_ids: Vec<u16>,
+}
+
+/// Newton's scratch: the tangent's values on its fixed pattern and the pattern's kept
+/// symbolic analysis (numeric factorizations reuse it).
+pub(crate) struct NewtonStage {
     pub(crate) tangent: SparseColMat<usize, f64>,
     pub(crate) symbolic: Arc<SparseSymbolic>,
+}
+
+/// A sparse-grid body of hyperelastic tissue (see the module docs): the model (shared,
+/// immutable), the force terms besides the tissue (clamp, contact, grasps), Newton's
+/// scratch, the laws' per-point state and the settings.
+pub struct HyperBody {
+    pub(crate) model: Arc<HyperModel>,
+    pub(crate) terms: ForceTerms,
+    pub(crate) stage: NewtonStage,
+    /// The laws' per-point state (empty when every law is stateless).
+    pub(crate) states: LawStates,
     pub(crate) settings: NewtonSettings,
-    /// The surface's embedding and free dofs as linearizations share them (made once).
-    pub(crate) layout: Option<Arc<Layout>>,
 }
 
 impl std::fmt::Debug for HyperBody {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("HyperBody").field("tissue", &self.tissue).field("dofs", &self.n_free).finish()
+        f.debug_struct("HyperBody")
+            .field("tissue", &self.model.tissue)
+            .field("dofs", &self.model.n_free)
+            .finish()
     }
 }
 
@@ -236,8 +241,8 @@ impl HyperBody {
     ///
     /// Errors: a vertex out of range, an empty patch, a non-finite motion.
     pub fn with_grasps(mut self, grasps: &[Grasp]) -> Result<Self> {
-        let beta = GRASP_PENALTY * self.tissue.young() / self.grid.cell_size();
-        self.grasps = GraspSet::new(&self.grid, grasps, beta)?;
+        let beta = GRASP_PENALTY * self.model.tissue.young() / self.model.grid.cell_size();
+        self.terms.grasps = GraspSet::new(&self.model.grid, grasps, beta)?;
         Ok(self)
     }
 
@@ -260,24 +265,27 @@ impl HyperBody {
         let nnz = pattern.row_idx().len();
         let tangent = SparseColMat::new(pattern, vec![0.0; nnz]);
         let h = grid.cell_size();
-        Ok(Self {
-            samples: surface_samples(&grid, fixed),
+        let terms = ForceTerms {
+            clamp: ClampTerm { points: clamp.points, beta: clamp_stiffness(tissue, h) },
+            contact: ContactTerm { samples: surface_samples(&grid, fixed) },
             grasps: GraspSet::default(),
+        };
+        let model = HyperModel {
             cell: HyperCell::new(h),
-            states: LawStates::default(),
             materials: vec![CellMaterial::of(tissue); grid.n_cells()],
             densities: vec![tissue.density(); grid.n_cells()],
             material_ids: vec![0; grid.n_cells()],
-            clamp_beta: clamp_stiffness(tissue, h),
-            clamp: clamp.points,
             grid,
             tissue: *tissue,
             free,
             n_free,
-            tangent,
-            symbolic,
+        };
+        Ok(Self {
+            model: Arc::new(model),
+            terms,
+            stage: NewtonStage { tangent, symbolic },
+            states: LawStates::default(),
             settings: NewtonSettings::default(),
-            layout: None,
         })
     }
 
@@ -289,21 +297,22 @@ impl HyperBody {
         if regions.is_empty() {
             return Ok(self);
         }
-        let blend = crate::blend_regions(&self.grid, &self.tissue, regions)?;
-        self.materials = blend.materials;
-        self.states = LawStates::new(&self.materials);
-        self.densities = blend.densities;
-        self.material_ids = blend.ids;
+        let blend = crate::blend_regions(&self.model.grid, &self.model.tissue, regions)?;
+        let model = Arc::make_mut(&mut self.model);
+        model.materials = blend.materials;
+        model.densities = blend.densities;
+        model.material_ids = blend.ids;
+        self.states = LawStates::new(&self.model.materials);
         Ok(self)
     }
 
     /// The same body with every cell's law replaced by `law` (each cell keeps its moduli);
     /// the laws' state starts at rest. A law defined outside this crate enters here.
     pub fn with_law(mut self, law: Arc<dyn MaterialLaw>) -> Self {
-        for m in &mut self.materials {
+        for m in &mut Arc::make_mut(&mut self.model).materials {
             m.law = law.clone();
         }
-        self.states = LawStates::new(&self.materials);
+        self.states = LawStates::new(&self.model.materials);
         self
     }
 
@@ -320,18 +329,18 @@ impl HyperBody {
     /// When `u` does not have one entry per grid node.
     #[track_caller]
     pub fn commit_law_states(&mut self, u: &[Vec3], dt: f64) {
-        assert_eq!(u.len(), self.grid.n_nodes(), "one displacement per node");
+        assert_eq!(u.len(), self.model.grid.n_nodes(), "one displacement per node");
         if self.states.is_empty() {
             return;
         }
-        for (c, nodes) in self.grid.cell_nodes().iter().enumerate() {
-            let m = &self.materials[c];
+        for (c, nodes) in self.model.grid.cell_nodes().iter().enumerate() {
+            let m = &self.model.materials[c];
             let len = m.law.state_len();
             if len == 0 {
                 continue;
             }
             let local = nodes.map(|n| u[n]);
-            let fs = self.cell.deformation_gradients(&local);
+            let fs = self.model.cell.deformation_gradients(&local);
             for (p, state) in self.states.cell_mut(c).chunks_mut(len).enumerate() {
                 m.law.commit_state(&fs[p], &m.moduli(), state, dt);
             }
@@ -340,7 +349,7 @@ impl HyperBody {
 
     /// Each cell's material id (0: the body's tissue, `k`: the `k`-th region).
     pub fn material_ids(&self) -> &[u16] {
-        &self.material_ids
+        &self.model.material_ids
     }
 
     /// The same body with other Newton settings.
@@ -351,40 +360,40 @@ impl HyperBody {
 
     /// The grid.
     pub fn grid(&self) -> &SparseGrid {
-        &self.grid
+        &self.model.grid
     }
 
     /// The free-dof vector of `loads` (gravity by each cell's density, point forces) on
     /// this body.
     pub(crate) fn external_loads(&self, loads: &Loads) -> Result<Vec<f64>> {
-        load_vector(&self.grid, |c| self.densities[c], &self.free, self.n_free, loads)
+        load_vector(&self.model.grid, |c| self.model.densities[c], &self.model.free, self.model.n_free, loads)
     }
 
     /// The tissue.
     pub fn tissue(&self) -> &Tissue {
-        &self.tissue
+        &self.model.tissue
     }
 
     /// Unknowns (free degrees of freedom).
     pub fn dofs(&self) -> usize {
-        self.n_free
+        self.model.n_free
     }
 
     /// Stored nonzeros of the tangent's lower triangle.
     pub fn nonzeros(&self) -> usize {
-        self.tangent.val().len()
+        self.stage.tangent.val().len()
     }
 
     /// Stored values of the tangent's Cholesky factor.
     pub fn factor_nonzeros(&self) -> usize {
-        self.symbolic.factor_len()
+        self.stage.symbolic.factor_len()
     }
 
     /// Node displacements from a free-dof vector (0 on fixed dofs).
     pub(crate) fn node_field(&self, x: &[f64]) -> Vec<Vec3> {
-        (0..self.grid.n_nodes())
+        (0..self.model.grid.n_nodes())
             .map(|n| {
-                std::array::from_fn(|a| match self.free[3 * n + a] {
+                std::array::from_fn(|a| match self.model.free[3 * n + a] {
                     crate::assemble::FIXED => 0.0,
                     f => x[f],
                 })
@@ -394,16 +403,16 @@ impl HyperBody {
 
     /// Each cell's state and their extremes for node displacements `u`.
     pub(crate) fn cell_states(&self, u: &[Vec3]) -> (Vec<CellState>, StrainSummary) {
-        let cells = self.grid.cell_nodes().iter().enumerate();
+        let cells = self.model.grid.cell_nodes().iter().enumerate();
         let states = cells.map(|(c, nodes)| {
-            self.cell.state_with(&self.materials[c], &nodes.map(|n| u[n]), self.states.cell(c))
+            self.model.cell.state_with(&self.model.materials[c], &nodes.map(|n| u[n]), self.states.cell(c))
         });
-        summarize(&self.grid, states.collect())
+        summarize(&self.model.grid, states.collect())
     }
 
     /// Each cell's law and moduli.
     pub fn materials(&self) -> &[CellMaterial] {
-        &self.materials
+        &self.model.materials
     }
 }
 

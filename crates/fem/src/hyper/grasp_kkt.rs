@@ -24,10 +24,11 @@
 use std::time::Instant;
 
 use faer::Mat;
-use fibfluid_linalg::{CapacitanceFactor, ComplianceSource, SparseCholesky, row_dot};
+use fibfluid_linalg::{CapacitanceFactor, row_dot};
 
 use super::body::{HyperBody, HyperStats};
 use super::grasp::GRASP_TOLERANCE;
+use super::linear_solve::TangentSolver;
 use super::newton::{LoadState, norm};
 use crate::assemble::FIXED;
 
@@ -71,11 +72,11 @@ impl HyperBody {
     /// The grasped vertices' rows over the free dofs: per point, per axis, the weights of
     /// its position on the free nodal dofs.
     fn grasp_rows(&self) -> Vec<Vec<(usize, f64)>> {
-        let mut rows = Vec::with_capacity(3 * self.grasps.points.len());
-        for p in &self.grasps.points {
+        let mut rows = Vec::with_capacity(3 * self.terms.grasps.points.len());
+        for p in &self.terms.grasps.points {
             for a in 0..3 {
                 let row = (0..8)
-                    .map(|b| (self.free[3 * p.nodes[b] + a], p.weights[b]))
+                    .map(|b| (self.model.free[3 * p.nodes[b] + a], p.weights[b]))
                     .filter(|&(d, w)| d != FIXED && w != 0.0)
                     .collect();
                 rows.push(row);
@@ -96,17 +97,17 @@ impl HyperBody {
         x: &mut [f64],
         fixed: &GraspKkt<'_>,
         held: &mut [fibfluid_geometry::Vec3],
-        factor: &mut Option<SparseCholesky>,
+        solver: &mut impl TangentSolver,
         history: &mut Vec<f64>,
         stats: &mut HyperStats,
     ) -> Option<usize> {
         let rows = self.grasp_rows();
-        let (n, m) = (self.n_free, rows.len());
+        let (n, m) = (self.model.n_free, rows.len());
         if m == 0 || 8 * m * n > self.settings.grasp_columns_bytes {
             return None;
         }
         let refs: Vec<&[(usize, f64)]> = rows.iter().map(Vec::as_slice).collect();
-        let tolerance = GRASP_TOLERANCE * self.grid.cell_size();
+        let tolerance = GRASP_TOLERANCE * self.model.grid.cell_size();
         for iteration in 0..=GRASP_NEWTON_ITERATIONS {
             let state = fixed.state(held);
             let start = Instant::now();
@@ -115,7 +116,7 @@ impl HyperBody {
             let residual = norm(&eval.gradient) / eval.scale;
             history.push(residual);
             let u = self.node_field(x);
-            if residual <= self.settings.tolerance && self.grasps.largest_error(&u) <= tolerance {
+            if residual <= self.settings.tolerance && self.terms.grasps.largest_error(&u) <= tolerance {
                 return Some(iteration);
             }
             let start = Instant::now();
@@ -124,16 +125,15 @@ impl HyperBody {
             }
             // An indefinite tangent is factored shifted, as in Newton's solves: a damped
             // step that still meets the grasps' rows (their capacitance takes the shift).
-            stats.final_shift = self.factor_tangent(factor).ok()?;
+            stats.final_shift = solver.prepare(&self.stage.tangent, &self.stage.symbolic).ok()?;
             stats.factor_seconds += start.elapsed().as_secs_f64();
             stats.newton_iterations += 1;
             let start = Instant::now();
-            let f = factor.as_ref()?;
-            let columns = f.compliance_columns(&refs).ok()?;
+            let columns = solver.compliance_columns(&refs).ok()?;
             let mut free = Mat::<f64>::from_fn(n, 1, |i, _| -eval.gradient[i]);
-            f.solve_in_place(free.as_mut());
+            solver.solve_in_place(free.as_mut());
             let free = free.col_as_slice(0);
-            let errors: Vec<f64> = self.grasps.errors(&u, 1.0).into_iter().flatten().collect();
+            let errors: Vec<f64> = self.terms.grasps.errors(&u, 1.0).into_iter().flatten().collect();
             let rhs: Vec<f64> = rows.iter().zip(&errors).map(|(row, g)| g + row_dot(row, free)).collect();
             let dlambda = capacitance(&rows, &columns)?.solve(&rhs);
             let dx: Vec<f64> = (0..n)

@@ -22,8 +22,10 @@ mod cell;
 mod contact;
 mod grasp;
 mod grasp_kkt;
+mod linear_solve;
 mod newton;
 mod solve;
+mod terms;
 mod tracking;
 
 pub use body::{

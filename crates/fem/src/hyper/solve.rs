@@ -2,13 +2,13 @@
 
 use fibfluid_geometry::Vec3;
 use fibfluid_geometry::vec3::scale;
-use fibfluid_linalg::SparseCholesky;
 
 use super::body::{HyperBody, HyperSolution, HyperStats, LoadStep};
 
 use super::contact::{CONTACT_FORCE_TOLERANCE, CONTACT_GAP_TOLERANCE, MAX_AUGMENTATIONS, RigidPlate};
 use super::grasp::GRASP_TOLERANCE;
 use super::grasp_kkt::GraspKkt;
+use super::linear_solve::DirectSolver;
 use super::newton::LoadState;
 use crate::assemble::FIXED;
 use crate::body::Loads;
@@ -20,7 +20,35 @@ struct Progress {
     t: f64,
     steps: Vec<LoadStep>,
     stats: HyperStats,
-    factor: Option<SparseCholesky>,
+    /// The linear solve of every Newton iteration of the solve.
+    solver: DirectSolver,
+}
+
+/// The multipliers of the force terms' augmented Lagrangians during a solve.
+#[derive(Clone)]
+struct Multipliers {
+    /// Per plate, per sample: the contact pressure of the last augmentation (Pa).
+    contact: Vec<Vec<f64>>,
+    /// Per grasped vertex: the force of the last augmentation (N).
+    grasps: Vec<Vec3>,
+}
+
+impl Multipliers {
+    /// The load state at load factor `t` with these multipliers.
+    fn state<'a>(&'a self, t: f64, external: &'a [f64], plates: &'a [RigidPlate]) -> LoadState<'a> {
+        LoadState { t, external, plates, multipliers: &self.contact, grasp_multipliers: &self.grasps }
+    }
+}
+
+/// How far the augmentations have met the contact and the grasps.
+#[derive(Default)]
+struct Augmenting {
+    /// Contact is settled when nothing penetrates or the plate forces stopped changing.
+    contact_settled: bool,
+    /// Whether Newton's method on the grasps' optimality conditions was tried.
+    newton_tried: bool,
+    /// The plate forces after the last augmentation (N).
+    force: Vec<f64>,
 }
 
 impl HyperBody {
@@ -35,114 +63,110 @@ impl HyperBody {
             return Err(FemError::NonFinite { what: "plate" });
         }
         let external = self.external_loads(loads)?;
-        let mut multipliers = vec![vec![0.0; self.samples.len()]; plates.len()];
-        let mut held = vec![[0.0; 3]; self.grasps.points.len()];
+        let mut duals = Multipliers {
+            contact: vec![vec![0.0; self.terms.contact.samples.len()]; plates.len()],
+            grasps: vec![[0.0; 3]; self.terms.grasps.points.len()],
+        };
         let mut run = Progress {
-            x: vec![0.0; self.n_free],
+            x: vec![0.0; self.model.n_free],
             t: 0.0,
             steps: Vec::new(),
             stats: HyperStats::default(),
-            factor: None,
+            solver: DirectSolver::default(),
         };
-        let state = LoadState {
-            t: 0.0,
-            external: &external,
-            plates,
-            multipliers: &multipliers,
-            grasp_multipliers: &held,
-        };
-        self.step_to_full_load(&mut run, &state)?;
-        let mut force = self.plate_forces(&run.x, plates, &multipliers);
-        // Contact is settled when nothing penetrates or the plate forces stopped changing.
-        let mut contact_settled = false;
-        let mut newton_tried = false;
+        self.step_to_full_load(&mut run, &duals.state(0.0, &external, plates))?;
+        let mut progress =
+            Augmenting { force: self.plate_forces(&run.x, plates, &duals.contact), ..Augmenting::default() };
         for augmentation in 1..=MAX_AUGMENTATIONS {
-            let h = self.grid.cell_size();
-            let shallow =
-                self.deepest_penetration(&run.x, plates).iter().all(|&d| d <= CONTACT_GAP_TOLERANCE * h);
-            let contact_done = shallow || contact_settled;
-            let u = self.node_field(&run.x);
-            let grasp_done = self.grasps.largest_error(&u) <= GRASP_TOLERANCE * h;
-            if contact_done && grasp_done {
+            if !self.augment_once(&mut run, &external, plates, &mut duals, &mut progress, augmentation)? {
                 break;
             }
-            // With the contact settled, Newton's method meets the grasps (once: should it
-            // fail, Uzawa's augmentations go on from where it started).
-            if contact_done && !newton_tried {
-                newton_tried = true;
-                let saved = (run.x.clone(), held.clone(), run.stats.final_shift);
-                let fixed = GraspKkt { external: &external, plates, multipliers: &multipliers };
-                let mut history = Vec::new();
-                let met = self.meet_grasps(
-                    &mut run.x,
-                    &fixed,
-                    &mut held,
-                    &mut run.factor,
-                    &mut history,
-                    &mut run.stats,
-                );
-                if let Some(iterations) = met {
-                    run.stats.augmentations += 1;
-                    run.steps.push(LoadStep { load: 1.0, augmentation, iterations, residuals: history });
-                    continue;
-                }
-                (run.x, held, run.stats.final_shift) = saved;
-            }
-            let before = (run.x.clone(), multipliers.clone(), held.clone());
-            if !contact_done {
-                self.augment(&run.x, plates, &mut multipliers);
-            }
-            if !grasp_done {
-                self.grasps.augment(&u, &mut held);
-            }
-            let state = LoadState {
-                t: 1.0,
-                external: &external,
-                plates,
-                multipliers: &multipliers,
-                grasp_multipliers: &held,
-            };
-            let mut history = Vec::new();
-            match self.newton(&mut run.x, &state, &mut run.factor, &mut history, &mut run.stats)? {
-                Ok(iterations) => {
-                    run.stats.augmentations += 1;
-                    run.steps.push(LoadStep { load: 1.0, augmentation, iterations, residuals: history });
-                    let next = self.plate_forces(&run.x, plates, &multipliers);
-                    let change = next.iter().zip(&force).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
-                    let largest = next.iter().fold(0.0_f64, |m, f| m.max(f.abs()));
-                    force = next;
-                    if !contact_done {
-                        contact_settled = change <= CONTACT_FORCE_TOLERANCE * largest;
-                    }
-                }
-                Err(f) if !contact_done => {
-                    return Err(FemError::NotConverged {
-                        step: run.steps.len() + 1,
-                        load: 1.0,
-                        residual: f.residual,
-                        why: self.failure_why(&run.x, &f),
-                    });
-                }
-                Err(_) => {
-                    // Only the grasps were left to meet: the last converged state stands
-                    // (the load stepping's, or an earlier augmentation's), its grasps met as
-                    // far as its record says (each grasp's error is reported, and guarded by
-                    // the `grasp` result guard).
-                    (run.x, multipliers, held) = before;
-                    run.stats.failed_augmentations += 1;
-                    break;
-                }
-            }
         }
-        let state = LoadState {
-            t: 1.0,
-            external: &external,
-            plates,
-            multipliers: &multipliers,
-            grasp_multipliers: &held,
-        };
+        let state = duals.state(1.0, &external, plates);
         let support_force = self.support_force(&run.x, &state, loads);
         Ok(self.finish(run, &state, support_force))
+    }
+
+    /// One augmentation of the contact and grasp multipliers and the Newton solve after
+    /// it; `false` once both are met (or the grasps could be met no further).
+    fn augment_once(
+        &mut self,
+        run: &mut Progress,
+        external: &[f64],
+        plates: &[RigidPlate],
+        duals: &mut Multipliers,
+        progress: &mut Augmenting,
+        augmentation: usize,
+    ) -> Result<bool> {
+        let h = self.model.grid.cell_size();
+        let shallow =
+            self.deepest_penetration(&run.x, plates).iter().all(|&d| d <= CONTACT_GAP_TOLERANCE * h);
+        let contact_done = shallow || progress.contact_settled;
+        let u = self.node_field(&run.x);
+        let grasp_done = self.terms.grasps.largest_error(&u) <= GRASP_TOLERANCE * h;
+        if contact_done && grasp_done {
+            return Ok(false);
+        }
+        // With the contact settled, Newton's method meets the grasps (once: should it
+        // fail, Uzawa's augmentations go on from where it started).
+        if contact_done && !progress.newton_tried {
+            progress.newton_tried = true;
+            let saved = (run.x.clone(), duals.grasps.clone(), run.stats.final_shift);
+            let fixed = GraspKkt { external, plates, multipliers: &duals.contact };
+            let mut history = Vec::new();
+            let met = self.meet_grasps(
+                &mut run.x,
+                &fixed,
+                &mut duals.grasps,
+                &mut run.solver,
+                &mut history,
+                &mut run.stats,
+            );
+            if let Some(iterations) = met {
+                run.stats.augmentations += 1;
+                run.steps.push(LoadStep { load: 1.0, augmentation, iterations, residuals: history });
+                return Ok(true);
+            }
+            (run.x, duals.grasps, run.stats.final_shift) = saved;
+        }
+        let before = (run.x.clone(), duals.clone());
+        if !contact_done {
+            self.augment(&run.x, plates, &mut duals.contact);
+        }
+        if !grasp_done {
+            self.terms.grasps.augment(&u, &mut duals.grasps);
+        }
+        let mut history = Vec::new();
+        let state = duals.state(1.0, external, plates);
+        match self.newton(&mut run.x, &state, &mut run.solver, &mut history, &mut run.stats)? {
+            Ok(iterations) => {
+                run.stats.augmentations += 1;
+                run.steps.push(LoadStep { load: 1.0, augmentation, iterations, residuals: history });
+                let next = self.plate_forces(&run.x, plates, &duals.contact);
+                let change = next.iter().zip(&progress.force).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+                let largest = next.iter().fold(0.0_f64, |m, f| m.max(f.abs()));
+                progress.force = next;
+                if !contact_done {
+                    progress.contact_settled = change <= CONTACT_FORCE_TOLERANCE * largest;
+                }
+                Ok(true)
+            }
+            Err(f) if !contact_done => Err(FemError::NotConverged {
+                step: run.steps.len() + 1,
+                load: 1.0,
+                residual: f.residual,
+                why: self.failure_why(&run.x, &f),
+            }),
+            Err(_) => {
+                // Only the grasps were left to meet: the last converged state stands (the
+                // load stepping's, or an earlier augmentation's), its grasps met as far as
+                // its record says (each grasp's error is reported, and guarded by the
+                // `grasp` result guard).
+                (run.x, *duals) = before;
+                run.stats.failed_augmentations += 1;
+                Ok(false)
+            }
+        }
     }
 
     /// Load steps from 0 to 1: an increment halves when Newton fails and doubles after an
@@ -156,7 +180,7 @@ impl HyperBody {
             let state = LoadState { t: target, ..*base };
             let mut trial = self.predict(&run.x, last.as_ref(), target - run.t, &state);
             let mut history = Vec::new();
-            match self.newton(&mut trial, &state, &mut run.factor, &mut history, &mut run.stats)? {
+            match self.newton(&mut trial, &state, &mut run.solver, &mut history, &mut run.stats)? {
                 Ok(iterations) => {
                     let step: Vec<f64> = trial.iter().zip(&run.x).map(|(a, b)| a - b).collect();
                     last = Some((target - run.t, step));
@@ -225,19 +249,23 @@ impl HyperBody {
         let u = self.node_field(x);
         plates
             .iter()
-            .map(|p| self.samples.iter().map(|s| -p.gap(s.position(&u), 1.0)).fold(0.0, f64::max))
+            .map(|p| {
+                self.terms.contact.samples.iter().map(|s| -p.gap(s.position(&u), 1.0)).fold(0.0, f64::max)
+            })
             .collect()
     }
 
     /// Per plate, the contact force on the body along its normal (N) at the full load.
     fn plate_forces(&self, x: &[f64], plates: &[RigidPlate], multipliers: &[Vec<f64>]) -> Vec<f64> {
         let u = self.node_field(x);
-        let law = self.contact_law();
+        let law = super::terms::ContactTerm::law(&self.model);
         plates
             .iter()
             .zip(multipliers)
             .map(|(p, m)| {
-                self.samples
+                self.terms
+                    .contact
+                    .samples
                     .iter()
                     .zip(m)
                     .map(|(s, &l)| s.area * law.pressure(law.argument(l, p.gap(s.position(&u), 1.0))))
@@ -249,9 +277,9 @@ impl HyperBody {
     /// Uzawa's update of the contact pressures: `lambda <- max(0, lambda - beta g)`.
     fn augment(&self, x: &[f64], plates: &[RigidPlate], multipliers: &mut [Vec<f64>]) {
         let u = self.node_field(x);
-        let law = self.contact_law();
+        let law = super::terms::ContactTerm::law(&self.model);
         for (p, m) in plates.iter().zip(multipliers) {
-            for (s, lambda) in self.samples.iter().zip(m.iter_mut()) {
+            for (s, lambda) in self.terms.contact.samples.iter().zip(m.iter_mut()) {
                 *lambda = law.pressure(law.argument(*lambda, p.gap(s.position(&u), 1.0)));
             }
         }
@@ -263,26 +291,28 @@ impl HyperBody {
     /// contact acting there.
     fn support_force(&self, x: &[f64], state: &LoadState<'_>, loads: &Loads) -> Vec3 {
         let u = self.node_field(x);
-        let fixed = |n: usize, a: usize| self.free[3 * n + a] == FIXED;
+        let fixed = |n: usize, a: usize| self.model.free[3 * n + a] == FIXED;
         let mut r = [0.0; 3];
-        for p in &self.clamp {
+        for p in &self.terms.clamp.points {
             let d: f64 = (0..8).map(|b| p.weights[b] * u[p.nodes[b]][p.axis]).sum();
             for b in (0..8).filter(|&b| !fixed(p.nodes[b], p.axis)) {
-                r[p.axis] -= self.clamp_beta * p.area * d * p.weights[b];
+                r[p.axis] -= self.terms.clamp.beta * p.area * d * p.weights[b];
             }
         }
-        let node_volume = self.grid.cell_size().powi(3) / 8.0;
-        for (c, nodes) in self.grid.cell_nodes().iter().enumerate() {
-            let fill = self.grid.fill()[c];
+        let node_volume = self.model.grid.cell_size().powi(3) / 8.0;
+        for (c, nodes) in self.model.grid.cell_nodes().iter().enumerate() {
+            let fill = self.model.grid.fill()[c];
             let local = nodes.map(|n| u[n]);
             let law_state = self.states.cell(c);
-            let Some(t) = self.cell.tangent_with(&self.materials[c], &local, fill, false, law_state) else {
+            let Some(t) =
+                self.model.cell.tangent_with(&self.model.materials[c], &local, fill, false, law_state)
+            else {
                 continue;
             };
             for (l, g) in t.gradient.iter().enumerate() {
                 let (n, a) = (nodes[l / 3], l % 3);
                 if fixed(n, a) {
-                    r[a] += g - state.t * fill * self.densities[c] * node_volume * loads.gravity[a];
+                    r[a] += g - state.t * fill * self.model.densities[c] * node_volume * loads.gravity[a];
                 }
             }
         }
@@ -292,17 +322,17 @@ impl HyperBody {
             }
         };
         for &(v, f) in &loads.point_forces {
-            if let Some(e) = self.grid.embedding().get(v) {
+            if let Some(e) = self.model.grid.embedding().get(v) {
                 at_fixed(&e.nodes, &e.weights, scale(f, state.t));
             }
         }
-        let forces = self.grasps.forces(&u, state.t, state.grasp_multipliers);
-        for (p, f) in self.grasps.points.iter().zip(&forces) {
+        let forces = self.terms.grasps.forces(&u, state.t, state.grasp_multipliers);
+        for (p, f) in self.terms.grasps.points.iter().zip(&forces) {
             at_fixed(&p.nodes, &p.weights, scale(*f, -1.0));
         }
-        let law = self.contact_law();
+        let law = super::terms::ContactTerm::law(&self.model);
         for (k, plate) in state.plates.iter().enumerate() {
-            for (s, sample) in self.samples.iter().enumerate() {
+            for (s, sample) in self.terms.contact.samples.iter().enumerate() {
                 let lambda = state.multipliers[k][s];
                 let pr = law.pressure(law.argument(lambda, plate.gap(sample.position(&u), state.t)));
                 at_fixed(&sample.nodes, &sample.weights, scale(plate.normal, sample.area * pr));
@@ -315,22 +345,22 @@ impl HyperBody {
     fn finish(&self, run: Progress, state: &LoadState<'_>, support_force: Vec3) -> HyperSolution {
         let (plates, multipliers) = (state.plates, state.multipliers);
         let u = self.node_field(&run.x);
-        let law = self.contact_law();
+        let law = super::terms::ContactTerm::law(&self.model);
         let mut plate_forces = vec![0.0; plates.len()];
         let mut plate_contacts = vec![0; plates.len()];
         for (k, p) in plates.iter().enumerate() {
-            for (s, sample) in self.samples.iter().enumerate() {
+            for (s, sample) in self.terms.contact.samples.iter().enumerate() {
                 let pr = law.pressure(law.argument(multipliers[k][s], p.gap(sample.position(&u), 1.0)));
                 plate_forces[k] += sample.area * pr;
                 plate_contacts[k] += usize::from(pr > 0.0);
             }
         }
         let plate_penetration = self.deepest_penetration(&run.x, plates);
-        let grasps = self.grasps.records(&u, state.grasp_multipliers);
+        let grasps = self.terms.grasps.records(&u, state.grasp_multipliers);
         let (cells, summary) = self.cell_states(&u);
         let residual = run.steps.last().and_then(|s| s.residuals.last().copied()).unwrap_or(0.0);
         HyperSolution {
-            surface_displacements: self.grid.interpolate(&u),
+            surface_displacements: self.model.grid.interpolate(&u),
             node_displacements: u,
             residual,
             steps: run.steps,

@@ -24,7 +24,7 @@ use std::sync::Arc;
 use fibfluid_geometry::Vec3;
 use fibfluid_linalg::SparseCholesky;
 
-use super::body::{HyperBody, Layout};
+use super::body::{HyperBody, HyperModel};
 use super::newton::LoadState;
 use crate::assemble::FIXED;
 use crate::body::{Loads, add_point_forces};
@@ -86,7 +86,7 @@ pub enum Tangent {
 
 /// The state, out-of-balance force and tangent factor of one linearization.
 struct Core {
-    layout: Arc<Layout>,
+    model: Arc<HyperModel>,
     x: Vec<f64>,
     force: Vec<f64>,
     /// Shared by the chord iterations made from it ([`Tangent::Keep`]).
@@ -105,12 +105,11 @@ struct Core {
 impl Core {
     /// The held system of this linearization's factor.
     fn system(&self) -> HeldSystem<'_> {
-        let layout = &self.layout;
         HeldSystem {
             factor: &self.factor,
-            embedding: &layout.embedding,
-            free: &layout.free,
-            rest: &layout.rest,
+            embedding: self.model.grid.embedding(),
+            free: &self.model.free,
+            rest: self.model.grid.surface_positions(),
         }
     }
 
@@ -213,7 +212,7 @@ impl Linearization {
     /// The out-of-balance force at the state with `pushes` added (free dofs).
     fn respond_force(&self, pushes: &[(usize, Vec3)]) -> Result<Vec<f64>> {
         let mut f = self.core.force.clone();
-        add_point_forces(&self.core.layout.embedding, &self.core.layout.free, pushes, &mut f)?;
+        add_point_forces(self.core.model.grid.embedding(), &self.core.model.free, pushes, &mut f)?;
         Ok(f)
     }
 
@@ -240,7 +239,7 @@ impl Linearization {
             Some(&self.core.x),
             self.core.penalty.as_ref(),
         )?;
-        let (surface_displacements, step) = self.core.stepped(&interpolate(&self.core.layout, &solved.u));
+        let (surface_displacements, step) = self.core.stepped(&interpolate(&self.core.model, &solved.u));
         let state: Vec<f64> = self.core.x.iter().zip(&solved.u).map(|(a, b)| a + b).collect();
         Ok(TrackedResponse {
             surface_displacements,
@@ -303,9 +302,8 @@ fn dead_loads(external: &[f64]) -> LoadState<'_> {
 }
 
 /// Surface displacements of a free-dof vector.
-fn interpolate(layout: &Layout, x: &[f64]) -> Vec<Vec3> {
-    debug_assert!(layout.embedding.iter().all(|e| e.nodes.iter().all(|&n| n < layout.n_nodes)));
-    interpolate_surface(&layout.embedding, &layout.free, x)
+fn interpolate(model: &HyperModel, x: &[f64]) -> Vec<Vec3> {
+    interpolate_surface(model.grid.embedding(), &model.free, x)
 }
 
 /// One tracking iteration's outcome.
@@ -361,27 +359,24 @@ impl HyperBody {
         holds: &[(usize, FemHold)],
         shift_allowed: bool,
     ) -> Result<Option<Linearization>> {
-        if x.len() != self.n_free {
-            return Err(FemError::LengthMismatch { what: "state", expected: self.n_free, found: x.len() });
+        if x.len() != self.model.n_free {
+            return Err(FemError::LengthMismatch {
+                what: "state",
+                expected: self.model.n_free,
+                found: x.len(),
+            });
         }
         let external = self.external_loads(loads)?;
         let eval = self.evaluate(&x, &dead_loads(&external), true).ok_or(FemError::Inverted)?;
-        let rows = constraint_rows(self.grid.embedding(), &self.free, holds)?;
+        let rows = constraint_rows(self.model.grid.embedding(), &self.model.free, holds)?;
         let Some((factor, shift, penalty)) = self.factor_holding(&rows, shift_allowed)? else {
             return Ok(None);
         };
-        let layout = Arc::clone(self.layout.get_or_insert_with(|| {
-            Arc::new(Layout {
-                embedding: self.grid.embedding().to_vec(),
-                free: self.free.clone(),
-                n_nodes: self.grid.n_nodes(),
-                rest: self.grid.surface_positions().to_vec(),
-            })
-        }));
+        let model = Arc::clone(&self.model);
         let force = eval.gradient.iter().map(|g| -g).collect();
-        let surface = interpolate(&layout, &x);
+        let surface = interpolate(&model, &x);
         let factor = Arc::new(factor);
-        let core = Core { layout, x, force, factor, chord_steps: 0, shift, surface, penalty };
+        let core = Core { model, x, force, factor, chord_steps: 0, shift, surface, penalty };
         Ok(Some(Linearization { core: Arc::new(core), cache: HoldCache::default() }))
     }
 
@@ -389,19 +384,19 @@ impl HyperBody {
     /// when it needs a shift that is not `shift_allowed`.
     fn factor_holding(&mut self, rows: &[Row], shift_allowed: bool) -> Result<Option<Factored>> {
         if rows.is_empty() {
-            match SparseCholesky::factor(&self.symbolic, self.tangent.as_ref()) {
+            match SparseCholesky::factor(&self.stage.symbolic, self.stage.tangent.as_ref()) {
                 Ok(f) => return Ok(Some((f, 0.0, None))),
                 Err(fibfluid_linalg::LinalgError::SparseNotPositiveDefinite { .. }) => {}
                 Err(e) => return Err(e.into()),
             }
         }
-        let mut diagonal: Vec<f64> = (0..self.n_free)
-            .map(|j| self.tangent.val()[self.tangent.symbolic().col_ptr()[j]].abs())
+        let mut diagonal: Vec<f64> = (0..self.model.n_free)
+            .map(|j| self.stage.tangent.val()[self.stage.tangent.symbolic().col_ptr()[j]].abs())
             .collect();
         diagonal.sort_by(f64::total_cmp);
         let median = diagonal[diagonal.len() / 2];
-        let plain = self.tangent.clone();
-        let diagonal_at: Vec<usize> = (0..self.n_free).map(|j| plain.symbolic().col_ptr()[j]).collect();
+        let plain = self.stage.tangent.clone();
+        let diagonal_at: Vec<usize> = (0..self.model.n_free).map(|j| plain.symbolic().col_ptr()[j]).collect();
         // First the holds' penalty (exact for frames that hold them), then a shift of the
         // diagonal (a damped step, exact nowhere: the refreshes converge linearly then).
         let penalties = if rows.is_empty() { &[][..] } else { &HOLD_PENALTIES[..] };
@@ -412,9 +407,9 @@ impl HyperBody {
             for row in rows.iter().filter(|_| penalty > 0.0) {
                 self.add_row_penalty(row, stiffness);
             }
-            diagonal_at.iter().for_each(|&p| self.tangent.val_mut()[p] += shift * median);
-            let made = SparseCholesky::factor(&self.symbolic, self.tangent.as_ref());
-            self.tangent = plain.clone();
+            diagonal_at.iter().for_each(|&p| self.stage.tangent.val_mut()[p] += shift * median);
+            let made = SparseCholesky::factor(&self.stage.symbolic, self.stage.tangent.as_ref());
+            self.stage.tangent = plain.clone();
             match made {
                 Ok(f) if penalty > 0.0 => {
                     let keys = rows.iter().map(Row::key).collect();
@@ -430,7 +425,7 @@ impl HyperBody {
 
     /// Adds `stiffness r r^T` of a hold row `r` to the tangent's lower triangle.
     fn add_row_penalty(&mut self, row: &Row, stiffness: f64) {
-        let (symbolic, values) = self.tangent.parts_mut();
+        let (symbolic, values) = self.stage.tangent.parts_mut();
         let (col_ptr, row_idx) = (symbolic.col_ptr(), symbolic.row_idx());
         for &(c, wc) in &row.entries {
             let col = &row_idx[col_ptr[c]..col_ptr[c + 1]];
@@ -446,7 +441,7 @@ impl HyperBody {
     ///
     /// Errors: as [`HyperBody::linearize`].
     pub fn linearize_at_rest(&mut self, loads: &Loads) -> Result<Linearization> {
-        self.linearize(vec![0.0; self.n_free], loads)
+        self.linearize(vec![0.0; self.model.n_free], loads)
     }
 
     /// One Newton iteration of the equilibrium with `pushes` and `holds` from
@@ -490,7 +485,7 @@ impl HyperBody {
         // The holds are linear in the state: when the start already meets them, every point
         // of the step does, and the energy is the merit of the step (Armijo's backtracking);
         // otherwise the step first restores them, shortened only while it would invert.
-        let h = self.grid.cell_size();
+        let h = self.model.grid.cell_size();
         let held_motion = self.held_motion(current, &direction, holds);
         let merit = if held_motion <= HOLD_MET * h {
             let mut all = loads.clone();
@@ -548,9 +543,9 @@ impl HyperBody {
         let eval = self.evaluate(&x, &dead_loads(&external), false).ok_or(FemError::Inverted)?;
         let kept = &current.core;
         let core = Core {
-            layout: Arc::clone(&kept.layout),
+            model: Arc::clone(&kept.model),
             force: eval.gradient.iter().map(|g| -g).collect(),
-            surface: interpolate(&kept.layout, &x),
+            surface: interpolate(&kept.model, &x),
             x,
             factor: Arc::clone(&kept.factor),
             chord_steps: kept.chord_steps + 1,
@@ -563,14 +558,14 @@ impl HyperBody {
     /// How far the step moves the held vertices along their held directions (m, the
     /// largest): 0 when `current`'s state already meets `holds`.
     fn held_motion(&self, current: &Linearization, direction: &[f64], holds: &[(usize, FemHold)]) -> f64 {
-        let layout = &current.core.layout;
+        let model = &current.core.model;
         holds
             .iter()
             .map(|&(v, hold)| {
-                let Some(e) = layout.embedding.get(v) else { return 0.0 };
+                let Some(e) = model.grid.embedding().get(v) else { return 0.0 };
                 let moved: Vec3 = std::array::from_fn(|a| {
                     (0..8)
-                        .map(|b| match layout.free[3 * e.nodes[b] + a] {
+                        .map(|b| match model.free[3 * e.nodes[b] + a] {
                             FIXED => 0.0,
                             i => e.weights[b] * direction[i],
                         })
@@ -587,10 +582,11 @@ impl HyperBody {
     /// Whether no cell is inverted at the free-dof state `x`.
     fn cell_states_valid(&self, x: &[f64]) -> bool {
         let u = self.node_field(x);
-        let cells = self.grid.cell_nodes().iter().zip(self.grid.fill()).enumerate();
+        let cells = self.model.grid.cell_nodes().iter().zip(self.model.grid.fill()).enumerate();
         cells.into_iter().all(|(c, (nodes, &fill))| {
-            self.cell
-                .energy_with(&self.materials[c], &nodes.map(|n| u[n]), fill, self.states.cell(c))
+            self.model
+                .cell
+                .energy_with(&self.model.materials[c], &nodes.map(|n| u[n]), fill, self.states.cell(c))
                 .is_some()
         })
     }
@@ -615,13 +611,13 @@ impl HyperBody {
     ///
     /// Errors: `u` not one entry per grid node.
     pub fn state_of(&self, u: &[Vec3]) -> Result<Vec<f64>> {
-        if u.len() != self.grid.n_nodes() {
+        if u.len() != self.model.grid.n_nodes() {
             return Err(FemError::LengthMismatch {
                 what: "node field",
-                expected: self.grid.n_nodes(),
+                expected: self.model.grid.n_nodes(),
                 found: u.len(),
             });
         }
-        Ok(free_vector(&self.free, self.n_free, u))
+        Ok(free_vector(&self.model.free, self.model.n_free, u))
     }
 }
