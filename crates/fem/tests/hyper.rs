@@ -464,3 +464,36 @@ fn newton_meets_a_grasp_uzawa_crept_on() {
     let off = (0..3).map(|a| (balance[a] - expected[a]).abs()).fold(0.0, f64::max);
     assert!(off < 1e-6 * weight, "grasper minus supports {balance:?} against the weight {weight}");
 }
+
+/// Bodies as stiff as cortical bone and stiffer (E = 1.5e10 to 1e12 Pa) hanging under their
+/// own weight strain by 1e-9 to 1e-11, where the neo-Hookean stress is computed to its
+/// rounding: Newton's tolerance scales with that rounding, so the solves converge, and
+/// their answers equal the linear body's (the independent reference at such strains) to
+/// 1e-6 of the sag.
+#[test]
+fn a_body_as_stiff_as_bone_converges_to_the_linear_answer() {
+    let (pos, tris) = box_surface([0.0; 3], [4, 4, 4], 0.025);
+    let fixed: Vec<[bool; 3]> = pos.iter().map(|p| [p[2] == 0.0; 3]).collect();
+    let options = FemOptions { resolution: 12, ..FemOptions::default() };
+    let loads = Loads { gravity: [0.0, 0.0, -9.81], ..Default::default() };
+    for young in [1.5e10, 1e11, 1e12] {
+        let bone = Tissue::new(young, 0.3, 1900.0).unwrap();
+        let linear =
+            FemBody::from_surface(&pos, &tris, &bone, &fixed, &options).unwrap().solve(&loads).unwrap();
+        let mut body = HyperBody::from_surface(&pos, &tris, &bone.nonlinear(), &fixed, &options).unwrap();
+        let sol = body.solve(&loads, &[]);
+        let sag = linear.surface_displacements.iter().map(|u| u[2].abs()).fold(0.0, f64::max);
+        let sol = sol.unwrap_or_else(|e| panic!("E = {young:e} Pa: {e}"));
+        let diff = sol
+            .surface_displacements
+            .iter()
+            .zip(&linear.surface_displacements)
+            .flat_map(|(a, b)| (0..3).map(move |k| (a[k] - b[k]).abs()))
+            .fold(0.0, f64::max);
+        eprintln!(
+            "E {young:e} Pa: sag {sag:.3e} m, neo-Hookean against linear {diff:.2e} m, {} iterations",
+            sol.stats.newton_iterations
+        );
+        assert!(diff <= 1e-6 * sag, "E = {young:e} Pa: {diff} against the sag {sag}");
+    }
+}

@@ -29,6 +29,12 @@ const NEAR_SOLUTION: f64 = 1e-8;
 /// A force below `RESIDUAL_FLOOR * E h^2` is zero (the residual's scale when nothing loads
 /// the body).
 const RESIDUAL_FLOOR: f64 = 1e-9;
+/// The internal forces of a nonlinear law are computed to about this many machine epsilons
+/// of `mu h^2` per dof (the stress `mu J^(-2/3) (F - I1 / 3 F^-T)` cancels to its strain's
+/// size): a residual below `STRESS_ROUNDING * mu h^2 sqrt(dofs)` is rounding, whatever the
+/// load. It matters only where the strains are near the rounding (a body of bone under
+/// gravity: strains of 1e-10); below it, Newton's tolerance could not be met.
+const STRESS_ROUNDING: f64 = 64.0 * f64::EPSILON;
 
 /// A Newton iteration that cut the residual by at least this factor is converging fast:
 /// past the iteration limit, Newton goes on after it.
@@ -152,13 +158,25 @@ impl HyperBody {
         let (e, h) = (model.tissue.young(), model.grid.cell_size());
         // A body moved only by grasps has no load: the elastic force of a cell moved by the
         // grasps' largest motion is the scale then (a rigid motion leaves only rounding).
-        let floor = (RESIDUAL_FLOOR * e * h * h).max(e * h * terms.grasps.largest_motion(state.t));
+        let floor = (RESIDUAL_FLOOR * e * h * h)
+            .max(e * h * terms.grasps.largest_motion(state.t))
+            .max(self.rounding_scale());
         Some(Evaluation {
             energy: elastic + supports - work,
             magnitude: elastic.abs() + supports.abs() + work.abs(),
             gradient,
             scale: internal.max(external).max(floor),
         })
+    }
+
+    /// The residual's scale below which Newton's tolerance is rounding
+    /// ([`STRESS_ROUNDING`], divided by the tolerance); 0 for a linear law (its forces are a
+    /// product with the stiffness, without cancellation).
+    fn rounding_scale(&self) -> f64 {
+        let model = &*self.model;
+        let mu = model.materials.iter().filter(|m| !m.law.is_linear()).map(|m| m.mu).fold(0.0, f64::max);
+        let h = model.grid.cell_size();
+        STRESS_ROUNDING * mu * h * h * (model.n_free as f64).sqrt() / self.settings.tolerance
     }
 
     /// Newton's method at one load state from `x`; pushes each relative residual on
