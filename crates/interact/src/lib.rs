@@ -2,7 +2,9 @@
 //! back its surface and the reaction forces a tool (or a haptic device) feels.
 //!
 //! - [`Interactive`]: the method-neutral, object-safe interface (grab, push, release,
-//!   update, positions, field, reactions) that a viewer or a path replay drives. The
+//!   update, positions, field, reactions) that a viewer or a path replay drives: six
+//!   required methods on a [`Surface`] (rest shape and current frame) and [`Holds`] (the
+//!   pending holds, checked as they come), the rest provided. The
 //!   fiber–fluid method implements it here ([`FfmBody`]); other methods (ChainMail) may
 //!   implement it without forces.
 //! - [`Compliance`]: the fiber–fluid method's linear response about the rest shape (paper
@@ -94,7 +96,7 @@ pub mod chainmail_settings;
 mod compliance;
 mod error;
 pub mod fem_body;
-mod fem_holds;
+mod holds;
 pub mod hyper_body;
 mod interactive;
 mod method_body;
@@ -106,8 +108,9 @@ pub use compliance::{Compliance, ComplianceOptions, MemoryEstimate, Precompute, 
 pub use error::{InteractError, Result};
 pub use fibfluid_linalg::memory_budget;
 pub use fibfluid_sim::Method;
+pub use holds::{Hold, Holds, NORMAL_TOLERANCE, PushRule};
 pub use hyper_body::{CHORD_CONTRACTION, HyperInteractive, MAX_CHORD_REFRESHES, RefreshMode};
-pub use interactive::{Hold, Interactive, LinearizationStatus, NORMAL_TOLERANCE};
+pub use interactive::{Interactive, LinearizationStatus, Surface};
 pub use method_body::{MethodBody, ProbeBody, ProbeOptions, build_body, linearized};
 pub use replay::{
     CheckedPath, FrameRow, Latency, MAX_FRAME, MAX_REACH, PathHold, PathKind, PathProblem, PathRow,

@@ -280,12 +280,8 @@ impl Press {
     /// Releases the tip's contacts (from the next update on); a vertex another tool has
     /// taken over since (a grasp's patch) keeps that tool's hold.
     pub fn lift(&mut self, body: &mut dyn Interactive) -> Result<()> {
-        let own: Vec<usize> = body
-            .holds()
-            .into_iter()
-            .filter(|(v, h)| self.applied.get(v) == Some(h))
-            .map(|(v, _)| v)
-            .collect();
+        let own: Vec<usize> =
+            body.holds().iter().filter(|(v, h)| self.applied.get(v) == Some(h)).map(|(v, _)| v).collect();
         for v in own {
             body.release(v)?;
         }
@@ -346,7 +342,7 @@ impl Press {
 
     /// The vertices another tool holds: every pending hold the tip did not put there.
     fn others(&self, body: &dyn Interactive) -> BTreeSet<usize> {
-        body.holds().into_iter().filter(|(v, h)| self.applied.get(v) != Some(h)).map(|(v, _)| v).collect()
+        body.holds().iter().filter(|(v, h)| self.applied.get(v) != Some(h)).map(|(v, _)| v).collect()
     }
 
     /// Vertices closer to `centre` than the tip's radius allows, with their outward normals
@@ -414,7 +410,7 @@ impl Press {
             body.contact(v, n, dot(n, sub(centre, p)) + radius)
         });
         // Recorded even when a contact was refused, so that a lift releases what was put.
-        self.applied = body.holds().into_iter().filter(|(v, _)| self.active.contains_key(v)).collect();
+        self.applied = body.holds().iter().filter(|(v, _)| self.active.contains_key(v)).collect();
         placed
     }
 }

@@ -241,7 +241,7 @@ fn bad_requests_are_typed_errors_and_change_nothing() {
     // The last call for a vertex wins; releasing an unheld vertex is no error.
     b.grab(free, [0.0, -0.5, 0.0]).unwrap();
     b.push(free, [0.0, 5.0, 0.0]).unwrap();
-    assert_eq!(b.holds(), vec![(free, Hold::Push { force: [0.0, 5.0, 0.0] })]);
+    assert_eq!(b.holds().to_vec(), vec![(free, Hold::Push { force: [0.0, 5.0, 0.0] })]);
     b.release(free).unwrap();
     b.release(free).unwrap();
     assert!(b.holds().is_empty());
