@@ -14,7 +14,8 @@
 //! - [`ChainmailBody`](chainmail_body::ChainmailBody): a ChainMail lattice (TSVE or
 //!   Generalized) embedding the surface, with its [`chainmail_settings`].
 //! - [`tools`]: tools with a size on any body: a [`Grasp`] holds a patch rigidly, a
-//!   [`Press`] is a spherical tip in frictionless contact.
+//!   [`Press`] is a spherical tip in frictionless contact; a [`ToolSet`] drives them, and
+//!   any other type implementing [`Tool`], frame by frame.
 //! - [`MethodBody`]: a model's body for any [`Method`]; [`replay`] drives one along a
 //!   checked [`ToolPath`].
 //! - [`FfmBody`]: a base state (the scene's own loads, from one full solve) plus the
@@ -116,4 +117,6 @@ pub use replay::{
     CheckedPath, FrameRow, Latency, MAX_FRAME, MAX_REACH, PathHold, PathKind, PathProblem, PathRow,
     ProbeError, Replay, TipHold, ToolPath, check_method, check_path, replay, replay_observed,
 };
-pub use tools::{Grasp, Press, PressReport, RigidMotion, ToolLoad, ToolSet, Wrench};
+pub use tools::{
+    Grasp, HeldGrasp, PlacedPress, Press, PressReport, RigidMotion, Tool, ToolLoad, ToolSet, Wrench,
+};

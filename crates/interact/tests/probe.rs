@@ -29,6 +29,8 @@ const GRAB_TOLERANCE: f64 = 1e-7;
 /// (measured on this case: 5.8e-9).
 const F32_TOLERANCE: f64 = 8.0 * f32::EPSILON as f64;
 
+#[path = "probe/custom_tool.rs"]
+mod custom_tool;
 #[path = "probe/guards.rs"]
 mod guards;
 #[path = "probe/tools.rs"]
