@@ -27,7 +27,9 @@ pub fn run(args: &CompareArgs) -> Result<(), crate::CliError> {
         tell!("warning: {w}");
     }
     let path = load_tool_path(&args.path)?;
-    let opts = args.response.options(fibfluid::interact::RefreshMode::Scheduled);
+    // The comparison replays the FEM body among the others when the scene gives [tissue].
+    let methods = [fibfluid::interact::Method::Fem];
+    let opts = args.response.options(fibfluid::interact::RefreshMode::Scheduled, &scene, &methods)?;
     let report = run_compare(&scene, &path, &args.out, &opts)?;
     for (method, m) in &report.methods {
         for w in &m.warnings {

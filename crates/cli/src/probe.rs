@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use fibfluid::fem::TissueModel;
 use fibfluid::interact::{Method, Precompute, ProbeOptions, RefreshMode, Storage};
 use fibfluid::{Scene, load_tool_path};
 use fibfluid_cli::probe_run::{PROBE_FILES, run_probe_with};
@@ -36,14 +37,44 @@ pub struct ResponseFlags {
 
 impl ResponseFlags {
     /// The probe options these flags set; `refresh` unless `--refresh-every` is given.
-    pub fn options(&self, refresh: RefreshMode) -> ProbeOptions {
-        ProbeOptions {
+    ///
+    /// Errors: `--refresh-every 0`, and `--refresh-every` or `--chord-refreshes` when none
+    /// of `methods` builds a neo-Hookean FEM body of `scene` (the only body they act on).
+    pub fn options(
+        &self,
+        refresh: RefreshMode,
+        scene: &Scene,
+        methods: &[Method],
+    ) -> Result<ProbeOptions, crate::CliError> {
+        if self.refresh_every == Some(0) {
+            return Err(crate::CliError::Flag {
+                flag: "refresh-every",
+                value: "0".into(),
+                problem: "must be at least 1",
+            });
+        }
+        let neo_hookean = scene.tissue.is_some_and(|t| t.model() == TissueModel::NeoHookean);
+        let two_rate = neo_hookean && methods.contains(&Method::Fem);
+        let given = [
+            ("refresh-every", self.refresh_every.map(|k| k.to_string())),
+            ("chord-refreshes", self.chord_refreshes.map(|n| n.to_string())),
+        ];
+        if let Some((flag, Some(value))) = given.into_iter().find(|(_, v)| v.is_some())
+            && !two_rate
+        {
+            return Err(crate::CliError::Flag {
+                flag,
+                value,
+                problem: "acts only on a neo-Hookean FEM body (--method fem on a scene whose [tissue] model is \"neo-hookean\")",
+            });
+        }
+        Ok(ProbeOptions {
             storage: self.precision,
             precompute: self.precompute,
             max_memory_bytes: self.max_memory,
             refresh: self.refresh_every.map_or(refresh, RefreshMode::EveryFrames),
             chord_refreshes: self.chord_refreshes,
-        }
+        })
     }
 }
 
@@ -74,7 +105,7 @@ pub fn run(args: &ProbeArgs) -> Result<(), crate::CliError> {
         tell!("warning: {w}");
     }
     let path = load_tool_path(&args.path)?;
-    let opts = args.response.options(RefreshMode::Scheduled);
+    let opts = args.response.options(RefreshMode::Scheduled, &scene, &[args.method])?;
     // Long replays report their progress with an estimate of the time left.
     let progress = crate::progress(path.frames(), "probe");
     let report = run_probe_with(&scene, &path, &args.out, &opts, args.method, progress.as_deref())?;
