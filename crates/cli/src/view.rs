@@ -25,7 +25,7 @@ pub struct ViewArgs {
     #[arg(long, default_value = "ffm")]
     method: Method,
     #[command(flatten)]
-    response: crate::probe::ResponseFlags,
+    response: crate::response_flags::ResponseFlags,
     /// Most clients at once (each has its own body; the factorization or the full
     /// precompute is shared).
     #[arg(long, default_value_t = 8)]

@@ -91,12 +91,12 @@
 //! response. The capacitance and the field are `fibfluid_linalg::HeldCapacitance` and
 //! `fibfluid_linalg::VertexResponse`, shared with `Simulation::respond_held`.
 
-mod body;
 pub mod chainmail_body;
 pub mod chainmail_settings;
 mod compliance;
 mod error;
 pub mod fem_body;
+mod ffm_body;
 mod holds;
 pub mod hyper_body;
 mod interactive;
@@ -104,9 +104,9 @@ mod method_body;
 pub mod replay;
 pub mod tools;
 
-pub use body::FfmBody;
 pub use compliance::{Compliance, ComplianceOptions, MemoryEstimate, Precompute, Storage};
 pub use error::{InteractError, Result};
+pub use ffm_body::FfmBody;
 pub use fibfluid_linalg::memory_budget;
 pub use fibfluid_sim::Method;
 pub use holds::{Hold, Holds, NORMAL_TOLERANCE, PushRule};

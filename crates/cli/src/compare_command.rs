@@ -1,9 +1,10 @@
-//! `fibfluid compare`: one grab path replayed with the three methods.
+//! `fibfluid compare`'s arguments and printing: one grab path replayed with every method
+//! (the run and its files are `fibfluid_cli::compare_run`).
 
 use std::path::PathBuf;
 
 use fibfluid::{Scene, load_tool_path};
-use fibfluid_cli::comparison::{COMPARE_FILES, run_compare};
+use fibfluid_cli::compare_run::{COMPARE_FILES, run_compare};
 
 /// Arguments of `fibfluid compare`.
 #[derive(clap::Args)]
@@ -17,7 +18,7 @@ pub struct CompareArgs {
     #[arg(long)]
     out: PathBuf,
     #[command(flatten)]
-    response: crate::probe::ResponseFlags,
+    response: crate::response_flags::ResponseFlags,
 }
 
 /// Runs `fibfluid compare`.
