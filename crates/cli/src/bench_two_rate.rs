@@ -25,7 +25,7 @@ use fibfluid::interact::{
 use serde::Serialize;
 
 use crate::Result;
-use crate::comparison::from_own_base;
+use crate::compare_run::from_own_base;
 use crate::probe_run::RefreshSummary;
 
 /// The frame period the bench paces the bodies at (a 1 kHz haptic loop).

@@ -5,7 +5,7 @@
 
 pub mod bench;
 pub mod bench_two_rate;
-pub mod comparison;
+pub mod compare_run;
 mod error;
 pub mod grab;
 pub mod info;

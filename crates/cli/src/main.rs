@@ -18,8 +18,9 @@ use say::num;
 #[macro_use]
 mod say;
 mod accuracy;
-mod compare;
-mod probe;
+mod compare_command;
+mod probe_command;
+mod response_flags;
 mod view;
 
 /// Soft tissue as fluid held by elastic fibers: the fiber–fluid method.
@@ -203,12 +204,12 @@ enum Command {
     },
     /// Replay a tool path (grabs, forces, grasps or a pressing tip per frame) on the scene's precomputed response;
     /// write frames.csv, final.obj, report.json and probe.png.
-    Probe(probe::ProbeArgs),
+    Probe(probe_command::ProbeArgs),
     /// Serve a live viewer: drag the scene's surface in a browser (or over a WebSocket).
     View(view::ViewArgs),
     /// Replay one grab path with FFM, TSVE-ChainMail and Generalized ChainMail; write
     /// compare.json and compare.png.
-    Compare(compare::CompareArgs),
+    Compare(compare_command::CompareArgs),
 }
 
 /// Command-line overrides of the scene's `[solver]` and `[load]` settings; each flag
@@ -433,9 +434,9 @@ fn run(command: Command) -> Result<(), CliError> {
         Command::Bench { stages: Some(scene), repeats, json, .. } => bench_stages(&scene, repeats, json),
         Command::Bench { sizes, repeats, json, stages: None, .. } => bench(&sizes, repeats, json),
         Command::Accuracy { scene, out, grid } => accuracy::run(&scene, &out, grid),
-        Command::Probe(args) => probe::run(&args),
+        Command::Probe(args) => probe_command::run(&args),
         Command::View(args) => view::run(&args),
-        Command::Compare(args) => compare::run(&args),
+        Command::Compare(args) => compare_command::run(&args),
     }
 }
 

@@ -4,11 +4,8 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use fibfluid::interact::chainmail_body::ChainmailBody;
-use fibfluid::interact::chainmail_settings::Variant;
-use fibfluid::interact::fem_body::FemInteractive;
-use fibfluid::interact::{HyperInteractive, Interactive, Method, ProbeError, RefreshMode, build_body};
-use fibfluid::{Choice, Scene, Shape, memory_budget};
+use fibfluid::interact::{Interactive, Method, MethodBody, ProbeError, build_body};
+use fibfluid::{Choice, Scene, Shape};
 use fibfluid_viewer::{BodyFactory, Server, ServerOptions, ViewMesh, ViewerError};
 
 /// Arguments of `fibfluid view`.
@@ -28,7 +25,7 @@ pub struct ViewArgs {
     #[arg(long, default_value = "ffm")]
     method: Method,
     #[command(flatten)]
-    response: crate::probe::ResponseFlags,
+    response: crate::response_flags::ResponseFlags,
     /// Most clients at once (each has its own body; the factorization or the full
     /// precompute is shared).
     #[arg(long, default_value_t = 8)]
@@ -48,6 +45,7 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
     for w in fibfluid::ineffective_interactive(&scene) {
         tell!("warning: {w}");
     }
+    let opts = args.response.options(fibfluid::interact::RefreshMode::Background, &scene, &[args.method])?;
     let Shape::Surface(file) = &scene.shape else {
         return Err(ProbeError::NotASurface { scene: scene.display_name() }.into());
     };
@@ -68,7 +66,6 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
     for warning in server.warnings() {
         tell!("{warning}");
     }
-    let opts = args.response.options(fibfluid::interact::RefreshMode::Background);
     // The FFM body is built once and shared by every client (each gets a clone: its own
     // holds and frame); ChainMail bodies are cheap and built per client. With the lazy
     // response (the default) the first frame follows the base solve: a vertex's columns are
@@ -91,26 +88,13 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
     } else {
         None
     };
-    let max_memory = args.response.max_memory;
-    let budget = memory_budget(max_memory);
-    // ChainMail and FEM bodies are built per client (a voxelization, or a sparse factor).
+    // ChainMail and FEM bodies are built per client (a voxelization, or a sparse factor),
+    // through the same factory as `probe` and `compare`, with the flags' options.
     let chainmail =
         move |scene: &Scene, method: Method| -> Result<Box<dyn Interactive + Send>, ViewerError> {
-            let built: Result<Box<dyn Interactive + Send>, Box<dyn std::error::Error + Send + Sync>> =
-                match Variant::of_method(method) {
-                    Some(variant) => ChainmailBody::from_model(scene, &scene.chainmail, variant, budget)
-                        .map(|b| Box::new(b) as Box<dyn Interactive + Send>)
-                        .map_err(|e| Box::new(e) as _),
-                    None if scene.tissue.is_some_and(|t| !t.is_linear()) => {
-                        HyperInteractive::new(scene, max_memory, RefreshMode::Background)
-                            .map(|b| Box::new(b) as Box<dyn Interactive + Send>)
-                            .map_err(|e| Box::new(e) as _)
-                    }
-                    None => FemInteractive::new(scene, max_memory)
-                        .map(|b| Box::new(b) as Box<dyn Interactive + Send>)
-                        .map_err(|e| Box::new(e) as _),
-                };
-            built.map_err(|source| ViewerError::Build { method, source })
+            MethodBody::build(scene, &scene.chainmail, method, &opts)
+                .map(MethodBody::into_interactive)
+                .map_err(|e| ViewerError::Build { method, source: Box::new(e) })
         };
     let mesh = match &ffm {
         Some(body) => ViewMesh::new(file, body)?,

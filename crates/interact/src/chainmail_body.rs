@@ -29,7 +29,7 @@ use fibfluid_geometry::vec3::{add, sub};
 use fibfluid_sim::{Method, Model, Shape};
 
 use crate::chainmail_settings::{ChainmailSettings, Variant};
-use crate::{Hold, InteractError, Interactive};
+use crate::{Hold, Holds, InteractError, Interactive, PushRule, Surface};
 
 /// The material of a ChainMail body.
 #[derive(Clone, Debug)]
@@ -76,12 +76,9 @@ pub struct ChainmailBody {
     material: BodyMaterial,
     propagation: PropagationOptions,
     relax: RelaxOptions,
-    rest: Vec<Vec3>,
-    positions: Vec<Vec3>,
-    field: Vec<Vec3>,
-    fixed_axis: Vec<Option<char>>,
-    pending: BTreeMap<usize, Vec3>,
-    frame: u64,
+    /// Rest shape and current frame.
+    surface: Surface,
+    holds: Holds,
     work: FrameWork,
     setup_seconds: f64,
 }
@@ -177,7 +174,6 @@ impl ChainmailBody {
             energy_stiffness: ENERGY_STIFFNESS,
             ..RelaxOptions::default()
         };
-        let n = rest.len();
         let n_elements = lattice.len();
         Ok(Self {
             variant,
@@ -190,12 +186,8 @@ impl ChainmailBody {
                 ..PropagationOptions::default()
             },
             relax,
-            positions: rest.clone(),
-            rest,
-            field: vec![[0.0; 3]; n],
-            fixed_axis,
-            pending: BTreeMap::new(),
-            frame: 0,
+            surface: Surface::at_rest(rest),
+            holds: Holds::with_first_axes(&fixed_axis, PushRule::Refused),
             work: FrameWork::default(),
             setup_seconds: start.elapsed().as_secs_f64(),
         })
@@ -229,7 +221,8 @@ impl ChainmailBody {
     /// The elements a grab of `vertex` moves: the free (not fixed) elements among the eight
     /// carrying the vertex, nearest first; empty when all are fixed or the vertex is unknown.
     pub fn grabbed_elements(&self, vertex: usize) -> Vec<usize> {
-        let (Some(elements), Some(&p)) = (self.embedding.elements(vertex), self.rest.get(vertex)) else {
+        let (Some(elements), Some(&p)) = (self.embedding.elements(vertex), self.surface.rest.get(vertex))
+        else {
             return Vec::new();
         };
         let rest = self.lattice.rest_positions();
@@ -241,13 +234,6 @@ impl ChainmailBody {
         free.dedup();
         free
     }
-
-    fn check_vertex(&self, vertex: usize) -> crate::Result<()> {
-        if vertex >= self.rest.len() {
-            return Err(InteractError::UnknownVertex { vertex, vertices: self.rest.len() });
-        }
-        Ok(())
-    }
 }
 
 impl Interactive for ChainmailBody {
@@ -258,61 +244,34 @@ impl Interactive for ChainmailBody {
         }
     }
 
-    fn n_vertices(&self) -> usize {
-        self.rest.len()
+    fn surface(&self) -> &Surface {
+        &self.surface
     }
 
-    fn rest_positions(&self) -> &[Vec3] {
-        &self.rest
+    fn holds(&self) -> &Holds {
+        &self.holds
     }
 
-    fn is_fixed(&self, vertex: usize) -> bool {
-        self.fixed_axis.get(vertex).is_some_and(Option::is_some)
+    fn holds_mut(&mut self) -> &mut Holds {
+        &mut self.holds
     }
 
-    fn supports_forces(&self) -> bool {
-        false
-    }
-
+    /// As the trait's, and refused when every lattice element carrying the vertex is fixed.
     fn grab(&mut self, vertex: usize, displacement: Vec3) -> crate::Result<()> {
-        self.check_vertex(vertex)?;
-        if let Some(axis) = self.fixed_axis[vertex] {
-            return Err(InteractError::FixedVertex { vertex, axis, action: "grabbed" });
-        }
-        if let Some(&value) = displacement.iter().find(|c| !c.is_finite()) {
-            return Err(InteractError::NonFinite { vertex, what: "displacement", value });
-        }
+        self.holds.check_grab(vertex, displacement)?;
         if self.grabbed_elements(vertex).is_empty() {
             return Err(InteractError::Invalid(format!(
                 "vertex {vertex}: every lattice element carrying it is fixed; it cannot be grabbed"
             )));
         }
-        self.pending.insert(vertex, displacement);
-        Ok(())
-    }
-
-    fn push(&mut self, _vertex: usize, _force: Vec3) -> crate::Result<()> {
-        Err(InteractError::Unsupported { method: self.method(), what: "forces (it is displacement-driven)" })
-    }
-
-    fn release(&mut self, vertex: usize) -> crate::Result<()> {
-        self.check_vertex(vertex)?;
-        self.pending.remove(&vertex);
-        Ok(())
-    }
-
-    fn release_all(&mut self) {
-        self.pending.clear();
-    }
-
-    fn holds(&self) -> Vec<(usize, Hold)> {
-        self.pending.iter().map(|(&v, &d)| (v, Hold::Grab { displacement: d })).collect()
+        self.holds.grab(vertex, displacement)
     }
 
     fn update(&mut self) -> crate::Result<&[(usize, Vec3)]> {
         // Grabs of vertices sharing an element move it by their mean displacement.
         let mut sponsors: BTreeMap<usize, (Vec3, f64)> = BTreeMap::new();
-        for (&v, &d) in &self.pending {
+        for (v, hold) in self.holds.iter() {
+            let Hold::Grab { displacement: d } = hold else { continue };
             for e in self.grabbed_elements(v) {
                 let s = sponsors.entry(e).or_insert(([0.0; 3], 0.0));
                 s.0 = add(s.0, d);
@@ -341,28 +300,13 @@ impl Interactive for ChainmailBody {
             return Err(chainmail_err(e));
         }
         self.work = work;
-        self.embedding.positions_into(&self.lattice, &mut self.positions);
-        for ((f, p), r) in self.field.iter_mut().zip(&self.positions).zip(&self.rest) {
+        let s = &mut self.surface;
+        self.embedding.positions_into(&self.lattice, &mut s.positions);
+        for ((f, p), r) in s.field.iter_mut().zip(&s.positions).zip(&s.rest) {
             *f = sub(*p, *r);
         }
-        self.frame += 1;
+        s.frame += 1;
         Ok(&[])
-    }
-
-    fn positions(&self) -> &[Vec3] {
-        &self.positions
-    }
-
-    fn field(&self) -> &[Vec3] {
-        &self.field
-    }
-
-    fn reactions(&self) -> &[(usize, Vec3)] {
-        &[]
-    }
-
-    fn frame(&self) -> u64 {
-        self.frame
     }
 
     fn memory_bytes(&self) -> usize {
@@ -370,6 +314,9 @@ impl Interactive for ChainmailBody {
             BodyMaterial::Tsve(m) => m.alpha.len() * 24,
             BodyMaterial::Generalized(_) => 72,
         };
-        self.lattice.memory_bytes() + self.embedding.memory_bytes() + material + self.rest.len() * 3 * 24
+        self.lattice.memory_bytes()
+            + self.embedding.memory_bytes()
+            + material
+            + self.surface.rest.len() * 3 * 24
     }
 }

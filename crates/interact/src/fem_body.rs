@@ -12,24 +12,25 @@ use fibfluid_geometry::Vec3;
 use fibfluid_sim::fem_run::{build_body, full_loads};
 use fibfluid_sim::{Method, Model, StageLog, memory_budget};
 
-use crate::fem_holds::PendingHolds;
-use crate::{Hold, InteractError, Interactive, Result};
+use crate::holds::fem_reactions;
+use crate::{Holds, InteractError, Interactive, PushRule, Result, Surface};
 
 /// A model's interactive finite-element body.
 pub struct FemInteractive {
     body: FemBody,
     base_loads: Loads,
-    holds: PendingHolds,
-    field: Vec<Vec3>,
-    positions: Vec<Vec3>,
-    reactions: Vec<(usize, Vec3)>,
-    frame: u64,
+    holds: Holds,
+    /// Rest shape and current frame.
+    surface: Surface,
     setup_seconds: f64,
 }
 
 impl std::fmt::Debug for FemInteractive {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("FemInteractive").field("body", &self.body).field("frame", &self.frame).finish()
+        f.debug_struct("FemInteractive")
+            .field("body", &self.body)
+            .field("frame", &self.surface.frame)
+            .finish()
     }
 }
 
@@ -45,19 +46,10 @@ impl FemInteractive {
         let base = body
             .solve(&base_loads)
             .map_err(|source| fibfluid_sim::Error::Fem { scene: model.display_name(), source })?;
-        let holds = PendingHolds::of(model);
-        let field = base.surface_displacements;
-        let positions = holds.rest().iter().zip(&field).map(|(p, u)| add(*p, *u)).collect();
-        Ok(Self {
-            body,
-            base_loads,
-            holds,
-            field,
-            positions,
-            reactions: Vec::new(),
-            frame: 0,
-            setup_seconds: start.elapsed().as_secs_f64(),
-        })
+        let holds = Holds::of_model(model, PushRule::Anywhere);
+        let mut surface = Surface::at_rest(model.rest_positions());
+        surface.set_field(base.surface_displacements);
+        Ok(Self { body, base_loads, holds, surface, setup_seconds: start.elapsed().as_secs_f64() })
     }
 
     /// Seconds of the setup (voxelization, assembly, factorization, base solve).
@@ -71,10 +63,6 @@ impl FemInteractive {
     }
 }
 
-fn add(a: Vec3, b: Vec3) -> Vec3 {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-
 impl Interactive for FemInteractive {
     /// A linear response on the kept factorization: the holds decide the frame.
     fn answers_from_holds(&self) -> bool {
@@ -85,7 +73,17 @@ impl Interactive for FemInteractive {
         Method::Fem
     }
 
-    crate::fem_holds::delegate_holds!();
+    fn surface(&self) -> &Surface {
+        &self.surface
+    }
+
+    fn holds(&self) -> &Holds {
+        &self.holds
+    }
+
+    fn holds_mut(&mut self) -> &mut Holds {
+        &mut self.holds
+    }
 
     fn update(&mut self) -> Result<&[(usize, Vec3)]> {
         let (held, pushes) = self.holds.split();
@@ -95,27 +93,10 @@ impl Interactive for FemInteractive {
             .body
             .respond_holds(&loads, &held)
             .map_err(|e| InteractError::Singular { what: e.to_string() })?;
-        self.field = response.surface_displacements;
-        self.positions = self.holds.rest().iter().zip(&self.field).map(|(p, u)| add(*p, *u)).collect();
-        self.reactions = PendingHolds::reactions(&held, response.reactions, &pushes);
-        self.frame += 1;
-        Ok(&self.reactions)
-    }
-
-    fn positions(&self) -> &[Vec3] {
-        &self.positions
-    }
-
-    fn field(&self) -> &[Vec3] {
-        &self.field
-    }
-
-    fn reactions(&self) -> &[(usize, Vec3)] {
-        &self.reactions
-    }
-
-    fn frame(&self) -> u64 {
-        self.frame
+        self.surface.set_field(response.surface_displacements);
+        self.surface.reactions = fem_reactions(&held, response.reactions, &pushes);
+        self.surface.frame += 1;
+        Ok(&self.surface.reactions)
     }
 
     fn memory_bytes(&self) -> usize {

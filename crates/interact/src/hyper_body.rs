@@ -32,8 +32,8 @@ use fibfluid_fem::{FemHold, FemStats, Loads};
 use fibfluid_geometry::Vec3;
 use fibfluid_sim::{Method, Model};
 
-use crate::fem_holds::PendingHolds;
-use crate::{Hold, InteractError, Interactive, LinearizationStatus, Result};
+use crate::holds::fem_reactions;
+use crate::{Holds, InteractError, Interactive, LinearizationStatus, PushRule, Result, Surface};
 
 /// A refresh whose full step moved no surface vertex more than this fraction of a cell
 /// leaves the linearization converged: no new refresh is asked until the holds change.
@@ -230,16 +230,14 @@ pub struct HyperInteractive {
     reset_frame: u64,
     loads: Loads,
     cell_size: f64,
-    holds: PendingHolds,
+    holds: Holds,
     /// The holds of the last refresh asked.
     asked: Option<Request>,
-    field: Vec<Vec3>,
-    positions: Vec<Vec3>,
-    reactions: Vec<(usize, Vec3)>,
+    /// Rest shape and current frame.
+    surface: Surface,
     status: LinearizationStatus,
     stats: FemStats,
     newton_iteration_seconds: f64,
-    frame: u64,
     setup_seconds: f64,
     /// Refreshes still to fail ([`HyperInteractive::fail_next_refreshes`]).
     failing: u32,
@@ -247,7 +245,10 @@ pub struct HyperInteractive {
 
 impl std::fmt::Debug for HyperInteractive {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("HyperInteractive").field("frame", &self.frame).field("status", &self.status).finish()
+        f.debug_struct("HyperInteractive")
+            .field("frame", &self.surface.frame)
+            .field("status", &self.status)
+            .finish()
     }
 }
 
@@ -311,9 +312,9 @@ impl HyperInteractive {
                 Refresher::Thread(spawn_worker(body, linearization.clone(), loads.clone(), chords))
             }
         };
-        let holds = PendingHolds::of(model);
-        let field = solution.surface_displacements;
-        let positions = holds.rest().iter().zip(&field).map(|(p, u)| add(*p, *u)).collect();
+        let holds = Holds::of_model(model, PushRule::Anywhere);
+        let mut surface = Surface::at_rest(model.rest_positions());
+        surface.set_field(solution.surface_displacements);
         let current = Current {
             linearization,
             frame: 0,
@@ -337,13 +338,10 @@ impl HyperInteractive {
             cell_size,
             holds,
             asked: Some(Request::default()),
-            field,
-            positions,
-            reactions: Vec::new(),
+            surface,
             status: LinearizationStatus::default(),
             stats,
             newton_iteration_seconds,
-            frame: 0,
             setup_seconds: start.elapsed().as_secs_f64(),
             failing: 0,
         })
@@ -454,7 +452,7 @@ impl HyperInteractive {
             return;
         }
         let due = match &self.refresher {
-            Refresher::Inline { every, .. } => self.frame.is_multiple_of(*every),
+            Refresher::Inline { every, .. } => self.surface.frame.is_multiple_of(*every),
             Refresher::Thread(worker) => !worker.busy,
         };
         if !due {
@@ -642,20 +640,26 @@ fn estimated_error(step: f64, cell_size: f64, linearization: &Linearization) -> 
     if linearization.chord_steps() > 0 { newton.max(CHORD_CONTRACTION * step) } else { newton }
 }
 
-fn add(a: Vec3, b: Vec3) -> Vec3 {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-
 impl Interactive for HyperInteractive {
     fn method(&self) -> Method {
         Method::Fem
     }
 
-    crate::fem_holds::delegate_holds!();
+    fn surface(&self) -> &Surface {
+        &self.surface
+    }
+
+    fn holds(&self) -> &Holds {
+        &self.holds
+    }
+
+    fn holds_mut(&mut self) -> &mut Holds {
+        &mut self.holds
+    }
 
     fn update(&mut self) -> Result<&[(usize, Vec3)]> {
         self.poll();
-        let request = self.request(self.frame);
+        let request = self.request(self.surface.frame);
         self.return_to_base(&request);
         if matches!(self.refresher, Refresher::Inline { .. }) {
             self.schedule(&request);
@@ -675,16 +679,15 @@ impl Interactive for HyperInteractive {
             .linearization
             .respond_at_surface(&request.pushes, &holds)
             .map_err(|e| InteractError::Singular { what: e.to_string() })?;
-        self.field = response.surface_displacements;
-        self.positions = self.holds.rest().iter().zip(&self.field).map(|(p, u)| add(*p, *u)).collect();
+        self.surface.set_field(response.surface_displacements);
         let mut forces = response.reactions;
         // A pending hold's vertex is free this frame: no force.
         pending.iter().for_each(|&k| forces.insert(k, [0.0; 3]));
-        self.reactions = PendingHolds::reactions(&request.holds, forces, &request.pushes);
+        self.surface.reactions = fem_reactions(&request.holds, forces, &request.pushes);
         self.status = LinearizationStatus {
             refreshes: self.current.refreshes,
             refactorizations: self.current.refactorizations,
-            age_frames: self.frame - self.current.frame.min(self.frame),
+            age_frames: self.surface.frame - self.current.frame.min(self.surface.frame),
             age_seconds: self.current.since.elapsed().as_secs_f64(),
             step: response.step,
             estimated_error: estimated_error(response.step, self.cell_size, &self.current.linearization),
@@ -696,24 +699,8 @@ impl Interactive for HyperInteractive {
         if thread {
             self.schedule(&request);
         }
-        self.frame += 1;
-        Ok(&self.reactions)
-    }
-
-    fn positions(&self) -> &[Vec3] {
-        &self.positions
-    }
-
-    fn field(&self) -> &[Vec3] {
-        &self.field
-    }
-
-    fn reactions(&self) -> &[(usize, Vec3)] {
-        &self.reactions
-    }
-
-    fn frame(&self) -> u64 {
-        self.frame
+        self.surface.frame += 1;
+        Ok(&self.surface.reactions)
     }
 
     fn memory_bytes(&self) -> usize {

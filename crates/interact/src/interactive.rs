@@ -3,30 +3,7 @@
 use fibfluid_geometry::Vec3;
 
 use crate::Result;
-
-/// What a tool does to one vertex.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Hold {
-    /// The tool holds the vertex at `rest + displacement` (a prescribed displacement from
-    /// the rest shape; the body answers with a reaction force).
-    Grab {
-        /// Displacement from the rest position.
-        displacement: Vec3,
-    },
-    /// The tool pushes the vertex with a force (added to the scene's base loads).
-    Push {
-        /// The force applied to the body.
-        force: Vec3,
-    },
-    /// Frictionless contact: the tool holds the vertex's displacement along `normal` (unit)
-    /// at `along` and leaves it free across the normal; the reaction is along the normal.
-    Contact {
-        /// The contact normal (unit length), pointing from the tool into the body.
-        normal: Vec3,
-        /// The displacement from the rest position along `normal`.
-        along: f64,
-    },
-}
+use crate::holds::{Holds, check_normal};
 
 /// A body that a tool (a mouse, a haptic device, a scripted path) can grab, push and release,
 /// frame by frame.
@@ -43,48 +20,96 @@ pub enum Hold {
 /// and displacement-driven methods such as ChainMail, which may not support forces
 /// ([`supports_forces`](Self::supports_forces) is then false and [`push`](Self::push)
 /// returns [`InteractError::Unsupported`](crate::InteractError::Unsupported)).
+///
+/// A body implements six methods: its [`method`](Self::method), its [`surface`](Self::surface)
+/// (rest shape and current frame), its [`Holds`] ([`holds`](Self::holds),
+/// [`holds_mut`](Self::holds_mut)), [`update`](Self::update) and
+/// [`memory_bytes`](Self::memory_bytes); the rest is provided on them and may be overridden
+/// where a method does better (a reaction-only update, a linearization's status).
 pub trait Interactive {
     /// The method this body runs.
     fn method(&self) -> fibfluid_sim::Method;
 
+    /// The body's surface: its rest shape and the current frame.
+    fn surface(&self) -> &Surface;
+
+    /// The pending holds (what the next [`update`](Self::update) applies).
+    fn holds(&self) -> &Holds;
+
+    /// The pending holds, to edit (each edit is checked, as [`grab`](Self::grab) says).
+    fn holds_mut(&mut self) -> &mut Holds;
+
+    /// Applies the pending holds and computes the frame: positions, field and reactions.
+    /// Returns the reactions (see [`reactions`](Self::reactions)).
+    ///
+    /// On error (for instance a singular set of grabbed vertices) the previous frame stays
+    /// current and the pending holds are kept, so the caller can release some and retry.
+    fn update(&mut self) -> Result<&[(usize, Vec3)]>;
+
+    /// Bytes held by the body's precomputed data (the dominant term; small vectors may be
+    /// left out).
+    fn memory_bytes(&self) -> usize;
+
     /// Number of vertices of the surface.
-    fn n_vertices(&self) -> usize;
+    fn n_vertices(&self) -> usize {
+        self.surface().rest.len()
+    }
 
     /// Rest positions of the surface, one per vertex.
-    fn rest_positions(&self) -> &[Vec3];
+    fn rest_positions(&self) -> &[Vec3] {
+        &self.surface().rest
+    }
 
     /// Whether the scene fixes the vertex along any axis (a grab there is an error).
     /// Out-of-range vertices are not fixed.
-    fn is_fixed(&self, vertex: usize) -> bool;
+    fn is_fixed(&self, vertex: usize) -> bool {
+        self.holds().is_fixed(vertex)
+    }
 
     /// Whether [`push`](Self::push) is supported (forces as tool input and reaction forces
     /// as output).
-    fn supports_forces(&self) -> bool;
+    fn supports_forces(&self) -> bool {
+        self.holds().supports_forces()
+    }
 
     /// Holds `vertex` at `rest + displacement` from the next [`update`](Self::update) on.
     ///
     /// Errors: [`UnknownVertex`](crate::InteractError::UnknownVertex),
     /// [`FixedVertex`](crate::InteractError::FixedVertex) (fixed along any axis),
     /// [`NonFinite`](crate::InteractError::NonFinite).
-    fn grab(&mut self, vertex: usize, displacement: Vec3) -> Result<()>;
+    fn grab(&mut self, vertex: usize, displacement: Vec3) -> Result<()> {
+        self.holds_mut().grab(vertex, displacement)
+    }
 
     /// Pushes `vertex` with `force` from the next [`update`](Self::update) on.
     ///
-    /// Errors: as [`grab`](Self::grab) (a vertex fixed along every axis cannot be pushed;
-    /// on a vertex fixed along some axes the force's components along them do nothing, as
-    /// in a full solve), plus [`Unsupported`](crate::InteractError::Unsupported) for a
-    /// method without forces.
-    fn push(&mut self, vertex: usize, force: Vec3) -> Result<()>;
+    /// Errors: as [`grab`](Self::grab) (the fiber–fluid method refuses a vertex fixed along
+    /// every axis; on a vertex fixed along some axes the force's components along them do
+    /// nothing, as in a full solve), plus [`Unsupported`](crate::InteractError::Unsupported)
+    /// for a method without forces.
+    fn push(&mut self, vertex: usize, force: Vec3) -> Result<()> {
+        if !self.supports_forces() {
+            let method = self.method();
+            return Err(crate::InteractError::Unsupported {
+                method,
+                what: "forces (it is displacement-driven)",
+            });
+        }
+        self.holds_mut().push(vertex, force)
+    }
 
     /// Holds `vertex` in frictionless contact from the next [`update`](Self::update) on:
     /// its displacement along the unit `normal` is `along`, its motion across the normal
-    /// free, its reaction along the normal ([`Hold::Contact`]). A method that cannot leave
-    /// the vertex free across the normal (the default, used by ChainMail) moves it along the
+    /// free, its reaction along the normal ([`Hold::Contact`](crate::Hold::Contact)). A method without forces
+    /// cannot leave the vertex free across the normal (ChainMail): it moves it along the
     /// normal from its current position onto the contact plane and holds it there.
     ///
     /// Errors: as [`grab`](Self::grab), plus [`InteractError::Invalid`] for a normal that is
     /// not of unit length (within 1e-9).
     fn contact(&mut self, vertex: usize, normal: Vec3, along: f64) -> Result<()> {
+        if self.supports_forces() {
+            return self.holds_mut().contact(vertex, normal, along);
+        }
         check_normal(vertex, normal, along)?;
         let u = *self
             .field()
@@ -98,13 +123,14 @@ pub trait Interactive {
     /// Drops the hold on `vertex` (nothing happens if it has none) from the next update on.
     ///
     /// Errors: [`UnknownVertex`](crate::InteractError::UnknownVertex).
-    fn release(&mut self, vertex: usize) -> Result<()>;
+    fn release(&mut self, vertex: usize) -> Result<()> {
+        self.holds_mut().release(vertex)
+    }
 
     /// Drops every hold from the next update on.
-    fn release_all(&mut self);
-
-    /// The pending holds (what the next [`update`](Self::update) applies), by vertex.
-    fn holds(&self) -> Vec<(usize, Hold)>;
+    fn release_all(&mut self) {
+        self.holds_mut().clear();
+    }
 
     /// Whether a frame's answer depends only on the holds it applies (a linear response on a
     /// kept factorization: FFM, the FEM), so that a frame asking exactly what the last one
@@ -112,13 +138,6 @@ pub trait Interactive {
     fn answers_from_holds(&self) -> bool {
         false
     }
-
-    /// Applies the pending holds and computes the frame: positions, field and reactions.
-    /// Returns the reactions (see [`reactions`](Self::reactions)).
-    ///
-    /// On error (for instance a singular set of grabbed vertices) the previous frame stays
-    /// current and the pending holds are kept, so the caller can release some and retry.
-    fn update(&mut self) -> Result<&[(usize, Vec3)]>;
 
     /// Applies the pending holds and computes only the reactions (the haptic query), which
     /// some methods do much faster than a whole frame. [`positions`](Self::positions) and
@@ -129,29 +148,71 @@ pub trait Interactive {
     }
 
     /// Current positions (rest + field), one per vertex.
-    fn positions(&self) -> &[Vec3];
+    fn positions(&self) -> &[Vec3] {
+        &self.surface().positions
+    }
 
     /// Current displacement from the rest shape, one per vertex.
-    fn field(&self) -> &[Vec3];
+    fn field(&self) -> &[Vec3] {
+        &self.surface().field
+    }
 
     /// The force on the body at each held vertex, sorted by vertex: for a grab, the reaction
     /// the tool must apply to hold the vertex there (applied as a point force in a full solve
     /// it gives the same surface; a haptic device renders its opposite); for a push, the
     /// pushed force. Empty for a method without forces.
-    fn reactions(&self) -> &[(usize, Vec3)];
+    fn reactions(&self) -> &[(usize, Vec3)] {
+        &self.surface().reactions
+    }
 
     /// Number of frames computed so far (full updates and reaction-only updates).
-    fn frame(&self) -> u64;
-
-    /// Bytes held by the body's precomputed data (the dominant term; small vectors may be
-    /// left out).
-    fn memory_bytes(&self) -> usize;
+    fn frame(&self) -> u64 {
+        self.surface().frame
+    }
 
     /// For a body answered on a linearization that a second rate refreshes (the
     /// hyperelastic body), the one the last frame used; `None` for a body whose frames are
     /// exact for its own model (the linear ones, ChainMail).
     fn linearization(&self) -> Option<LinearizationStatus> {
         None
+    }
+}
+
+/// A body's surface as a tool sees it: the rest shape and the current frame (positions,
+/// displacement field, reactions) with the number of frames computed.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Surface {
+    /// Rest positions, one per vertex.
+    pub rest: Vec<Vec3>,
+    /// Current positions (rest + field).
+    pub positions: Vec<Vec3>,
+    /// Current displacement from rest.
+    pub field: Vec<Vec3>,
+    /// The force on the body at each held vertex, sorted by vertex.
+    pub reactions: Vec<(usize, Vec3)>,
+    /// Frames computed so far.
+    pub frame: u64,
+}
+
+impl Surface {
+    /// The surface at rest, no frame computed.
+    pub fn at_rest(rest: Vec<Vec3>) -> Self {
+        let n = rest.len();
+        Self { positions: rest.clone(), rest, field: vec![[0.0; 3]; n], reactions: Vec::new(), frame: 0 }
+    }
+
+    /// Sets the field and the positions from it (rest + field).
+    pub fn set_field(&mut self, field: Vec<Vec3>) {
+        self.field = field;
+        self.refresh_positions();
+    }
+
+    /// Recomputes the positions from the rest shape and the field.
+    pub fn refresh_positions(&mut self) {
+        self.positions.resize(self.rest.len(), [0.0; 3]);
+        for ((p, r), u) in self.positions.iter_mut().zip(&self.rest).zip(&self.field) {
+            *p = [r[0] + u[0], r[1] + u[1], r[2] + u[2]];
+        }
     }
 }
 
@@ -185,21 +246,4 @@ pub struct LinearizationStatus {
     pub pending: usize,
     /// Why the last refresh failed, when it did (the frame then used the last good one).
     pub failure: Option<String>,
-}
-
-/// Tolerance on the length of a contact normal.
-pub const NORMAL_TOLERANCE: f64 = 1e-9;
-
-/// Checks a contact's normal (unit length, finite) and displacement (finite).
-pub(crate) fn check_normal(vertex: usize, normal: Vec3, along: f64) -> Result<()> {
-    if let Some(&value) = normal.iter().chain([&along]).find(|c| !c.is_finite()) {
-        return Err(crate::InteractError::NonFinite { vertex, what: "contact", value });
-    }
-    let len = normal.iter().map(|c| c * c).sum::<f64>().sqrt();
-    if (len - 1.0).abs() > NORMAL_TOLERANCE {
-        return Err(crate::InteractError::Invalid(format!(
-            "vertex {vertex}: the contact normal has length {len}, not 1"
-        )));
-    }
-    Ok(())
 }

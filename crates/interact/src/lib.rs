@@ -2,7 +2,9 @@
 //! back its surface and the reaction forces a tool (or a haptic device) feels.
 //!
 //! - [`Interactive`]: the method-neutral, object-safe interface (grab, push, release,
-//!   update, positions, field, reactions) that a viewer or a path replay drives. The
+//!   update, positions, field, reactions) that a viewer or a path replay drives: six
+//!   required methods on a [`Surface`] (rest shape and current frame) and [`Holds`] (the
+//!   pending holds, checked as they come), the rest provided. The
 //!   fiber–fluid method implements it here ([`FfmBody`]); other methods (ChainMail) may
 //!   implement it without forces.
 //! - [`Compliance`]: the fiber–fluid method's linear response about the rest shape (paper
@@ -12,7 +14,8 @@
 //! - [`ChainmailBody`](chainmail_body::ChainmailBody): a ChainMail lattice (TSVE or
 //!   Generalized) embedding the surface, with its [`chainmail_settings`].
 //! - [`tools`]: tools with a size on any body: a [`Grasp`] holds a patch rigidly, a
-//!   [`Press`] is a spherical tip in frictionless contact.
+//!   [`Press`] is a spherical tip in frictionless contact; a [`ToolSet`] drives them, and
+//!   any other type implementing [`Tool`], frame by frame.
 //! - [`MethodBody`]: a model's body for any [`Method`]; [`replay`] drives one along a
 //!   checked [`ToolPath`].
 //! - [`FfmBody`]: a base state (the scene's own loads, from one full solve) plus the
@@ -88,29 +91,32 @@
 //! response. The capacitance and the field are `fibfluid_linalg::HeldCapacitance` and
 //! `fibfluid_linalg::VertexResponse`, shared with `Simulation::respond_held`.
 
-mod body;
 pub mod chainmail_body;
 pub mod chainmail_settings;
 mod compliance;
 mod error;
 pub mod fem_body;
-mod fem_holds;
+mod ffm_body;
+mod holds;
 pub mod hyper_body;
 mod interactive;
 mod method_body;
 pub mod replay;
 pub mod tools;
 
-pub use body::FfmBody;
 pub use compliance::{Compliance, ComplianceOptions, MemoryEstimate, Precompute, Storage};
 pub use error::{InteractError, Result};
+pub use ffm_body::FfmBody;
 pub use fibfluid_linalg::memory_budget;
 pub use fibfluid_sim::Method;
+pub use holds::{Hold, Holds, NORMAL_TOLERANCE, PushRule};
 pub use hyper_body::{CHORD_CONTRACTION, HyperInteractive, MAX_CHORD_REFRESHES, RefreshMode};
-pub use interactive::{Hold, Interactive, LinearizationStatus, NORMAL_TOLERANCE};
+pub use interactive::{Interactive, LinearizationStatus, Surface};
 pub use method_body::{MethodBody, ProbeBody, ProbeOptions, build_body, linearized};
 pub use replay::{
     CheckedPath, FrameRow, Latency, MAX_FRAME, MAX_REACH, PathHold, PathKind, PathProblem, PathRow,
     ProbeError, Replay, TipHold, ToolPath, check_method, check_path, replay, replay_observed,
 };
-pub use tools::{Grasp, Press, PressReport, RigidMotion, ToolLoad, ToolSet, Wrench};
+pub use tools::{
+    Grasp, HeldGrasp, PlacedPress, Press, PressReport, RigidMotion, Tool, ToolLoad, ToolSet, Wrench,
+};

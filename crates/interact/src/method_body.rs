@@ -174,6 +174,16 @@ impl MethodBody {
         }
     }
 
+    /// The body behind the method-neutral trait, owned (a viewer client's).
+    pub fn into_interactive(self) -> Box<dyn Interactive + Send> {
+        match self {
+            MethodBody::Ffm(b) => Box::new(b.body),
+            MethodBody::Chainmail(b) => b,
+            MethodBody::Fem(b) => b,
+            MethodBody::Hyper(b) => b,
+        }
+    }
+
     /// The body behind the method-neutral trait, read only.
     pub fn interactive_ref(&self) -> &dyn Interactive {
         match self {

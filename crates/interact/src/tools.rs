@@ -18,6 +18,12 @@
 //!   changes. A vertex on a tangent plane is never inside the sphere. The reaction is the
 //!   sum of the contact forces (all along their normals: frictionless). A method without
 //!   forces (ChainMail) moves each vertex found inside onto the tangent plane.
+//!
+//! A [`ToolSet`] drives its tools through the [`Tool`] trait: each frame every tool puts its
+//! holds ([`Tool::hold`]), the one tool that computes the frame itself (a tip, iterating its
+//! contact set) settles it ([`Tool::settle`]) or the body updates once, and each tool reports
+//! its [`ToolLoad`]. A new tool is one type implementing [`Tool`], added with
+//! [`ToolSet::add`].
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -280,12 +286,8 @@ impl Press {
     /// Releases the tip's contacts (from the next update on); a vertex another tool has
     /// taken over since (a grasp's patch) keeps that tool's hold.
     pub fn lift(&mut self, body: &mut dyn Interactive) -> Result<()> {
-        let own: Vec<usize> = body
-            .holds()
-            .into_iter()
-            .filter(|(v, h)| self.applied.get(v) == Some(h))
-            .map(|(v, _)| v)
-            .collect();
+        let own: Vec<usize> =
+            body.holds().iter().filter(|(v, h)| self.applied.get(v) == Some(h)).map(|(v, _)| v).collect();
         for v in own {
             body.release(v)?;
         }
@@ -346,7 +348,7 @@ impl Press {
 
     /// The vertices another tool holds: every pending hold the tip did not put there.
     fn others(&self, body: &dyn Interactive) -> BTreeSet<usize> {
-        body.holds().into_iter().filter(|(v, h)| self.applied.get(v) != Some(h)).map(|(v, _)| v).collect()
+        body.holds().iter().filter(|(v, h)| self.applied.get(v) != Some(h)).map(|(v, _)| v).collect()
     }
 
     /// Vertices closer to `centre` than the tip's radius allows, with their outward normals
@@ -414,7 +416,7 @@ impl Press {
             body.contact(v, n, dot(n, sub(centre, p)) + radius)
         });
         // Recorded even when a contact was refused, so that a lift releases what was put.
-        self.applied = body.holds().into_iter().filter(|(v, _)| self.active.contains_key(v)).collect();
+        self.applied = body.holds().iter().filter(|(v, _)| self.active.contains_key(v)).collect();
         placed
     }
 }
@@ -454,12 +456,108 @@ fn outward(x: Vec3, centre: Vec3, p: Vec3) -> Vec3 {
     unreachable!("the last candidate has unit length")
 }
 
+/// A tool applied to a body frame by frame: a grasp, a pressing tip, or one defined outside
+/// this crate. A [`ToolSet`] calls [`hold`](Self::hold) on every tool, then
+/// [`settle`](Self::settle) on the one that [`settles`](Self::settles) (or updates the body
+/// once), then [`load`](Self::load) on every tool.
+pub trait Tool: std::fmt::Debug + Send {
+    /// Puts the tool's holds for the next frame on the body. The default puts none (a
+    /// grasp's holds are put once, when it is placed, and stay).
+    fn hold(&mut self, body: &mut dyn Interactive) -> Result<()> {
+        let _ = body;
+        Ok(())
+    }
+
+    /// Whether the tool computes the frame itself (a tip iterates its contact set); a
+    /// [`ToolSet`] holds at most one such tool.
+    fn settles(&self) -> bool {
+        false
+    }
+
+    /// Computes the frame: the default is one update.
+    fn settle(&mut self, body: &mut dyn Interactive) -> Result<()> {
+        body.update().map(|_| ())
+    }
+
+    /// Takes the tool's holds off the body (from the next update on).
+    fn release(&mut self, body: &mut dyn Interactive) -> Result<()>;
+
+    /// The tool's load on the body after a frame; `to_file` maps body vertices to file
+    /// vertices.
+    fn load(&self, body: &dyn Interactive, to_file: &[u32]) -> ToolLoad;
+}
+
+/// A [`Grasp`] placed with its motion: the patch is held from placement on.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HeldGrasp {
+    /// The grasp.
+    pub grasp: Grasp,
+    /// Its motion.
+    pub motion: RigidMotion,
+}
+
+impl Tool for HeldGrasp {
+    fn release(&mut self, body: &mut dyn Interactive) -> Result<()> {
+        self.grasp.release(body)
+    }
+
+    fn load(&self, body: &dyn Interactive, to_file: &[u32]) -> ToolLoad {
+        let w = self.grasp.wrench(body, &self.motion);
+        ToolLoad::Grasp {
+            grasp: to_file[self.grasp.vertex()] as usize,
+            vertices: self.grasp.patch().len(),
+            force: w.force,
+            moment: w.moment,
+        }
+    }
+}
+
+/// A [`Press`] at its centre, with what its last placement found.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlacedPress {
+    /// The tip.
+    pub press: Press,
+    /// Its centre (metres, absolute).
+    pub centre: Vec3,
+    /// What the last placement found.
+    pub report: PressReport,
+}
+
+impl Tool for PlacedPress {
+    fn settles(&self) -> bool {
+        true
+    }
+
+    fn settle(&mut self, body: &mut dyn Interactive) -> Result<()> {
+        self.report = self.press.place(body, self.centre)?;
+        Ok(())
+    }
+
+    fn release(&mut self, body: &mut dyn Interactive) -> Result<()> {
+        self.press.lift(body)
+    }
+
+    fn load(&self, _body: &dyn Interactive, _to_file: &[u32]) -> ToolLoad {
+        ToolLoad::Press {
+            press: self.centre,
+            radius: self.press.radius(),
+            contacts: self.report.contacts.len(),
+            force: self.report.force,
+            penetration: self.report.penetration,
+        }
+    }
+}
+
 /// The tools of one user of a body (a viewer connection, a Python body): grasps by picked
-/// vertex and at most one pressing tip, with each tool's load after a frame.
+/// vertex, at most one pressing tip, and any other [`Tool`], with each tool's load after a
+/// frame.
 #[derive(Debug, Default)]
 pub struct ToolSet {
-    grasps: BTreeMap<usize, (Grasp, RigidMotion)>,
-    tip: Option<(Press, Vec3)>,
+    grasps: BTreeMap<usize, HeldGrasp>,
+    tip: Option<PlacedPress>,
+    /// Tools added with [`ToolSet::add`], by the number it returned.
+    others: BTreeMap<usize, Box<dyn Tool>>,
+    next: usize,
 }
 
 impl ToolSet {
@@ -475,28 +573,30 @@ impl ToolSet {
         motion: RigidMotion,
     ) -> Result<()> {
         let grasp = match self.grasps.get(&vertex) {
-            Some((g, _)) if g.radius() == radius => g.clone(),
+            Some(g) if g.grasp.radius() == radius => g.grasp.clone(),
             _ => Grasp::new(&*body, vertex, radius)?,
         };
-        let overlap =
-            self.grasps.values().filter(|(g, _)| g.vertex() != vertex).find_map(|(g, _)| {
-                shared_vertex(g.patch(), grasp.patch()).map(|shared| (g.vertex(), shared))
-            });
+        let overlap = self
+            .grasps
+            .values()
+            .map(|h| &h.grasp)
+            .filter(|g| g.vertex() != vertex)
+            .find_map(|g| shared_vertex(g.patch(), grasp.patch()).map(|shared| (g.vertex(), shared)));
         if let Some((first, shared)) = overlap {
             return Err(InteractError::GraspsOverlap { first, second: vertex, shared });
         }
-        if let Some((old, _)) = self.grasps.remove(&vertex) {
+        if let Some(mut old) = self.grasps.remove(&vertex) {
             old.release(body)?;
         }
         grasp.hold(body, &motion)?;
-        self.grasps.insert(vertex, (grasp, motion));
+        self.grasps.insert(vertex, HeldGrasp { grasp, motion });
         Ok(())
     }
 
     /// Drops the grasp picked at `vertex`; false if there is none.
     pub fn release(&mut self, body: &mut dyn Interactive, vertex: usize) -> Result<bool> {
         match self.grasps.remove(&vertex) {
-            Some((g, _)) => g.release(body).map(|_| true),
+            Some(mut g) => g.release(body).map(|_| true),
             None => Ok(false),
         }
     }
@@ -509,11 +609,11 @@ impl ToolSet {
         check_radius(&*body, radius)?;
         check_reach(&*body, centre, radius)?;
         match &mut self.tip {
-            Some((p, c)) if p.radius() == radius => *c = centre,
+            Some(tip) if tip.press.radius() == radius => tip.centre = centre,
             _ => {
-                let tip = Press::new(&*body, radius)?;
+                let press = Press::new(&*body, radius)?;
                 self.lift(body)?;
-                self.tip = Some((tip, centre));
+                self.tip = Some(PlacedPress { press, centre, report: PressReport::default() });
             }
         }
         Ok(())
@@ -521,47 +621,64 @@ impl ToolSet {
 
     /// Takes the tip away.
     pub fn lift(&mut self, body: &mut dyn Interactive) -> Result<()> {
-        if let Some((mut p, _)) = self.tip.take() {
-            p.lift(body)?;
+        if let Some(mut tip) = self.tip.take() {
+            tip.release(body)?;
         }
         Ok(())
+    }
+
+    /// Adds a tool; returns its number for [`remove`](Self::remove). A second tool that
+    /// [`settles`](Tool::settles) the frame (beside the tip or another) is refused
+    /// ([`InteractError::Invalid`]).
+    pub fn add(&mut self, tool: Box<dyn Tool>) -> Result<usize> {
+        if tool.settles() && (self.tip.is_some() || self.others.values().any(|t| t.settles())) {
+            return Err(InteractError::Invalid(
+                "a tool set has at most one tool that settles the frame".into(),
+            ));
+        }
+        let id = self.next;
+        self.next += 1;
+        self.others.insert(id, tool);
+        Ok(id)
+    }
+
+    /// Removes the tool numbered `id` by [`add`](Self::add) and its holds; false if there is
+    /// none.
+    pub fn remove(&mut self, body: &mut dyn Interactive, id: usize) -> Result<bool> {
+        match self.others.remove(&id) {
+            Some(mut tool) => tool.release(body).map(|_| true),
+            None => Ok(false),
+        }
     }
 
     /// Forgets every tool (the body's holds are dropped by the caller, `release_all`).
     pub fn clear(&mut self) {
         self.grasps.clear();
         self.tip = None;
+        self.others.clear();
     }
 
-    /// Computes the frame (the tip's contact iterations, or one update) and the tools' loads;
-    /// `to_file` maps body vertices to file vertices.
+    /// Every tool: the tip, the grasps by picked vertex, the added tools in order.
+    fn tools_mut(&mut self) -> Vec<&mut (dyn Tool + 'static)> {
+        let tip = self.tip.iter_mut().map(|t| t as &mut dyn Tool);
+        let grasps = self.grasps.values_mut().map(|g| g as &mut dyn Tool);
+        tip.chain(grasps).chain(self.others.values_mut().map(|t| t.as_mut())).collect()
+    }
+
+    /// Computes the frame (each tool's holds, then the settling tool's iterations or one
+    /// update) and the tools' loads; `to_file` maps body vertices to file vertices.
     pub fn frame(&mut self, body: &mut dyn Interactive, to_file: &[u32]) -> Result<Vec<ToolLoad>> {
-        let mut loads = Vec::new();
-        match &mut self.tip {
-            Some((press, centre)) => {
-                let r = press.place(body, *centre)?;
-                loads.push(ToolLoad::Press {
-                    press: *centre,
-                    radius: press.radius(),
-                    contacts: r.contacts.len(),
-                    force: r.force,
-                    penetration: r.penetration,
-                });
-            }
+        let mut tools = self.tools_mut();
+        for tool in tools.iter_mut() {
+            tool.hold(body)?;
+        }
+        match tools.iter_mut().find(|t| t.settles()) {
+            Some(tool) => tool.settle(body)?,
             None => {
                 body.update()?;
             }
         }
-        for (g, motion) in self.grasps.values() {
-            let w = g.wrench(&*body, motion);
-            loads.push(ToolLoad::Grasp {
-                grasp: to_file[g.vertex()] as usize,
-                vertices: g.patch().len(),
-                force: w.force,
-                moment: w.moment,
-            });
-        }
-        Ok(loads)
+        Ok(tools.iter().map(|t| t.load(&*body, to_file)).collect())
     }
 }
 
@@ -594,5 +711,12 @@ pub enum ToolLoad {
         force: Vec3,
         /// Deepest vertex left inside (0 for a method with forces).
         penetration: f64,
+    },
+    /// Any other tool: its name and total force on the body.
+    Other {
+        /// The tool's name.
+        tool: String,
+        /// Total force on the body (N).
+        force: Vec3,
     },
 }

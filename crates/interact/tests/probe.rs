@@ -29,6 +29,8 @@ const GRAB_TOLERANCE: f64 = 1e-7;
 /// (measured on this case: 5.8e-9).
 const F32_TOLERANCE: f64 = 8.0 * f32::EPSILON as f64;
 
+#[path = "probe/custom_tool.rs"]
+mod custom_tool;
 #[path = "probe/guards.rs"]
 mod guards;
 #[path = "probe/tools.rs"]
@@ -241,7 +243,7 @@ fn bad_requests_are_typed_errors_and_change_nothing() {
     // The last call for a vertex wins; releasing an unheld vertex is no error.
     b.grab(free, [0.0, -0.5, 0.0]).unwrap();
     b.push(free, [0.0, 5.0, 0.0]).unwrap();
-    assert_eq!(b.holds(), vec![(free, Hold::Push { force: [0.0, 5.0, 0.0] })]);
+    assert_eq!(b.holds().to_vec(), vec![(free, Hold::Push { force: [0.0, 5.0, 0.0] })]);
     b.release(free).unwrap();
     b.release(free).unwrap();
     assert!(b.holds().is_empty());

@@ -1,16 +1,13 @@
 //! The fiber–fluid method as an [`Interactive`] body: base state plus precomputed response,
 //! with grabbed vertices solved through a capacitance matrix.
 
-use std::collections::BTreeMap;
-
-use fibfluid_assembly::AXES;
 use fibfluid_geometry::Vec3;
 use fibfluid_linalg::{HeldCapacitance, HeldRow};
 
 use fibfluid_sim::Method;
 
 use crate::compliance::linalg_error;
-use crate::{Compliance, Hold, InteractError, Interactive, Result};
+use crate::{Compliance, Hold, Holds, InteractError, Interactive, PushRule, Result, Surface};
 
 /// Point forces by vertex.
 type Forces = Vec<(usize, Vec3)>;
@@ -40,22 +37,19 @@ type Forces = Vec<(usize, Vec3)>;
 #[derive(Clone, Debug)]
 pub struct FfmBody {
     compliance: Compliance,
-    rest: Vec<Vec3>,
+    /// Rest shape and current frame.
+    surface: Surface,
     base: Vec<Vec3>,
     /// The base displacement axis by axis (`c * N + i`), the layout the field is summed in.
     base_axes: Vec<f64>,
     /// Scratch of the same layout.
     field_axes: Vec<f64>,
     base_pressure: f64,
-    pending: BTreeMap<usize, Hold>,
-    field: Vec<Vec3>,
-    positions: Vec<Vec3>,
+    holds: Holds,
     pressure: f64,
-    reactions: Vec<(usize, Vec3)>,
     capacitance: Option<HeldCapacitance>,
     /// Scratch: the forces of the current frame (pushes then reactions).
     forces: Vec<(usize, Vec3)>,
-    frame: u64,
     field_current: bool,
 }
 
@@ -72,21 +66,20 @@ impl FfmBody {
         if let Some(i) = rest.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
             return Err(InteractError::Invalid(format!("rest position of vertex {i} is not finite")));
         }
+        let holds = Holds::new(n, compliance.axes(), PushRule::UnlessFixedEverywhere, |v, a| {
+            compliance.is_constrained(v, a)
+        });
         Ok(Self {
             base: vec![[0.0; 3]; n],
             base_axes: vec![0.0; compliance.axes() * n],
             field_axes: vec![0.0; compliance.axes() * n],
             base_pressure: 0.0,
-            pending: BTreeMap::new(),
-            field: vec![[0.0; 3]; n],
-            positions: rest.clone(),
+            holds,
+            surface: Surface::at_rest(rest),
             pressure: 0.0,
-            reactions: Vec::new(),
             capacitance: None,
             forces: Vec::new(),
-            frame: 0,
             field_current: true,
-            rest,
             compliance,
         })
     }
@@ -96,7 +89,7 @@ impl FfmBody {
     /// full paper-mode solve gives them. Probe frames add to it. The current frame shows the
     /// base state until the next update.
     pub fn set_base(&mut self, displacement: Vec<Vec3>, pressure: f64) -> Result<()> {
-        let n = self.rest.len();
+        let n = self.surface.rest.len();
         if displacement.len() != n {
             return Err(InteractError::Invalid(format!(
                 "base state has {} displacements for {n} vertices",
@@ -117,9 +110,8 @@ impl FfmBody {
         }
         self.base = displacement;
         self.base_pressure = pressure;
-        self.field.clone_from(&self.base);
+        self.surface.set_field(self.base.clone());
         self.pressure = pressure;
-        self.refresh_positions();
         Ok(())
     }
 
@@ -144,38 +136,19 @@ impl FfmBody {
         self.field_current
     }
 
-    fn check_vertex(&self, vertex: usize) -> Result<()> {
-        let n = self.rest.len();
-        if vertex >= n {
-            return Err(InteractError::UnknownVertex { vertex, vertices: n });
-        }
-        Ok(())
-    }
-
-    fn check_finite(vertex: usize, v: Vec3, what: &'static str) -> Result<()> {
-        match v.iter().find(|c| !c.is_finite()) {
-            Some(&value) => Err(InteractError::NonFinite { vertex, what, value }),
-            None => Ok(()),
-        }
-    }
-
-    fn first_fixed_axis(&self, vertex: usize) -> Option<usize> {
-        (0..self.compliance.axes()).find(|&c| self.compliance.is_constrained(vertex, c))
-    }
-
     /// Computes the reactions of the pending holds and the force list of the frame
     /// (`self.forces`: pushes, then the grabbed vertices' reactions). Returns the new
     /// capacitance if the grabbed set changed. Leaves the current frame untouched on error.
     fn solve_reactions(&mut self) -> Result<(Option<HeldCapacitance>, Forces)> {
-        let touched: Vec<usize> = self.pending.keys().copied().collect();
+        let touched: Vec<usize> = self.holds.iter().map(|(v, _)| v).collect();
         self.compliance.touch(&touched)?;
         let c = &self.compliance;
         let d = c.axes();
-        let mut forces: Vec<(usize, Vec3)> = Vec::with_capacity(self.pending.len());
+        let mut forces: Vec<(usize, Vec3)> = Vec::with_capacity(self.holds.len());
         let mut rows: Vec<HeldRow> = Vec::new();
         let mut targets: Vec<f64> = Vec::new();
-        for (&v, hold) in &self.pending {
-            match *hold {
+        for (v, hold) in self.holds.iter() {
+            match hold {
                 Hold::Push { force } => forces.push((v, c.effective_force(v, force))),
                 Hold::Grab { displacement } => {
                     rows.extend(HeldRow::all_axes(v, d));
@@ -228,12 +201,6 @@ impl FfmBody {
         self.forces = forces;
         Ok((fresh, reactions))
     }
-
-    fn refresh_positions(&mut self) {
-        for ((p, r), u) in self.positions.iter_mut().zip(&self.rest).zip(&self.field) {
-            *p = [r[0] + u[0], r[1] + u[1], r[2] + u[2]];
-        }
-    }
 }
 
 impl Interactive for FfmBody {
@@ -246,69 +213,16 @@ impl Interactive for FfmBody {
         Method::Ffm
     }
 
-    fn n_vertices(&self) -> usize {
-        self.rest.len()
+    fn surface(&self) -> &Surface {
+        &self.surface
     }
 
-    fn rest_positions(&self) -> &[Vec3] {
-        &self.rest
+    fn holds(&self) -> &Holds {
+        &self.holds
     }
 
-    fn is_fixed(&self, vertex: usize) -> bool {
-        vertex < self.rest.len() && self.first_fixed_axis(vertex).is_some()
-    }
-
-    fn supports_forces(&self) -> bool {
-        true
-    }
-
-    fn grab(&mut self, vertex: usize, displacement: Vec3) -> Result<()> {
-        self.check_vertex(vertex)?;
-        if let Some(axis) = self.first_fixed_axis(vertex) {
-            return Err(InteractError::FixedVertex { vertex, axis: AXES[axis], action: "grabbed" });
-        }
-        Self::check_finite(vertex, displacement, "displacement")?;
-        let mut displacement = displacement;
-        displacement[self.compliance.axes()..].iter_mut().for_each(|x| *x = 0.0);
-        self.pending.insert(vertex, Hold::Grab { displacement });
-        Ok(())
-    }
-
-    fn push(&mut self, vertex: usize, force: Vec3) -> Result<()> {
-        self.check_vertex(vertex)?;
-        let d = self.compliance.axes();
-        if (0..d).all(|c| self.compliance.is_constrained(vertex, c)) {
-            return Err(InteractError::FixedVertex { vertex, axis: AXES[0], action: "pushed" });
-        }
-        Self::check_finite(vertex, force, "force")?;
-        let mut force = force;
-        force[d..].iter_mut().for_each(|x| *x = 0.0);
-        self.pending.insert(vertex, Hold::Push { force });
-        Ok(())
-    }
-
-    fn contact(&mut self, vertex: usize, normal: Vec3, along: f64) -> Result<()> {
-        self.check_vertex(vertex)?;
-        if let Some(axis) = self.first_fixed_axis(vertex) {
-            return Err(InteractError::FixedVertex { vertex, axis: AXES[axis], action: "touched" });
-        }
-        crate::interactive::check_normal(vertex, normal, along)?;
-        self.pending.insert(vertex, Hold::Contact { normal, along });
-        Ok(())
-    }
-
-    fn release(&mut self, vertex: usize) -> Result<()> {
-        self.check_vertex(vertex)?;
-        self.pending.remove(&vertex);
-        Ok(())
-    }
-
-    fn release_all(&mut self) {
-        self.pending.clear();
-    }
-
-    fn holds(&self) -> Vec<(usize, Hold)> {
-        self.pending.iter().map(|(&v, &h)| (v, h)).collect()
+    fn holds_mut(&mut self) -> &mut Holds {
+        &mut self.holds
     }
 
     fn update(&mut self) -> Result<&[(usize, Vec3)]> {
@@ -319,21 +233,20 @@ impl Interactive for FfmBody {
         let p = self.compliance.pressure_of(&self.forces);
         self.field_axes.copy_from_slice(&self.base_axes);
         self.compliance.add_field_axes(&self.forces, p, &mut self.field_axes);
-        let (n, d) = (self.rest.len(), self.compliance.axes());
+        let (n, d) = (self.surface.rest.len(), self.compliance.axes());
         let u = &self.field_axes;
-        for (i, ((fi, pi), ri)) in
-            self.field.iter_mut().zip(self.positions.iter_mut()).zip(&self.rest).enumerate()
-        {
+        let s = &mut self.surface;
+        for (i, ((fi, pi), ri)) in s.field.iter_mut().zip(s.positions.iter_mut()).zip(&s.rest).enumerate() {
             for c in 0..d {
                 fi[c] = u[c * n + i];
                 pi[c] = ri[c] + fi[c];
             }
         }
         self.pressure = self.base_pressure + p;
-        self.reactions = reactions;
-        self.frame += 1;
+        self.surface.reactions = reactions;
+        self.surface.frame += 1;
         self.field_current = true;
-        Ok(&self.reactions)
+        Ok(&self.surface.reactions)
     }
 
     fn update_reactions(&mut self) -> Result<&[(usize, Vec3)]> {
@@ -341,30 +254,14 @@ impl Interactive for FfmBody {
         if fresh.is_some() {
             self.capacitance = fresh;
         }
-        self.reactions = reactions;
-        self.frame += 1;
+        self.surface.reactions = reactions;
+        self.surface.frame += 1;
         self.field_current = false;
-        Ok(&self.reactions)
-    }
-
-    fn positions(&self) -> &[Vec3] {
-        &self.positions
-    }
-
-    fn field(&self) -> &[Vec3] {
-        &self.field
-    }
-
-    fn reactions(&self) -> &[(usize, Vec3)] {
-        &self.reactions
-    }
-
-    fn frame(&self) -> u64 {
-        self.frame
+        Ok(&self.surface.reactions)
     }
 
     fn memory_bytes(&self) -> usize {
-        let n = self.rest.len();
+        let n = self.surface.rest.len();
         let cap = self.capacitance.as_ref().map(|c| c.memory_bytes()).unwrap_or(0);
         self.compliance.memory_bytes() + 4 * n * std::mem::size_of::<Vec3>() + cap
     }

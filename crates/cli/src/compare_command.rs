@@ -1,9 +1,10 @@
-//! `fibfluid compare`: one grab path replayed with the three methods.
+//! `fibfluid compare`'s arguments and printing: one grab path replayed with every method
+//! (the run and its files are `fibfluid_cli::compare_run`).
 
 use std::path::PathBuf;
 
 use fibfluid::{Scene, load_tool_path};
-use fibfluid_cli::comparison::{COMPARE_FILES, run_compare};
+use fibfluid_cli::compare_run::{COMPARE_FILES, run_compare};
 
 /// Arguments of `fibfluid compare`.
 #[derive(clap::Args)]
@@ -17,7 +18,7 @@ pub struct CompareArgs {
     #[arg(long)]
     out: PathBuf,
     #[command(flatten)]
-    response: crate::probe::ResponseFlags,
+    response: crate::response_flags::ResponseFlags,
 }
 
 /// Runs `fibfluid compare`.
@@ -27,7 +28,9 @@ pub fn run(args: &CompareArgs) -> Result<(), crate::CliError> {
         tell!("warning: {w}");
     }
     let path = load_tool_path(&args.path)?;
-    let opts = args.response.options(fibfluid::interact::RefreshMode::Scheduled);
+    // The comparison replays the FEM body among the others when the scene gives [tissue].
+    let methods = [fibfluid::interact::Method::Fem];
+    let opts = args.response.options(fibfluid::interact::RefreshMode::Scheduled, &scene, &methods)?;
     let report = run_compare(&scene, &path, &args.out, &opts)?;
     for (method, m) in &report.methods {
         for w in &m.warnings {
