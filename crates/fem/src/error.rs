@@ -16,6 +16,18 @@ pub enum FemError {
         /// What is required.
         reason: &'static str,
     },
+    /// A viscoelastic law's relaxation terms are out of range.
+    #[error("the relaxation is invalid: {reason}")]
+    InvalidRelaxation {
+        /// What is wrong.
+        reason: String,
+    },
+    /// A timed solve's settings or load curve are out of range.
+    #[error("the time settings are invalid: {reason}")]
+    InvalidTime {
+        /// What is wrong.
+        reason: String,
+    },
     /// The resolution is 0 or above [`crate::MAX_RESOLUTION`].
     #[error("resolution {resolution} is outside 1..={max}")]
     InvalidResolution {

@@ -341,7 +341,12 @@ impl HyperBody {
             }
             let local = nodes.map(|n| u[n]);
             let fs = self.model.cell.deformation_gradients(&local);
-            for (p, state) in self.states.cell_mut(c).chunks_mut(len).enumerate() {
+            let theta = fs.iter().map(|f| crate::law::det(f)).sum::<f64>() / 8.0;
+            let cell = self.states.cell_mut(c);
+            if let Some(first) = cell.get_mut(..len) {
+                m.law.commit_volumetric(theta, &m.moduli(), first, dt);
+            }
+            for (p, state) in cell.chunks_mut(len).enumerate() {
                 m.law.commit_state(&fs[p], &m.moduli(), state, dt);
             }
         }

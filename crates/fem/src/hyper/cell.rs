@@ -14,8 +14,9 @@ use std::sync::Arc;
 
 use crate::element::{CELL_DOFS, CellMatrix, gauss_points, gradients, unit_cell_matrices};
 use crate::grid::Element;
-use crate::law::state::{POINTS_PER_CELL, point_state};
+use crate::law::state::POINTS_PER_CELL;
 use crate::law::tensor::{M3, cofactor, det, symmetric_eigenvalues};
+use crate::law::{CellLawState, PointState};
 use crate::law::{MaterialLaw, Moduli};
 use crate::tissue::Tissue;
 
@@ -153,11 +154,17 @@ impl HyperCell {
     /// The cell's energy (J) at node displacements `u`, times `fill`, with its law at its
     /// initial state; `None` when a Gauss point or the cell has `J <= 0` (a nonlinear law).
     pub fn energy(&self, m: &CellMaterial, u: &[Vec3; 8], fill: f64) -> Option<f64> {
-        self.energy_with(m, u, fill, &m.initial_cell_state())
+        self.energy_with(m, u, fill, CellLawState { values: &m.initial_cell_state(), dt: 0.0 })
     }
 
     /// [`HyperCell::energy`] with the cell's law state `state` (`8 x state_len` values).
-    pub fn energy_with(&self, m: &CellMaterial, u: &[Vec3; 8], fill: f64, state: &[f64]) -> Option<f64> {
+    pub fn energy_with(
+        &self,
+        m: &CellMaterial,
+        u: &[Vec3; 8],
+        fill: f64,
+        state: CellLawState<'_>,
+    ) -> Option<f64> {
         if m.law.is_linear() {
             let k = self.linear_matrix(m, fill);
             let x: Vec<f64> = u.iter().flatten().copied().collect();
@@ -173,11 +180,11 @@ impl HyperCell {
         let mut pointwise = 0.0;
         for (p, g) in self.grads.iter().enumerate() {
             let f = deformation_gradient(u, g);
-            iso += W * law.isochoric_energy(&f, &moduli, point_state(state, len, p))?;
+            iso += W * law.isochoric_energy(&f, &moduli, state.point(len, p))?;
             theta += W * det(&f);
-            pointwise += W * law.volumetric(det(&f), &moduli)?[0];
+            pointwise += W * law.volumetric(det(&f), &moduli, PointState::ELASTIC)?[0];
         }
-        let [vol, _, _] = law.volumetric(theta, &moduli)?;
+        let [vol, _, _] = law.volumetric(theta, &moduli, state.point(len, 0))?;
         let empty = empty_weight(fill) * self.volume;
         Some(fill * self.volume * (iso + vol) + empty * (iso + pointwise))
     }
@@ -185,7 +192,7 @@ impl HyperCell {
     /// The gradient and (with `hessian`) the Hessian of [`HyperCell::energy`]; `None` when
     /// a Gauss point or the cell has `J <= 0` (a nonlinear law).
     pub fn tangent(&self, m: &CellMaterial, u: &[Vec3; 8], fill: f64, hessian: bool) -> Option<CellTangent> {
-        self.tangent_with(m, u, fill, hessian, &m.initial_cell_state())
+        self.tangent_with(m, u, fill, hessian, CellLawState { values: &m.initial_cell_state(), dt: 0.0 })
     }
 
     /// [`HyperCell::tangent`] with the cell's law state `state` (`8 x state_len` values).
@@ -195,7 +202,7 @@ impl HyperCell {
         u: &[Vec3; 8],
         fill: f64,
         hessian: bool,
-        state: &[f64],
+        state: CellLawState<'_>,
     ) -> Option<CellTangent> {
         if m.law.is_linear() {
             let k = self.linear_matrix(m, fill);
@@ -209,18 +216,14 @@ impl HyperCell {
             return None;
         }
         let theta: f64 = js.iter().map(|j| W * j).sum();
-        let [_, du, ddu] = m.law.volumetric(theta, &m.moduli())?;
+        let [_, du, ddu] = m.law.volumetric(theta, &m.moduli(), state.point(m.law.state_len(), 0))?;
         let mut gradient = [0.0; CELL_DOFS];
         let mut dtheta = [0.0; CELL_DOFS];
         let mut k = hessian.then(|| Box::new([[0.0; CELL_DOFS]; CELL_DOFS]));
         let weights = Weights { scale: fill * self.volume, empty: empty_weight(fill) * self.volume, du };
         for p in 0..8 {
-            let point = Point {
-                g: &self.grads[p],
-                f: &fs[p],
-                j: js[p],
-                state: point_state(state, m.law.state_len(), p),
-            };
+            let point =
+                Point { g: &self.grads[p], f: &fs[p], j: js[p], state: state.point(m.law.state_len(), p) };
             self.add_point(m, &point, &weights, &mut gradient, &mut dtheta, k.as_deref_mut())?;
         }
         for (gi, d) in gradient.iter_mut().zip(&dtheta) {
@@ -252,7 +255,7 @@ impl HyperCell {
         let cof = cofactor(point.f);
         let (stress, a) = m.law.isochoric_stress(point.f, &moduli, point.state);
         // The empty part's pointwise volumetric energy U(J) (see `EMPTY_STIFFNESS`).
-        let [_, du_p, ddu_p] = m.law.volumetric(point.j, &moduli)?;
+        let [_, du_p, ddu_p] = m.law.volumetric(point.j, &moduli, PointState::ELASTIC)?;
         for b in 0..8 {
             for i in 0..3 {
                 let dot = |m: &M3| (0..3).map(|jj| m[i][jj] * g[b][jj]).sum::<f64>();
@@ -287,11 +290,11 @@ impl HyperCell {
     /// Strain, stress (of the cell's own law, at its initial state) and `J` of a deformed
     /// cell.
     pub fn state(&self, m: &CellMaterial, u: &[Vec3; 8]) -> CellState {
-        self.state_with(m, u, &m.initial_cell_state())
+        self.state_with(m, u, CellLawState { values: &m.initial_cell_state(), dt: 0.0 })
     }
 
     /// [`HyperCell::state`] with the cell's law state (the centre reads point 0's).
-    pub fn state_with(&self, m: &CellMaterial, u: &[Vec3; 8], state: &[f64]) -> CellState {
+    pub fn state_with(&self, m: &CellMaterial, u: &[Vec3; 8], state: CellLawState<'_>) -> CellState {
         let js: Vec<f64> = self.grads.iter().map(|g| det(&deformation_gradient(u, g))).collect();
         let theta: f64 = js.iter().map(|j| W * j).sum();
         let f = deformation_gradient(u, &self.centre);
@@ -301,7 +304,7 @@ impl HyperCell {
             })
         });
         let eig = symmetric_eigenvalues(&green);
-        let von_mises = m.law.von_mises(&f, &m.moduli(), point_state(state, m.law.state_len(), 0));
+        let von_mises = m.law.von_mises(&f, &m.moduli(), state.point(m.law.state_len(), 0));
         CellState {
             j_min: js.iter().copied().fold(f64::INFINITY, f64::min),
             j_max: js.iter().copied().fold(f64::NEG_INFINITY, f64::max),
@@ -318,7 +321,7 @@ struct Point<'a> {
     g: &'a [[f64; 3]; 8],
     f: &'a M3,
     j: f64,
-    state: &'a [f64],
+    state: PointState<'a>,
 }
 
 /// A cell's weights: the tissue's (`fill V`), the empty part's, and `U'(theta)`.

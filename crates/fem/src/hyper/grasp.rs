@@ -216,21 +216,21 @@ impl GraspSet {
     }
 
     /// Uzawa's update at the full load: `lambda <- lambda + k g`.
-    pub(crate) fn augment(&self, u: &[Vec3], multipliers: &mut [Vec3]) {
-        let forces = self.forces(u, 1.0, multipliers);
+    pub(crate) fn augment(&self, u: &[Vec3], t: f64, multipliers: &mut [Vec3]) {
+        let forces = self.forces(u, t, multipliers);
         multipliers.copy_from_slice(&forces);
     }
 
     /// The largest `|g|` at the full load (m; 0 without grasps).
-    pub(crate) fn largest_error(&self, u: &[Vec3]) -> f64 {
-        self.errors(u, 1.0).iter().map(|g| norm(*g)).fold(0.0, f64::max)
+    pub(crate) fn largest_error(&self, u: &[Vec3], t: f64) -> f64 {
+        self.errors(u, t).iter().map(|g| norm(*g)).fold(0.0, f64::max)
     }
 
     /// Per grasp, its force, moment and largest error at the full load.
-    pub(crate) fn records(&self, u: &[Vec3], multipliers: &[Vec3]) -> Vec<GraspRecord> {
-        let rotations = self.rotations(1.0);
-        let errors = self.errors(u, 1.0);
-        let forces = self.forces(u, 1.0, multipliers);
+    pub(crate) fn records(&self, u: &[Vec3], t: f64, multipliers: &[Vec3]) -> Vec<GraspRecord> {
+        let rotations = self.rotations(t);
+        let errors = self.errors(u, t);
+        let forces = self.forces(u, t, multipliers);
         let mut out: Vec<GraspRecord> = self
             .counts
             .iter()
@@ -240,7 +240,7 @@ impl GraspSet {
             let r = &mut out[p.grasp];
             let about = add(self.centroids[p.grasp], self.motions[p.grasp].0);
             r.force = add(r.force, *f);
-            r.moment = add(r.moment, cross(sub(self.target(p, 1.0, &rotations), about), *f));
+            r.moment = add(r.moment, cross(sub(self.target(p, t, &rotations), about), *f));
             r.error = r.error.max(norm(*g));
         }
         out

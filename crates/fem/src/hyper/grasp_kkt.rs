@@ -50,6 +50,8 @@ pub(super) struct GraspKkt<'a> {
     pub(super) external: &'a [f64],
     pub(super) plates: &'a [super::contact::RigidPlate],
     pub(super) multipliers: &'a [Vec<f64>],
+    /// The load factor the grasps are met at.
+    pub(super) t: f64,
 }
 
 impl<'a> GraspKkt<'a> {
@@ -59,7 +61,7 @@ impl<'a> GraspKkt<'a> {
         'a: 's,
     {
         LoadState {
-            t: 1.0,
+            t: self.t,
             external: self.external,
             plates: self.plates,
             multipliers: self.multipliers,
@@ -116,7 +118,9 @@ impl HyperBody {
             let residual = norm(&eval.gradient) / eval.scale;
             history.push(residual);
             let u = self.node_field(x);
-            if residual <= self.settings.tolerance && self.terms.grasps.largest_error(&u) <= tolerance {
+            if residual <= self.settings.tolerance
+                && self.terms.grasps.largest_error(&u, fixed.t) <= tolerance
+            {
                 return Some(iteration);
             }
             let start = Instant::now();
@@ -133,7 +137,7 @@ impl HyperBody {
             let mut free = Mat::<f64>::from_fn(n, 1, |i, _| -eval.gradient[i]);
             solver.solve_in_place(free.as_mut());
             let free = free.col_as_slice(0);
-            let errors: Vec<f64> = self.terms.grasps.errors(&u, 1.0).into_iter().flatten().collect();
+            let errors: Vec<f64> = self.terms.grasps.errors(&u, fixed.t).into_iter().flatten().collect();
             let rhs: Vec<f64> = rows.iter().zip(&errors).map(|(row, g)| g + row_dot(row, free)).collect();
             let dlambda = capacitance(&rows, &columns)?.solve(&rhs);
             let dx: Vec<f64> = (0..n)

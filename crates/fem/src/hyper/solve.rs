@@ -75,8 +75,10 @@ impl HyperBody {
             solver: DirectSolver::default(),
         };
         self.step_to_full_load(&mut run, &duals.state(0.0, &external, plates))?;
-        let mut progress =
-            Augmenting { force: self.plate_forces(&run.x, plates, &duals.contact), ..Augmenting::default() };
+        let mut progress = Augmenting {
+            force: self.plate_forces(&run.x, plates, &duals.contact, run.t),
+            ..Augmenting::default()
+        };
         for augmentation in 1..=MAX_AUGMENTATIONS {
             if !self.augment_once(&mut run, &external, plates, &mut duals, &mut progress, augmentation)? {
                 break;
@@ -100,10 +102,10 @@ impl HyperBody {
     ) -> Result<bool> {
         let h = self.model.grid.cell_size();
         let shallow =
-            self.deepest_penetration(&run.x, plates).iter().all(|&d| d <= CONTACT_GAP_TOLERANCE * h);
+            self.deepest_penetration(&run.x, plates, run.t).iter().all(|&d| d <= CONTACT_GAP_TOLERANCE * h);
         let contact_done = shallow || progress.contact_settled;
         let u = self.node_field(&run.x);
-        let grasp_done = self.terms.grasps.largest_error(&u) <= GRASP_TOLERANCE * h;
+        let grasp_done = self.terms.grasps.largest_error(&u, run.t) <= GRASP_TOLERANCE * h;
         if contact_done && grasp_done {
             return Ok(false);
         }
@@ -112,7 +114,7 @@ impl HyperBody {
         if contact_done && !progress.newton_tried {
             progress.newton_tried = true;
             let saved = (run.x.clone(), duals.grasps.clone(), run.stats.final_shift);
-            let fixed = GraspKkt { external, plates, multipliers: &duals.contact };
+            let fixed = GraspKkt { external, plates, multipliers: &duals.contact, t: run.t };
             let mut history = Vec::new();
             let met = self.meet_grasps(
                 &mut run.x,
@@ -124,25 +126,25 @@ impl HyperBody {
             );
             if let Some(iterations) = met {
                 run.stats.augmentations += 1;
-                run.steps.push(LoadStep { load: 1.0, augmentation, iterations, residuals: history });
+                run.steps.push(LoadStep { load: run.t, augmentation, iterations, residuals: history });
                 return Ok(true);
             }
             (run.x, duals.grasps, run.stats.final_shift) = saved;
         }
         let before = (run.x.clone(), duals.clone());
         if !contact_done {
-            self.augment(&run.x, plates, &mut duals.contact);
+            self.augment(&run.x, plates, run.t, &mut duals.contact);
         }
         if !grasp_done {
-            self.terms.grasps.augment(&u, &mut duals.grasps);
+            self.terms.grasps.augment(&u, run.t, &mut duals.grasps);
         }
         let mut history = Vec::new();
-        let state = duals.state(1.0, external, plates);
+        let state = duals.state(run.t, external, plates);
         match self.newton(&mut run.x, &state, &mut run.solver, &mut history, &mut run.stats)? {
             Ok(iterations) => {
                 run.stats.augmentations += 1;
-                run.steps.push(LoadStep { load: 1.0, augmentation, iterations, residuals: history });
-                let next = self.plate_forces(&run.x, plates, &duals.contact);
+                run.steps.push(LoadStep { load: run.t, augmentation, iterations, residuals: history });
+                let next = self.plate_forces(&run.x, plates, &duals.contact, run.t);
                 let change = next.iter().zip(&progress.force).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
                 let largest = next.iter().fold(0.0_f64, |m, f| m.max(f.abs()));
                 progress.force = next;
@@ -153,7 +155,7 @@ impl HyperBody {
             }
             Err(f) if !contact_done => Err(FemError::NotConverged {
                 step: run.steps.len() + 1,
-                load: 1.0,
+                load: run.t,
                 residual: f.residual,
                 why: self.failure_why(&run.x, &f),
             }),
@@ -245,18 +247,16 @@ impl HyperBody {
     }
 
     /// Per plate, the deepest penetration (m, 0 when none) at the full load.
-    fn deepest_penetration(&self, x: &[f64], plates: &[RigidPlate]) -> Vec<f64> {
+    fn deepest_penetration(&self, x: &[f64], plates: &[RigidPlate], t: f64) -> Vec<f64> {
         let u = self.node_field(x);
         plates
             .iter()
-            .map(|p| {
-                self.terms.contact.samples.iter().map(|s| -p.gap(s.position(&u), 1.0)).fold(0.0, f64::max)
-            })
+            .map(|p| self.terms.contact.samples.iter().map(|s| -p.gap(s.position(&u), t)).fold(0.0, f64::max))
             .collect()
     }
 
     /// Per plate, the contact force on the body along its normal (N) at the full load.
-    fn plate_forces(&self, x: &[f64], plates: &[RigidPlate], multipliers: &[Vec<f64>]) -> Vec<f64> {
+    fn plate_forces(&self, x: &[f64], plates: &[RigidPlate], multipliers: &[Vec<f64>], t: f64) -> Vec<f64> {
         let u = self.node_field(x);
         let law = super::terms::ContactTerm::law(&self.model);
         plates
@@ -268,19 +268,19 @@ impl HyperBody {
                     .samples
                     .iter()
                     .zip(m)
-                    .map(|(s, &l)| s.area * law.pressure(law.argument(l, p.gap(s.position(&u), 1.0))))
+                    .map(|(s, &l)| s.area * law.pressure(law.argument(l, p.gap(s.position(&u), t))))
                     .sum()
             })
             .collect()
     }
 
     /// Uzawa's update of the contact pressures: `lambda <- max(0, lambda - beta g)`.
-    fn augment(&self, x: &[f64], plates: &[RigidPlate], multipliers: &mut [Vec<f64>]) {
+    fn augment(&self, x: &[f64], plates: &[RigidPlate], t: f64, multipliers: &mut [Vec<f64>]) {
         let u = self.node_field(x);
         let law = super::terms::ContactTerm::law(&self.model);
         for (p, m) in plates.iter().zip(multipliers) {
             for (s, lambda) in self.terms.contact.samples.iter().zip(m.iter_mut()) {
-                *lambda = law.pressure(law.argument(*lambda, p.gap(s.position(&u), 1.0)));
+                *lambda = law.pressure(law.argument(*lambda, p.gap(s.position(&u), t)));
             }
         }
     }
@@ -350,13 +350,13 @@ impl HyperBody {
         let mut plate_contacts = vec![0; plates.len()];
         for (k, p) in plates.iter().enumerate() {
             for (s, sample) in self.terms.contact.samples.iter().enumerate() {
-                let pr = law.pressure(law.argument(multipliers[k][s], p.gap(sample.position(&u), 1.0)));
+                let pr = law.pressure(law.argument(multipliers[k][s], p.gap(sample.position(&u), state.t)));
                 plate_forces[k] += sample.area * pr;
                 plate_contacts[k] += usize::from(pr > 0.0);
             }
         }
-        let plate_penetration = self.deepest_penetration(&run.x, plates);
-        let grasps = self.terms.grasps.records(&u, state.grasp_multipliers);
+        let plate_penetration = self.deepest_penetration(&run.x, plates, run.t);
+        let grasps = self.terms.grasps.records(&u, state.t, state.grasp_multipliers);
         let (cells, summary) = self.cell_states(&u);
         let residual = run.steps.last().and_then(|s| s.residuals.last().copied()).unwrap_or(0.0);
         HyperSolution {

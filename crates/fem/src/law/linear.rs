@@ -7,7 +7,7 @@
 //! pointwise functions below are that energy's, for laws and tools that ask at a point.
 
 use super::tensor::{M3, Tangent9};
-use super::{MaterialLaw, Moduli};
+use super::{MaterialLaw, Moduli, PointState};
 
 /// Small-strain isotropic linear elasticity (see the module docs). Stateless.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -31,12 +31,12 @@ impl MaterialLaw for LinearLaw {
         true
     }
 
-    fn isochoric_energy(&self, f: &M3, moduli: &Moduli, _state: &[f64]) -> Option<f64> {
+    fn isochoric_energy(&self, f: &M3, moduli: &Moduli, _state: PointState<'_>) -> Option<f64> {
         let e = deviatoric_strain(f);
         Some(moduli.mu * e.iter().flatten().map(|x| x * x).sum::<f64>())
     }
 
-    fn isochoric_stress(&self, f: &M3, moduli: &Moduli, _state: &[f64]) -> (M3, Tangent9) {
+    fn isochoric_stress(&self, f: &M3, moduli: &Moduli, _state: PointState<'_>) -> (M3, Tangent9) {
         let e = deviatoric_strain(f);
         let p = e.map(|row| row.map(|x| 2.0 * moduli.mu * x));
         let delta = |a: usize, b: usize| if a == b { 1.0 } else { 0.0 };
@@ -50,13 +50,13 @@ impl MaterialLaw for LinearLaw {
         (p, t)
     }
 
-    fn volumetric(&self, theta: f64, moduli: &Moduli) -> Option<[f64; 3]> {
+    fn volumetric(&self, theta: f64, moduli: &Moduli, _state: PointState<'_>) -> Option<[f64; 3]> {
         let d = theta - 1.0;
         Some([0.5 * moduli.kappa * d * d, moduli.kappa * d, moduli.kappa])
     }
 
     /// `2 mu |dev eps|` scaled to von Mises (`sqrt(3/2) |s|`), defined at any `F`.
-    fn von_mises(&self, f: &M3, moduli: &Moduli, _state: &[f64]) -> f64 {
+    fn von_mises(&self, f: &M3, moduli: &Moduli, _state: PointState<'_>) -> f64 {
         let e = deviatoric_strain(f);
         let dev2: f64 = e.iter().flatten().map(|x| x * x).sum();
         2.0 * moduli.mu * (1.5 * dev2).sqrt()

@@ -22,13 +22,15 @@ mod linear;
 mod neo_hookean;
 pub(crate) mod state;
 pub(crate) mod tensor;
+mod viscoelastic;
 
 use std::fmt::Debug;
 
 pub use linear::LinearLaw;
 pub use neo_hookean::NeoHookean;
-pub use state::LawStates;
+pub use state::{CellLawState, LawStates, PointState};
 pub use tensor::{M3, Tangent9, cofactor, det};
+pub use viscoelastic::{PronyTerm, Viscoelastic};
 
 /// The two moduli a law is evaluated with at a cell (a region's, or a blend of tissues').
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -61,25 +63,31 @@ pub trait MaterialLaw: Debug + Send + Sync {
     fn initial_state(&self, _state: &mut [f64]) {}
 
     /// The isochoric energy density at the deformation gradient `f` (Pa), `None` when
-    /// `det f <= 0`.
-    fn isochoric_energy(&self, f: &M3, moduli: &Moduli, state: &[f64]) -> Option<f64>;
+    /// `det f <= 0`. A law with state returns the step's incremental energy, whose
+    /// derivative is the stress at the step's end.
+    fn isochoric_energy(&self, f: &M3, moduli: &Moduli, state: PointState<'_>) -> Option<f64>;
 
     /// The isochoric first Piola–Kirchhoff stress `P = dW/dF` (Pa) and its derivative
     /// `A[3 i + J][3 k + L] = dP_iJ / dF_kL`, for `det f > 0`.
-    fn isochoric_stress(&self, f: &M3, moduli: &Moduli, state: &[f64]) -> (M3, Tangent9);
+    fn isochoric_stress(&self, f: &M3, moduli: &Moduli, state: PointState<'_>) -> (M3, Tangent9);
 
     /// The volumetric energy `U(theta)` of a cell's mean dilatation and its first two
-    /// derivatives (Pa), `None` when `theta <= 0`.
-    fn volumetric(&self, theta: f64, moduli: &Moduli) -> Option<[f64; 3]>;
+    /// derivatives (Pa), `None` when `theta <= 0`; `state` is the cell's first point's
+    /// (where a law keeps the cell's volumetric history).
+    fn volumetric(&self, theta: f64, moduli: &Moduli, state: PointState<'_>) -> Option<[f64; 3]>;
 
     /// Updates a point's state at the end of a converged step of `dt` seconds, at the
     /// step's deformation gradient `f`. Stateless laws keep the default (nothing).
     fn commit_state(&self, _f: &M3, _moduli: &Moduli, _state: &mut [f64], _dt: f64) {}
 
+    /// Updates a cell's volumetric history (in its first point's state) at the end of a
+    /// converged step of `dt` seconds, at the cell's mean dilatation `theta`.
+    fn commit_volumetric(&self, _theta: f64, _moduli: &Moduli, _state: &mut [f64], _dt: f64) {}
+
     /// The von Mises equivalent of the Cauchy stress at `f` (Pa), for reports; the default
     /// takes it from [`MaterialLaw::isochoric_stress`] (`sigma = P F^T / J`; the
     /// volumetric part is a pressure and drops out). `NaN` when `det f <= 0`.
-    fn von_mises(&self, f: &M3, moduli: &Moduli, state: &[f64]) -> f64 {
+    fn von_mises(&self, f: &M3, moduli: &Moduli, state: PointState<'_>) -> f64 {
         let j = det(f);
         if !(j > 0.0) {
             return f64::NAN;

@@ -9,7 +9,7 @@
 //! same `mu = E / (2 (1 + nu))`, `kappa = E / (3 (1 - 2 nu))`.
 
 use super::tensor::{M3, Tangent9, cofactor, det};
-use super::{MaterialLaw, Moduli};
+use super::{MaterialLaw, Moduli, PointState};
 
 /// The compressible neo-Hookean law (see the module docs). Stateless.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -20,15 +20,15 @@ impl MaterialLaw for NeoHookean {
         "neo-hookean"
     }
 
-    fn isochoric_energy(&self, f: &M3, moduli: &Moduli, _state: &[f64]) -> Option<f64> {
+    fn isochoric_energy(&self, f: &M3, moduli: &Moduli, _state: PointState<'_>) -> Option<f64> {
         isochoric_energy(f, moduli.mu)
     }
 
-    fn isochoric_stress(&self, f: &M3, moduli: &Moduli, _state: &[f64]) -> (M3, Tangent9) {
+    fn isochoric_stress(&self, f: &M3, moduli: &Moduli, _state: PointState<'_>) -> (M3, Tangent9) {
         isochoric_stress_tangent(f, moduli.mu)
     }
 
-    fn volumetric(&self, theta: f64, moduli: &Moduli) -> Option<[f64; 3]> {
+    fn volumetric(&self, theta: f64, moduli: &Moduli, _state: PointState<'_>) -> Option<[f64; 3]> {
         volumetric(theta, moduli.kappa)
     }
 }

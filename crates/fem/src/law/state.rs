@@ -12,6 +12,43 @@ pub struct LawStates {
     /// Where each cell's values start (`n_cells + 1` offsets).
     offsets: Vec<usize>,
     values: Vec<f64>,
+    /// The length of the step being solved (s; 0 outside a timed run: the instantaneous
+    /// response).
+    dt: f64,
+}
+
+/// What a law reads at a point while a step is solved: the point's state at the step's
+/// start and the step's length.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PointState<'a> {
+    /// The point's values (`state_len` of them; empty: the law's elastic response).
+    pub values: &'a [f64],
+    /// The step's length, s (0: the instantaneous response).
+    pub dt: f64,
+}
+
+impl PointState<'static> {
+    /// No state and no time: a law's elastic (instantaneous) response.
+    pub const ELASTIC: Self = Self { values: &[], dt: 0.0 };
+}
+
+/// One cell's law state while a step is solved: its points' values and the step's length.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CellLawState<'a> {
+    /// The cell's values (`8 x state_len`, point by point).
+    pub values: &'a [f64],
+    /// The step's length, s.
+    pub dt: f64,
+}
+
+impl<'a> CellLawState<'a> {
+    /// No state and no time (see [`PointState::ELASTIC`]).
+    pub const ELASTIC: CellLawState<'static> = CellLawState { values: &[], dt: 0.0 };
+
+    /// Point `p`'s state for a law keeping `len` values per point.
+    pub fn point(&self, len: usize, p: usize) -> PointState<'a> {
+        PointState { values: self.values.get(p * len..(p + 1) * len).unwrap_or(&[]), dt: self.dt }
+    }
 }
 
 impl LawStates {
@@ -29,12 +66,25 @@ impl LawStates {
                 values[offsets[c]..offsets[c + 1]].chunks_mut(len).for_each(|s| m.law.initial_state(s));
             }
         }
-        Self { offsets, values }
+        Self { offsets, values, dt: 0.0 }
     }
 
-    /// Cell `c`'s values (`8 x state_len`, point by point; empty for a stateless law).
-    pub fn cell(&self, c: usize) -> &[f64] {
-        self.offsets.get(c).zip(self.offsets.get(c + 1)).map_or(&[], |(&a, &b)| &self.values[a..b])
+    /// Cell `c`'s state as the step being solved reads it (empty values for a stateless
+    /// law).
+    pub fn cell(&self, c: usize) -> CellLawState<'_> {
+        let values =
+            self.offsets.get(c).zip(self.offsets.get(c + 1)).map_or(&[][..], |(&a, &b)| &self.values[a..b]);
+        CellLawState { values, dt: self.dt }
+    }
+
+    /// The length of the step being solved (s).
+    pub fn dt(&self) -> f64 {
+        self.dt
+    }
+
+    /// Sets the length of the step being solved (s; 0: the instantaneous response).
+    pub fn set_dt(&mut self, dt: f64) {
+        self.dt = dt;
     }
 
     /// Cell `c`'s values, to update.
@@ -54,9 +104,4 @@ impl LawStates {
     pub fn is_empty(&self) -> bool {
         self.values.is_empty()
     }
-}
-
-/// Point `p`'s slice of a cell's values for a law keeping `len` per point.
-pub(crate) fn point_state(cell: &[f64], len: usize, p: usize) -> &[f64] {
-    cell.get(p * len..(p + 1) * len).unwrap_or(&[])
 }
