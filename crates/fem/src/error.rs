@@ -158,6 +158,20 @@ pub enum FemError {
         /// What the last iterations saw.
         why: NotConvergedWhy,
     },
+    /// A time step could not converge even when cut to its smallest length.
+    #[error(
+        "Newton's method did not converge at t = {time:.6} s (a step of {step:.3e} s, load factor {load:.4}): relative residual {residual:.3e}; the body may be inverting or the load changing too fast"
+    )]
+    NotConvergedInTime {
+        /// The time reached (s).
+        time: f64,
+        /// The last step tried (s).
+        step: f64,
+        /// The load factor aimed for.
+        load: f64,
+        /// The relative residual when it stopped.
+        residual: f64,
+    },
     /// A state inverts a cell (`J <= 0`): no step toward it could be taken.
     #[error("the body would invert (a cell's volume would reach zero); move the tool less far per step")]
     Inverted,

@@ -12,4 +12,5 @@ mod ordering;
 mod patch;
 mod point_force;
 mod region;
+mod time;
 mod tracking;

@@ -269,6 +269,7 @@ impl HyperBody {
             clamp: ClampTerm { points: clamp.points, beta: clamp_stiffness(tissue, h) },
             contact: ContactTerm { samples: surface_samples(&grid, fixed) },
             grasps: GraspSet::default(),
+            dynamics: None,
         };
         let model = HyperModel {
             cell: HyperCell::new(h),

@@ -145,7 +145,7 @@ impl HyperCell {
     }
 
     /// The linear element's stiffness `h (mu D + kappa V)` times `fill`.
-    fn linear_matrix(&self, m: &CellMaterial, fill: f64) -> CellMatrix {
+    pub(crate) fn linear_matrix(&self, m: &CellMaterial, fill: f64) -> CellMatrix {
         let (dev, vol) = &*self.linear;
         let c = fill * self.h;
         std::array::from_fn(|r| std::array::from_fn(|s| c * (m.mu * dev[r][s] + m.kappa * vol[r][s])))

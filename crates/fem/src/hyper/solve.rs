@@ -15,40 +15,64 @@ use crate::body::Loads;
 use crate::error::{FemError, NotConvergedWhy, Result};
 
 /// The state of a solve between load steps.
-struct Progress {
-    x: Vec<f64>,
-    t: f64,
-    steps: Vec<LoadStep>,
-    stats: HyperStats,
+pub(super) struct Progress {
+    pub(super) x: Vec<f64>,
+    /// The load factor reached.
+    pub(super) t: f64,
+    pub(super) steps: Vec<LoadStep>,
+    pub(super) stats: HyperStats,
     /// The linear solve of every Newton iteration of the solve.
-    solver: DirectSolver,
+    pub(super) solver: DirectSolver,
+}
+
+impl Progress {
+    /// At rest, at the load factor `t`, with `n` free dofs.
+    pub(super) fn at(n: usize, t: f64) -> Self {
+        Self {
+            x: vec![0.0; n],
+            t,
+            steps: Vec::new(),
+            stats: HyperStats::default(),
+            solver: DirectSolver::default(),
+        }
+    }
 }
 
 /// The multipliers of the force terms' augmented Lagrangians during a solve.
 #[derive(Clone)]
-struct Multipliers {
+pub(super) struct Multipliers {
     /// Per plate, per sample: the contact pressure of the last augmentation (Pa).
-    contact: Vec<Vec<f64>>,
+    pub(super) contact: Vec<Vec<f64>>,
     /// Per grasped vertex: the force of the last augmentation (N).
-    grasps: Vec<Vec3>,
+    pub(super) grasps: Vec<Vec3>,
 }
 
 impl Multipliers {
+    /// None yet: `samples` contact samples under `plates` plates, `grasped` grasped points.
+    pub(super) fn zero(samples: usize, plates: usize, grasped: usize) -> Self {
+        Self { contact: vec![vec![0.0; samples]; plates], grasps: vec![[0.0; 3]; grasped] }
+    }
+
     /// The load state at load factor `t` with these multipliers.
-    fn state<'a>(&'a self, t: f64, external: &'a [f64], plates: &'a [RigidPlate]) -> LoadState<'a> {
+    pub(super) fn state<'a>(
+        &'a self,
+        t: f64,
+        external: &'a [f64],
+        plates: &'a [RigidPlate],
+    ) -> LoadState<'a> {
         LoadState { t, external, plates, multipliers: &self.contact, grasp_multipliers: &self.grasps }
     }
 }
 
 /// How far the augmentations have met the contact and the grasps.
 #[derive(Default)]
-struct Augmenting {
+pub(super) struct Augmenting {
     /// Contact is settled when nothing penetrates or the plate forces stopped changing.
-    contact_settled: bool,
+    pub(super) contact_settled: bool,
     /// Whether Newton's method on the grasps' optimality conditions was tried.
-    newton_tried: bool,
+    pub(super) newton_tried: bool,
     /// The plate forces after the last augmentation (N).
-    force: Vec<f64>,
+    pub(super) force: Vec<f64>,
 }
 
 impl HyperBody {
@@ -63,17 +87,9 @@ impl HyperBody {
             return Err(FemError::NonFinite { what: "plate" });
         }
         let external = self.external_loads(loads)?;
-        let mut duals = Multipliers {
-            contact: vec![vec![0.0; self.terms.contact.samples.len()]; plates.len()],
-            grasps: vec![[0.0; 3]; self.terms.grasps.points.len()],
-        };
-        let mut run = Progress {
-            x: vec![0.0; self.model.n_free],
-            t: 0.0,
-            steps: Vec::new(),
-            stats: HyperStats::default(),
-            solver: DirectSolver::default(),
-        };
+        let mut duals =
+            Multipliers::zero(self.terms.contact.samples.len(), plates.len(), self.terms.grasps.points.len());
+        let mut run = Progress::at(self.model.n_free, 0.0);
         self.step_to_full_load(&mut run, &duals.state(0.0, &external, plates))?;
         let mut progress = Augmenting {
             force: self.plate_forces(&run.x, plates, &duals.contact, run.t),
@@ -91,7 +107,7 @@ impl HyperBody {
 
     /// One augmentation of the contact and grasp multipliers and the Newton solve after
     /// it; `false` once both are met (or the grasps could be met no further).
-    fn augment_once(
+    pub(super) fn augment_once(
         &mut self,
         run: &mut Progress,
         external: &[f64],
@@ -247,7 +263,7 @@ impl HyperBody {
     }
 
     /// Per plate, the deepest penetration (m, 0 when none) at the full load.
-    fn deepest_penetration(&self, x: &[f64], plates: &[RigidPlate], t: f64) -> Vec<f64> {
+    pub(super) fn deepest_penetration(&self, x: &[f64], plates: &[RigidPlate], t: f64) -> Vec<f64> {
         let u = self.node_field(x);
         plates
             .iter()
@@ -256,7 +272,13 @@ impl HyperBody {
     }
 
     /// Per plate, the contact force on the body along its normal (N) at the full load.
-    fn plate_forces(&self, x: &[f64], plates: &[RigidPlate], multipliers: &[Vec<f64>], t: f64) -> Vec<f64> {
+    pub(super) fn plate_forces(
+        &self,
+        x: &[f64],
+        plates: &[RigidPlate],
+        multipliers: &[Vec<f64>],
+        t: f64,
+    ) -> Vec<f64> {
         let u = self.node_field(x);
         let law = super::terms::ContactTerm::law(&self.model);
         plates
@@ -289,7 +311,7 @@ impl HyperBody {
     /// freedom) put on the body at load factor `t`: the clamp's penalty forces on free
     /// dofs, plus at every fixed dof the internal force less the loads, grasps and
     /// contact acting there.
-    fn support_force(&self, x: &[f64], state: &LoadState<'_>, loads: &Loads) -> Vec3 {
+    pub(super) fn support_force(&self, x: &[f64], state: &LoadState<'_>, loads: &Loads) -> Vec3 {
         let u = self.node_field(x);
         let fixed = |n: usize, a: usize| self.model.free[3 * n + a] == FIXED;
         let mut r = [0.0; 3];
@@ -342,7 +364,7 @@ impl HyperBody {
     }
 
     /// The solution record of a converged solve (`state` at the full load).
-    fn finish(&self, run: Progress, state: &LoadState<'_>, support_force: Vec3) -> HyperSolution {
+    pub(super) fn finish(&self, run: Progress, state: &LoadState<'_>, support_force: Vec3) -> HyperSolution {
         let (plates, multipliers) = (state.plates, state.multipliers);
         let u = self.node_field(&run.x);
         let law = super::terms::ContactTerm::law(&self.model);

@@ -32,6 +32,32 @@ impl Assembly<'_> {
     }
 }
 
+/// Adds `coef * k` on `dofs` (a cell's 24 dofs, [`FIXED`] where fixed) to `tangent`'s lower
+/// triangle.
+pub(crate) fn add_cell_matrix(
+    tangent: &mut SparseColMat<usize, f64>,
+    dofs: &[usize; CELL_DOFS],
+    k: &crate::element::CellMatrix,
+    coef: f64,
+) {
+    let (symbolic, values) = tangent.parts_mut();
+    let (col_ptr, row_idx) = (symbolic.col_ptr(), symbolic.row_idx());
+    for (c, &gc) in dofs.iter().enumerate() {
+        if gc == FIXED {
+            continue;
+        }
+        let col = &row_idx[col_ptr[gc]..col_ptr[gc + 1]];
+        for (r, &gr) in dofs.iter().enumerate() {
+            if gr == FIXED || gr < gc {
+                continue;
+            }
+            if let Ok(pos) = col.binary_search(&gr) {
+                values[col_ptr[gc] + pos] += coef * k[r][c];
+            }
+        }
+    }
+}
+
 /// Adds `coef * v v^T` on `dofs` to `tangent`'s lower triangle.
 pub(crate) fn add_rank_one(
     tangent: &mut SparseColMat<usize, f64>,
@@ -196,11 +222,17 @@ pub(crate) struct ForceTerms {
     pub(crate) clamp: ClampTerm,
     pub(crate) contact: ContactTerm,
     pub(crate) grasps: GraspSet,
+    /// Inertia and damping over a time step (a timed solve with `inertia` or damping only).
+    pub(crate) dynamics: Option<super::time::DynamicsTerm>,
 }
 
 impl ForceTerms {
     /// The terms, in the order their energies are summed.
-    pub(crate) fn each(&self) -> [&dyn ForceTerm; 3] {
-        [&self.clamp, &self.contact, &self.grasps]
+    pub(crate) fn each(&self) -> Vec<&dyn ForceTerm> {
+        let mut terms: Vec<&dyn ForceTerm> = vec![&self.clamp, &self.contact, &self.grasps];
+        if let Some(d) = &self.dynamics {
+            terms.push(d);
+        }
+        terms
     }
 }

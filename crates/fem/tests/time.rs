@@ -1,0 +1,124 @@
+//! Time: viscoelastic relaxation against the reduced relaxation function, and the
+//! undamped and damped dynamics of a column under a gravity step against the static
+//! answer (Newmark's average acceleration keeps an undamped linear body's energy).
+
+use std::sync::Arc;
+
+use crate::common::*;
+use fibfluid_fem::hyper::{HyperBody, LoadCurve, RigidPlate, TimeSample, TimeSettings};
+use fibfluid_fem::law::{LinearLaw, MaterialLaw, NeoHookean, PronyTerm, Viscoelastic};
+use fibfluid_fem::{FemOptions, Loads, Tissue};
+
+/// The unit cube on frictionless symmetry planes (x on x = 0, y on y = 0, z on z = 0),
+/// its law made viscoelastic.
+fn relaxing_cube(law: Arc<dyn MaterialLaw>, relaxation: &Viscoelastic) -> (HyperBody, Vec<[f64; 3]>) {
+    let (pos, tris) = box_surface([0.0; 3], [4, 4, 4], 0.25);
+    let fixed: Vec<[bool; 3]> = pos.iter().map(|p| [p[0] == 0.0, p[1] == 0.0, p[2] == 0.0]).collect();
+    let tissue = Tissue::new(5000.0, 0.3, 1000.0).unwrap();
+    let options = FemOptions { resolution: 4, ..FemOptions::default() };
+    let visco = Viscoelastic::new(law, relaxation.terms().to_vec()).unwrap();
+    let body =
+        HyperBody::from_surface(&pos, &tris, &tissue, &fixed, &options).unwrap().with_law(Arc::new(visco));
+    (body, pos)
+}
+
+/// A block pressed by 10 % over 0.01 s and then held, one Prony term (g = 0.5,
+/// tau = 1 s): the plate force at t = tau, 2 tau and 5 tau is G(t) times the elastic force
+/// (the same law's instantaneous response, the static solve) within 1 %, for the
+/// neo-Hookean law and for the small-strain law alike.
+#[test]
+fn a_held_block_relaxes_as_the_relaxation_function() {
+    let terms = vec![PronyTerm { g: 0.5, tau: 1.0 }];
+    let relaxation = Viscoelastic::new(Arc::new(NeoHookean), terms).unwrap();
+    let plate = RigidPlate { start: [0.0, 0.0, 1.0], end: [0.0, 0.0, 0.9], normal: [0.0, 0.0, -1.0] };
+    let curve = LoadCurve::new(vec![(0.0, 0.0), (0.01, 1.0), (5.0, 1.0)]).unwrap();
+    let settings = TimeSettings { end: 5.0, step: 0.1, inertia: false, damping: [0.0; 2], output_every: 0.5 };
+    for law in [Arc::new(NeoHookean) as Arc<dyn MaterialLaw>, Arc::new(LinearLaw)] {
+        let name = law.name();
+        let (mut body, _) = relaxing_cube(law.clone(), &relaxation);
+        let elastic = -body.solve(&Loads::default(), &[plate]).unwrap().plate_forces[0];
+        let (mut body, _) = relaxing_cube(law, &relaxation);
+        let run = body.solve_in_time(&Loads::default(), &[plate], &settings, &curve, &mut |_| {}).unwrap();
+        for t in [1.0, 2.0, 5.0] {
+            let sample = run.samples.iter().find(|s| (s.time - t).abs() < 1e-9).expect("a sample at t");
+            let expected = relaxation.relaxation(t) * elastic;
+            let force = -sample.plate_forces[0];
+            eprintln!("{name}: t = {t} s, force {force:.4} N, G(t) x elastic {expected:.4} N");
+            assert!((force / expected - 1.0).abs() < 0.01, "{name} at {t} s: {force} against {expected}");
+        }
+    }
+}
+
+/// The column (5 x 5 x 10 cm, clamped at its base, E = 30 kPa, small strain) under a
+/// gravity step, and its static answer's largest displacement.
+fn column() -> (HyperBody, Loads, f64) {
+    let (pos, tris) = box_surface([0.0; 3], [2, 2, 4], 0.025);
+    let fixed: Vec<[bool; 3]> = pos.iter().map(|p| [p[2] == 0.0; 3]).collect();
+    let tissue = Tissue::new(30000.0, 0.3, 1000.0).unwrap();
+    let options = FemOptions { resolution: 8, ..FemOptions::default() };
+    let loads = Loads { gravity: [0.0, 0.0, -9.81], ..Default::default() };
+    let mut body = HyperBody::from_surface(&pos, &tris, &tissue, &fixed, &options).unwrap();
+    let stat = body.solve(&loads, &[]).unwrap();
+    let largest =
+        stat.surface_displacements.iter().map(|u| fibfluid_geometry::vec3::norm(*u)).fold(0.0, f64::max);
+    (body, loads, largest)
+}
+
+/// The largest displacement over the samples in `[from, to)`.
+fn peak(samples: &[TimeSample], from: f64, to: f64) -> f64 {
+    samples.iter().filter(|s| s.time >= from && s.time < to).map(|s| s.max_displacement).fold(0.0, f64::max)
+}
+
+/// Undamped: the column oscillates about its static answer, its first peak twice the
+/// static displacement within 5 %, and its peak over the tenth period within 1 % of the
+/// first period's (no energy lost).
+#[test]
+fn an_undamped_column_oscillates_about_its_static_answer() {
+    let (mut body, loads, statics) = column();
+    let curve = LoadCurve::new(vec![(0.0, 1.0)]).unwrap();
+    let settings =
+        TimeSettings { end: 0.8, step: 0.0018, inertia: true, damping: [0.0; 2], output_every: 0.0018 };
+    let run = body.solve_in_time(&loads, &[], &settings, &curve, &mut |_| {}).unwrap();
+    let s = &run.samples;
+    let first = (1..s.len() - 1)
+        .find(|&k| {
+            s[k].max_displacement >= s[k - 1].max_displacement
+                && s[k].max_displacement > s[k + 1].max_displacement
+        })
+        .expect("a first peak");
+    let period = 2.0 * s[first].time;
+    let (early, late) = (peak(s, 0.0, period), peak(s, 9.0 * period, 10.0 * period));
+    eprintln!(
+        "period {period:.4} s, first peak {early:.4e} m against twice the static {:.4e} m, tenth period's {late:.4e} m",
+        2.0 * statics
+    );
+    assert!(10.0 * period <= settings.end, "ten periods in the run: {period}");
+    assert!((early / (2.0 * statics) - 1.0).abs() < 0.05);
+    assert!((late / early - 1.0).abs() < 0.01);
+}
+
+/// Damped (mass-proportional, about half the critical damping): the column comes to rest
+/// at its static answer, to 1e-6 of it.
+#[test]
+fn a_damped_column_comes_to_rest_at_its_static_answer() {
+    let (mut body, loads, _) = column();
+    let statics = body.solve(&loads, &[]).unwrap().surface_displacements;
+    let curve = LoadCurve::new(vec![(0.0, 1.0)]).unwrap();
+    let settings =
+        TimeSettings { end: 1.0, step: 0.004, inertia: true, damping: [80.0, 0.0], output_every: 0.1 };
+    let run = body.solve_in_time(&loads, &[], &settings, &curve, &mut |_| {}).unwrap();
+    let last = &run.samples.last().unwrap();
+    let scale = statics.iter().map(|u| fibfluid_geometry::vec3::norm(*u)).fold(0.0, f64::max);
+    let diff = last
+        .surface_displacements
+        .iter()
+        .zip(&statics)
+        .map(|(a, b)| fibfluid_geometry::vec3::norm(fibfluid_geometry::vec3::sub(*a, *b)))
+        .fold(0.0, f64::max);
+    eprintln!(
+        "damped column at {} s: {diff:.2e} m from the static answer ({scale:.3e} m), kinetic energy {:.2e} J",
+        last.time, last.kinetic_energy
+    );
+    assert!((last.time - 1.0).abs() < 1e-9);
+    assert!(diff < 1e-6 * scale, "{diff} against {scale}");
+}
