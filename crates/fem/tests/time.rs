@@ -122,3 +122,40 @@ fn a_damped_column_comes_to_rest_at_its_static_answer() {
     assert!((last.time - 1.0).abs() < 1e-9);
     assert!(diff < 1e-6 * scale, "{diff} against {scale}");
 }
+
+/// Creep: the cube on its symmetry planes under a constant load on its top face (point
+/// forces of 1 % strain, small-strain law, one Prony term g = 0.5, tau = 1 s) creeps as the
+/// standard linear solid does: `u(t) = u_0 (1 / (1 - g) - g / (1 - g) exp(-(1 - g) t / tau))`,
+/// from the instantaneous `u_0` toward `u_0 / (1 - g)` (the relaxed modulus's answer),
+/// within 1 % at t = 1, 2 and 5 s (the load is ramped over 0.01 s).
+#[test]
+fn a_loaded_block_creeps_as_the_standard_linear_solid() {
+    let terms = vec![PronyTerm { g: 0.5, tau: 1.0 }];
+    let relaxation = Viscoelastic::new(Arc::new(LinearLaw), terms).unwrap();
+    let (mut body, pos) = relaxing_cube(Arc::new(LinearLaw), &relaxation);
+    // 50 N on the top face (1 m^2 at z = 1), shared by its vertices by the area they stand for.
+    let share = |x: f64| if x == 0.0 || x == 1.0 { 0.5 } else { 1.0 };
+    let weight: f64 = pos.iter().filter(|p| p[2] == 1.0).map(|p| share(p[0]) * share(p[1])).sum();
+    let point_forces: Vec<(usize, [f64; 3])> = (0..pos.len())
+        .filter(|&v| pos[v][2] == 1.0)
+        .map(|v| (v, [0.0, 0.0, -50.0 * share(pos[v][0]) * share(pos[v][1]) / weight]))
+        .collect();
+    let loads = Loads { gravity: [0.0; 3], point_forces };
+    let top = pos.iter().position(|p| *p == [1.0, 1.0, 1.0]).unwrap();
+    let instantaneous = body.solve(&loads, &[]).unwrap().surface_displacements[top][2];
+    let (mut body, _) = relaxing_cube(Arc::new(LinearLaw), &relaxation);
+    let curve = LoadCurve::new(vec![(0.0, 0.0), (0.01, 1.0), (5.0, 1.0)]).unwrap();
+    let settings =
+        TimeSettings { end: 5.0, step: 0.05, inertia: false, damping: [0.0; 2], output_every: 0.5 };
+    let run = body.solve_in_time(&loads, &[], &settings, &curve, &mut |_| {}).unwrap();
+    let g = 0.5;
+    for t in [1.0, 2.0, 5.0] {
+        let sample = run.samples.iter().find(|s| (s.time - t).abs() < 1e-9).expect("a sample at t");
+        let u = sample.surface_displacements[top][2];
+        let sls = instantaneous * (1.0 / (1.0 - g) - g / (1.0 - g) * (-(1.0 - g) * t).exp());
+        eprintln!(
+            "creep at t = {t} s: {u:.5e} m, standard linear solid {sls:.5e} m (instantaneous {instantaneous:.5e} m)"
+        );
+        assert!((u / sls - 1.0).abs() < 0.01, "t = {t}: {u} against {sls}");
+    }
+}
