@@ -72,4 +72,4 @@ pub use held_system::HeldResponse;
 pub use ordering::{ND_LEAF, Ordering};
 pub use region::{CellBlend, Region, RegionShape, blend_regions};
 pub use rigid::{RIGID_MODE_TOLERANCE, RigidMode, check_rigid_modes, free_rigid_modes};
-pub use tissue::{Tissue, TissueModel, TissueParameter};
+pub use tissue::{MAX_PRONY_TERMS, Relaxation, Tissue, TissueModel, TissueParameter};

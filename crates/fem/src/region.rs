@@ -7,7 +7,8 @@
 //! one inside the body only for the base tissue. The cell's moduli `mu`, `kappa` and its
 //! density are the sample-weighted means of its tissues (Voigt's bound: the cell's
 //! materials strained alike), and its material id is the tissue with the most samples.
-//! Every cell keeps the body's law (linear or neo-Hookean).
+//! A cell takes the law of the tissue it holds most of (the body's elastic law, viscoelastic
+//! where that tissue relaxes).
 
 use std::sync::Arc;
 
@@ -111,7 +112,7 @@ pub fn blend_regions(grid: &SparseGrid, base: &Tissue, regions: &[Region]) -> Re
         region_cells: vec![0; regions.len()],
     };
     let mut samples_in = vec![0usize; regions.len()];
-    let law = base.law();
+    let laws: Vec<Arc<dyn MaterialLaw>> = tissues.iter().map(Tissue::law).collect();
     for c in grid.cell_coords() {
         let mut counts = vec![0usize; tissues.len()];
         for k in 0..s * s * s {
@@ -129,7 +130,7 @@ pub fn blend_regions(grid: &SparseGrid, base: &Tissue, regions: &[Region]) -> Re
         for r in 0..regions.len() {
             samples_in[r] += counts[r + 1];
         }
-        push_cell(&mut blend, &law, &tissues, &counts);
+        push_cell(&mut blend, &laws, &tissues, &counts);
     }
     if let Some(r) = samples_in.iter().position(|&n| n == 0) {
         return Err(FemError::RegionOutsideBody { region: r + 1 });
@@ -138,18 +139,18 @@ pub fn blend_regions(grid: &SparseGrid, base: &Tissue, regions: &[Region]) -> Re
 }
 
 /// Appends one cell's sample-weighted material.
-fn push_cell(blend: &mut CellBlend, law: &Arc<dyn MaterialLaw>, tissues: &[Tissue], counts: &[usize]) {
+fn push_cell(blend: &mut CellBlend, laws: &[Arc<dyn MaterialLaw>], tissues: &[Tissue], counts: &[usize]) {
     let total = counts.iter().sum::<usize>() as f64;
     let mean = |f: &dyn Fn(&Tissue) -> f64| {
         tissues.iter().zip(counts).map(|(t, &n)| f(t) * n as f64).sum::<f64>() / total
     };
+    blend.densities.push(mean(&|t| t.density()));
+    let id = (0..counts.len()).max_by_key(|&k| (counts[k], std::cmp::Reverse(k))).unwrap_or(0);
     blend.materials.push(CellMaterial::new(
-        law.clone(),
+        laws[id].clone(),
         mean(&|t| t.shear_modulus()),
         mean(&|t| t.bulk_modulus()),
     ));
-    blend.densities.push(mean(&|t| t.density()));
-    let id = (0..counts.len()).max_by_key(|&k| (counts[k], std::cmp::Reverse(k))).unwrap_or(0);
     blend.ids.push(id as u16);
     if id > 0 {
         blend.region_cells[id - 1] += 1;

@@ -3,6 +3,7 @@
 use serde::Serialize;
 
 use crate::error::{FemError, Result};
+use crate::law::{PronyTerm, Viscoelastic};
 
 /// A parameter of a [`Tissue`], as errors name it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -56,6 +57,40 @@ impl fibfluid_linalg::Choice for TissueModel {
 }
 fibfluid_linalg::impl_choice!(TissueModel);
 
+/// Prony terms a tissue may relax by, at most.
+pub const MAX_PRONY_TERMS: usize = 6;
+
+/// A tissue's viscous relaxation: up to [`MAX_PRONY_TERMS`] Prony terms of its reduced
+/// relaxation function (none: elastic). Validated by [`Tissue::with_relaxation`].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Relaxation {
+    terms: [Option<PronyTerm>; MAX_PRONY_TERMS],
+}
+
+impl Relaxation {
+    /// The terms.
+    pub fn terms(&self) -> Vec<PronyTerm> {
+        self.terms.iter().flatten().copied().collect()
+    }
+
+    /// Whether the tissue relaxes at all.
+    pub fn is_empty(&self) -> bool {
+        self.terms.iter().all(Option::is_none)
+    }
+}
+
+impl Serialize for Relaxation {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        use serde::ser::SerializeSeq;
+        let terms = self.terms();
+        let mut seq = s.serialize_seq(Some(terms.len()))?;
+        for t in terms {
+            seq.serialize_element(&[t.g, t.tau])?;
+        }
+        seq.end()
+    }
+}
+
 /// An isotropic elastic material, SI units. Its fields are private: a `Tissue` is
 /// valid by construction ([`Tissue::new`] is the one place its ranges are checked).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -64,6 +99,7 @@ pub struct Tissue {
     poisson: f64,
     density: f64,
     model: TissueModel,
+    relaxation: Relaxation,
 }
 
 impl Tissue {
@@ -73,7 +109,8 @@ impl Tissue {
     /// the open interval (-1, 0.5) (so 0.5, the incompressible limit, is refused), `density`
     /// not finite or `< 0`.
     pub fn new(young: f64, poisson: f64, density: f64) -> Result<Self> {
-        let t = Self { young, poisson, density, model: TissueModel::Linear };
+        let t =
+            Self { young, poisson, density, model: TissueModel::Linear, relaxation: Relaxation::default() };
         t.validate()?;
         Ok(t)
     }
@@ -98,12 +135,46 @@ impl Tissue {
         self.model
     }
 
-    /// The law of this tissue's model (shared by every cell that uses it).
+    /// The law of this tissue's model, viscoelastic when it relaxes (shared by every cell
+    /// that uses it).
     pub fn law(&self) -> std::sync::Arc<dyn crate::law::MaterialLaw> {
-        match self.model {
+        let elastic: std::sync::Arc<dyn crate::law::MaterialLaw> = match self.model {
             TissueModel::Linear => std::sync::Arc::new(crate::law::LinearLaw),
             TissueModel::NeoHookean => std::sync::Arc::new(crate::law::NeoHookean),
+        };
+        if self.relaxation.is_empty() {
+            return elastic;
         }
+        match Viscoelastic::new(elastic.clone(), self.relaxation.terms()) {
+            Ok(law) => std::sync::Arc::new(law),
+            // Validated by `with_relaxation`; unreachable, but never a panic.
+            Err(_) => elastic,
+        }
+    }
+
+    /// The same tissue relaxing by `terms` (none: elastic).
+    ///
+    /// Errors ([`FemError::InvalidRelaxation`]): more than [`MAX_PRONY_TERMS`] terms, or
+    /// terms [`Viscoelastic::new`] refuses.
+    pub fn with_relaxation(&self, terms: &[PronyTerm]) -> Result<Self> {
+        if terms.len() > MAX_PRONY_TERMS {
+            return Err(FemError::InvalidRelaxation {
+                reason: format!("{} Prony terms, at most {MAX_PRONY_TERMS}", terms.len()),
+            });
+        }
+        if !terms.is_empty() {
+            Viscoelastic::new(std::sync::Arc::new(crate::law::LinearLaw), terms.to_vec())?;
+        }
+        let mut relaxation = Relaxation::default();
+        for (slot, t) in relaxation.terms.iter_mut().zip(terms) {
+            *slot = Some(*t);
+        }
+        Ok(Self { relaxation, ..*self })
+    }
+
+    /// The tissue's relaxation (empty: elastic).
+    pub fn relaxation(&self) -> &Relaxation {
+        &self.relaxation
     }
 
     /// Whether the tissue's law is small-strain linear (one solve is its answer; its
@@ -130,7 +201,8 @@ impl Tissue {
 
     /// The same tissue with another density (validated as [`Tissue::new`] does).
     pub fn with_density(&self, density: f64) -> Result<Self> {
-        Ok(Self::new(self.young, self.poisson, density)?.with_model(self.model))
+        let t = Self::new(self.young, self.poisson, density)?.with_model(self.model);
+        Ok(Self { relaxation: self.relaxation, ..t })
     }
 
     fn validate(&self) -> Result<()> {

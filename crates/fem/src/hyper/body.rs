@@ -271,9 +271,11 @@ impl HyperBody {
             grasps: GraspSet::default(),
             dynamics: None,
         };
+        let materials = vec![CellMaterial::of(tissue); grid.n_cells()];
+        let states = LawStates::new(&materials);
         let model = HyperModel {
             cell: HyperCell::new(h),
-            materials: vec![CellMaterial::of(tissue); grid.n_cells()],
+            materials,
             densities: vec![tissue.density(); grid.n_cells()],
             material_ids: vec![0; grid.n_cells()],
             grid,
@@ -285,7 +287,7 @@ impl HyperBody {
             model: Arc::new(model),
             terms,
             stage: NewtonStage { tangent, symbolic },
-            states: LawStates::default(),
+            states,
             settings: NewtonSettings::default(),
         })
     }
