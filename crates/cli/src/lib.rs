@@ -12,6 +12,7 @@ pub mod info;
 pub mod output;
 pub mod probe_run;
 pub mod scaling;
+pub mod series;
 pub mod study;
 mod study_grid;
 pub mod vtp;

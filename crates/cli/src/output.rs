@@ -292,7 +292,11 @@ pub fn write_fem_outputs(dir: &Path, run: &FemRun, report: &FemReport) -> Result
     let mut vtu = Vec::new();
     crate::vtu::write_vtu(&mut vtu, run)
         .map_err(|source| Error::Io { path: dir.join(crate::vtu::VOLUME_FILE), source })?;
-    write_surface(dir, &surface, json, png, vec![(crate::vtu::VOLUME_FILE, vtu)])
+    let mut extra = vec![(crate::vtu::VOLUME_FILE, vtu)];
+    if let Some(series) = crate::series::series_csv(run) {
+        extra.push((crate::series::SERIES_FILE, series));
+    }
+    write_surface(dir, &surface, json, png, extra)
 }
 
 /// `deformed.obj`, `deformed.vtk` and `deformed.vtp` (file order, the mesh's unit),

@@ -31,7 +31,7 @@ fn axis_index(s: &str, key: &str) -> Result<usize, Invalid> {
 /// given, stands for the file's `[mesh]` (see `Scene::load_with_mesh`); it is taken as
 /// already in metres.
 pub(crate) fn build(
-    spec: SceneToml,
+    mut spec: SceneToml,
     dir: &Path,
     name: String,
     mesh: Option<MeshFile>,
@@ -70,6 +70,8 @@ pub(crate) fn build(
     )?;
     let (material, ffm) =
         ffm_material(spec.material, spec.ffm, spec.fluid, tissue.as_ref(), solver.method, axes)?;
+    let curve = spec.load.as_mut().and_then(|l| l.curve.take());
+    fem.time = crate::time_table::timed_run(spec.time, curve)?;
     let (steps, tolerance) = load(spec.load)?;
     let guards = guards(spec.guards)?;
     let gravity = spec.gravity.map(|g| g.acceleration).unwrap_or([0.0; 3]);

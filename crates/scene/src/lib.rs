@@ -30,6 +30,7 @@ mod path_file;
 mod regions;
 mod spec;
 mod tissue_table;
+mod time_table;
 
 pub use error::{Error, Result, SceneError, SceneProblem};
 pub use path_file::{load_tool_path, parse_tool_path};

@@ -28,6 +28,26 @@ pub(crate) struct SceneToml {
     pub(crate) chainmail: Option<ChainmailToml>,
     #[serde(default)]
     pub(crate) region: Vec<TissueRegionToml>,
+    pub(crate) time: Option<TimeToml>,
+}
+
+/// `[time]` as written: a run through time (finite-element method only).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct TimeToml {
+    pub(crate) end: f64,
+    pub(crate) step: f64,
+    pub(crate) inertia: Option<bool>,
+    pub(crate) damping: Option<[f64; 2]>,
+    pub(crate) output_every: Option<f64>,
+}
+
+/// `[[tissue.relaxation]]` as written: one Prony term.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct PronyToml {
+    pub(crate) g: f64,
+    pub(crate) tau: f64,
 }
 
 #[derive(Deserialize)]
@@ -90,6 +110,8 @@ pub(crate) struct TissueToml {
     pub(crate) poisson: f64,
     pub(crate) density: Option<f64>,
     pub(crate) model: Option<String>,
+    #[serde(default)]
+    pub(crate) relaxation: Vec<PronyToml>,
 }
 
 #[derive(Deserialize)]
@@ -145,6 +167,8 @@ pub(crate) struct FluidToml {
 pub(crate) struct LoadToml {
     pub(crate) steps: Option<i64>,
     pub(crate) tolerance: Option<f64>,
+    /// `[[time, factor], ...]`: the load factor through a timed run.
+    pub(crate) curve: Option<Vec<[f64; 2]>>,
 }
 
 #[derive(Deserialize)]

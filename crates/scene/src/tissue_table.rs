@@ -1,5 +1,6 @@
 //! `[tissue]` (and a region's `[region.tissue]`): what the tissue is, in SI units.
 
+use fibfluid_fem::law::PronyTerm;
 use fibfluid_fem::{Tissue, TissueParameter};
 
 use crate::error::SceneProblem;
@@ -32,7 +33,12 @@ pub(crate) fn tissue(t: TissueToml) -> Result<(Tissue, bool), Invalid> {
         }
         other => invalid("[tissue]", SceneProblem::Tissue(other)),
     })?;
-    Ok((tissue.with_model(model), auto))
+    let terms: Vec<PronyTerm> = t.relaxation.iter().map(|p| PronyTerm { g: p.g, tau: p.tau }).collect();
+    let tissue = tissue
+        .with_model(model)
+        .with_relaxation(&terms)
+        .map_err(|e| invalid("[[tissue.relaxation]]", SceneProblem::Tissue(e)))?;
+    Ok((tissue, auto))
 }
 
 /// The `[tissue] model` that lets the run choose the law.

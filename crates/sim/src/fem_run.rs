@@ -138,14 +138,14 @@ impl FemRun {
 /// (one iteration per change of the contact set); a plain linear body is one solve.
 fn solve_answer(model: &Model, tissue: &Tissue, limit: u64, log: &mut StageLog) -> Result<FemAnswer> {
     let plain = model.plates.is_empty() && model.fem.regions.is_empty() && model.fem.grasps.is_empty();
-    if tissue.is_linear() && plain {
+    if tissue.is_linear() && plain && model.fem.time.is_none() {
         return solve_linear(model, limit, log);
     }
-    let (body, sol, stats) = crate::hyper_run::solve(model, tissue, limit, log)?;
+    let (body, sol, stats, series) = crate::hyper_run::solve(model, tissue, limit, log)?;
     Ok(FemAnswer {
         plates: crate::hyper_run::plate_records(&sol),
         grasps: sol.grasps.clone(),
-        newton: Some(crate::hyper_run::NewtonRecord { steps: sol.steps.clone(), stats: sol.stats }),
+        newton: Some(crate::hyper_run::NewtonRecord { steps: sol.steps.clone(), stats: sol.stats, series }),
         strain: sol.summary,
         cells: sol.cells,
         residual: sol.residual,

@@ -7,7 +7,7 @@
 use std::time::Instant;
 
 use fibfluid_fem::hyper::{
-    Grasp, HyperBody, HyperSolution, HyperStats, LoadStep, NewtonSettings, RigidPlate,
+    Grasp, HyperBody, HyperSolution, HyperStats, LoadStep, NewtonSettings, RigidPlate, TimeSample,
 };
 use fibfluid_fem::{FemOptions, FemStats, Tissue};
 use serde::Serialize;
@@ -17,14 +17,53 @@ use crate::model::{Model, Shape};
 use crate::stages::{StageLog, names};
 use crate::{Error, Result};
 
-/// Newton's record in `report.json`: every load step with its residual history, and the
-/// counts and times.
+/// Newton's record in `report.json`: every load step with its residual history, the
+/// counts and times, and a timed run's series.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct NewtonRecord {
     /// Each converged load step (and contact augmentation) with its relative residuals.
     pub steps: Vec<LoadStep>,
     /// Iterations, steps, cuts, augmentations and seconds.
     pub stats: HyperStats,
+    /// A timed run's state at each output time (`[time]`; empty for one equilibrium).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub series: Vec<SeriesRow>,
+}
+
+/// One output time of a timed run (SI units).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SeriesRow {
+    /// Time, s.
+    pub time: f64,
+    /// The load factor then.
+    pub load: f64,
+    /// The largest surface displacement, m.
+    pub max_displacement: f64,
+    /// The volume the deformed surface encloses, m^3.
+    pub volume: f64,
+    /// Kinetic energy, J (0 without inertia).
+    pub kinetic_energy: f64,
+    /// Elastic energy stored in the tissue, J.
+    pub strain_energy: f64,
+    /// Per plate, its contact force on the body along its normal, N.
+    pub plate_forces: Vec<f64>,
+    /// Per grasp, the force the tissue exerts on the grasper, N.
+    pub grasp_forces: Vec<fibfluid_geometry::Vec3>,
+}
+
+impl From<&TimeSample> for SeriesRow {
+    fn from(s: &TimeSample) -> Self {
+        Self {
+            time: s.time,
+            load: s.load,
+            max_displacement: s.max_displacement,
+            volume: s.volume,
+            kinetic_energy: s.kinetic_energy,
+            strain_energy: s.strain_energy,
+            plate_forces: s.plate_forces.clone(),
+            grasp_forces: s.grasp_forces.clone(),
+        }
+    }
 }
 
 /// The plates of a model as the hyperelastic body takes them.
@@ -43,13 +82,26 @@ pub fn solve(
     tissue: &Tissue,
     limit: u64,
     log: &mut StageLog,
-) -> Result<(HyperBody, HyperSolution, FemStats)> {
+) -> Result<(HyperBody, HyperSolution, FemStats, Vec<SeriesRow>)> {
     let mut body = build(model, tissue, &model.fem.grasps, limit, log)?;
     let plates = rigid_plates(model);
     let failed = |source| Error::Fem { scene: model.display_name(), source };
-    let solution = log.time(names::SOLVE, || body.solve(&full_loads(model), &plates)).map_err(failed)?;
+    let (solution, series) = match &model.fem.time {
+        None => (log.time(names::SOLVE, || body.solve(&full_loads(model), &plates)).map_err(failed)?, Vec::new()),
+        Some(timed) => {
+            let mut series = Vec::new();
+            let run = log
+                .time(names::SOLVE, || {
+                    body.solve_in_time(&full_loads(model), &plates, &timed.settings, &timed.curve, &mut |s| {
+                        series.push(SeriesRow::from(s));
+                    })
+                })
+                .map_err(failed)?;
+            (run.last, series)
+        }
+    };
     let stats = fem_stats(&body, &solution.stats);
-    Ok((body, solution, stats))
+    Ok((body, solution, stats, series))
 }
 
 /// The grid's sizes and a Newton solve's summed timings, as the linear body reports them.

@@ -43,7 +43,7 @@ pub use effects::{Ineffective, ineffective, ineffective_interactive};
 pub use error::{Error, Result};
 pub use model::{
     FemSettings, FfmSettings, Load, MAX_STEPS, Model, NamedRegion, PLATE_REST_TOLERANCE, PointForce, Shape,
-    SolverOptions, VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE,
+    SolverOptions, TimedRun, VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE,
 };
 pub use plan::{Plan, PlannedStage};
 pub use report::{

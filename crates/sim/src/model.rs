@@ -152,6 +152,17 @@ pub struct FemSettings {
     /// Grasps (`[[grasp]]`): patches of the surface moved rigidly with the load factor;
     /// vertices are mesh indices, lengths in metres.
     pub grasps: Vec<fibfluid_fem::hyper::Grasp>,
+    /// A run through time (`[time]`, `[load] curve`); `None`: one equilibrium.
+    pub time: Option<TimedRun>,
+}
+
+/// A run through time: how it steps and the load curve every load follows.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TimedRun {
+    /// End, step, inertia, damping and output interval.
+    pub settings: fibfluid_fem::hyper::TimeSettings,
+    /// The load factor over time (a ramp to 1 at the end when the scene gives none).
+    pub curve: fibfluid_fem::hyper::LoadCurve,
 }
 
 /// A region of other tissue with the name reports give it.
@@ -170,6 +181,7 @@ impl Default for FemSettings {
             regions: Vec::new(),
             auto_model: false,
             grasps: Vec::new(),
+            time: None,
         }
     }
 }

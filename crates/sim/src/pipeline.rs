@@ -33,6 +33,13 @@ impl Simulation {
             });
         }
         refuse_projected(&scene)?;
+        if scene.fem.time.is_some() {
+            return Err(Error::MethodNeeds {
+                scene: scene.display_name(),
+                method: Method::Ffm,
+                problem: "has a [time] table: a run through time (viscoelastic relaxation, inertia) is the finite-element method's; set [solver] method = \"fem\" with a [tissue] table, or remove [time]",
+            });
+        }
         let started = Instant::now();
         let limit = fibfluid_linalg::memory_budget(opts.max_memory);
         // From counts first: a body too large is refused before its convexity check.

@@ -48,7 +48,7 @@ fn batch(scene: &Model, patch: &[usize], t: Vec3) -> (Vec<Vec3>, Vec3) {
     s.fem.grasps =
         vec![fibfluid_fem::hyper::Grasp { vertices: patch.to_vec(), translation: t, rotation: [0.0; 3] }];
     let tissue = s.tissue.unwrap();
-    let (_, sol, _) =
+    let (_, sol, _, _) =
         fibfluid_sim::hyper_run::solve(&s, &tissue, u64::MAX, &mut StageLog::default()).unwrap();
     let rest = s.rest_positions();
     (rest.iter().zip(&sol.surface_displacements).map(|(p, u)| add(*p, *u)).collect(), sol.grasps[0].force)
