@@ -5,9 +5,8 @@
 
 use fibfluid::Method;
 use fibfluid::geometry::{Boundary, Vec3, icosphere};
-use fibfluid::sim::result_guards::{
-    FrameGuardError, FrameGuards, ResultChecks, ResultGuard, ResultWarning, check_answer,
-};
+use fibfluid::interact::{FrameGuardError, FrameGuards};
+use fibfluid::sim::result_guards::{ResultChecks, ResultGuard, ResultWarning, check_answer};
 use proptest::prelude::*;
 
 const CASES: u32 = if cfg!(feature = "slow-proptests") { 256 } else { 32 };

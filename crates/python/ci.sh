@@ -17,7 +17,7 @@ cd "$(dirname "$0")/../.."
 # `cargo clippy --workspace` do not see it. `--locked`: its Cargo.lock must be up to date.
 echo "== rustfmt and clippy of crates/python"
 cargo fmt --manifest-path crates/python/Cargo.toml -- --check
-cargo clippy --manifest-path crates/python/Cargo.toml --all-targets --locked -- -D warnings
+cargo clippy --manifest-path crates/python/Cargo.toml --all-targets --features testing --locked -- -D warnings
 
 python=${PYTHON:-python3}
 venv=$(mktemp -d "${TMPDIR:-/tmp}/fibfluid-py.XXXXXX")
@@ -35,8 +35,11 @@ if ! "$python" -m venv "$venv"; then
     exit 1
   fi
 fi
-echo "== pip install ./crates/python pytest numpy"
-"$venv/bin/python" -m pip install --disable-pip-version-check --progress-bar off ./crates/python pytest numpy
+# The package as a user installs it, plus the `testing` feature: the test hook
+# `Body._fail_next_refreshes` (maturin's PEP 517 backend reads its arguments from
+# MATURIN_PEP517_ARGS).
+echo "== pip install ./crates/python pytest numpy (features: testing)"
+MATURIN_PEP517_ARGS="--features testing" "$venv/bin/python" -m pip install --disable-pip-version-check --progress-bar off ./crates/python pytest numpy
 
 if [ -z "${FIBFLUID_CLI:-}" ]; then
   echo "== the command line to compare with (cargo test --workspace --no-run)"

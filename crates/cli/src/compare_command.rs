@@ -27,10 +27,10 @@ pub fn run(args: &CompareArgs) -> Result<(), crate::CliError> {
     for w in fibfluid::ineffective_interactive(&scene) {
         tell!("warning: {w}");
     }
-    let path = load_tool_path(&args.path)?;
     // The comparison replays the FEM body among the others when the scene gives [tissue].
     let methods = [fibfluid::interact::Method::Fem];
     let opts = args.response.options(fibfluid::interact::RefreshMode::Scheduled, &scene, &methods)?;
+    let path = load_tool_path(&args.path)?;
     let report = run_compare(&scene, &path, &args.out, &opts)?;
     for (method, m) in &report.methods {
         for w in &m.warnings {

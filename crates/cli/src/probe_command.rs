@@ -33,8 +33,8 @@ pub fn run(args: &ProbeArgs) -> Result<(), crate::CliError> {
     for w in fibfluid::ineffective_interactive(&scene) {
         tell!("warning: {w}");
     }
-    let path = load_tool_path(&args.path)?;
     let opts = args.response.options(RefreshMode::Scheduled, &scene, &[args.method])?;
+    let path = load_tool_path(&args.path)?;
     // Long replays report their progress with an estimate of the time left.
     let progress = crate::progress(path.frames(), "probe");
     let report = run_probe_with(&scene, &path, &args.out, &opts, args.method, progress.as_deref())?;

@@ -278,7 +278,7 @@ impl HyperInteractive {
         let tissue = fibfluid_sim::fem_run::tissue_of(model)?;
         let limit = fibfluid_sim::memory_budget(max_memory);
         let estimate = fibfluid_sim::fem_run::estimate(model, limit)?;
-        let (mut body, solution) = fibfluid_sim::hyper_run::tool_body(model, &tissue, limit)?;
+        let (mut body, solution) = tool_body(model, &tissue, limit)?;
         let stats = fibfluid_sim::hyper_run::fem_stats(&body, &solution.stats);
         let n = &solution.stats;
         let newton_iteration_seconds =
@@ -376,7 +376,8 @@ impl HyperInteractive {
     /// running them: the frames keep the last good linearization and say so in
     /// [`LinearizationStatus::failure`]. For testing what a caller does with a failed
     /// refresh (a refresh of a valid state rarely fails: its step is halved until no cell
-    /// inverts).
+    /// inverts). Only with the `testing` feature.
+    #[cfg(feature = "testing")]
     pub fn fail_next_refreshes(&mut self, count: u32) {
         self.failing = count;
     }
@@ -629,6 +630,25 @@ fn spawn_worker(
         }
     });
     Worker { requests, outcomes: Mutex::new(outcomes), busy: false }
+}
+
+/// The model's hyperelastic body for a tool to hold (its regions; the scene's grasps are
+/// left to batch runs, as `ineffective_interactive` says: the tool grasps), with its own
+/// loads solved as the starting state.
+///
+/// Errors: a model with plates (named), and those of the build and the Newton solve.
+fn tool_body(
+    model: &Model,
+    tissue: &fibfluid_sim::Tissue,
+    limit: u64,
+) -> fibfluid_sim::Result<(HyperBody, fibfluid_fem::hyper::HyperSolution)> {
+    fibfluid_sim::fem_run::refuse_plates(model)?;
+    let mut log = fibfluid_sim::StageLog::default();
+    let mut body = fibfluid_sim::hyper_run::build(model, tissue, &[], limit, &mut log)?;
+    let solution = body
+        .solve(&fibfluid_sim::fem_run::full_loads(model), &[])
+        .map_err(|source| fibfluid_sim::Error::Fem { scene: model.display_name(), source })?;
+    Ok((body, solution))
 }
 
 /// A frame's estimated distance from the converged answer for its holds (m), from its

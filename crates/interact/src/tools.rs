@@ -460,7 +460,7 @@ fn outward(x: Vec3, centre: Vec3, p: Vec3) -> Vec3 {
 /// this crate. A [`ToolSet`] calls [`hold`](Self::hold) on every tool, then
 /// [`settle`](Self::settle) on the one that [`settles`](Self::settles) (or updates the body
 /// once), then [`load`](Self::load) on every tool.
-pub trait Tool: std::fmt::Debug + Send {
+pub trait Tool: std::fmt::Debug + Send + Sync {
     /// Puts the tool's holds for the next frame on the body. The default puts none (a
     /// grasp's holds are put once, when it is placed, and stay).
     fn hold(&mut self, body: &mut dyn Interactive) -> Result<()> {

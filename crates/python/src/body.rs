@@ -2,10 +2,11 @@
 //! the mesh file's vertex order (as path files are).
 
 use fibfluid_geometry::{MeshFile, Vec3};
+use fibfluid_interact::{FrameGuardError, FrameGuards};
 use fibfluid_interact::{
     InteractError, MethodBody, ProbeError, ProbeOptions, RigidMotion, ToolLoad, ToolSet,
 };
-use fibfluid_sim::result_guards::{FrameGuardError, FrameGuards, ResultChecks, ResultWarning};
+use fibfluid_sim::result_guards::{ResultChecks, ResultWarning};
 use fibfluid_sim::{Choice, Method, Shape};
 use numpy::IntoPyArray;
 use numpy::PyArray2;
@@ -226,7 +227,9 @@ impl NativeBody {
     }
 
     /// Makes the next `count` refreshes of a neo-Hookean finite-element body fail (see
-    /// `HyperInteractive::fail_next_refreshes`): for testing what a caller does then.
+    /// `HyperInteractive::fail_next_refreshes`): for testing what a caller does then. Only
+    /// with the `testing` feature.
+    #[cfg(feature = "testing")]
     fn fail_next_refreshes(&mut self, count: u32) -> PyResult<()> {
         match &mut self.body {
             MethodBody::Hyper(b) => {

@@ -120,23 +120,9 @@ pub fn fem_stats(body: &HyperBody, newton: &HyperStats) -> FemStats {
     }
 }
 
-/// The model's hyperelastic body for a tool to hold (its regions; the scene's grasps are
-/// left to batch runs, as `ineffective_interactive` says: the tool grasps), with its own
-/// loads solved as the starting state.
-///
-/// Errors: a model with plates (named), and those of [`solve`].
-pub fn tool_body(model: &Model, tissue: &Tissue, limit: u64) -> Result<(HyperBody, HyperSolution)> {
-    crate::fem_inputs::refuse_plates(model)?;
-    let mut log = StageLog::default();
-    let mut body = build(model, tissue, &[], limit, &mut log)?;
-    let solution = body
-        .solve(&full_loads(model), &[])
-        .map_err(|source| Error::Fem { scene: model.display_name(), source })?;
-    Ok((body, solution))
-}
-
-/// Voxelizes the model's surface into its hyperelastic body with `grasps` and its regions.
-fn build(
+/// Voxelizes the model's surface into its hyperelastic body with `grasps` and its regions
+/// (refused from counts first, as the linear one).
+pub fn build(
     model: &Model,
     tissue: &Tissue,
     grasps: &[Grasp],

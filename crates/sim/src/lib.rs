@@ -34,6 +34,7 @@ mod pipeline;
 pub mod plan;
 mod report;
 pub mod result_guards;
+#[cfg(feature = "testing")]
 pub mod samples;
 mod simulate;
 pub mod stages;

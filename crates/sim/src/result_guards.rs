@@ -25,11 +25,11 @@
 //! large strain) or constraints that do not hold the body. A non-finite answer is an error
 //! ([`NonFiniteAnswer`]), never a warning: nothing is written from it.
 //!
-//! [`FrameGuards`] checks every frame of an interactive body (the live viewer's, Python's
-//! `Body`'s) with the same guards and limits ([`ResultChecks::for_frames`]), set up once
-//! and measured per frame in one pass over the vertices and one over the faces.
+//! `fibfluid_interact::FrameGuards` checks every frame of an interactive body (the live
+//! viewer's, Python's `Body`'s) with the same guards and limits
+//! ([`ResultChecks::for_frames`]) through [`Measures::judge`].
 
-use fibfluid_geometry::vec3::{cross, dist, dot, norm, sub};
+use fibfluid_geometry::vec3::{dist, norm, sub};
 use fibfluid_geometry::{Boundary, Vec3};
 use fibfluid_linalg::{Choice, impl_choice};
 use serde::Serialize;
@@ -191,17 +191,25 @@ pub struct ResultChecks {
 }
 
 /// What the guards measure of an answer, before the limits are applied.
-struct Measures {
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Measures {
     /// The enclosed volume at rest.
-    rest_volume: f64,
+    pub rest_volume: f64,
     /// The enclosed volume now.
-    volume: f64,
+    pub volume: f64,
     /// The largest displacement.
-    largest: f64,
+    pub largest: f64,
     /// The body's size: its rest bounding-box diagonal.
-    size: f64,
+    pub size: f64,
     /// Faces turned inside out (counted only when [`ResultChecks::inverted`] asks).
-    inverted: usize,
+    pub inverted: usize,
+}
+
+impl Measures {
+    /// The warnings of these measures against the limits of the module docs.
+    pub fn judge(&self, checks: ResultChecks) -> Vec<ResultWarning> {
+        judge(self, checks)
+    }
 }
 
 /// The warnings of measured values against the limits of the module docs.
@@ -273,117 +281,5 @@ impl ResultChecks {
     /// (`large_strain`: the neo-Hookean body, which needs none).
     pub fn for_frames(method: crate::Method, large_strain: bool) -> Self {
         Self { inverted: true, residual: None, linear: method == crate::Method::Fem && !large_strain }
-    }
-}
-
-/// Why [`FrameGuards`] cannot be set up or cannot check a frame.
-#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
-pub enum FrameGuardError {
-    /// A face refers to a vertex beyond the rest shape.
-    #[error("face {face} refers to vertex {vertex}, beyond the {count} vertices of the rest shape")]
-    FaceVertex {
-        /// The face.
-        face: usize,
-        /// The vertex it names.
-        vertex: u32,
-        /// Vertices of the rest shape.
-        count: usize,
-    },
-    /// A frame with another number of positions than the rest shape has vertices.
-    #[error("the frame has {found} positions for a rest shape of {count} vertices")]
-    Count {
-        /// Positions of the frame.
-        found: usize,
-        /// Vertices of the rest shape.
-        count: usize,
-    },
-    /// A position, a displacement or the volume is not finite: the frame is an error, never
-    /// a warning.
-    #[error(
-        "the answer is not finite at vertex {vertex}: the tissue is far too soft for the load, or the constraints do not hold the body"
-    )]
-    NonFinite {
-        /// The first vertex whose position or displacement is not finite (0 when only the
-        /// volume overflows).
-        vertex: usize,
-    },
-}
-
-/// The result guards of every frame of a triangle surface: [`check_answer`]'s guards and
-/// limits, set up once (the rest volume, the body's size, the angle between each face's
-/// normal and its neighbourhood's at rest) so that a frame costs one pass over the vertices
-/// (finiteness, the largest displacement) and three over the faces (the volume by the
-/// divergence theorem; the faces turned inside out: the raw vertex vectors, then each
-/// face's angle to its neighbourhood), and allocates one vector of the vertices' raw
-/// vectors.
-#[derive(Clone, Debug, PartialEq)]
-pub struct FrameGuards {
-    rest: Vec<Vec3>,
-    triangles: Vec<[u32; 3]>,
-    /// Per face, the angle between its normal and its neighbourhood's at rest
-    /// ([`fibfluid_geometry::neighbourhood_angles`]).
-    rest_angles: Vec<f64>,
-    rest_volume: f64,
-    size: f64,
-}
-
-impl FrameGuards {
-    /// The guards of the surface `triangles` over the rest shape `rest` (vertices no face
-    /// uses are allowed: they count for the displacement only).
-    pub fn new(rest: &[Vec3], triangles: &[[u32; 3]]) -> Result<Self, FrameGuardError> {
-        let count = rest.len();
-        for (face, t) in triangles.iter().enumerate() {
-            if let Some(&vertex) = t.iter().find(|&&v| v as usize >= count) {
-                return Err(FrameGuardError::FaceVertex { face, vertex, count });
-            }
-        }
-        let (lo, hi) = fibfluid_geometry::bounding_box(rest);
-        Ok(Self {
-            rest: rest.to_vec(),
-            triangles: triangles.to_vec(),
-            rest_angles: fibfluid_geometry::neighbourhood_angles(triangles, rest),
-            rest_volume: fibfluid_geometry::volume(rest, triangles),
-            size: dist(lo, hi),
-        })
-    }
-
-    /// The warnings of the frame `positions` (one per rest vertex, in the same order);
-    /// empty when every guard holds. A non-finite position, displacement or volume is
-    /// [`FrameGuardError::NonFinite`].
-    pub fn check(
-        &self,
-        positions: &[Vec3],
-        checks: ResultChecks,
-    ) -> Result<Vec<ResultWarning>, FrameGuardError> {
-        let count = self.rest.len();
-        if positions.len() != count {
-            return Err(FrameGuardError::Count { found: positions.len(), count });
-        }
-        let mut largest = 0.0_f64;
-        for (vertex, (p, r)) in positions.iter().zip(&self.rest).enumerate() {
-            let length = norm(sub(*p, *r));
-            if !(p.iter().all(|x| x.is_finite()) && length.is_finite()) {
-                return Err(FrameGuardError::NonFinite { vertex });
-            }
-            largest = largest.max(length);
-        }
-        let six_volume: f64 = self
-            .triangles
-            .iter()
-            .map(|t| dot(positions[t[0] as usize], cross(positions[t[1] as usize], positions[t[2] as usize])))
-            .sum();
-        let inverted = fibfluid_geometry::faces_turned_given(&self.rest_angles, &self.triangles, positions);
-        let volume = six_volume / 6.0;
-        if !volume.is_finite() {
-            return Err(FrameGuardError::NonFinite { vertex: 0 });
-        }
-
-        let measures = Measures { rest_volume: self.rest_volume, volume, largest, size: self.size, inverted };
-        Ok(judge(&measures, checks))
-    }
-
-    /// Vertices of the rest shape (the length [`check`](Self::check) expects).
-    pub fn n_vertices(&self) -> usize {
-        self.rest.len()
     }
 }

@@ -16,7 +16,7 @@
 //!   "warnings": [...]}` and one binary message of `3 N` little-endian `f32` positions
 //!   (messages that arrive faster than frames are coalesced: the last state wins). Every
 //!   frame is checked by the result guards
-//!   ([`FrameGuards`](fibfluid_sim::result_guards::FrameGuards): volume, displacement,
+//!   ([`FrameGuards`](fibfluid_interact::FrameGuards): volume, displacement,
 //!   inverted faces, and the small-strain validity of a finite-element body); `warnings`
 //!   lists those that fired, and a non-finite answer is an error instead of a frame. A bad
 //!   message is answered by `{"error": "..."}` and the connection stays open.

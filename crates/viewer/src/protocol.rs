@@ -1,8 +1,9 @@
 //! The messages of the WebSocket protocol: parsing the client's, writing the server's.
 
 use fibfluid_geometry::Vec3;
+use fibfluid_interact::FrameGuardError;
 use fibfluid_interact::{LinearizationStatus, ToolLoad};
-use fibfluid_sim::result_guards::{FrameGuardError, ResultWarning};
+use fibfluid_sim::result_guards::ResultWarning;
 use serde_json::Value;
 
 /// A client message.

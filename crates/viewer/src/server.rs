@@ -8,8 +8,9 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use fibfluid_geometry::Vec3;
+use fibfluid_interact::{FrameGuardError, FrameGuards};
 use fibfluid_interact::{Interactive, Method, RigidMotion, ToolSet};
-use fibfluid_sim::result_guards::{FrameGuardError, FrameGuards, ResultChecks};
+use fibfluid_sim::result_guards::ResultChecks;
 use tungstenite::protocol::frame::coding::CloseCode;
 use tungstenite::protocol::{CloseFrame, Role};
 use tungstenite::{Message, WebSocket};

@@ -646,7 +646,8 @@ class Body:
     def _fail_next_refreshes(self, count: int) -> None:
         """Makes the next ``count`` refreshes of a neo-Hookean ``"fem"`` body fail, for
         testing what a caller does then: steps go on with the last good linearization and
-        :attr:`linearization` names the failure. Raises :class:`Error` for other bodies."""
+        :attr:`linearization` names the failure. Raises :class:`Error` for other bodies.
+        Only in a build with the ``testing`` feature (``crates/python/ci.sh``)."""
         self._native.fail_next_refreshes(_index(count))
 
     def step(self) -> Tuple[np.ndarray, np.ndarray]:
