@@ -37,7 +37,7 @@ pub(crate) fn build(
     mesh: Option<MeshFile>,
 ) -> Result<Model, Invalid> {
     let unit =
-        spec.mesh.as_ref().map(|m| choice("[mesh].unit", m.unit.clone(), LengthUnit::M)).transpose()?;
+        spec.mesh.as_ref().map(|m| choice("[mesh].unit", m.unit.clone(), LengthUnit::Metre)).transpose()?;
     let unit = unit.unwrap_or_default();
     let mesh_scale = spec.mesh.as_ref().and_then(|m| m.scale).unwrap_or(1.0);
     let image = spec.mesh.as_ref().and_then(|m| m.image.as_ref()).map(|i| dir.join(i));

@@ -16,10 +16,10 @@ use std::time::Instant;
 
 use fibfluid_fem::hyper::{CellMaterial, CellState, GraspRecord, StrainSummary, cell_states};
 use fibfluid_fem::{FemStats, SparseGrid, Tissue, TissueModel};
-use fibfluid_geometry::{Boundary, Vec3};
+use fibfluid_geometry::{Boundary, LengthUnit, Vec3};
 use serde::Serialize;
 
-use crate::choices::{LengthUnit, Method};
+use crate::choices::Method;
 use crate::fem_inputs::failed;
 pub use crate::fem_inputs::{
     FemPlate, build_body, estimate, fixed_axes, full_loads, refuse_plates, tissue_of,

@@ -5,10 +5,10 @@
 use std::path::PathBuf;
 
 use fibfluid_assembly::{ConstraintKind, ConstraintMethod, Constraints, DEFAULT_PENALTY, Material};
-use fibfluid_geometry::{MeshFile, Polygon, Vec3};
+use fibfluid_geometry::{LengthUnit, MeshFile, Polygon, Vec3};
 use fibfluid_linalg::{Backend, Precision};
 
-use crate::choices::{ForceTiming, LengthUnit, Method, Mode, Stepping};
+use crate::choices::{ForceTiming, Method, Mode, Stepping};
 
 use crate::contact::Plate;
 use crate::guards::Guards;
@@ -200,7 +200,7 @@ impl Model {
             tissue: None,
             fem: FemSettings::default(),
             ffm: FfmSettings::default(),
-            unit: LengthUnit::M,
+            unit: LengthUnit::Metre,
         }
     }
 
