@@ -133,7 +133,7 @@ pub struct FfmSettings {
     pub fibers: crate::choices::FiberModel,
     /// Whether the fiber modulus is to be calibrated on the body against the
     /// finite-element method before a run (a scene that gives only `[tissue]`; the
-    /// material's `young` is then the tissue's Young's modulus until calibrated).
+    /// material's fiber modulus is then the tissue's Young's modulus until calibrated).
     pub calibrate: bool,
 }
 
