@@ -38,7 +38,7 @@ pub(crate) const OLDER_NAMES: &[(&str, &str)] = &[("young", "fiber_modulus")];
 
 /// The setting `name` names: itself, or the one an older name stands for.
 fn current(name: &str) -> &str {
-    OLDER_NAMES.iter().find(|(old, _)| *old == name).map_or(name, |(_, new)| new)
+    OLDER_NAMES.iter().find(|(old, _)| *old == name).map_or(name, |&(_, new)| new)
 }
 
 fn unknown(name: &str) -> PyErr {
@@ -56,9 +56,7 @@ pub(crate) fn get(py: Python<'_>, scene: &Scene, name: &str) -> PyResult<Py<PyAn
         "fiber_modulus" if m.fiber_modulus().iter().all(|&y| y == m.fiber_modulus()[0]) => {
             m.fiber_modulus()[0].into_py_any(py)
         }
-        "fiber_modulus" => {
-            (m.fiber_modulus()[0], m.fiber_modulus()[1], m.fiber_modulus()[2]).into_py_any(py)
-        }
+        "fiber_modulus" => (m.fiber_modulus()[0], m.fiber_modulus()[1], m.fiber_modulus()[2]).into_py_any(py),
         "surface_tension" => m.surface_tension().into_py_any(py),
         "density" => m.density().into_py_any(py),
         "stiffening" => match m.law() {
