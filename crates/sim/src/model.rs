@@ -143,7 +143,7 @@ pub struct FfmSettings {
 pub struct FemSettings {
     /// Cells along the bounding box's longest side.
     pub resolution: usize,
-    /// Regions of other tissue inside the body, in the scene's order (material ids 1, 2,
+    /// Regions of other tissue inside the body, in the scene's order (region ids 1, 2,
     /// ...).
     pub regions: Vec<NamedRegion>,
     /// `[tissue] model = "auto"`: solve linear, and again neo-Hookean when the linear
