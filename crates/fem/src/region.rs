@@ -44,15 +44,16 @@ pub struct Region {
     pub tissue: Tissue,
 }
 
-/// Per active cell: its blended material, density and dominant material id.
+/// Per active cell: its blended material, density and region id (the dominant one).
 #[derive(Debug, Clone, PartialEq)]
 pub struct CellBlend {
     /// The cell's law and moduli.
     pub materials: Vec<CellMaterial>,
     /// The cell's mass density (kg/m^3).
     pub densities: Vec<f64>,
-    /// 0: the base tissue; `k`: the `k`-th region (1-based), the one with most samples.
-    pub ids: Vec<u16>,
+    /// Each cell's region id: 0 the base tissue, `k` the `k`-th region (1-based), the one
+    /// with most samples.
+    pub region_ids: Vec<u16>,
     /// Per region, the cells it holds most of.
     pub region_cells: Vec<usize>,
 }
@@ -104,7 +105,7 @@ pub fn blend_regions(grid: &SparseGrid, base: &Tissue, regions: &[Region]) -> Re
     let mut blend = CellBlend {
         materials: Vec::new(),
         densities: Vec::new(),
-        ids: Vec::new(),
+        region_ids: Vec::new(),
         region_cells: vec![0; regions.len()],
     };
     let mut samples_in = vec![0usize; regions.len()];
@@ -146,7 +147,7 @@ fn push_cell(blend: &mut CellBlend, tissues: &[Tissue], counts: &[usize]) {
     });
     blend.densities.push(mean(&|t| t.density()));
     let id = (0..counts.len()).max_by_key(|&k| (counts[k], std::cmp::Reverse(k))).unwrap_or(0);
-    blend.ids.push(id as u16);
+    blend.region_ids.push(id as u16);
     if id > 0 {
         blend.region_cells[id - 1] += 1;
     }

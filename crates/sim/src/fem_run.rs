@@ -151,7 +151,7 @@ fn solve_answer(model: &Model, tissue: &Tissue, limit: u64, log: &mut StageLog) 
         residual: sol.residual,
         stats,
         grid: body.grid().clone(),
-        region_ids: body.material_ids().to_vec(),
+        region_ids: body.region_ids().to_vec(),
         node_displacements: sol.node_displacements,
         surface_displacements: sol.surface_displacements,
     })

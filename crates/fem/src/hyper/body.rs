@@ -174,8 +174,8 @@ pub struct HyperBody {
     pub(crate) materials: Vec<CellMaterial>,
     /// Each cell's mass density (kg/m^3).
     pub(crate) densities: Vec<f64>,
-    /// Each cell's material id (0: the body's tissue, `k`: region `k`).
-    pub(crate) material_ids: Vec<u16>,
+    /// Each cell's region id (0: the body's tissue, `k`: region `k`).
+    pub(crate) region_ids: Vec<u16>,
     pub(crate) tangent: SparseColMat<usize, f64>,
     pub(crate) symbolic: Arc<SparseSymbolic>,
     pub(crate) settings: NewtonSettings,
@@ -263,7 +263,7 @@ impl HyperBody {
             cell: HyperCell::new(h),
             materials: vec![CellMaterial::of(tissue); grid.n_cells()],
             densities: vec![tissue.density(); grid.n_cells()],
-            material_ids: vec![0; grid.n_cells()],
+            region_ids: vec![0; grid.n_cells()],
             clamp_beta: clamp_stiffness(tissue, h),
             clamp: clamp.points,
             grid,
@@ -288,13 +288,13 @@ impl HyperBody {
         let blend = crate::blend_regions(&self.grid, &self.tissue, regions)?;
         self.materials = blend.materials;
         self.densities = blend.densities;
-        self.material_ids = blend.ids;
+        self.region_ids = blend.region_ids;
         Ok(self)
     }
 
-    /// Each cell's material id (0: the body's tissue, `k`: the `k`-th region).
-    pub fn material_ids(&self) -> &[u16] {
-        &self.material_ids
+    /// Each cell's region id (0: the body's tissue, `k`: the `k`-th region).
+    pub fn region_ids(&self) -> &[u16] {
+        &self.region_ids
     }
 
     /// The same body with other Newton settings.
