@@ -25,7 +25,7 @@ fn scene(dir: &Path, mesh: &Path, fix: &str, fibers: &str, extra: &str) -> Scene
 [mesh]
 path = "{}"
 [ffm]
-young = 5e4
+fiber_modulus = 5e4
 surface_tension = 0.0
 fibers = "{fibers}"
 [fluid]
@@ -239,7 +239,7 @@ fn a_steeper_kernel_brings_the_fibers_closer_to_the_fem() {
     std::fs::write(&mm_mesh, scaled).unwrap();
     let run = |mesh: &Path, unit: &str, above: f64| {
         let text = format!(
-            "[mesh]\npath = \"{}\"\nunit = \"{unit}\"\n[ffm]\nyoung = 5e4\nsurface_tension = 30.0\nkernel_exponent = 3.0\n\
+            "[mesh]\npath = \"{}\"\nunit = \"{unit}\"\n[ffm]\nfiber_modulus = 5e4\nsurface_tension = 30.0\nkernel_exponent = 3.0\n\
              [fluid]\ndensity = 1000.0\n[gravity]\nacceleration = [0.0, -9.81, 0.0]\n\
              [[fix]]\naxis = \"y\"\nabove = {above}\n[solver]\nmode = \"refresh\"\n",
             mesh.display()

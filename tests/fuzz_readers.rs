@@ -128,6 +128,7 @@ const TOML_TOKENS: &[&str] = &[
     "scale",
     "points",
     "young",
+    "fiber_modulus",
     "surface_tension",
     "stiffening",
     "density",

@@ -117,7 +117,7 @@ fn the_soft_liver_warns_or_fails_with_its_cause() {
             Err(e @ Error::Step { .. }) => {
                 let msg = e.to_string();
                 assert!(msg.starts_with("step "), "{msg}");
-                assert!(msg.contains("raise young"), "{msg}");
+                assert!(msg.contains("raise fiber_modulus"), "{msg}");
             }
             Err(e) => panic!("{mode}: unexplained failure: {e}"),
             Ok(sim) => assert!(!sim.warnings().is_empty(), "{mode}: Y = 1e4 ran without a word"),

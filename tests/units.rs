@@ -309,7 +309,7 @@ fn ffm_fibers_come_from_ffm_or_material_not_both() {
         std::fs::write(dir.path().join("s.toml"), text).unwrap();
         Scene::load(dir.path().join("s.toml"))
     };
-    let s = write("[ffm]\nyoung = 3000.0\nsurface_tension = 5.0\nfibers = \"projected\"\n").unwrap();
+    let s = write("[ffm]\nfiber_modulus = 3000.0\nsurface_tension = 5.0\nfibers = \"projected\"\n").unwrap();
     assert_eq!((s.material.fiber_modulus()[0], s.material.surface_tension()), (3000.0, 5.0));
     assert_eq!(s.ffm.fibers, fibfluid::sim::FiberModel::Projected);
     assert!(!s.ffm.calibrate);
@@ -320,10 +320,42 @@ fn ffm_fibers_come_from_ffm_or_material_not_both() {
     );
     let e = write("[material]\nyoung = 1.0\n[ffm]\nyoung = 2.0\n").unwrap_err().to_string();
     assert!(e.contains("[ffm].young") && e.contains("not both"), "{e}");
-    let e = write("[ffm]\nyoung = 1.0\nfibers = \"bent\"\n").unwrap_err().to_string();
+    let e = write("[ffm]\nfiber_modulus = 1.0\nfibers = \"bent\"\n").unwrap_err().to_string();
     assert!(e.contains("fibers") && e.contains("paper"), "{e}");
     let e = write("[fluid]\ndensity = 1.0\n").unwrap_err().to_string();
     assert!(e.contains("[tissue]"), "{e}");
+}
+
+/// `[ffm] fiber_modulus` and its older names, `[ffm] young` and `[material] young`, give the
+/// same material; the new and an old name in one table is an error naming both, its file
+/// and its line.
+#[test]
+fn fiber_modulus_reads_under_its_name_and_its_older_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = icosphere(2, 1.0);
+    write_obj(dir.path().join("s.obj"), mesh.positions(), mesh.triangles()).unwrap();
+    let write = |body: &str| {
+        let text = format!("[mesh]\npath = \"s.obj\"\n\n{body}\n[[fix]]\naxis = \"y\"\nabove = 0.8\n");
+        std::fs::write(dir.path().join("s.toml"), text).unwrap();
+        Scene::load(dir.path().join("s.toml"))
+    };
+    let fibers = "surface_tension = 5.0\nstiffening = 0.5\n[fluid]\ndensity = 1000.0\n";
+    let new = write(&format!("[ffm]\nfiber_modulus = [3000.0, 2000.0, 1000.0]\n{fibers}")).unwrap();
+    let ffm_young = write(&format!("[ffm]\nyoung = [3000.0, 2000.0, 1000.0]\n{fibers}")).unwrap();
+    let material_young = write(&format!("[material]\nyoung = [3000.0, 2000.0, 1000.0]\n{fibers}")).unwrap();
+    assert_eq!(new.material.fiber_modulus(), [3000.0, 2000.0, 1000.0]);
+    for old in [&ffm_young, &material_young] {
+        assert_eq!(format!("{:?}", old.model), format!("{:?}", new.model));
+    }
+    let e = write("[ffm]\nfiber_modulus = 1.0\nyoung = 2.0\n").unwrap_err().to_string();
+    assert!(e.contains("s.toml:5: [ffm].fiber_modulus:") && e.contains("`young`"), "{e}");
+    // A bad value is named by the key it was given under.
+    let e = write("[ffm]\nfiber_modulus = -1.0\n").unwrap_err().to_string();
+    assert!(e.contains("s.toml:5: [ffm].fiber_modulus: must be positive"), "{e}");
+    let e = write("[ffm]\nyoung = -1.0\n").unwrap_err().to_string();
+    assert!(e.contains("s.toml:5: [ffm].young: must be positive"), "{e}");
+    let e = write("[material]\nyoung = 1.0\n[ffm]\nfiber_modulus = 2.0\n").unwrap_err().to_string();
+    assert!(e.contains("s.toml:7: [ffm].fiber_modulus") && e.contains("not both"), "{e}");
 }
 
 /// The calibration against the independent P2 references of `crates/fem/tests/golden`

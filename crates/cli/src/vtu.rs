@@ -92,7 +92,7 @@ pub fn write_vtu(out: &mut impl Write, run: &FemRun) -> std::io::Result<()> {
     array(out, "Float64", "max_principal_strain", 1, cell(|c| c.max_principal_strain))?;
     array(out, "Float64", "von_mises_stress", 1, cell(|c| c.von_mises))?;
     array(out, "Float64", "fill", 1, grid.fill().iter().map(|f| format!("{f:?}")))?;
-    array(out, "Int32", "material_id", 1, volume.cell_materials.iter().map(|m| m.to_string()))?;
+    array(out, "Int32", "material_id", 1, volume.region_ids.iter().map(|m| m.to_string()))?;
     writeln!(out, "</CellData>")?;
     writeln!(out, "</Piece>")?;
     writeln!(out, "</UnstructuredGrid>")?;

@@ -56,7 +56,7 @@ pub struct CellBlend {
     /// The cell's mass density (kg/m^3).
     pub densities: Vec<f64>,
     /// 0: the base tissue; `k`: the `k`-th region (1-based), the one with most samples.
-    pub ids: Vec<u16>,
+    pub region_ids: Vec<u16>,
     /// Per region, the cells it holds most of.
     pub region_cells: Vec<usize>,
 }
@@ -108,7 +108,7 @@ pub fn blend_regions(grid: &SparseGrid, base: &Tissue, regions: &[Region]) -> Re
     let mut blend = CellBlend {
         materials: Vec::new(),
         densities: Vec::new(),
-        ids: Vec::new(),
+        region_ids: Vec::new(),
         region_cells: vec![0; regions.len()],
     };
     let mut samples_in = vec![0usize; regions.len()];
@@ -151,7 +151,7 @@ fn push_cell(blend: &mut CellBlend, laws: &[Arc<dyn MaterialLaw>], tissues: &[Ti
         mean(&|t| t.shear_modulus()),
         mean(&|t| t.bulk_modulus()),
     ));
-    blend.ids.push(id as u16);
+    blend.region_ids.push(id as u16);
     if id > 0 {
         blend.region_cells[id - 1] += 1;
     }

@@ -22,7 +22,7 @@ fn two_layers_act_as_springs_in_series() {
         .unwrap()
         .with_regions(&[region])
         .unwrap();
-    assert_eq!(body.material_ids().iter().filter(|&&m| m == 1).count(), 32, "the upper half's cells");
+    assert_eq!(body.region_ids().iter().filter(|&&m| m == 1).count(), 32, "the upper half's cells");
     let d = 0.01;
     let plate = RigidPlate { start: [0.0, 0.0, 1.0], end: [0.0, 0.0, 1.0 - d], normal: [0.0, 0.0, -1.0] };
     let sol = body.solve(&Loads::default(), &[plate]).unwrap();

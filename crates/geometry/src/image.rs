@@ -19,6 +19,8 @@
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
+use crate::unit::LengthUnit;
+
 use crate::error::ReadError;
 use crate::io::{max_file_bytes, read_file_limited};
 use crate::vec3::Vec3;
@@ -54,41 +56,22 @@ pub struct LabelImage {
     pub labels: Vec<u32>,
 }
 
-/// Units the writer stores lengths in (`xyzt_units`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum LengthUnit {
-    /// Metres (code 1).
-    Metre,
-    /// Millimetres (code 2).
-    Millimetre,
-    /// Micrometres (code 3).
-    Micrometre,
+/// The NIfTI `xyzt_units` code of a unit, and the unit lengths are stored in under it:
+/// NIfTI has no centimetre, so centimetres are stored as millimetres.
+fn nifti_unit(unit: LengthUnit) -> (u8, LengthUnit) {
+    match unit {
+        LengthUnit::Metre => (1, LengthUnit::Metre),
+        LengthUnit::Centimetre | LengthUnit::Millimetre => (2, LengthUnit::Millimetre),
+        LengthUnit::Micrometre => (3, LengthUnit::Micrometre),
+    }
 }
 
-impl LengthUnit {
-    /// Metres per unit.
-    pub fn metres(self) -> f64 {
-        match self {
-            LengthUnit::Metre => 1.0,
-            LengthUnit::Millimetre => 1e-3,
-            LengthUnit::Micrometre => 1e-6,
-        }
-    }
-
-    fn code(self) -> u8 {
-        match self {
-            LengthUnit::Metre => 1,
-            LengthUnit::Millimetre => 2,
-            LengthUnit::Micrometre => 3,
-        }
-    }
-
-    fn from_code(code: i64) -> Self {
-        match code & 7 {
-            1 => LengthUnit::Metre,
-            3 => LengthUnit::Micrometre,
-            _ => LengthUnit::Millimetre,
-        }
+/// The unit of an `xyzt_units` code (millimetre when unknown or 0).
+fn unit_of_code(code: i64) -> LengthUnit {
+    match code & 7 {
+        1 => LengthUnit::Metre,
+        3 => LengthUnit::Micrometre,
+        _ => LengthUnit::Millimetre,
     }
 }
 
@@ -454,7 +437,7 @@ fn parse_header(b: &[u8], limit: u64) -> Result<Header, ImageProblem> {
         ltype,
         pixdim: [pixdim[0], pixdim[1], pixdim[2], pixdim[3]],
         vox_offset: vox_offset as u64,
-        unit: LengthUnit::from_code(units),
+        unit: unit_of_code(units),
         qform_code,
         sform_code,
         quatern: std::array::from_fn(|i| quatern[i]),
@@ -615,7 +598,8 @@ pub fn read_nifti_with(path: impl AsRef<Path>, max_bytes: Option<u64>) -> Result
 /// How [`write_nifti`] stores an image.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NiftiWriteOptions {
-    /// Unit of the stored lengths (`xyzt_units`).
+    /// Unit of the stored lengths (`xyzt_units`; centimetres are stored as millimetres,
+    /// NIfTI has no code for them).
     pub unit: LengthUnit,
     /// Voxel type; `None`: the smallest of uint8, uint16, uint32 that holds every label.
     pub label_type: Option<LabelType>,
@@ -642,7 +626,8 @@ pub fn nifti_bytes(image: &LabelImage, opts: &NiftiWriteOptions) -> Vec<u8> {
         256..=65535 => LabelType::U16,
         _ => LabelType::U32,
     });
-    let m = opts.unit.metres();
+    let (unit_code, stored) = nifti_unit(opts.unit);
+    let m = stored.metres();
     let v2 = opts.nifti2;
     let offset = if v2 { 544 } else { 352 };
     let mut h = vec![0u8; offset];
@@ -660,7 +645,7 @@ pub fn nifti_bytes(image: &LabelImage, opts: &NiftiWriteOptions) -> Vec<u8> {
             put(&mut h, 16 + 8 * i, &(*d as i64).to_le_bytes());
         }
         put(&mut h, 168, &(offset as i64).to_le_bytes());
-        put(&mut h, 500, &(opts.unit.code() as i32).to_le_bytes());
+        put(&mut h, 500, &i32::from(unit_code).to_le_bytes());
     } else {
         put(&mut h, 0, &348i32.to_le_bytes());
         for (i, d) in dims.iter().enumerate() {
@@ -669,7 +654,7 @@ pub fn nifti_bytes(image: &LabelImage, opts: &NiftiWriteOptions) -> Vec<u8> {
         put(&mut h, 70, &ltype.code().to_le_bytes());
         put(&mut h, 72, &(8 * ltype.bytes() as i16).to_le_bytes());
         put(&mut h, 108, &(offset as f32).to_le_bytes());
-        h[123] = opts.unit.code();
+        h[123] = unit_code;
         put(&mut h, 344, b"n+1\0");
     }
     let pixdim = [1.0, image.spacing[0] / m, image.spacing[1] / m, image.spacing[2] / m];

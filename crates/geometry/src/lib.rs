@@ -37,6 +37,7 @@ mod ply;
 mod polygon;
 mod raw;
 mod turned;
+mod unit;
 pub mod vec3;
 mod voxel;
 
@@ -52,8 +53,8 @@ pub use fibers::{
 };
 pub use icosphere::{fibonacci_sphere, icosphere};
 pub use image::{
-    AffineSource, GZIP_MARGIN, ImageError, ImageProblem, LabelImage, LabelType, LengthUnit,
-    NiftiWriteOptions, nifti_bytes, read_nifti, read_nifti_bytes, read_nifti_with, write_nifti,
+    AffineSource, GZIP_MARGIN, ImageError, ImageProblem, LabelImage, LabelType, NiftiWriteOptions,
+    nifti_bytes, read_nifti, read_nifti_bytes, read_nifti_with, write_nifti,
 };
 pub use io::{
     DEFAULT_MAX_FILE_BYTES, MAX_FILE_BYTES_ENV, MeshFile, ReadOptions, load_mesh, load_mesh_with,
@@ -73,5 +74,6 @@ pub use polygon::Polygon;
 pub use turned::{
     TURN_LIMIT, edges_turned_inside_out, faces_turned_given, faces_turned_inside_out, neighbourhood_angles,
 };
+pub use unit::LengthUnit;
 pub use vec3::{AXES, Vec3};
 pub use voxel::{PointLattice, for_each_inside_line, inside_lattice};

@@ -75,6 +75,9 @@ fn millimetres_and_metres_give_the_same_surface() {
     };
     let (mm, m) = (read(LengthUnit::Millimetre), read(LengthUnit::Metre));
     assert_eq!(mm.spacing, [1e-3; 3]);
+    // NIfTI has no centimetre: asked for one, the writer stores millimetres.
+    assert_eq!(read(LengthUnit::Centimetre), mm);
+    assert!(read(LengthUnit::Micrometre).spacing.iter().all(|&h| rel(h, 1e-3) < 1e-12));
     let (a, b) = [mm, m].map(|i| extract_surface(&i, &opts(LabelSelection::Label(1))).unwrap()).into();
     assert_eq!(a.mesh.triangles(), b.mesh.triangles());
     for (p, q) in a.mesh.positions().iter().zip(b.mesh.positions()) {

@@ -16,7 +16,7 @@ pub(crate) const NAMES: &[&str] = &[
     "steps",
     "tolerance",
     "gravity",
-    "young",
+    "fiber_modulus",
     "surface_tension",
     "density",
     "stiffening",
@@ -33,6 +33,14 @@ pub(crate) const NAMES: &[&str] = &[
 /// The solver's settings (`Scene.solver`), a subset of [`NAMES`].
 pub(crate) const SOLVER: &[&str] = &["backend", "mode", "stepping", "precision", "constraints", "penalty"];
 
+/// Older names of settings, and the setting each names (a scene file's older keys).
+pub(crate) const OLDER_NAMES: &[(&str, &str)] = &[("young", "fiber_modulus")];
+
+/// The setting `name` names: itself, or the one an older name stands for.
+fn current(name: &str) -> &str {
+    OLDER_NAMES.iter().find(|(old, _)| *old == name).map_or(name, |&(_, new)| new)
+}
+
 fn unknown(name: &str) -> PyErr {
     error(format!("unknown setting `{name}` (known: {})", NAMES.join(", ")))
 }
@@ -41,14 +49,14 @@ fn unknown(name: &str) -> PyErr {
 pub(crate) fn get(py: Python<'_>, scene: &Scene, name: &str) -> PyResult<Py<PyAny>> {
     let m = &scene.material;
     let s = &scene.solver;
-    match name {
+    match current(name) {
         "steps" => scene.load.steps.into_py_any(py),
         "tolerance" => scene.load.tolerance.into_py_any(py),
         "gravity" => (scene.load.gravity[0], scene.load.gravity[1], scene.load.gravity[2]).into_py_any(py),
-        "young" if m.fiber_modulus().iter().all(|&y| y == m.fiber_modulus()[0]) => {
+        "fiber_modulus" if m.fiber_modulus().iter().all(|&y| y == m.fiber_modulus()[0]) => {
             m.fiber_modulus()[0].into_py_any(py)
         }
-        "young" => (m.fiber_modulus()[0], m.fiber_modulus()[1], m.fiber_modulus()[2]).into_py_any(py),
+        "fiber_modulus" => (m.fiber_modulus()[0], m.fiber_modulus()[1], m.fiber_modulus()[2]).into_py_any(py),
         "surface_tension" => m.surface_tension().into_py_any(py),
         "density" => m.density().into_py_any(py),
         "stiffening" => match m.law() {
@@ -101,6 +109,7 @@ fn choice<T: Choice>(v: &Bound<'_, PyAny>, name: &str) -> PyResult<T> {
 /// scene is unchanged.
 pub(crate) fn set(scene: &mut Scene, name: &str, v: &Bound<'_, PyAny>) -> PyResult<()> {
     let axes = if scene.is_surface() { 3 } else { 2 };
+    let name = current(name);
     match name {
         "steps" => {
             let bad = || error(format!("steps: must be an integer between 1 and {MAX_STEPS}"));
@@ -122,19 +131,20 @@ pub(crate) fn set(scene: &mut Scene, name: &str, v: &Bound<'_, PyAny>) -> PyResu
             };
         }
         "gravity" => scene.load.gravity = vec3(v, "gravity")?,
-        "young" => {
-            let young = match number(v, name) {
+        "fiber_modulus" => {
+            let fiber_modulus = match number(v, name) {
                 Ok(y) => [y; 3],
-                Err(_) => vec3(v, "young (a number or three numbers)")?,
+                Err(_) => vec3(v, "fiber_modulus (a number or three numbers)")?,
             };
-            for (axis, y) in young.iter().enumerate().take(axes) {
+            for (axis, y) in fiber_modulus.iter().enumerate().take(axes) {
                 let parameter = MaterialParameter::FiberModulus { axis };
                 if !parameter.accepts(*y) {
                     let axis = fibfluid_geometry::AXES[axis];
-                    return Err(error(format!("young: must be {}, got {y} along {axis}", parameter.rule())));
+                    let rule = parameter.rule();
+                    return Err(error(format!("fiber_modulus: must be {rule}, got {y} along {axis}")));
                 }
             }
-            scene.material.set_fiber_modulus(young).map_err(|e| error(format!("young: {e}")))?;
+            scene.material.set_fiber_modulus(fiber_modulus).map_err(|e| error(format!("{name}: {e}")))?;
         }
         "surface_tension" => {
             let g = number(v, name)?;

@@ -38,7 +38,7 @@ impl VolumeArrays {
             max_principal_strain: volume.cells.iter().map(|c| c.max_principal_strain).collect(),
             von_mises: volume.cells.iter().map(|c| c.von_mises).collect(),
             fill: volume.grid.fill().to_vec(),
-            material_id: volume.cell_materials.iter().map(|&m| i32::from(m)).collect(),
+            material_id: volume.region_ids.iter().map(|&m| i32::from(m)).collect(),
             displacement: volume.node_displacements.into_flattened(),
         }
     }

@@ -77,8 +77,9 @@ def test_an_unknown_method_raises(scene):
         ("steps", 0, "steps: must be between 1 and 1000000, got 0"),
         ("steps", 2.5, "steps: must be an integer"),
         ("steps", True, "steps: must be an integer"),
-        ("young", -1.0, "young: must be positive"),
-        ("young", [1.0, 2.0], "young"),
+        ("fiber_modulus", -1.0, "fiber_modulus: must be positive"),
+        ("fiber_modulus", [1.0, 2.0], "fiber_modulus"),
+        ("young", -1.0, "fiber_modulus: must be positive"),
         ("surface_tension", float("nan"), "surface_tension: must be >= 0"),
         ("density", "heavy", "density: expected a number, got str"),
         ("tolerance", 1.5, "tolerance: must be between 0 and 1"),
@@ -118,13 +119,16 @@ def test_an_unknown_setting_raises(scene):
 def test_settings_are_read_and_written(scene):
     scene.steps = 7
     scene.solver = {"mode": "paper", "constraints": "penalty"}
-    scene.young = [1000.0, 2000.0, 3000.0]
+    scene.fiber_modulus = [1000.0, 2000.0, 3000.0]
     scene.gravity = (0, -9.81, 0)
     scene.tolerance = 0.01
     s = scene.settings
     assert s["steps"] == 7 and scene.steps == 7
     assert scene.solver["mode"] == "paper" and scene.constraints == "penalty"
-    assert s["young"] == (1000.0, 2000.0, 3000.0)
+    assert s["fiber_modulus"] == (1000.0, 2000.0, 3000.0)
+    assert "young" not in s and scene.young == scene.fiber_modulus
+    scene.young = 4000.0  # the older name writes the same setting
+    assert scene.fiber_modulus == 4000.0
     assert s["gravity"] == (0.0, -9.81, 0.0)
     assert s["tolerance"] == 0.01
     scene.tolerance = None

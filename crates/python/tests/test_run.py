@@ -75,9 +75,9 @@ def test_with_mesh_of_the_same_arrays_gives_the_same_answer(py_run):
 def test_with_mesh_keeps_settings_changed_in_python():
     scene = fibfluid.Scene.load(SCENE)
     scene.steps = 2
-    scene.young = 4000.0
+    scene.fiber_modulus = 4000.0
     again = scene.with_mesh(scene.vertices, scene.faces)
-    assert again.steps == 2 and again.young == 4000.0
+    assert again.steps == 2 and again.fiber_modulus == 4000.0
     # The original is not changed by with_mesh, nor the new one by the original.
     scene.steps = 3
     assert again.steps == 2

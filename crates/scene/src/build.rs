@@ -37,7 +37,7 @@ pub(crate) fn build(
     mesh: Option<MeshFile>,
 ) -> Result<Model, Invalid> {
     let unit =
-        spec.mesh.as_ref().map(|m| choice("[mesh].unit", m.unit.clone(), LengthUnit::M)).transpose()?;
+        spec.mesh.as_ref().map(|m| choice("[mesh].unit", m.unit.clone(), LengthUnit::Metre)).transpose()?;
     let unit = unit.unwrap_or_default();
     let mesh_scale = spec.mesh.as_ref().and_then(|m| m.scale).unwrap_or(1.0);
     let image = spec.mesh.as_ref().and_then(|m| m.image.as_ref()).map(|i| dir.join(i));
@@ -210,6 +210,61 @@ fn image_shape(m: MeshToml, dir: &Path) -> Result<(Shape, fibfluid_geometry::Lab
     Ok((Shape::Surface(Box::new(file)), image))
 }
 
+/// The fiber parameters as given, and where: the table and the fiber modulus's key, for
+/// messages.
+struct Fibers {
+    /// `[ffm]`, `[material]`, or `[tissue]` for the placeholder to be calibrated.
+    table: &'static str,
+    /// `fiber_modulus`, or its older name `young`.
+    modulus_key: &'static str,
+    fiber_modulus: FiberModulusToml,
+    surface_tension: f64,
+    stiffening: Option<f64>,
+}
+
+impl Fibers {
+    /// `[material]` as written (the older table: its fiber modulus is `young`).
+    fn of_material(m: MaterialToml) -> Self {
+        Fibers {
+            table: "[material]",
+            modulus_key: "young",
+            fiber_modulus: m.fiber_modulus,
+            surface_tension: m.surface_tension,
+            stiffening: m.stiffening,
+        }
+    }
+
+    /// `[ffm]`'s fibers when it gives a fiber modulus, as `fiber_modulus` or by its older
+    /// name `young` (not both).
+    fn of_ffm(f: &FfmToml) -> Result<Option<Self>, Invalid> {
+        let (fiber_modulus, modulus_key) = match (f.fiber_modulus, f.young) {
+            (Some(_), Some(_)) => {
+                return Err(invalid(
+                    "[ffm].fiber_modulus",
+                    SceneProblem::Conflict(
+                        "give the fiber modulus as `fiber_modulus` or by its older name `young`, not both",
+                    ),
+                ));
+            }
+            (Some(m), None) => (m, "fiber_modulus"),
+            (None, Some(m)) => (m, "young"),
+            (None, None) => return Ok(None),
+        };
+        Ok(Some(Fibers {
+            table: "[ffm]",
+            modulus_key,
+            fiber_modulus,
+            surface_tension: f.surface_tension.unwrap_or(0.0),
+            stiffening: f.stiffening,
+        }))
+    }
+
+    /// `table.key`, as messages name it.
+    fn key(&self, key: &str) -> String {
+        format!("{}.{key}", self.table)
+    }
+}
+
 /// FFM's material and fiber settings from `[material]` (the older name) or `[ffm]`, and
 /// `[fluid]`. A scene with only `[tissue]` gets the tissue's modulus as a placeholder to be
 /// calibrated against the FEM before an FFM run (its density too when `[fluid]` is absent).
@@ -229,26 +284,20 @@ fn ffm_material(
         m.set_kernel_exponent(kernel).expect("checked above");
         m
     };
-    let new = ffm.and_then(|f| {
-        f.young.map(|young| MaterialToml {
-            young,
-            surface_tension: f.surface_tension.unwrap_or(0.0),
-            stiffening: f.stiffening,
-        })
-    });
+    let new = ffm.as_ref().map(Fibers::of_ffm).transpose()?.flatten();
     let given = match (old, new) {
-        (Some(_), Some(_)) => {
+        (Some(_), Some(new)) => {
             return Err(invalid(
-                "[ffm].young",
+                new.key(new.modulus_key),
                 SceneProblem::Conflict(
                     "give the fiber parameters in [ffm] or in the older [material], not both",
                 ),
             ));
         }
-        (a, b) => a.or(b),
+        (old, new) => old.map(Fibers::of_material).or(new),
     };
-    if let Some(m) = given {
-        return Ok((with_kernel(material(m, fluid, axes)?), settings));
+    if let Some(f) = given {
+        return Ok((with_kernel(material(f, fluid, axes)?), settings));
     }
     match (tissue, method) {
         (Some(t), _) => {
@@ -259,8 +308,13 @@ fn ffm_material(
                 Some(f) => f.density,
                 None => t.density(),
             };
-            let placeholder =
-                MaterialToml { young: Young::One(t.young()), surface_tension: 0.0, stiffening: None };
+            let placeholder = Fibers {
+                table: "[tissue]",
+                modulus_key: "young",
+                fiber_modulus: FiberModulusToml::One(t.young()),
+                surface_tension: 0.0,
+                stiffening: None,
+            };
             let mut m = material(placeholder, Some(FluidToml { density }), axes)?;
             if method == Method::Fem {
                 m = Material::new(Material::default().fiber_modulus(), 0.0, 0.0).expect("in range");
@@ -271,40 +325,41 @@ fn ffm_material(
             "method fem needs a [tissue] table (young in Pa, poisson, density in kg/m^3)",
         ))),
         (None, _) => Err(unkeyed(SceneProblem::Conflict(
-            "missing fiber parameters: give [ffm] (young, surface_tension) or a [tissue] table to calibrate them from",
+            "missing fiber parameters: give [ffm] (fiber_modulus, surface_tension) or a [tissue] table to calibrate them from",
         ))),
     }
 }
 
-/// `[material]` and `[fluid]`.
-fn material(m: MaterialToml, fluid: Option<FluidToml>, axes: usize) -> Result<Material, Invalid> {
-    let young = match m.young {
-        Young::One(y) => [y; 3],
-        Young::Three(y) => y,
+/// The fibers (`[ffm]`, `[material]`) and `[fluid]`.
+fn material(f: Fibers, fluid: Option<FluidToml>, axes: usize) -> Result<Material, Invalid> {
+    let fiber_modulus = match f.fiber_modulus {
+        FiberModulusToml::One(y) => [y; 3],
+        FiberModulusToml::Three(y) => y,
     };
-    for (axis, y) in young.iter().enumerate().take(axes) {
+    let modulus_key = f.key(f.modulus_key);
+    for (axis, y) in fiber_modulus.iter().enumerate().take(axes) {
         let parameter = MaterialParameter::FiberModulus { axis };
         if !parameter.accepts(*y) {
             let value = format!("{y} along {}", fibfluid_geometry::AXES[axis]);
-            return Err(range("[material].young", parameter.rule(), value));
+            return Err(range(modulus_key, parameter.rule(), value));
         }
     }
-    let gamma = checked("[material].surface_tension", MaterialParameter::SurfaceTension, m.surface_tension)?;
-    let law = match m.stiffening {
+    let gamma = checked(&f.key("surface_tension"), MaterialParameter::SurfaceTension, f.surface_tension)?;
+    let law = match f.stiffening {
         None => StiffnessLaw::Linear,
         Some(c) => {
-            StiffnessLaw::Quadratic { c: checked("[material].stiffening", MaterialParameter::Stiffening, c)? }
+            StiffnessLaw::Quadratic { c: checked(&f.key("stiffening"), MaterialParameter::Stiffening, c)? }
         }
     };
     let density =
         checked("[fluid].density", MaterialParameter::Density, fluid.map(|f| f.density).unwrap_or(0.0))?;
-    let mut material = Material::new(young, gamma, density).map_err(|e| match e {
+    let mut material = Material::new(fiber_modulus, gamma, density).map_err(|e| match e {
         // A 2D body's unused z modulus must be valid too.
         AssemblyError::InvalidMaterial { parameter: MaterialParameter::FiberModulus { axis }, value } => {
             let value = format!("{value} along {}", fibfluid_geometry::AXES[axis]);
-            range("[material].young", MaterialParameter::FiberModulus { axis }.rule(), value)
+            range(modulus_key.clone(), MaterialParameter::FiberModulus { axis }.rule(), value)
         }
-        other => invalid("[material]", SceneProblem::Constraint(other)),
+        other => invalid(f.table, SceneProblem::Constraint(other)),
     })?;
     material.set_law(law).expect("stiffening checked above");
     Ok(material)

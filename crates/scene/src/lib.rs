@@ -133,7 +133,7 @@ impl Scene {
         };
         let chainmail = chainmail_section::parse(spec.chainmail.take()).map_err(located)?;
         let ffm_material = spec.material.is_some()
-            || spec.ffm.as_ref().is_some_and(|f| f.young.is_some())
+            || spec.ffm.as_ref().is_some_and(|f| f.fiber_modulus.is_some() || f.young.is_some())
             || spec.tissue.is_some();
         let mut model = build::build(spec, dir, name, mesh).map_err(located)?;
         model.source = Some(path.to_path_buf());

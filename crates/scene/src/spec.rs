@@ -126,17 +126,20 @@ pub(crate) struct PolygonToml {
     pub(crate) points: Vec<[f64; 2]>,
 }
 
-#[derive(Deserialize)]
+/// A fiber modulus as written: one for every axis, or one per axis.
+#[derive(Clone, Copy, Deserialize)]
 #[serde(untagged, expecting = "expected a number or an array of three numbers [x, y, z]")]
-pub(crate) enum Young {
+pub(crate) enum FiberModulusToml {
     One(f64),
     Three([f64; 3]),
 }
 
+/// `[material]`, the older name of `[ffm]`'s fiber keys: the fiber modulus is `young` there.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct MaterialToml {
-    pub(crate) young: Young,
+    #[serde(rename = "young")]
+    pub(crate) fiber_modulus: FiberModulusToml,
     #[serde(default)]
     pub(crate) surface_tension: f64,
     /// Quadratic stiffening coefficient c: Y (1 + c strain^2).
@@ -148,7 +151,9 @@ pub(crate) struct MaterialToml {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct FfmToml {
-    pub(crate) young: Option<Young>,
+    pub(crate) fiber_modulus: Option<FiberModulusToml>,
+    /// The older name of `fiber_modulus`.
+    pub(crate) young: Option<FiberModulusToml>,
     pub(crate) surface_tension: Option<f64>,
     pub(crate) stiffening: Option<f64>,
     pub(crate) fibers: Option<String>,

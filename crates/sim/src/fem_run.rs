@@ -16,10 +16,10 @@ use std::time::Instant;
 
 use fibfluid_fem::hyper::{CellMaterial, CellState, GraspRecord, StrainSummary, cell_states};
 use fibfluid_fem::{FemStats, SparseGrid, Tissue};
-use fibfluid_geometry::{Boundary, Vec3};
+use fibfluid_geometry::{Boundary, LengthUnit, Vec3};
 use serde::Serialize;
 
-use crate::choices::{LengthUnit, Method};
+use crate::choices::Method;
 use crate::fem_inputs::failed;
 pub use crate::fem_inputs::{
     FemPlate, build_body, estimate, fixed_axes, full_loads, refuse_plates, tissue_of,
@@ -118,7 +118,7 @@ impl FemRun {
             grasps: answer.grasps,
             strain: answer.strain,
             volume: VolumeAnswer {
-                cell_materials: answer.cell_materials,
+                region_ids: answer.region_ids,
                 cells: answer.cells,
                 grid: answer.grid,
                 node_displacements: answer.node_displacements,
@@ -151,7 +151,7 @@ fn solve_answer(model: &Model, tissue: &Tissue, limit: u64, log: &mut StageLog) 
         residual: sol.residual,
         stats,
         grid: body.grid().clone(),
-        cell_materials: body.material_ids().to_vec(),
+        region_ids: body.region_ids().to_vec(),
         node_displacements: sol.node_displacements,
         surface_displacements: sol.surface_displacements,
     })
@@ -166,9 +166,9 @@ pub struct VolumeAnswer {
     pub node_displacements: Vec<Vec3>,
     /// Each active cell's strain, `J` and stress (grid order).
     pub cells: Vec<CellState>,
-    /// Each active cell's material: 0 the `[tissue]`, `k` the `k`-th `[[region]]` (the
-    /// region holding most of the cell).
-    pub cell_materials: Vec<u16>,
+    /// Each active cell's region id: 0 the `[tissue]`, `k` the `k`-th `[[region]]` (the
+    /// region holding most of the cell; `material_id` in `volume.vtu`).
+    pub region_ids: Vec<u16>,
 }
 
 /// What a solve of either model hands to [`FemRun`].
@@ -176,7 +176,7 @@ struct FemAnswer {
     surface_displacements: Vec<Vec3>,
     node_displacements: Vec<Vec3>,
     grid: SparseGrid,
-    cell_materials: Vec<u16>,
+    region_ids: Vec<u16>,
     residual: f64,
     plates: Vec<FemPlate>,
     grasps: Vec<GraspRecord>,
@@ -199,7 +199,7 @@ fn solve_linear(model: &Model, limit: u64, log: &mut StageLog) -> Result<FemAnsw
         surface_displacements: surface,
         node_displacements: nodes,
         grid: body.grid().clone(),
-        cell_materials: vec![0; body.grid().n_cells()],
+        region_ids: vec![0; body.grid().n_cells()],
         residual,
         plates,
         grasps: Vec::new(),
@@ -302,12 +302,12 @@ pub struct RegionRecord {
 }
 
 impl RegionRecord {
-    /// The regions of a run, from its cells' material ids.
+    /// The regions of a run, from its cells' region ids.
     pub fn of(run: &FemRun) -> Vec<Self> {
         let volume = &run.volume;
         let u = &volume.node_displacements;
         let mut sums = vec![([0.0; 3], 0usize); run.model.fem.regions.len()];
-        for (nodes, &id) in volume.grid.cell_nodes().iter().zip(&volume.cell_materials) {
+        for (nodes, &id) in volume.grid.cell_nodes().iter().zip(&volume.region_ids) {
             if id == 0 {
                 continue;
             }

@@ -21,7 +21,7 @@ pub struct Calibration {
     pub fibers: FiberModel,
     /// The tissue's Young's modulus (Pa) the calibration started from.
     pub tissue_young: f64,
-    /// The fiber modulus found (the scene's `[ffm] young` that matches the FEM; a fiber
+    /// The fiber modulus found (the scene's `[ffm] fiber_modulus` that matches the FEM; a fiber
     /// modulus, not a Young's modulus).
     pub fiber_modulus: f64,
     /// The fiber surface tension used (0: the calibration fits the modulus alone).

@@ -133,7 +133,7 @@ impl std::fmt::Display for GuardWarning {
         let hint = match self.guard {
             Guard::Volume => "use mode = \"refresh\", or more load steps",
             Guard::Increment | Guard::Inverted => {
-                "the material may be too soft for this load: raise young, or take more steps ([load] steps or tolerance)"
+                "the material may be too soft for this load: raise fiber_modulus, or take more steps ([load] steps or tolerance)"
             }
             Guard::Residual => {
                 "the system is ill-conditioned: use constraints = \"eliminate\" and precision = \"f64\""

@@ -39,9 +39,11 @@ pub mod samples;
 mod simulate;
 pub mod stages;
 
-pub use choices::{FiberModel, ForceTiming, LengthUnit, Method, Mode, Stepping};
+pub use choices::{FiberModel, ForceTiming, Method, Mode, Stepping};
 pub use effects::{Ineffective, ineffective, ineffective_interactive};
 pub use error::{Error, Result};
+/// The length unit of a mesh file (`[mesh] unit`), shared with the label images.
+pub use fibfluid_geometry::LengthUnit;
 pub use model::{
     FemSettings, FfmSettings, Load, MAX_STEPS, Model, NamedRegion, PLATE_REST_TOLERANCE, PointForce, Shape,
     SolverOptions, TimedRun, VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE,

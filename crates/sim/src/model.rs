@@ -5,10 +5,10 @@
 use std::path::PathBuf;
 
 use fibfluid_assembly::{ConstraintKind, ConstraintMethod, Constraints, DEFAULT_PENALTY, Material};
-use fibfluid_geometry::{MeshFile, Polygon, Vec3};
+use fibfluid_geometry::{LengthUnit, MeshFile, Polygon, Vec3};
 use fibfluid_linalg::{Backend, Precision};
 
-use crate::choices::{ForceTiming, LengthUnit, Method, Mode, Stepping};
+use crate::choices::{ForceTiming, Method, Mode, Stepping};
 
 use crate::contact::Plate;
 use crate::guards::Guards;
@@ -133,7 +133,7 @@ pub struct FfmSettings {
     pub fibers: crate::choices::FiberModel,
     /// Whether the fiber modulus is to be calibrated on the body against the
     /// finite-element method before a run (a scene that gives only `[tissue]`; the
-    /// material's `young` is then the tissue's Young's modulus until calibrated).
+    /// material's fiber modulus is then the tissue's Young's modulus until calibrated).
     pub calibrate: bool,
 }
 
@@ -143,7 +143,7 @@ pub struct FfmSettings {
 pub struct FemSettings {
     /// Cells along the bounding box's longest side.
     pub resolution: usize,
-    /// Regions of other tissue inside the body, in the scene's order (material ids 1, 2,
+    /// Regions of other tissue inside the body, in the scene's order (region ids 1, 2,
     /// ...).
     pub regions: Vec<NamedRegion>,
     /// `[tissue] model = "auto"`: solve linear, and again neo-Hookean when the linear
@@ -212,7 +212,7 @@ impl Model {
             tissue: None,
             fem: FemSettings::default(),
             ffm: FfmSettings::default(),
-            unit: LengthUnit::M,
+            unit: LengthUnit::Metre,
         }
     }
 

@@ -165,8 +165,8 @@ pub(crate) struct HyperModel {
     pub(crate) materials: Vec<CellMaterial>,
     /// Each cell's mass density (kg/m^3).
     pub(crate) densities: Vec<f64>,
-    /// Each cell's material id (0: the body's tissue, `k`: region `k`).
-    pub(crate) material_ids: Vec<u16>,
+    /// Each cell's region id (0: the body's tissue, `k`: region `k`).
+    pub(crate) region_ids: Vec<u16>,
 }
 
 /// Newton's scratch: the tangent's values on its fixed pattern and the pattern's kept
@@ -277,7 +277,7 @@ impl HyperBody {
             cell: HyperCell::new(h),
             materials,
             densities: vec![tissue.density(); grid.n_cells()],
-            material_ids: vec![0; grid.n_cells()],
+            region_ids: vec![0; grid.n_cells()],
             grid,
             tissue: *tissue,
             free,
@@ -304,7 +304,7 @@ impl HyperBody {
         let model = Arc::make_mut(&mut self.model);
         model.materials = blend.materials;
         model.densities = blend.densities;
-        model.material_ids = blend.ids;
+        model.region_ids = blend.region_ids;
         self.states = LawStates::new(&self.model.materials);
         Ok(self)
     }
@@ -355,9 +355,9 @@ impl HyperBody {
         }
     }
 
-    /// Each cell's material id (0: the body's tissue, `k`: the `k`-th region).
-    pub fn material_ids(&self) -> &[u16] {
-        &self.model.material_ids
+    /// Each cell's region id (0: the body's tissue, `k`: the `k`-th region).
+    pub fn region_ids(&self) -> &[u16] {
+        &self.model.region_ids
     }
 
     /// The same body with other Newton settings.

@@ -77,14 +77,15 @@ class Scene:
     """A scene: a body, its material, constraints, loads and solver choices.
 
     Read one with :meth:`Scene.load`. Settings are attributes (``scene.steps``,
-    ``scene.young``, ``scene.backend``, ...) and also a dict (:attr:`settings`, and
+    ``scene.fiber_modulus``, ``scene.backend``, ...) and also a dict (:attr:`settings`, and
     :attr:`solver` for the solver's); each value is checked as the scene file's key is,
     and an unknown name or a bad value raises :class:`Error` and changes nothing.
 
     Settings: ``steps`` (int), ``tolerance`` (float in (0, 1) or None: adaptive steps),
-    ``gravity`` (3 floats), ``young`` (a float, or 3 floats per axis), ``surface_tension``,
-    ``density`` (fluid), ``stiffening`` (float or None), ``backend``, ``mode``,
-    ``stepping``, ``precision``, ``constraints`` (names as in scene files), ``penalty``.
+    ``gravity`` (3 floats), ``fiber_modulus`` (a float, or 3 floats per axis; older name
+    ``young``), ``surface_tension``, ``density`` (fluid), ``stiffening`` (float or None),
+    ``backend``, ``mode``, ``stepping``, ``precision``, ``constraints`` (names as in scene
+    files), ``penalty``.
     """
 
     __slots__ = ("_native",)
@@ -234,7 +235,8 @@ _SETTING_DOCS: Dict[str, str] = {
     "steps": "Load steps, 1 to 1000000 ([load].steps).",
     "tolerance": "Adaptive steps: the largest error estimate of a step, in (0, 1), or None ([load].tolerance).",
     "gravity": "Final acceleration (x, y, z), reached over the steps ([gravity].acceleration).",
-    "young": "FFM's fiber modulus, N/m^2 (not a tissue's Young's modulus): a float, or (x, y, z) when it differs per axis ([ffm].young).",
+    "fiber_modulus": "FFM's fiber modulus, N/m^2 (not a tissue's Young's modulus): a float, or (x, y, z) when it differs per axis ([ffm].fiber_modulus).",
+    "young": "The older name of fiber_modulus ([ffm].young, [material].young).",
     "surface_tension": "Surface tension, N/m, >= 0 ([ffm].surface_tension).",
     "density": "The fluid's density, >= 0 ([fluid].density).",
     "stiffening": "Quadratic stiffening coefficient c >= 0, or None for linear fibers ([ffm].stiffening).",
@@ -328,7 +330,10 @@ def _setting(name: str) -> property:
     return property(get, set, doc=_SETTING_DOCS.get(name, name))
 
 
-for _name in _SETTINGS:
+#: Older names of settings (the scene file's older keys), read and written as the new ones.
+_OLDER_SETTINGS: Tuple[str, ...] = ("young",)
+
+for _name in _SETTINGS + _OLDER_SETTINGS:
     setattr(Scene, _name, _setting(_name))
 del _name
 _READ_ONLY: Tuple[str, ...] = ("name", "source", "n_vertices", "vertices", "faces", "fixed_vertices", "notes")

@@ -26,7 +26,8 @@ class Scene:
     steps: int
     tolerance: Optional[float]
     gravity: Tuple[float, float, float]
-    young: Union[float, Tuple[float, float, float]]
+    fiber_modulus: Union[float, Tuple[float, float, float]]
+    young: Union[float, Tuple[float, float, float]]  # the older name of fiber_modulus
     surface_tension: float
     density: float
     stiffening: Optional[float]

@@ -321,7 +321,7 @@ impl Simulation {
 /// to try.
 pub(super) fn explain(e: Error, step: usize, from: f64, to: f64, n: usize) -> Error {
     use fibfluid_linalg::LinalgError as L;
-    let soft = "the body may have folded or collapsed under this load (material too soft, or steps too large): raise young, take more load steps, or set [load] tolerance";
+    let soft = "the body may have folded or collapsed under this load (material too soft, or steps too large): raise fiber_modulus, take more load steps, or set [load] tolerance";
     let (cause, hint): (String, &'static str) = match &e {
         Error::Linalg(L::NonFiniteRhs { index }) | Error::Linalg(L::NonFiniteSolution { index }) => {
             (format!("a non-finite value at {}", unknown(*index, n)), soft)
