@@ -29,8 +29,8 @@ mod lines;
 mod path_file;
 mod regions;
 mod spec;
-mod tissue_table;
 mod time_table;
+mod tissue_table;
 
 pub use error::{Error, Result, SceneError, SceneProblem};
 pub use path_file::{load_tool_path, parse_tool_path};

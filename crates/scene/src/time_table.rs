@@ -13,7 +13,10 @@ const DEFAULT_OUTPUTS: f64 = 100.0;
 
 /// `[time]` with `[load] curve`: `None` without `[time]`; a curve without `[time]` is
 /// refused (it would do nothing).
-pub(crate) fn timed_run(time: Option<TimeToml>, curve: Option<Vec<[f64; 2]>>) -> Result<Option<TimedRun>, Invalid> {
+pub(crate) fn timed_run(
+    time: Option<TimeToml>,
+    curve: Option<Vec<[f64; 2]>>,
+) -> Result<Option<TimedRun>, Invalid> {
     let Some(t) = time else {
         return match curve {
             Some(_) => Err(invalid(

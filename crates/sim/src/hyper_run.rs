@@ -87,7 +87,9 @@ pub fn solve(
     let plates = rigid_plates(model);
     let failed = |source| Error::Fem { scene: model.display_name(), source };
     let (solution, series) = match &model.fem.time {
-        None => (log.time(names::SOLVE, || body.solve(&full_loads(model), &plates)).map_err(failed)?, Vec::new()),
+        None => {
+            (log.time(names::SOLVE, || body.solve(&full_loads(model), &plates)).map_err(failed)?, Vec::new())
+        }
         Some(timed) => {
             let mut series = Vec::new();
             let run = log

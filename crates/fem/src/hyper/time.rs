@@ -512,7 +512,9 @@ impl Clock {
         let eps = TIME_ROUNDING * settings.step;
         let breakpoint =
             curve.points().iter().map(|p| p.0).find(|&t| t > self.time + eps).unwrap_or(f64::INFINITY);
-        (self.time + self.step).min(self.next_output).min(breakpoint).min(settings.end)
+        let limit = self.next_output.min(breakpoint).min(settings.end);
+        // A step that ends within rounding of the limit ends on it.
+        if self.time + self.step >= limit - eps { limit } else { self.time + self.step }
     }
 
     /// A converged step to `to`: the step grows back toward the largest.
