@@ -1173,3 +1173,64 @@ fn a_diverged_configuration_does_not_break_the_charts() {
     assert!(note.contains("3 steps") && note.contains("10 steps") && !note.contains(" 1 steps"), "{note}");
     assert!(md.contains("3.70e122"), "the table keeps the diverged number:\n{md}");
 }
+
+/// `run` on the bundled timed scene (a viscoelastic cube pressed by 10 % and held, one Prony
+/// term g = 0.5, tau = 1 s) writes `series.csv`, whose plate force relaxes as the reduced
+/// relaxation function: force(1 s) / force(3 s) = G(1) / G(3) within 1 % (the closed form
+/// `G(t) = 1 - g (1 - exp(-t / tau))`; the elastic force cancels in the ratio).
+#[test]
+fn a_timed_scene_writes_its_series_and_relaxes() {
+    let out = tempfile::tempdir().unwrap();
+    let scene = root().join("fixtures/scenes/block-relaxation.toml");
+    let done = bin().args(["run"]).arg(&scene).arg("--out").arg(out.path()).output().unwrap();
+    assert!(done.status.success(), "{}", String::from_utf8_lossy(&done.stderr));
+    let csv = std::fs::read_to_string(out.path().join("series.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(
+        header,
+        ["time", "load", "max_displacement", "volume", "kinetic_energy", "strain_energy", "plate_1_force"]
+    );
+    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
+    let at =
+        |t: f64| rows.iter().find(|r| (r[0] - t).abs() < 1e-9).unwrap_or_else(|| panic!("no row at {t} s"));
+    assert_eq!(rows.first().unwrap()[0], 0.0);
+    assert_eq!(rows.last().unwrap()[0], 3.0);
+    let g = |t: f64| 1.0 - 0.5 * (1.0 - (-t).exp());
+    let ratio = at(1.0)[6] / at(3.0)[6];
+    eprintln!("force(1 s) / force(3 s) = {ratio:.5}, G(1) / G(3) = {:.5}", g(1.0) / g(3.0));
+    assert!((ratio / (g(1.0) / g(3.0)) - 1.0).abs() < 0.01);
+}
+
+/// A load curve without `[time]` would do nothing: refused naming the key; `[time]` with
+/// the fiber–fluid method is refused naming the method and the fix (exit 2 both).
+#[test]
+fn time_keys_that_cannot_act_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(root().join("fixtures/scenes/block-relaxation.toml")).unwrap();
+    let mesh = root().join("fixtures/meshes/cube.obj");
+    let text = text.replace("../meshes/cube.obj", &mesh.display().to_string().replace('\\', "/"));
+    // The scene without its [time] table (from `[time]` to the blank line after it).
+    let mut in_time = false;
+    let untimed: String = text
+        .lines()
+        .filter(|l| {
+            in_time = (in_time || l.starts_with("[time]")) && !l.trim().is_empty();
+            !in_time
+        })
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let cases = [
+        ("curve.toml", untimed, "[load].curve"),
+        ("ffm.toml", text.replace("method = \"fem\"", "method = \"ffm\""), "[time]"),
+    ];
+    for (name, scene, expected) in cases {
+        let path = dir.path().join(name);
+        std::fs::write(&path, scene).unwrap();
+        let done = bin().arg("run").arg(&path).arg("--out").arg(dir.path().join("out")).output().unwrap();
+        let stderr = String::from_utf8_lossy(&done.stderr);
+        eprintln!("{name}: {stderr}");
+        assert_eq!(done.status.code(), Some(2), "{name}: {stderr}");
+        assert!(stderr.contains(expected), "{name}: {stderr}");
+    }
+}

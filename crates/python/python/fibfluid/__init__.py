@@ -424,6 +424,20 @@ def _volume(native: Any) -> Optional[Volume]:
     )
 
 
+def _series(report: Dict[str, Any]) -> Optional[Dict[str, np.ndarray]]:
+    """A timed run's series from its report (``newton.series``), as NumPy arrays."""
+    rows = (report.get("newton") or {}).get("series")
+    if not rows:
+        return None
+    out: Dict[str, np.ndarray] = {
+        key: np.array([r[key] for r in rows], dtype=np.float64)
+        for key in ("time", "load", "max_displacement", "volume", "kinetic_energy", "strain_energy")
+    }
+    out["plate_forces"] = np.array([r["plate_forces"] for r in rows], dtype=np.float64).reshape(len(rows), -1)
+    out["grasp_forces"] = np.array([r["grasp_forces"] for r in rows], dtype=np.float64).reshape(len(rows), -1, 3)
+    return out
+
+
 @dataclass(frozen=True)
 class Result:
     """What :func:`run` gives back. The surface's arrays are in the mesh file's vertex
@@ -446,6 +460,11 @@ class Result:
     #: Inside the tissue, for a finite-element run (``method="fem"``): the grid's nodes,
     #: hexahedra and fields of ``volume.vtu``, in metres and Pa. None for the FFM.
     volume: Optional[Volume] = None
+    #: A timed scene's series (``[time]``), the columns of ``series.csv`` as float64
+    #: arrays, one entry per output time: ``time`` (s), ``load``, ``max_displacement`` (m),
+    #: ``volume`` (m^3), ``kinetic_energy`` and ``strain_energy`` (J), ``plate_forces``
+    #: ``(T, plates)`` and ``grasp_forces`` ``(T, grasps, 3)`` (N). None for one equilibrium.
+    series: Optional[Dict[str, np.ndarray]] = None
 
     def volume_to_meshio(self) -> Any:
         """The finite-element volume as a ``meshio.Mesh`` (metres, Pa): the deformed nodes
@@ -571,14 +590,16 @@ def run(scene: Scene, method: Optional[str] = None, progress: Progress = None,
         out = _native.run(scene._native, callback, _memory(max_memory), fem)
     finally:
         close()
+    report = json.loads(out.report_json)
     return Result(
         positions=out.positions,
         displacement=out.displacement,
         pressure=out.pressure,
-        report=json.loads(out.report_json),
+        report=report,
         warnings=list(out.warnings),
         faces=scene.faces,
         volume=_volume(out.volume),
+        series=_series(report),
     )
 
 
