@@ -64,9 +64,9 @@ fn every_fixture_scene_runs_without_a_guard_warning() {
             coarse.fem.resolution = 12;
             let fem = FemRun::new(coarse, None).unwrap();
             assert!(fem.warnings.is_empty(), "{} (fem): {:?}", path.display(), fem.warnings);
-            if !scene.fem.regions.is_empty() || !scene.fem.grasps.is_empty() {
-                // FFM has no regions and no grasps (a run says so): the lesion and grasp
-                // scenes are the FEM's alone.
+            if !scene.fem.regions.is_empty() || !scene.fem.grasps.is_empty() || scene.fem.time.is_some() {
+                // FFM has no regions, no grasps and no time (a run says so): the lesion,
+                // grasp and timed scenes are the FEM's alone.
                 continue;
             }
             scene.solver.method = Method::Ffm;

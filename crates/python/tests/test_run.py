@@ -191,3 +191,29 @@ def test_ctrl_c_stops_a_long_run_between_load_steps():
     assert elapsed < 30.0, f"stopped {elapsed:.2f} s after the start"
     scene.steps = 1
     assert np.all(np.isfinite(fibfluid.run(scene).positions))
+
+
+def test_a_timed_scene_returns_its_series(tmp_path):
+    """The bundled timed scene (a viscoelastic cube pressed and held, g = 0.5, tau = 1 s) at a
+    coarser grid: ``result.series`` holds NumPy arrays, one entry per output time, and the
+    plate force relaxes as G(t) = 1 - g (1 - exp(-t / tau)): force(1 s) / force(3 s) equals
+    G(1) / G(3) within 1 % (the elastic force cancels)."""
+    text = (SCENES / "block-relaxation.toml").read_text()
+    mesh = (SCENES.parent / "meshes" / "cube.obj").as_posix()
+    text = text.replace("../meshes/cube.obj", mesh).replace("resolution = 8", "resolution = 4")
+    path = tmp_path / "block.toml"
+    path.write_text(text)
+    result = fibfluid.run(fibfluid.Scene.load(path))
+    series = result.series
+    assert series is not None
+    times = series["time"]
+    assert times[0] == 0.0 and times[-1] == pytest.approx(3.0)
+    assert series["plate_forces"].shape == (len(times), 1)
+    assert series["grasp_forces"].shape == (len(times), 0, 3)
+    force = {round(t, 6): f for t, f in zip(times, series["plate_forces"][:, 0])}
+    g = lambda t: 1.0 - 0.5 * (1.0 - np.exp(-t))
+    assert force[1.0] / force[3.0] == pytest.approx(g(1.0) / g(3.0), rel=0.01)
+
+
+def test_an_equilibrium_has_no_series(py_run):
+    assert py_run.series is None

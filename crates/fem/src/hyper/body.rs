@@ -10,8 +10,10 @@ use serde::Serialize;
 
 use super::cell::{CellMaterial, CellState, HyperCell};
 use super::contact::surface_samples;
+use super::dynamics::DynamicsTerm;
 use super::grasp::{GRASP_PENALTY, Grasp, GraspRecord, GraspSet};
-use super::terms::{ClampTerm, ContactTerm, ForceTerms};
+use super::model::HyperModel;
+use super::terms::{ClampTerm, ContactTerm, ForceTerm};
 use crate::assemble::{lower_pattern, number_free_dofs};
 use crate::body::{Loads, load_vector};
 use crate::clamp::{Clamp, clamp_stiffness};
@@ -149,24 +151,6 @@ pub struct HyperSolution {
     pub summary: StrainSummary,
     /// Counts and timings.
     pub stats: HyperStats,
-}
-
-/// What a hyperelastic body is, fixed once it is built: the grid with its embedded surface,
-/// the free-dof numbering and each cell's law, moduli and density. Shared (behind an
-/// `Arc`) by the body and every linearization made from it.
-#[derive(Debug, Clone)]
-pub(crate) struct HyperModel {
-    pub(crate) grid: SparseGrid,
-    pub(crate) tissue: Tissue,
-    pub(crate) free: Vec<usize>,
-    pub(crate) n_free: usize,
-    pub(crate) cell: HyperCell,
-    /// Each cell's law and moduli.
-    pub(crate) materials: Vec<CellMaterial>,
-    /// Each cell's mass density (kg/m^3).
-    pub(crate) densities: Vec<f64>,
-    /// Each cell's region id (0: the body's tissue, `k`: region `k`).
-    pub(crate) region_ids: Vec<u16>,
 }
 
 /// Newton's scratch: the tangent's values on its fixed pattern and the pattern's kept
@@ -468,4 +452,24 @@ fn summarize(grid: &SparseGrid, cells: Vec<CellState>) -> (Vec<CellState>, Strai
         s.max_von_mises = s.max_von_mises.max(c.von_mises);
     }
     (cells, s)
+}
+
+/// Every force term of a body besides its tissue.
+pub(crate) struct ForceTerms {
+    pub(crate) clamp: ClampTerm,
+    pub(crate) contact: ContactTerm,
+    pub(crate) grasps: GraspSet,
+    /// Inertia and damping over a time step (a timed solve with `inertia` or damping only).
+    pub(crate) dynamics: Option<DynamicsTerm>,
+}
+
+impl ForceTerms {
+    /// The terms, in the order their energies are summed.
+    pub(crate) fn each(&self) -> Vec<&dyn ForceTerm> {
+        let mut terms: Vec<&dyn ForceTerm> = vec![&self.clamp, &self.contact, &self.grasps];
+        if let Some(d) = &self.dynamics {
+            terms.push(d);
+        }
+        terms
+    }
 }

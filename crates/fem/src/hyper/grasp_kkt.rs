@@ -29,7 +29,8 @@ use fibfluid_linalg::{CapacitanceFactor, row_dot};
 use super::body::{HyperBody, HyperStats};
 use super::grasp::GRASP_TOLERANCE;
 use super::linear_solve::TangentSolver;
-use super::newton::{LoadState, norm};
+use super::newton::norm;
+use super::terms::LoadState;
 use crate::assemble::FIXED;
 
 /// Newton iterations on the grasps' optimality conditions at most, before Uzawa's

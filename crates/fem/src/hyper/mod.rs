@@ -20,9 +20,11 @@
 mod body;
 mod cell;
 mod contact;
+mod dynamics;
 mod grasp;
 mod grasp_kkt;
 mod linear_solve;
+mod model;
 mod newton;
 mod solve;
 mod terms;

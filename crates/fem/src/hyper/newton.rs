@@ -8,10 +8,10 @@ use fibfluid_geometry::Vec3;
 
 use faer::sparse::SparseColMat;
 
-use super::body::{HyperBody, HyperModel, HyperStats};
-use super::contact::RigidPlate;
+use super::body::{HyperBody, HyperStats};
 use super::linear_solve::TangentSolver;
-use super::terms::Assembly;
+use super::model::HyperModel;
+use super::terms::{Assembly, LoadState};
 use crate::assemble::FIXED;
 use crate::element::{CELL_DOFS, CellMatrix};
 use crate::error::{FemError, Result};
@@ -42,17 +42,6 @@ const FAST_PROGRESS: f64 = 0.1;
 /// Iterations Newton may go on past the limit while it converges fast.
 const EXTRA_ITERATIONS: usize = 10;
 
-/// What a solve at one load factor works with.
-pub(crate) struct LoadState<'a> {
-    pub(super) t: f64,
-    pub(super) external: &'a [f64],
-    pub(super) plates: &'a [RigidPlate],
-    /// Per plate, per sample: the contact pressure of the last augmentation (Pa).
-    pub(super) multipliers: &'a [Vec<f64>],
-    /// Per grasped vertex: the force of the last augmentation (N).
-    pub(super) grasp_multipliers: &'a [fibfluid_geometry::Vec3],
-}
-
 /// The body's energy and gradient at one point.
 pub(super) struct Evaluation {
     energy: f64,
@@ -75,13 +64,6 @@ impl crate::error::NotConvergedWhy {
     /// What `failure` saw.
     pub(super) fn of(failure: &Failure) -> Self {
         if failure.indefinite { Self::Indefinite } else { Self::Stalled }
-    }
-}
-
-impl HyperModel {
-    /// The free-dof numbers of a cell's 24 local dofs ([`FIXED`] where fixed).
-    pub(super) fn cell_dofs(&self, nodes: &[usize; 8]) -> [usize; CELL_DOFS] {
-        std::array::from_fn(|l| self.free[3 * nodes[l / 3] + l % 3])
     }
 }
 

@@ -9,7 +9,7 @@ use super::contact::{CONTACT_FORCE_TOLERANCE, CONTACT_GAP_TOLERANCE, MAX_AUGMENT
 use super::grasp::GRASP_TOLERANCE;
 use super::grasp_kkt::GraspKkt;
 use super::linear_solve::DirectSolver;
-use super::newton::LoadState;
+use super::terms::{ContactTerm, LoadState};
 use crate::assemble::FIXED;
 use crate::body::Loads;
 use crate::error::{FemError, NotConvergedWhy, Result};
@@ -280,7 +280,7 @@ impl HyperBody {
         t: f64,
     ) -> Vec<f64> {
         let u = self.node_field(x);
-        let law = super::terms::ContactTerm::law(&self.model);
+        let law = ContactTerm::law(&self.model);
         plates
             .iter()
             .zip(multipliers)
@@ -299,7 +299,7 @@ impl HyperBody {
     /// Uzawa's update of the contact pressures: `lambda <- max(0, lambda - beta g)`.
     fn augment(&self, x: &[f64], plates: &[RigidPlate], t: f64, multipliers: &mut [Vec<f64>]) {
         let u = self.node_field(x);
-        let law = super::terms::ContactTerm::law(&self.model);
+        let law = ContactTerm::law(&self.model);
         for (p, m) in plates.iter().zip(multipliers) {
             for (s, lambda) in self.terms.contact.samples.iter().zip(m.iter_mut()) {
                 *lambda = law.pressure(law.argument(*lambda, p.gap(s.position(&u), t)));
@@ -352,7 +352,7 @@ impl HyperBody {
         for (p, f) in self.terms.grasps.points.iter().zip(&forces) {
             at_fixed(&p.nodes, &p.weights, scale(*f, -1.0));
         }
-        let law = super::terms::ContactTerm::law(&self.model);
+        let law = ContactTerm::law(&self.model);
         for (k, plate) in state.plates.iter().enumerate() {
             for (s, sample) in self.terms.contact.samples.iter().enumerate() {
                 let lambda = state.multipliers[k][s];
@@ -367,7 +367,7 @@ impl HyperBody {
     pub(super) fn finish(&self, run: Progress, state: &LoadState<'_>, support_force: Vec3) -> HyperSolution {
         let (plates, multipliers) = (state.plates, state.multipliers);
         let u = self.node_field(&run.x);
-        let law = super::terms::ContactTerm::law(&self.model);
+        let law = ContactTerm::law(&self.model);
         let mut plate_forces = vec![0.0; plates.len()];
         let mut plate_contacts = vec![0; plates.len()];
         for (k, p) in plates.iter().enumerate() {

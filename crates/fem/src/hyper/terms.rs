@@ -8,13 +8,23 @@
 use faer::sparse::SparseColMat;
 use fibfluid_geometry::Vec3;
 
-use super::body::HyperModel;
 use super::contact::{CONTACT_PENALTY, CONTACT_SMOOTHING, ContactLaw, ContactSample};
 use super::grasp::GraspSet;
-use super::newton::LoadState;
+use super::model::HyperModel;
 use crate::assemble::FIXED;
 use crate::clamp::ClampPoint;
 use crate::element::CELL_DOFS;
+
+/// What a solve at one load factor works with.
+pub(crate) struct LoadState<'a> {
+    pub(super) t: f64,
+    pub(super) external: &'a [f64],
+    pub(super) plates: &'a [super::contact::RigidPlate],
+    /// Per plate, per sample: the contact pressure of the last augmentation (Pa).
+    pub(super) multipliers: &'a [Vec<f64>],
+    /// Per grasped vertex: the force of the last augmentation (N).
+    pub(super) grasp_multipliers: &'a [fibfluid_geometry::Vec3],
+}
 
 /// Where a term adds its gradient (free dofs) and, while a tangent is assembled, its
 /// Hessian (the tangent's lower triangle).
@@ -214,25 +224,5 @@ impl ForceTerm for GraspSet {
             }
         }
         GraspSet::energy(self, u, state.t, state.grasp_multipliers)
-    }
-}
-
-/// Every force term of a body besides its tissue.
-pub(crate) struct ForceTerms {
-    pub(crate) clamp: ClampTerm,
-    pub(crate) contact: ContactTerm,
-    pub(crate) grasps: GraspSet,
-    /// Inertia and damping over a time step (a timed solve with `inertia` or damping only).
-    pub(crate) dynamics: Option<super::time::DynamicsTerm>,
-}
-
-impl ForceTerms {
-    /// The terms, in the order their energies are summed.
-    pub(crate) fn each(&self) -> Vec<&dyn ForceTerm> {
-        let mut terms: Vec<&dyn ForceTerm> = vec![&self.clamp, &self.contact, &self.grasps];
-        if let Some(d) = &self.dynamics {
-            terms.push(d);
-        }
-        terms
     }
 }

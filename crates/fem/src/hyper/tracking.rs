@@ -24,8 +24,9 @@ use std::sync::Arc;
 use fibfluid_geometry::Vec3;
 use fibfluid_linalg::SparseCholesky;
 
-use super::body::{HyperBody, HyperModel};
-use super::newton::LoadState;
+use super::body::HyperBody;
+use super::model::{HyperModel, free_vector};
+use super::terms::LoadState;
 use crate::assemble::FIXED;
 use crate::body::{Loads, add_point_forces};
 use crate::error::{FemError, Result};
@@ -590,19 +591,6 @@ impl HyperBody {
                 .is_some()
         })
     }
-}
-
-/// Free-dof vector of node displacements (the inverse of the body's node field).
-pub(crate) fn free_vector(free: &[usize], n_free: usize, u: &[Vec3]) -> Vec<f64> {
-    let mut x = vec![0.0; n_free];
-    for (n, d) in u.iter().enumerate() {
-        for a in 0..3 {
-            if let Some(xi) = x.get_mut(free[3 * n + a]) {
-                *xi = d[a];
-            }
-        }
-    }
-    x
 }
 
 impl HyperBody {
