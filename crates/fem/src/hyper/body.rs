@@ -328,7 +328,7 @@ impl HyperBody {
             }
             let local = nodes.map(|n| u[n]);
             let fs = self.model.cell.deformation_gradients(&local);
-            let theta = fs.iter().map(|f| crate::law::det(f)).sum::<f64>() / 8.0;
+            let theta = fs.iter().map(crate::law::det).sum::<f64>() / 8.0;
             let cell = self.states.cell_mut(c);
             if let Some(first) = cell.get_mut(..len) {
                 m.law.commit_volumetric(theta, &m.moduli(), first, dt);
