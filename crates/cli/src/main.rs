@@ -556,6 +556,14 @@ fn plan(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> {
 
 fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> {
     let (scene, load) = load_scene(path, over)?;
+    // The outputs' place is checked before anything is computed, not after.
+    let mut names = fibfluid_cli::OUTPUT_FILES.to_vec();
+    if scene.solver.method == Method::Fem {
+        names.push(fibfluid_cli::vtu::VOLUME_FILE);
+    } else if !scene.model.plates.is_empty() {
+        names.push(fibfluid_cli::COMPRESSION_FILE);
+    }
+    fibfluid_cli::check_output_dir(out, &names)?;
     warn_ineffective(&scene);
     let notes = match &scene.shape {
         fibfluid::Shape::Surface(m) => m.notes.clone(),

@@ -710,3 +710,30 @@ fn a_tool_larger_than_the_body_is_refused_before_the_body_is_built() {
     }
     assert!(problems.is_empty(), "{} problems:\n{}", problems.len(), problems.join("\n"));
 }
+
+#[test]
+fn an_output_path_that_is_a_file_is_refused_before_the_run() {
+    // Both runs fail in the engine (the FEM on its constraints, FFM on a memory budget of one
+    // byte): the output path must be refused first, so the message is about the file.
+    let scenes = [
+        (corpus_dir().join("scene-fem-fixed-on-a-line.toml"), None),
+        (fixtures_dir().join("scenes/sphere.toml"), Some("1")),
+    ];
+    for (scene, budget) in scenes {
+        let parent = tempfile::tempdir().unwrap();
+        let out = parent.path().join("results.txt");
+        std::fs::write(&out, KEEP_TEXT).unwrap();
+        let mut args: Vec<&std::ffi::OsStr> =
+            vec!["run".as_ref(), scene.as_os_str(), "--out".as_ref(), out.as_os_str()];
+        if let Some(b) = budget {
+            args.push("--max-memory".as_ref());
+            args.push(b.as_ref());
+        }
+        let output = fibfluid(&args, parent.path());
+        let problems = check_failure("results.txt", "exists and is not a directory", &output);
+        let name = scene.display();
+        assert!(problems.is_empty(), "{name}: {}", problems.join("\n"));
+        assert_eq!(std::fs::read_to_string(&out).unwrap(), KEEP_TEXT, "{name}: the user's file changed");
+        assert_eq!(listing(parent.path()), ["results.txt"], "{name}: something was left beside it");
+    }
+}

@@ -108,6 +108,7 @@ impl FemRun {
             });
         }
         warnings.extend(newton_guards(&answer, small_strain));
+        warnings.extend(support_guards(&model, &answer.plates));
         Ok(Self {
             warnings,
             notes,
@@ -227,6 +228,25 @@ fn newton_guards(answer: &FemAnswer, small_strain: bool) -> Vec<ResultWarning> {
     let cells = answer.grasps.iter().map(|g| g.error).fold(0.0, f64::max) / answer.grid.cell_size();
     if cells > GRASP_ERROR_LIMIT {
         warnings.push(ResultWarning { guard: ResultGuard::Grasp, value: cells, limit: GRASP_ERROR_LIMIT });
+    }
+    warnings
+}
+
+/// The result guards of a finite-element answer's supports: each plate that never touched
+/// the body, and a body with no fixed vertex and no plate in contact (held only by its
+/// grasps' penalties, or by nothing).
+fn support_guards(model: &Model, plates: &[FemPlate]) -> Vec<ResultWarning> {
+    let mut warnings = Vec::new();
+    for (k, p) in plates.iter().enumerate() {
+        if p.contact_samples == 0 && p.force == 0.0 {
+            warnings.push(ResultWarning { guard: ResultGuard::Untouched, value: (k + 1) as f64, limit: 0.0 });
+        }
+    }
+    let fixed = (0..3).any(|axis| model.constraints.count(axis) > 0);
+    let pressed = plates.iter().any(|p| p.contact_samples > 0);
+    if !fixed && !pressed {
+        let grasps = model.fem.grasps.len() as f64;
+        warnings.push(ResultWarning { guard: ResultGuard::Unheld, value: grasps, limit: 0.0 });
     }
     warnings
 }
