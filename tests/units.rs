@@ -233,7 +233,7 @@ fn a_fem_floor_plate_is_unilateral_and_pushes_harder_when_it_travels_farther() {
 }
 
 /// The supports' guards of a FEM run (checked by their messages): a floor plate far below
-/// the hanging sphere never touches it (its force stays 0 N) and is warned about; the same
+/// the hanging sphere, rising by 1 mm, never touches it (its force stays 0 N) and is warned about; the same
 /// sphere with no fixed vertex, held by one grasp only, is warned about as near free; the
 /// sphere hanging from its fixed cap gets neither warning.
 #[test]
@@ -248,7 +248,7 @@ fn a_fem_plate_that_never_touches_and_a_body_held_only_by_a_grasp_are_warned() {
     assert!(!plain.iter().any(|l| untouched(l) || unheld(l)), "{plain:?}");
 
     let mut far = base.clone();
-    far.plates = vec![fibfluid::contact::Plate::new([0.0, -0.1, 0.0], [0.0, 1.0, 0.0], 0.0).unwrap()];
+    far.plates = vec![fibfluid::contact::Plate::new([0.0, -0.1, 0.0], [0.0, 1.0, 0.0], 0.001).unwrap()];
     let run = FemRun::new(far, None).unwrap();
     assert_eq!(run.plates[0].force, 0.0);
     assert!(lines(&run).iter().any(untouched), "{:?}", lines(&run));

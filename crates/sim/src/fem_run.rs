@@ -232,13 +232,15 @@ fn newton_guards(answer: &FemAnswer, small_strain: bool) -> Vec<ResultWarning> {
     warnings
 }
 
-/// The result guards of a finite-element answer's supports: each plate that never touched
-/// the body, and a body with no fixed vertex and no plate in contact (held only by its
+/// The result guards of a finite-element answer's supports: each moving plate that never
+/// touched the body, and a body with no fixed vertex and no plate in contact (held only by its
 /// grasps' penalties, or by nothing).
 fn support_guards(model: &Model, plates: &[FemPlate]) -> Vec<ResultWarning> {
     let mut warnings = Vec::new();
-    for (k, p) in plates.iter().enumerate() {
-        if p.contact_samples == 0 && p.force == 0.0 {
+    // A support that stays put (travel 0) may carry nothing by design; a moving plate that
+    // never reaches the body is a plate set in the wrong place.
+    for (k, (p, plate)) in plates.iter().zip(&model.plates).enumerate() {
+        if p.contact_samples == 0 && p.force == 0.0 && plate.travel != 0.0 {
             warnings.push(ResultWarning { guard: ResultGuard::Untouched, value: (k + 1) as f64, limit: 0.0 });
         }
     }
@@ -402,10 +404,21 @@ pub struct FemReport {
     pub warnings: Vec<ResultWarning>,
     /// Stages with their seconds.
     pub stages: Vec<StageRecord>,
-    /// Notes (mesh warnings, etc.).
-    pub notes: Vec<String>,
+    /// Notes and the settings that had no effect (flattened into `report.json`: `notes`,
+    /// `ineffective`).
+    #[serde(flatten)]
+    pub remarks: FemRemarks,
     /// Wall-clock seconds of the whole run.
     pub seconds_total: f64,
+}
+
+/// What `report.json` of a finite-element run says besides its numbers.
+#[derive(Clone, Debug, Serialize)]
+pub struct FemRemarks {
+    /// Notes (mesh warnings, etc.).
+    pub notes: Vec<String>,
+    /// Settings of the scene that had no effect ([`crate::ineffective`]), one line each.
+    pub ineffective: Vec<String>,
 }
 
 impl FemReport {
@@ -444,7 +457,10 @@ impl FemReport {
             regions: RegionRecord::of(run),
             warnings: run.warnings.clone(),
             stages,
-            notes,
+            remarks: FemRemarks {
+                notes,
+                ineffective: crate::ineffective(&run.model).iter().map(ToString::to_string).collect(),
+            },
             seconds_total: run.seconds + extra_stages.iter().map(|s| s.seconds).sum::<f64>(),
         }
     }

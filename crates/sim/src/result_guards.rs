@@ -13,7 +13,7 @@
 //! | `dilatation` | largest `J` over the tissue's cells, of a neo-Hookean FEM batch answer | above [`DILATATION_LIMIT`] (`e`) |
 //! | `grasp` | the largest distance of a grasped vertex from its target over the grid's cell size, of a neo-Hookean FEM batch answer | above [`GRASP_ERROR_LIMIT`]: the grasp's augmentations stopped short |
 //! | `unstable` | the diagonal shift (over the largest diagonal entry) the last Newton tangent of a neo-Hookean FEM batch answer needed to factor | above 0: the equilibrium found is unstable |
-//! | `untouched` | a plate of a FEM batch answer that no surface sample touches (its force 0 N) | any: the plate did nothing |
+//! | `untouched` | a moving plate (travel not 0) of a FEM batch answer that no surface sample touches (its force 0 N) | any: the plate did nothing |
 //! | `unheld` | a FEM batch answer with no fixed vertex and no plate in contact: only the grasps' penalties (or nothing) hold the body | any: its rigid motion is set by penalties, not by supports |
 //!
 //! The `linear` guard is the small-strain model's own validity, estimated from the answer:
@@ -84,7 +84,7 @@ pub enum ResultGuard {
     Unstable,
     /// A grasped vertex ends further than [`GRASP_ERROR_LIMIT`] cells from its target.
     Grasp,
-    /// A plate of a finite-element answer never touched the body (its force is 0 N); the
+    /// A moving plate of a finite-element answer never touched the body (its force is 0 N); the
     /// warning's value is the plate's 1-based number.
     Untouched,
     /// A finite-element answer with no fixed vertex and no plate in contact: the body is
