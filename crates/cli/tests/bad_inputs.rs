@@ -138,6 +138,10 @@ const EXPECTED: &[(&str, &str)] = &[
         "scene-plate-faces-away.toml:12: [[plate]] #1: the plate faces away from the body",
     ),
     (
+        "scene-plates-cross.toml",
+        "scene-plates-cross.toml: [[plate]] #1 and [[plate]] #2 meet at load factor 0.7500: they face each other",
+    ),
+    (
         "scene-plate-zero-normal.toml",
         "scene-plate-zero-normal.toml:14: [[plate]] #1.normal: must be finite and non-zero",
     ),

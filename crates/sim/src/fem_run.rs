@@ -73,6 +73,7 @@ impl FemRun {
     /// Runs the model with the finite-element method; `max_memory` as for FFM's setup.
     pub fn new(model: impl Into<Model>, max_memory: Option<u64>) -> Result<Self> {
         let model: Model = model.into();
+        crate::contact::refuse_crossing_plates(&model)?;
         let start = Instant::now();
         let limit = fibfluid_linalg::memory_budget(max_memory);
         let mut log = StageLog::default();

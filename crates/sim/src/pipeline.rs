@@ -33,6 +33,7 @@ impl Simulation {
             });
         }
         refuse_projected(&scene)?;
+        crate::contact::refuse_crossing_plates(&scene)?;
         let started = Instant::now();
         let limit = fibfluid_linalg::memory_budget(opts.max_memory);
         // From counts first: a body too large is refused before its convexity check.
