@@ -741,3 +741,26 @@ fn an_output_path_that_is_a_file_is_refused_before_the_run() {
         assert_eq!(listing(parent.path()), ["results.txt"], "{name}: something was left beside it");
     }
 }
+
+/// `bench --two-rate` and `--path` go together: either alone gets one line naming the flag
+/// that is missing (not clap's empty or repeated list of required arguments).
+#[test]
+fn bench_two_rate_without_its_pair_names_the_missing_flag() {
+    let problems: Vec<String> = [
+        (["bench", "--path", "grab.csv"], ["--path grab.csv", "needs --two-rate SCENE"]),
+        (["bench", "--two-rate", "scene.toml"], ["--two-rate scene.toml", "needs --path FILE"]),
+    ]
+    .iter()
+    .flat_map(|(args, fragments)| {
+        let args: Vec<&std::ffi::OsStr> = args.iter().map(|a| a.as_ref()).collect();
+        let mut p = one_line_failure(&args, fragments);
+        let out = fibfluid(&args, &std::env::temp_dir());
+        let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+        if stderr.lines().count() != 1 {
+            p.push(format!("{args:?}: more than one line: {stderr}"));
+        }
+        p
+    })
+    .collect();
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
