@@ -232,6 +232,39 @@ fn a_fem_floor_plate_is_unilateral_and_pushes_harder_when_it_travels_farther() {
     assert!(forces[0] > 0.0 && forces[1] > forces[0] && forces[2] > forces[1], "{forces:?}");
 }
 
+/// The supports' guards of a FEM run (checked by their messages): a floor plate far below
+/// the hanging sphere, rising by 1 mm, never touches it (its force stays 0 N) and is warned about; the same
+/// sphere with no fixed vertex, held by one grasp only, is warned about as near free; the
+/// sphere hanging from its fixed cap gets neither warning.
+#[test]
+fn a_fem_plate_that_never_touches_and_a_body_held_only_by_a_grasp_are_warned() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut base = scene_in(dir.path(), "m", 1.0, "fem");
+    base.fem.resolution = 8;
+    let lines = |run: &FemRun| run.warnings.iter().map(ToString::to_string).collect::<Vec<_>>();
+    let untouched = |l: &String| l.contains("[[plate]] #1 never touched the body");
+    let unheld = |l: &String| l.contains("no vertex is fixed and no plate touches the body");
+    let plain = lines(&FemRun::new(base.clone(), None).unwrap());
+    assert!(!plain.iter().any(|l| untouched(l) || unheld(l)), "{plain:?}");
+
+    let mut far = base.clone();
+    far.plates = vec![fibfluid::contact::Plate::new([0.0, -0.1, 0.0], [0.0, 1.0, 0.0], 0.001).unwrap()];
+    let run = FemRun::new(far, None).unwrap();
+    assert_eq!(run.plates[0].force, 0.0);
+    assert!(lines(&run).iter().any(untouched), "{:?}", lines(&run));
+    assert!(!lines(&run).iter().any(unheld), "{:?}", lines(&run));
+
+    let mut held = base.clone();
+    let rest = held.rest_positions();
+    let top = (0..rest.len()).max_by(|&a, &b| rest[a][1].total_cmp(&rest[b][1])).unwrap();
+    held.constraints = fibfluid::assembly::Constraints::new(rest.len());
+    let vertices = fibfluid::fem::hyper::Grasp::patch(&rest, top, 0.008);
+    held.fem.grasps =
+        vec![fibfluid::fem::hyper::Grasp { vertices, translation: [0.0; 3], rotation: [0.0; 3] }];
+    let run = FemRun::new(held, None).unwrap();
+    assert!(lines(&run).iter().any(unheld), "{:?}", lines(&run));
+}
+
 /// A scene that gives only `[tissue]`: FFM's fiber modulus is calibrated against the FEM
 /// (coarse), and the run reports it. Checked against the FEM at its default resolution (an
 /// independent run, finer than the calibration's): the calibrated FFM's displacement is

@@ -21,6 +21,6 @@ pub mod vtu;
 pub use error::{Error, Result};
 pub use info::{FiberCounts, MeshInfo, SurfaceMeasures, SurfaceTopology};
 pub use output::{
-    COMPRESSION_FILE, OUTPUT_FILES, SurfaceResult, compression_png, render_png, write_fem_outputs,
-    write_fibers_vtk, write_files_atomically, write_outputs, write_vtk,
+    COMPRESSION_FILE, OUTPUT_FILES, SurfaceResult, check_output_dir, compression_png, render_png,
+    write_fem_outputs, write_fibers_vtk, write_files_atomically, write_outputs, write_vtk,
 };

@@ -186,10 +186,10 @@ enum Command {
         /// Instead of the backends: this neo-Hookean scene's two-rate FEM body against its
         /// linear FEM body on --path, frames paced at 1 kHz (frame p99 ratio; refresh over
         /// one batch Newton iteration).
-        #[arg(long, value_name = "SCENE", requires = "path", conflicts_with = "stages")]
+        #[arg(long, value_name = "SCENE", conflicts_with = "stages")]
         two_rate: Option<PathBuf>,
         /// With --two-rate: the tool path CSV to replay.
-        #[arg(long, value_name = "PATH", requires = "two_rate")]
+        #[arg(long, value_name = "PATH")]
         path: Option<PathBuf>,
     },
     /// Accuracy versus time over modes, stepping, steps, precision and backends.
@@ -428,6 +428,17 @@ fn run(command: Command) -> Result<(), CliError> {
         Command::Bench { two_rate: Some(scene), path: Some(path), json, .. } => {
             bench_two_rate(&scene, &path, json)
         }
+        // Each flag of the pair named when the other is missing (one line, not clap's list).
+        Command::Bench { two_rate: Some(scene), path: None, .. } => Err(CliError::Flag {
+            flag: "two-rate",
+            value: scene.display().to_string(),
+            problem: "needs --path FILE too (the tool path CSV to replay on the scene)",
+        }),
+        Command::Bench { two_rate: None, path: Some(path), .. } => Err(CliError::Flag {
+            flag: "path",
+            value: path.display().to_string(),
+            problem: "needs --two-rate SCENE too (the neo-Hookean scene to replay the path on)",
+        }),
         Command::Bench { stages: Some(scene), repeats, json, threads_sweep: Some(sweep), .. } => {
             bench_sweep(&scene, repeats, json, &sweep)
         }
@@ -557,6 +568,14 @@ fn plan(path: &Path, over: &Overrides, json: bool) -> Result<(), CliError> {
 
 fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> {
     let (scene, load) = load_scene(path, over)?;
+    // The outputs' place is checked before anything is computed, not after.
+    let mut names = fibfluid_cli::OUTPUT_FILES.to_vec();
+    if scene.solver.method == Method::Fem {
+        names.push(fibfluid_cli::vtu::VOLUME_FILE);
+    } else if !scene.model.plates.is_empty() {
+        names.push(fibfluid_cli::COMPRESSION_FILE);
+    }
+    fibfluid_cli::check_output_dir(out, &names)?;
     warn_ineffective(&scene);
     let notes = match &scene.shape {
         fibfluid::Shape::Surface(m) => m.notes.clone(),

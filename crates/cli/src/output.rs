@@ -360,23 +360,9 @@ pub fn write_files_atomically(dir: &Path, files: &[(&str, Vec<u8>)]) -> Result<V
         let path = path.to_path_buf();
         move |source| Error::Io { path, source }
     };
-    let parent = match dir.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    if dir.exists() && !dir.is_dir() {
-        return Err(Error::OutputBlocked {
-            path: dir.to_path_buf(),
-            problem: "exists and is not a directory",
-        });
-    }
-    // A directory in the way of one output would stop the moves half-way: refuse up front.
-    if let Some(blocked) = files.iter().map(|(name, _)| dir.join(name)).find(|p| p.is_dir()) {
-        return Err(Error::OutputBlocked {
-            path: blocked,
-            problem: "is a directory, where an output file would go (nothing was written)",
-        });
-    }
+    let parent = parent_of(dir);
+    let names: Vec<&str> = files.iter().map(|(name, _)| *name).collect();
+    check_output_dir(dir, &names)?;
     std::fs::create_dir_all(&parent)
         .map_err(io_at(dir, format!("creating its parent directory {}", parent.display())))?;
     let tmp = parent.join(format!(".fibfluid-tmp-{}-{}", std::process::id(), nanos()));
@@ -406,6 +392,70 @@ pub fn write_files_atomically(dir: &Path, files: &[(&str, Vec<u8>)]) -> Result<V
     }
     let _ = std::fs::remove_dir_all(&tmp);
     Ok(written)
+}
+
+/// The directory the temporary directory of [`write_files_atomically`] goes in.
+fn parent_of(dir: &Path) -> PathBuf {
+    match dir.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+/// Checks, before any work, that the files `names` can be written into `dir` by
+/// [`write_files_atomically`]: `dir` is a directory or does not exist yet, no output name is
+/// taken by a directory, and both `dir` (when it exists) and the directory the temporary
+/// directory goes in (or its nearest existing ancestor) take new entries. Writes nothing
+/// that stays.
+pub fn check_output_dir(dir: &Path, names: &[&str]) -> Result<()> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(Error::OutputBlocked {
+            path: dir.to_path_buf(),
+            problem: "exists and is not a directory",
+        });
+    }
+    // A directory in the way of one output would stop the moves half-way: refuse up front.
+    if let Some(blocked) = names.iter().map(|name| dir.join(name)).find(|p| p.is_dir()) {
+        return Err(Error::OutputBlocked {
+            path: blocked,
+            problem: "is a directory, where an output file would go (nothing was written)",
+        });
+    }
+    let mut places = vec![];
+    if dir.is_dir() {
+        places.push(dir.to_path_buf());
+    }
+    let mut above = parent_of(dir);
+    while !above.exists() {
+        match above.parent() {
+            Some(p) if !p.as_os_str().is_empty() => above = p.to_path_buf(),
+            _ => above = PathBuf::from("."),
+        }
+    }
+    if above.is_dir() && !places.contains(&above) {
+        places.push(above);
+    }
+    for place in places {
+        let probe = place.join(format!(".fibfluid-probe-{}-{}", std::process::id(), nanos()));
+        match std::fs::create_dir(&probe) {
+            Ok(()) => {
+                let _ = std::fs::remove_dir(&probe);
+            }
+            Err(source) => {
+                return Err(Error::Io {
+                    path: dir.to_path_buf(),
+                    source: std::io::Error::new(
+                        source.kind(),
+                        format!(
+                            "cannot write the outputs here: {} takes no new files: {source}",
+                            place.display()
+                        ),
+                    ),
+                });
+            }
+        }
+    }
+    Ok(())
 }
 
 fn nanos() -> u128 {

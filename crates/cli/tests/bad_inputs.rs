@@ -138,6 +138,10 @@ const EXPECTED: &[(&str, &str)] = &[
         "scene-plate-faces-away.toml:12: [[plate]] #1: the plate faces away from the body",
     ),
     (
+        "scene-plates-cross.toml",
+        "scene-plates-cross.toml: [[plate]] #1 and [[plate]] #2 meet at load factor 0.7500: they face each other",
+    ),
+    (
         "scene-plate-zero-normal.toml",
         "scene-plate-zero-normal.toml:14: [[plate]] #1.normal: must be finite and non-zero",
     ),
@@ -709,4 +713,54 @@ fn a_tool_larger_than_the_body_is_refused_before_the_body_is_built() {
         }
     }
     assert!(problems.is_empty(), "{} problems:\n{}", problems.len(), problems.join("\n"));
+}
+
+#[test]
+fn an_output_path_that_is_a_file_is_refused_before_the_run() {
+    // Both runs fail in the engine (the FEM on its constraints, FFM on a memory budget of one
+    // byte): the output path must be refused first, so the message is about the file.
+    let scenes = [
+        (corpus_dir().join("scene-fem-fixed-on-a-line.toml"), None),
+        (fixtures_dir().join("scenes/sphere.toml"), Some("1")),
+    ];
+    for (scene, budget) in scenes {
+        let parent = tempfile::tempdir().unwrap();
+        let out = parent.path().join("results.txt");
+        std::fs::write(&out, KEEP_TEXT).unwrap();
+        let mut args: Vec<&std::ffi::OsStr> =
+            vec!["run".as_ref(), scene.as_os_str(), "--out".as_ref(), out.as_os_str()];
+        if let Some(b) = budget {
+            args.push("--max-memory".as_ref());
+            args.push(b.as_ref());
+        }
+        let output = fibfluid(&args, parent.path());
+        let problems = check_failure("results.txt", "exists and is not a directory", &output);
+        let name = scene.display();
+        assert!(problems.is_empty(), "{name}: {}", problems.join("\n"));
+        assert_eq!(std::fs::read_to_string(&out).unwrap(), KEEP_TEXT, "{name}: the user's file changed");
+        assert_eq!(listing(parent.path()), ["results.txt"], "{name}: something was left beside it");
+    }
+}
+
+/// `bench --two-rate` and `--path` go together: either alone gets one line naming the flag
+/// that is missing (not clap's empty or repeated list of required arguments).
+#[test]
+fn bench_two_rate_without_its_pair_names_the_missing_flag() {
+    let problems: Vec<String> = [
+        (["bench", "--path", "grab.csv"], ["--path grab.csv", "needs --two-rate SCENE"]),
+        (["bench", "--two-rate", "scene.toml"], ["--two-rate scene.toml", "needs --path FILE"]),
+    ]
+    .iter()
+    .flat_map(|(args, fragments)| {
+        let args: Vec<&std::ffi::OsStr> = args.iter().map(|a| a.as_ref()).collect();
+        let mut p = one_line_failure(&args, fragments);
+        let out = fibfluid(&args, &std::env::temp_dir());
+        let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+        if stderr.lines().count() != 1 {
+            p.push(format!("{args:?}: more than one line: {stderr}"));
+        }
+        p
+    })
+    .collect();
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
 }

@@ -49,12 +49,18 @@ pub enum FemError {
         cell: f64,
     },
     /// The grid would exceed [`crate::MAX_CELLS`] cells.
-    #[error("the grid needs {cells} cells, more than the limit {limit}")]
+    #[error(
+        "the grid needs {cells} cells at [fem] resolution {resolution}, more than the limit {limit}: lower [fem] resolution (or --resolution) to {fits} or less"
+    )]
     TooManyCells {
         /// Cells of the full grid.
         cells: u128,
         /// The limit.
         limit: usize,
+        /// The resolution asked for.
+        resolution: usize,
+        /// The largest resolution whose grid fits the limit.
+        fits: usize,
     },
     /// The surface has no vertex or no triangle.
     #[error("the surface is empty ({vertices} vertices, {triangles} triangles)")]

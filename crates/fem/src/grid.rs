@@ -125,7 +125,12 @@ impl GridEstimate {
         }
         let cells = dims.iter().map(|&d| d as u128).product::<u128>();
         if cells > MAX_CELLS as u128 {
-            return Err(FemError::TooManyCells { cells, limit: MAX_CELLS });
+            // Cells grow as the resolution's cube: the largest resolution below the limit.
+            let mut fits = ((resolution as f64) * (MAX_CELLS as f64 / cells as f64).cbrt()) as usize;
+            while fits > 1 && Self::of(positions, fits).is_err() {
+                fits -= 1;
+            }
+            return Err(FemError::TooManyCells { cells, limit: MAX_CELLS, resolution, fits: fits.max(1) });
         }
         let nodes = (dims[0] + 1) * (dims[1] + 1) * (dims[2] + 1);
         let dofs = 3 * nodes;

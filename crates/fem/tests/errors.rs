@@ -44,6 +44,22 @@ fn bad_grids_are_refused() {
     assert!(matches!(SparseGrid::from_surface(&pos, &bad, 8), Err(FemError::Mesh(_))));
 }
 
+/// A resolution whose grid has too many cells is refused naming the key and the largest
+/// resolution that fits (which does fit, and one more does not).
+#[test]
+fn a_grid_with_too_many_cells_names_the_key_and_the_resolution_that_fits() {
+    let (pos, _) = box_surface([0.0; 3], [2, 2, 2], 0.5);
+    let text = GridEstimate::of(&pos, 256).expect_err("256^3 cells").to_string();
+    assert!(text.contains("[fem] resolution 256"), "{text}");
+    let fits: usize = text
+        .split("to ")
+        .last()
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("no resolution to use: {text}"));
+    assert!(GridEstimate::of(&pos, fits).is_ok() && GridEstimate::of(&pos, fits + 1).is_err(), "{text}");
+}
+
 #[test]
 fn bad_constraints_and_loads_are_refused() {
     let (pos, tris) = box_surface([0.0; 3], [4, 2, 2], 0.5);

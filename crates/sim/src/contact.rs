@@ -120,6 +120,70 @@ pub fn check_plates(plates: &[Plate], rest: &[Vec3], tolerance: f64) -> Result<(
     Ok(())
 }
 
+/// Plates whose normals are opposite within this (the cosine of their angle below
+/// `-1 + FACING_TOLERANCE`, about 2.5 degrees) face each other: the body lies in the slab
+/// between them.
+pub const FACING_TOLERANCE: f64 = 1e-3;
+
+/// Two plates facing each other whose slab closes during the load: the body would have to
+/// pass through one of them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlatesMeet {
+    /// The first plate (0-based).
+    pub first: usize,
+    /// The second plate (0-based).
+    pub second: usize,
+    /// The load factor where the slab's width reaches zero.
+    pub load_factor: f64,
+    /// The slab's width at rest (m).
+    pub gap: f64,
+    /// How much the slab closes over the whole load (m).
+    pub closing: f64,
+}
+
+/// The first pair of plates facing each other ([`FACING_TOLERANCE`]) whose gap closes below
+/// zero by load factor 1, from the plates alone: the slab's width is measured through
+/// `centre` (the body's rest centroid) as the sum of its distances to both planes, linear in
+/// the load factor.
+pub fn plates_meet(plates: &[Plate], centre: Vec3) -> Option<PlatesMeet> {
+    for (first, a) in plates.iter().enumerate() {
+        for (second, b) in plates.iter().enumerate().skip(first + 1) {
+            if dot(a.normal, b.normal) > -1.0 + FACING_TOLERANCE {
+                continue;
+            }
+            let width = |lambda| a.gap(centre, lambda) + b.gap(centre, lambda);
+            let (gap, end) = (width(0.0), width(1.0));
+            if gap > 0.0 && end < 0.0 {
+                let closing = gap - end;
+                return Some(PlatesMeet { first, second, load_factor: gap / closing, gap, closing });
+            }
+        }
+    }
+    None
+}
+
+/// Refuses a model whose plates cross during the load ([`plates_meet`]), before anything is
+/// built.
+pub(crate) fn refuse_crossing_plates(model: &crate::Model) -> crate::Result<()> {
+    if model.plates.len() < 2 {
+        return Ok(());
+    }
+    let rest = model.rest_positions();
+    let n = rest.len().max(1) as f64;
+    let centre = scale(rest.iter().fold([0.0; 3], |a, p| add(a, *p)), 1.0 / n);
+    match plates_meet(&model.plates, centre) {
+        None => Ok(()),
+        Some(m) => Err(crate::Error::PlatesMeet {
+            scene: model.display_name(),
+            first: m.first + 1,
+            second: m.second + 1,
+            load_factor: m.load_factor,
+            gap: m.gap,
+            closing: m.closing,
+        }),
+    }
+}
+
 /// What is wrong with a plate at rest.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum PlateProblem {

@@ -60,6 +60,13 @@ pub enum Ineffective {
         /// The vertex, as the scene names it (the file's 0-based index).
         vertex: usize,
     },
+    /// `[load] steps` (or `tolerance`) in a finite-element run: the FEM steps its load on its
+    /// own (Newton's adaptive increments; a plain linear body is one solve), so the count
+    /// does not act.
+    StepsInFem {
+        /// The steps asked for.
+        steps: usize,
+    },
     /// A point force on a vertex that is constrained along every axis the force pushes.
     ForceOnFixedVertex {
         /// 1-based position among the scene's forces (`[[force]] #k`).
@@ -98,6 +105,10 @@ impl fmt::Display for Ineffective {
                 f,
                 "[material] stiffening has no effect in {} mode (K is assembled once, at the rest shape, where the strain is 0); set [solver] mode = \"nonlinear\"",
                 mode
+            ),
+            Ineffective::StepsInFem { steps } => write!(
+                f,
+                "[load] steps = {steps} has no effect on the finite-element method: the FEM steps its load adaptively (Newton's method picks its own increments; a linear body without plates is one solve); it acts with method = \"ffm\" only"
             ),
             Ineffective::ZeroForce { index, vertex } => write!(
                 f,
@@ -158,6 +169,9 @@ pub fn ineffective(scene: &Model) -> Vec<Ineffective> {
     };
     if stiffens && scene.solver.mode != Mode::Nonlinear && !fem {
         found.push(Ineffective::StiffeningOutsideNonlinear { mode: scene.solver.mode });
+    }
+    if fem && (scene.load.steps > 1 || scene.load.tolerance.is_some()) {
+        found.push(Ineffective::StepsInFem { steps: scene.load.steps });
     }
     let axes = if matches!(scene.shape, Shape::Polygon(_)) { 2 } else { 3 };
     let n = scene.constraints.n_vertices();

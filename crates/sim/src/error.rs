@@ -115,6 +115,25 @@ pub enum Error {
         /// How many.
         count: usize,
     },
+    /// Two plates facing each other whose travels close the gap between them during the
+    /// load, found from the scene before anything is built.
+    #[error(
+        "{scene}: [[plate]] #{first} and [[plate]] #{second} meet at load factor {load_factor:.4}: they face each other {gap:.3e} m apart at rest and their travels close {closing:.3e} m, so the body would have to pass through a plate; make their travels add up to less than the gap (less than the body's thickness there, in practice)"
+    )]
+    PlatesMeet {
+        /// The scene.
+        scene: String,
+        /// The first plate (1-based, as `[[plate]] #k`).
+        first: usize,
+        /// The second plate (1-based).
+        second: usize,
+        /// The load factor where they meet.
+        load_factor: f64,
+        /// Their gap at rest (m).
+        gap: f64,
+        /// How much their travels close it (m).
+        closing: f64,
+    },
     /// The caller stopped the run ([`crate::RunOptions::cancel`]) before a load step.
     #[error("stopped at load factor {load_factor:.4} (interrupted)")]
     Cancelled {

@@ -73,6 +73,7 @@ impl FemRun {
     /// Runs the model with the finite-element method; `max_memory` as for FFM's setup.
     pub fn new(model: impl Into<Model>, max_memory: Option<u64>) -> Result<Self> {
         let model: Model = model.into();
+        crate::contact::refuse_crossing_plates(&model)?;
         let start = Instant::now();
         let limit = fibfluid_linalg::memory_budget(max_memory);
         let mut log = StageLog::default();
@@ -108,6 +109,7 @@ impl FemRun {
             });
         }
         warnings.extend(newton_guards(&answer, small_strain));
+        warnings.extend(support_guards(&model, &answer.plates));
         Ok(Self {
             warnings,
             notes,
@@ -227,6 +229,27 @@ fn newton_guards(answer: &FemAnswer, small_strain: bool) -> Vec<ResultWarning> {
     let cells = answer.grasps.iter().map(|g| g.error).fold(0.0, f64::max) / answer.grid.cell_size();
     if cells > GRASP_ERROR_LIMIT {
         warnings.push(ResultWarning { guard: ResultGuard::Grasp, value: cells, limit: GRASP_ERROR_LIMIT });
+    }
+    warnings
+}
+
+/// The result guards of a finite-element answer's supports: each moving plate that never
+/// touched the body, and a body with no fixed vertex and no plate in contact (held only by its
+/// grasps' penalties, or by nothing).
+fn support_guards(model: &Model, plates: &[FemPlate]) -> Vec<ResultWarning> {
+    let mut warnings = Vec::new();
+    // A support that stays put (travel 0) may carry nothing by design; a moving plate that
+    // never reaches the body is a plate set in the wrong place.
+    for (k, (p, plate)) in plates.iter().zip(&model.plates).enumerate() {
+        if p.contact_samples == 0 && p.force == 0.0 && plate.travel != 0.0 {
+            warnings.push(ResultWarning { guard: ResultGuard::Untouched, value: (k + 1) as f64, limit: 0.0 });
+        }
+    }
+    let fixed = (0..3).any(|axis| model.constraints.count(axis) > 0);
+    let pressed = plates.iter().any(|p| p.contact_samples > 0);
+    if !fixed && !pressed {
+        let grasps = model.fem.grasps.len() as f64;
+        warnings.push(ResultWarning { guard: ResultGuard::Unheld, value: grasps, limit: 0.0 });
     }
     warnings
 }
@@ -382,10 +405,21 @@ pub struct FemReport {
     pub warnings: Vec<ResultWarning>,
     /// Stages with their seconds.
     pub stages: Vec<StageRecord>,
-    /// Notes (mesh warnings, etc.).
-    pub notes: Vec<String>,
+    /// Notes and the settings that had no effect (flattened into `report.json`: `notes`,
+    /// `ineffective`).
+    #[serde(flatten)]
+    pub remarks: FemRemarks,
     /// Wall-clock seconds of the whole run.
     pub seconds_total: f64,
+}
+
+/// What `report.json` of a finite-element run says besides its numbers.
+#[derive(Clone, Debug, Serialize)]
+pub struct FemRemarks {
+    /// Notes (mesh warnings, etc.).
+    pub notes: Vec<String>,
+    /// Settings of the scene that had no effect ([`crate::ineffective`]), one line each.
+    pub ineffective: Vec<String>,
 }
 
 impl FemReport {
@@ -424,7 +458,10 @@ impl FemReport {
             regions: RegionRecord::of(run),
             warnings: run.warnings.clone(),
             stages,
-            notes,
+            remarks: FemRemarks {
+                notes,
+                ineffective: crate::ineffective(&run.model).iter().map(ToString::to_string).collect(),
+            },
             seconds_total: run.seconds + extra_stages.iter().map(|s| s.seconds).sum::<f64>(),
         }
     }

@@ -40,6 +40,7 @@ impl Simulation {
                 problem: "has a [time] table: a run through time (viscoelastic relaxation, inertia) is the finite-element method's; set [solver] method = \"fem\" with a [tissue] table, or remove [time]",
             });
         }
+        crate::contact::refuse_crossing_plates(&scene)?;
         let started = Instant::now();
         let limit = fibfluid_linalg::memory_budget(opts.max_memory);
         // From counts first: a body too large is refused before its convexity check.

@@ -13,6 +13,8 @@
 //! | `dilatation` | largest `J` over the tissue's cells, of a neo-Hookean FEM batch answer | above [`DILATATION_LIMIT`] (`e`) |
 //! | `grasp` | the largest distance of a grasped vertex from its target over the grid's cell size, of a neo-Hookean FEM batch answer | above [`GRASP_ERROR_LIMIT`]: the grasp's augmentations stopped short |
 //! | `unstable` | the diagonal shift (over the largest diagonal entry) the last Newton tangent of a neo-Hookean FEM batch answer needed to factor | above 0: the equilibrium found is unstable |
+//! | `untouched` | a moving plate (travel not 0) of a FEM batch answer that no surface sample touches (its force 0 N) | any: the plate did nothing |
+//! | `unheld` | a FEM batch answer with no fixed vertex and no plate in contact: only the grasps' penalties (or nothing) hold the body | any: its rigid motion is set by penalties, not by supports |
 //!
 //! The `linear` guard is the small-strain model's own validity, estimated from the answer:
 //! a displacement of a tenth of the body's size means strains of that order or more where
@@ -82,6 +84,12 @@ pub enum ResultGuard {
     Unstable,
     /// A grasped vertex ends further than [`GRASP_ERROR_LIMIT`] cells from its target.
     Grasp,
+    /// A moving plate of a finite-element answer never touched the body (its force is 0 N); the
+    /// warning's value is the plate's 1-based number.
+    Untouched,
+    /// A finite-element answer with no fixed vertex and no plate in contact: the body is
+    /// near free, held only by the grasps' penalties (the value: how many grasps).
+    Unheld,
 }
 
 impl Choice for ResultGuard {
@@ -96,6 +104,8 @@ impl Choice for ResultGuard {
         ResultGuard::Dilatation,
         ResultGuard::Unstable,
         ResultGuard::Grasp,
+        ResultGuard::Untouched,
+        ResultGuard::Unheld,
     ];
     fn name(self) -> &'static str {
         match self {
@@ -108,6 +118,8 @@ impl Choice for ResultGuard {
             ResultGuard::Dilatation => "dilatation",
             ResultGuard::Unstable => "unstable",
             ResultGuard::Grasp => "grasp",
+            ResultGuard::Untouched => "untouched",
+            ResultGuard::Unheld => "unheld",
         }
     }
 }
@@ -163,8 +175,17 @@ impl std::fmt::Display for ResultWarning {
                 "the equilibrium found is unstable: its tangent needed a diagonal shift of {value} of its largest entry to factor (limit {limit})",
                 "the body is past a buckling load and would sway or fold to a shape this answer does not show: support it more widely, or load it less",
             ),
+            ResultGuard::Untouched => (
+                "[[plate]] #{count} never touched the body: its force is 0 N",
+                "the plate does nothing where it is: move it (or its travel) so that it reaches the body, or remove it",
+            ),
+            ResultGuard::Unheld => (
+                "no vertex is fixed and no plate touches the body: only {count} grasp(s) hold it, by penalties",
+                "the body is near free and its rigid motion is whatever the penalties leave: fix vertices ([[fix]]) or support it with a plate",
+            ),
         };
         let what = what
+            .replace("{count}", &format!("{}", self.value))
             .replace("{value}", &format!("{:.3e}", self.value))
             .replace("{limit}", &format!("{}", self.limit));
         write!(f, "result guard `{}`: {what}; {hint}", self.guard)
