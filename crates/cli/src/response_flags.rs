@@ -2,7 +2,6 @@
 //! response's storage and precompute, the memory budget and the two-rate body's refreshes.
 
 use fibfluid::Scene;
-use fibfluid::fem::TissueModel;
 use fibfluid::interact::{Method, Precompute, ProbeOptions, RefreshMode, Storage};
 
 /// The flags of the precomputed response, shared by `probe`, `compare` and `view`.
@@ -51,7 +50,7 @@ impl ResponseFlags {
                 problem: "must be at least 1",
             });
         }
-        let neo_hookean = scene.tissue.is_some_and(|t| t.model() == TissueModel::NeoHookean);
+        let neo_hookean = scene.tissue.is_some_and(|t| !t.is_linear());
         let two_rate = neo_hookean && methods.contains(&Method::Fem);
         let given = [
             ("refresh-every", self.refresh_every.map(|k| k.to_string())),
