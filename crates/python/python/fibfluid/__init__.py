@@ -433,8 +433,9 @@ def _series(report: Dict[str, Any]) -> Optional[Dict[str, np.ndarray]]:
         key: np.array([r[key] for r in rows], dtype=np.float64)
         for key in ("time", "load", "max_displacement", "volume", "kinetic_energy", "strain_energy")
     }
-    out["plate_forces"] = np.array([r["plate_forces"] for r in rows], dtype=np.float64).reshape(len(rows), -1)
-    out["grasp_forces"] = np.array([r["grasp_forces"] for r in rows], dtype=np.float64).reshape(len(rows), -1, 3)
+    plates, grasps = len(rows[0]["plate_forces"]), len(rows[0]["grasp_forces"])
+    out["plate_forces"] = np.array([r["plate_forces"] for r in rows], dtype=np.float64).reshape(len(rows), plates)
+    out["grasp_forces"] = np.array([r["grasp_forces"] for r in rows], dtype=np.float64).reshape(len(rows), grasps, 3)
     return out
 
 
