@@ -165,3 +165,11 @@ impl ContactLaw {
         area / (2.0 * self.beta) * (q - multiplier * multiplier)
     }
 }
+
+/// Refuses a plate with a non-finite position, end or normal ([`FemError::NonFinite`]).
+pub(crate) fn check_plates(plates: &[RigidPlate]) -> crate::error::Result<()> {
+    if plates.iter().any(|p| p.start.iter().chain(&p.end).chain(&p.normal).any(|v| !v.is_finite())) {
+        return Err(crate::error::FemError::NonFinite { what: "plate" });
+    }
+    Ok(())
+}

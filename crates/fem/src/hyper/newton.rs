@@ -11,9 +11,8 @@ use faer::sparse::SparseColMat;
 use super::body::{HyperBody, HyperStats};
 use super::linear_solve::TangentSolver;
 use super::model::HyperModel;
-use super::terms::{Assembly, LoadState};
+use super::terms::{Assembly, LoadState, add_cell_matrix};
 use crate::assemble::FIXED;
-use crate::element::{CELL_DOFS, CellMatrix};
 use crate::error::{FemError, Result};
 use crate::law::LawStates;
 
@@ -67,26 +66,6 @@ impl crate::error::NotConvergedWhy {
     }
 }
 
-/// Adds a cell matrix on `dofs` to the tangent's lower triangle.
-fn add_cell_matrix(tangent: &mut SparseColMat<usize, f64>, dofs: &[usize; CELL_DOFS], k: &CellMatrix) {
-    let (symbolic, values) = tangent.parts_mut();
-    let (col_ptr, row_idx) = (symbolic.col_ptr(), symbolic.row_idx());
-    for (c, &gc) in dofs.iter().enumerate() {
-        if gc == FIXED {
-            continue;
-        }
-        let col = &row_idx[col_ptr[gc]..col_ptr[gc + 1]];
-        for (r, &gr) in dofs.iter().enumerate() {
-            if gr == FIXED || gr < gc {
-                continue;
-            }
-            if let Ok(pos) = col.binary_search(&gr) {
-                values[col_ptr[gc] + pos] += k[r][c];
-            }
-        }
-    }
-}
-
 /// The tissue's energy and its gradient at node displacements `u`, the Hessian added to
 /// `tangent` when given. `None` when a cell is inverted (`J <= 0`).
 fn add_tissue(
@@ -110,7 +89,7 @@ fn add_tissue(
             }
         }
         if let (Some(k), Some(tangent)) = (t.hessian, tangent.as_deref_mut()) {
-            add_cell_matrix(tangent, &dofs, &k);
+            add_cell_matrix(tangent, &dofs, &k, 1.0);
         }
     }
     Some(elastic)

@@ -5,7 +5,9 @@ use fibfluid_geometry::vec3::scale;
 
 use super::body::{HyperBody, HyperSolution, HyperStats, LoadStep};
 
-use super::contact::{CONTACT_FORCE_TOLERANCE, CONTACT_GAP_TOLERANCE, MAX_AUGMENTATIONS, RigidPlate};
+use super::contact::{
+    CONTACT_FORCE_TOLERANCE, CONTACT_GAP_TOLERANCE, MAX_AUGMENTATIONS, RigidPlate, check_plates,
+};
 use super::grasp::GRASP_TOLERANCE;
 use super::grasp_kkt::GraspKkt;
 use super::linear_solve::DirectSolver;
@@ -83,9 +85,7 @@ impl HyperBody {
     /// cannot converge ([`FemError::NotConverged`], with the step, the load factor and the
     /// residual).
     pub fn solve(&mut self, loads: &Loads, plates: &[RigidPlate]) -> Result<HyperSolution> {
-        if plates.iter().any(|p| p.start.iter().chain(&p.end).chain(&p.normal).any(|v| !v.is_finite())) {
-            return Err(FemError::NonFinite { what: "plate" });
-        }
+        check_plates(plates)?;
         let external = self.external_loads(loads)?;
         let mut duals =
             Multipliers::zero(self.terms.contact.samples.len(), plates.len(), self.terms.grasps.points.len());

@@ -22,7 +22,7 @@
 use fibfluid_geometry::Vec3;
 
 use super::body::{HyperBody, HyperSolution, LoadStep};
-use super::contact::{MAX_AUGMENTATIONS, RigidPlate};
+use super::contact::{MAX_AUGMENTATIONS, RigidPlate, check_plates};
 use super::dynamics::DynamicsTerm;
 use super::solve::{Augmenting, Multipliers, Progress};
 use super::terms::LoadState;
@@ -209,9 +209,7 @@ impl HyperBody {
         on_sample: &mut dyn FnMut(&TimeSample),
     ) -> Result<TimeSolution> {
         settings.validate()?;
-        if plates.iter().any(|p| p.start.iter().chain(&p.end).chain(&p.normal).any(|v| !v.is_finite())) {
-            return Err(FemError::NonFinite { what: "plate" });
-        }
+        check_plates(plates)?;
         let external = self.external_loads(loads)?;
         let mass = self.lumped_mass();
         if settings.inertia && !mass.iter().any(|&m| m > 0.0) {
