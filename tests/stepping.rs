@@ -51,7 +51,8 @@ fn fired(sim: &Simulation) -> Vec<Guard> {
 }
 
 #[test]
-fn every_fixture_scene_runs_without_a_guard_warning() {
+#[ignore = "long run: CI runs it with `cargo test --workspace -- --ignored long_`"]
+fn long_every_fixture_scene_runs_without_a_guard_warning() {
     let mut scenes: Vec<_> =
         std::fs::read_dir("fixtures/scenes").unwrap().map(|e| e.unwrap().path()).collect();
     scenes.sort();
@@ -159,7 +160,8 @@ fn zero_load_steps_are_skipped() {
 /// (several times finer than the adaptive steps; Heun's error falls as 1/n^2), on the sphere (a ramped push) and liver2,
 /// in every mode.
 #[test]
-fn adaptive_steps_meet_their_tolerance() {
+#[ignore = "long run: CI runs it with `cargo test --workspace -- --ignored long_`"]
+fn long_adaptive_steps_meet_their_tolerance() {
     const TOLERANCE: f64 = 1e-3;
     let mut push = sphere();
     push.load.forces.iter_mut().for_each(|f| f.timing = ForceTiming::Ramp);

@@ -213,7 +213,8 @@ fn roundtrip_json_has_the_documented_keys() {
 }
 
 #[test]
-fn mesh_info_on_every_fixture_mesh() {
+#[ignore = "long run: CI runs it with `cargo test --workspace -- --ignored long_`"]
+fn long_mesh_info_on_every_fixture_mesh() {
     let dir = root().join("fixtures/meshes");
     let mut seen = 0;
     for entry in std::fs::read_dir(&dir).unwrap() {
@@ -953,7 +954,8 @@ fn a_long_idle_path_costs_only_the_frames_that_change() {
 /// 162-vertex sphere), so it fits a 4 MB budget that 2,001 kept frames (7.8 MB) would
 /// not; the memory check counts what is kept.
 #[test]
-fn compare_keeps_one_field_per_run_of_identical_frames() {
+#[ignore = "long run: CI runs it with `cargo test --workspace -- --ignored long_`"]
+fn long_compare_keeps_one_field_per_run_of_identical_frames() {
     let tmp = tempfile::tempdir().unwrap();
     let path = tmp.path().join("idle.csv");
     std::fs::write(&path, "frame,vertex,ux,uy,uz\n0,36,0.01,0,0\n2000,36,0.02,0,0\n").unwrap();
@@ -994,7 +996,8 @@ fn bench_stages_json() {
 /// reference as the resolution grows, and each fiber model's difference from the FEM agrees
 /// with what its calibration found (a different resolution and no scaling: within 0.05).
 #[test]
-fn accuracy_study_has_a_physical_axis_with_both_fiber_models() {
+#[ignore = "long run: CI runs it with `cargo test --workspace -- --ignored long_`"]
+fn long_accuracy_study_has_a_physical_axis_with_both_fiber_models() {
     use fibfluid::sim::FiberModel;
     use fibfluid_cli::study::{Grid, run_study};
     let scene = fibfluid::Scene::load(root().join("fixtures/scenes/sphere-tissue.toml")).unwrap();
@@ -1036,7 +1039,8 @@ fn accuracy_study_has_a_physical_axis_with_both_fiber_models() {
 /// FEM at the same resolution, by at least 3 times at resolution 12 (the discretization
 /// error shrinks, the model error does not).
 #[test]
-fn accuracy_study_measures_the_linear_fem_against_a_neo_hookean_reference() {
+#[ignore = "long run: CI runs it with `cargo test --workspace -- --ignored long_`"]
+fn long_accuracy_study_measures_the_linear_fem_against_a_neo_hookean_reference() {
     use fibfluid_cli::study::{Grid, run_study};
     let text = std::fs::read_to_string(root().join("fixtures/scenes/sphere-tissue.toml")).unwrap();
     let text = text

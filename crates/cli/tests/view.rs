@@ -119,7 +119,8 @@ fn next_linearization(
 /// dragged, refreshes come in on the second thread and every one of them factored the
 /// tangent (a Newton iteration, no chord step).
 #[test]
-fn view_chord_refreshes_zero_makes_every_refresh_a_newton_one() {
+#[ignore = "long run: CI runs it with `cargo test --workspace -- --ignored long_`"]
+fn long_view_chord_refreshes_zero_makes_every_refresh_a_newton_one() {
     let dir = tempfile::tempdir().unwrap();
     let scene = neo_hookean_sphere(dir.path());
     let mut child = Command::new(env!("CARGO_BIN_EXE_fibfluid"))

@@ -56,6 +56,7 @@ mod held;
 mod in_place;
 mod matrix;
 mod memory;
+pub mod multigrid;
 pub mod parallel;
 mod prescribed;
 mod residual;
