@@ -4,6 +4,7 @@
 //! everything it writes goes through here, all or nothing ([`write_files_atomically`]).
 
 pub mod bench;
+pub mod bench_fem;
 pub mod bench_two_rate;
 pub mod compare_run;
 mod error;

@@ -191,6 +191,17 @@ enum Command {
         /// With --two-rate: the tool path CSV to replay.
         #[arg(long, value_name = "PATH")]
         path: Option<PathBuf>,
+        /// Instead of the backends: this scene's finite-element run with each of
+        /// --solvers at each of --resolutions (time per Newton iteration, whole run, peak
+        /// memory, the multigrid's distance from the direct answer).
+        #[arg(long, value_name = "SCENE", conflicts_with_all = ["stages", "two_rate"])]
+        fem_solvers: Option<PathBuf>,
+        /// With --fem-solvers: the resolutions (cells along the longest side).
+        #[arg(long, value_delimiter = ',', value_name = "R,..", default_value = "16,24,32", requires = "fem_solvers")]
+        resolutions: Vec<usize>,
+        /// With --fem-solvers: the solvers (direct, multigrid, auto).
+        #[arg(long, value_delimiter = ',', value_name = "S,..", default_value = "direct,multigrid", requires = "fem_solvers")]
+        solvers: Vec<fibfluid::fem::FemSolver>,
     },
     /// Accuracy versus time over modes, stepping, steps, precision and backends.
     Accuracy {
@@ -240,6 +251,9 @@ struct Overrides {
     /// Cells along the longest side of the finite-element grid (`[fem] resolution`).
     #[arg(long)]
     resolution: Option<usize>,
+    /// The finite-element method's linear solver (`[fem] solver`: auto, direct, multigrid).
+    #[arg(long)]
+    fem_solver: Option<fibfluid::fem::FemSolver>,
     /// Refuse the scene when its plan needs more than this many bytes (default: the
     /// machine's memory).
     #[arg(long, value_name = "BYTES")]
@@ -284,6 +298,7 @@ impl Overrides {
             }
             scene.model.fem.resolution = r;
         }
+        scene.model.fem.solver = self.fem_solver.unwrap_or(scene.model.fem.solver);
         if let Some(n) = self.steps {
             if !(1..=fibfluid::MAX_STEPS).contains(&n) {
                 return Err(CliError::Flag {
@@ -425,6 +440,9 @@ fn run(command: Command) -> Result<(), CliError> {
         Command::Plan { scene, over, json } => plan(&scene, &over, json),
         Command::Run { scene, out, over } => run_scene(&scene, &out, &over),
         Command::Roundtrip { scene, over, json } => roundtrip(&scene, &over, json),
+        Command::Bench { fem_solvers: Some(scene), resolutions, solvers, json, .. } => {
+            bench_fem_solvers(&scene, &resolutions, &solvers, json)
+        }
         Command::Bench { two_rate: Some(scene), path: Some(path), json, .. } => {
             bench_two_rate(&scene, &path, json)
         }
@@ -772,6 +790,44 @@ fn bench_stages(path: &Path, repeats: usize, json: bool) -> Result<(), CliError>
     say!("{:<14} {:>10} {:>10} {:>7}  limit", "stage", "seconds", "limit s", "ratio");
     for s in &stages {
         say!("{:<14} {:>10.4} {:>10.4} {:>7.2}  {}", s.stage, s.seconds, s.limit_seconds, s.ratio, s.limit);
+    }
+    Ok(())
+}
+
+/// `fibfluid bench --fem-solvers SCENE --resolutions R,.. --solvers S,..`.
+fn bench_fem_solvers(
+    path: &Path,
+    resolutions: &[usize],
+    solvers: &[fibfluid::fem::FemSolver],
+    json: bool,
+) -> Result<(), CliError> {
+    if let Some(&r) = resolutions.iter().find(|&&r| !(1..=fibfluid::fem::MAX_RESOLUTION).contains(&r)) {
+        return Err(CliError::Flag { flag: "resolutions", value: r.to_string(), problem: "must be between 1 and 256" });
+    }
+    let (scene, _) = load_scene(path, &Overrides::default())?;
+    let rows = fibfluid_cli::bench_fem::bench_fem_solvers(&scene.model, resolutions, solvers)?;
+    if json {
+        say!("{}", serde_json::json!({ "scene": scene.name, "runs": rows }));
+        return Ok(());
+    }
+    say!(
+        "{:>10} {:>9} {:>8} {:>8} {:>7} {:>9} {:>11} {:>9} {:>10} {:>11}",
+        "resolution", "solver", "cells", "unknowns", "newton", "cg/solve", "s/newton", "run s", "peak MB", "vs direct"
+    );
+    for r in &rows {
+        say!(
+            "{:>10} {:>9} {:>8} {:>8} {:>7} {:>9.1} {:>11.3} {:>9.2} {:>10} {:>11}",
+            r.resolution,
+            r.solver.to_string(),
+            r.cells,
+            r.dofs,
+            r.newton_iterations,
+            r.iterations_per_solve,
+            r.seconds_per_newton_iteration,
+            r.seconds,
+            r.peak_bytes.map_or("-".to_string(), |b| format!("{:.0}", b as f64 / 1e6)),
+            r.from_direct.map_or("-".to_string(), |d| format!("{d:.1e}")),
+        );
     }
     Ok(())
 }

@@ -28,7 +28,7 @@ pub(crate) fn number_free_dofs(fixed_dof: &[bool]) -> (Vec<usize>, usize) {
 }
 
 /// For every node, the sorted nodes that share an active cell with it (itself included).
-fn node_neighbours(grid: &SparseGrid) -> Vec<Vec<usize>> {
+pub(crate) fn node_neighbours(grid: &SparseGrid) -> Vec<Vec<usize>> {
     let mut nb: Vec<Vec<usize>> = vec![Vec::new(); grid.n_nodes()];
     for cell in grid.cell_nodes() {
         for &a in cell {

@@ -88,7 +88,25 @@ pub struct GridEstimate {
     pub factor_bytes: f64,
     /// Estimated flops of the factorization (empirical `~ dofs^2`).
     pub factor_flops: f64,
+    /// Estimated bytes of the multigrid solver: the tangent, its node-block copy and
+    /// coarser levels, and the conjugate-gradient vectors (linear in the unknowns).
+    pub multigrid_bytes: f64,
+    /// Estimated flops of one multigrid-preconditioned solve ([`MULTIGRID_ITERATIONS`]
+    /// iterations; linear in the unknowns).
+    pub multigrid_flops: f64,
 }
+
+/// Conjugate-gradient iterations a multigrid solve is estimated to take (a V-cycle
+/// preconditioner on the hanging bodies takes 10 to 40).
+pub const MULTIGRID_ITERATIONS: f64 = 40.0;
+/// Bytes per unknown of the multigrid solver: the tangent's lower triangle (41 entries of
+/// 16 bytes), its node-block copy with the coarser levels (27 blocks of 76 bytes per node,
+/// times 8/7) and 20 work vectors.
+const MULTIGRID_BYTES_PER_DOF: f64 = 41.0 * 16.0 + 27.0 * 76.0 / 3.0 * 8.0 / 7.0 + 20.0 * 8.0;
+/// Flops per unknown of one preconditioned iteration: a V-cycle's 7 block-row products
+/// per level (27 blocks of 18 flops per node), times 8/7 for the coarser levels, and the
+/// iteration's own product and vector updates.
+const MULTIGRID_FLOPS_PER_DOF: f64 = (7.0 * 8.0 / 7.0 + 1.0) * 27.0 * 18.0 / 3.0 + 20.0;
 
 impl GridEstimate {
     /// The grid of a surface with these vertex positions at `resolution`: cell size
@@ -150,7 +168,23 @@ impl GridEstimate {
             factor_nonzeros,
             factor_bytes,
             factor_flops,
+            multigrid_bytes: MULTIGRID_BYTES_PER_DOF * n,
+            multigrid_flops: MULTIGRID_ITERATIONS * MULTIGRID_FLOPS_PER_DOF * n,
         })
+    }
+
+    /// The bytes and flops of one solve with `solver` (as [`crate::FemSolver::resolve`]
+    /// picks for these unknowns): the factor's or the multigrid's.
+    pub fn solver_cost(&self, solver: crate::FemSolver) -> (f64, f64) {
+        match solver.resolve(self.dofs) {
+            crate::FemSolver::Multigrid => (self.multigrid_bytes, self.multigrid_flops),
+            _ => (self.factor_bytes, self.factor_flops),
+        }
+    }
+
+    /// Whether `solver` resolves to the direct solver on this grid.
+    pub fn uses_direct_solver(&self, solver: crate::FemSolver) -> bool {
+        solver.resolve(self.dofs) == crate::FemSolver::Direct
     }
 
     /// Position of grid node `(0, 0, 0)` for the bounding box `lo..hi`: the grid is centred on

@@ -54,6 +54,7 @@ mod held_rows;
 mod held_system;
 pub mod hyper;
 pub mod law;
+mod multigrid;
 mod ordering;
 mod region;
 mod rigid;
@@ -65,9 +66,11 @@ pub use clamp::fixed_surface_samples;
 pub use error::{FemError, NotConvergedWhy, Result};
 pub use grid::{
     DEFAULT_RESOLUTION, Element, Embedded, FemOptions, GridEstimate, MAX_CELLS, MAX_RESOLUTION, MIN_FILL,
+    MULTIGRID_ITERATIONS,
     SNAP, SUBSAMPLES, SparseGrid,
 };
 pub use held_rows::FemHold;
+pub use multigrid::{COARSEST_NODES, FemSolver, MAX_PCG_ITERATIONS, MULTIGRID_CROSSOVER_DOFS};
 pub use held_system::HeldResponse;
 pub use ordering::{ND_LEAF, Ordering};
 pub use region::{CellBlend, Region, RegionShape, blend_regions};

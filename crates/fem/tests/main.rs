@@ -8,6 +8,7 @@ mod golden;
 mod held;
 mod hyper;
 mod law;
+mod multigrid;
 mod ordering;
 mod patch;
 mod point_force;

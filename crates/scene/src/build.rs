@@ -110,12 +110,14 @@ pub(crate) fn build(
 /// `[fem]`.
 fn fem_settings(f: Option<FemToml>) -> Result<FemSettings, Invalid> {
     let mut s = FemSettings::default();
-    if let Some(r) = f.and_then(|f| f.resolution) {
+    let Some(f) = f else { return Ok(s) };
+    if let Some(r) = f.resolution {
         if !(1..=fibfluid_fem::MAX_RESOLUTION as i64).contains(&r) {
             return Err(range("[fem].resolution", "between 1 and 256 (cells along the longest side)", r));
         }
         s.resolution = r as usize;
     }
+    s.solver = choice("[fem].solver", f.solver, s.solver)?;
     Ok(s)
 }
 

@@ -118,6 +118,7 @@ pub(crate) struct TissueToml {
 #[serde(deny_unknown_fields)]
 pub(crate) struct FemToml {
     pub(crate) resolution: Option<i64>,
+    pub(crate) solver: Option<String>,
 }
 
 #[derive(Deserialize)]

@@ -37,11 +37,12 @@ pub fn estimate(model: &Model, limit: u64) -> Result<GridEstimate> {
         return Err(needs(model, "needs a surface mesh (this scene is a 2D polygon)"));
     };
     let est = GridEstimate::of(file.mesh.positions(), model.fem.resolution).map_err(failed(model))?;
-    if est.factor_bytes > limit as f64 {
+    let (bytes, _) = est.solver_cost(model.fem.solver);
+    if bytes > limit as f64 {
         return Err(Error::TooLarge {
             scene: model.display_name(),
             stage: names::FACTORIZATION,
-            needed: est.factor_bytes as u64,
+            needed: bytes as u64,
             available: limit,
             hint: "lower [fem] resolution",
         });

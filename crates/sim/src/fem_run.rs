@@ -140,7 +140,10 @@ impl FemRun {
 /// (one iteration per change of the contact set); a plain linear body is one solve.
 fn solve_answer(model: &Model, tissue: &Tissue, limit: u64, log: &mut StageLog) -> Result<FemAnswer> {
     let plain = model.plates.is_empty() && model.fem.regions.is_empty() && model.fem.grasps.is_empty();
-    if tissue.is_linear() && plain && model.fem.time.is_none() {
+    // The linear body solves with the sparse Cholesky only: above the crossover the
+    // Newton solver (one iteration for a linear law) brings the multigrid.
+    let direct = crate::fem_inputs::estimate(model, limit)?.uses_direct_solver(model.fem.solver);
+    if tissue.is_linear() && plain && model.fem.time.is_none() && direct {
         return solve_linear(model, limit, log);
     }
     let (body, sol, stats, series) = crate::hyper_run::solve(model, tissue, limit, log)?;

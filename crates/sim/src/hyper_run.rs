@@ -140,9 +140,10 @@ pub fn build(
     let regions: Vec<_> = model.fem.regions.iter().map(|r| r.region.clone()).collect();
     let (positions, triangles) = (file.mesh.positions(), file.mesh.triangles());
     // The grasps' compliance columns get what the memory limit leaves beside the factor.
-    let spare = (limit as f64 - grid.factor_bytes).max(0.0) as usize;
+    let spare = (limit as f64 - grid.solver_cost(model.fem.solver).0).max(0.0) as usize;
     let settings = NewtonSettings {
         grasp_columns_bytes: spare.min(fibfluid_fem::hyper::GRASP_COLUMNS_BYTES),
+        solver: model.fem.solver,
         ..NewtonSettings::default()
     };
     let body = HyperBody::from_surface_grasped(positions, triangles, tissue, &fixed, grasps, &options)

@@ -143,6 +143,8 @@ pub struct FfmSettings {
 pub struct FemSettings {
     /// Cells along the bounding box's longest side.
     pub resolution: usize,
+    /// The linear solver (`[fem] solver`: auto, direct or multigrid).
+    pub solver: fibfluid_fem::FemSolver,
     /// Regions of other tissue inside the body, in the scene's order (region ids 1, 2,
     /// ...).
     pub regions: Vec<NamedRegion>,
@@ -178,6 +180,7 @@ impl Default for FemSettings {
     fn default() -> Self {
         Self {
             resolution: fibfluid_fem::DEFAULT_RESOLUTION,
+            solver: fibfluid_fem::FemSolver::Auto,
             regions: Vec::new(),
             auto_model: false,
             grasps: Vec::new(),

@@ -503,16 +503,7 @@ fn newton_stages(e: &fibfluid_fem::GridEstimate, scene: &Model) -> Vec<PlannedSt
             e.nonzeros as f64 * 16.0,
             n * cells * 8.0 * 2.0 * (24.0 * 9.0 * 3.0 + 24.0 * 24.0 * 3.0),
         ),
-        stage(
-            names::FACTORIZATION,
-            true,
-            format!(
-                "per Newton iteration: numeric sparse Cholesky of up to {} unknowns (~{:.3e} factor nonzeros, one symbolic analysis); x ~{iterations} iterations",
-                e.dofs, e.factor_nonzeros
-            ),
-            e.factor_bytes,
-            n * e.factor_flops,
-        ),
+        linear_solve_stage(e, scene, n),
         stage(
             names::SOLVE,
             true,
@@ -525,13 +516,49 @@ fn newton_stages(e: &fibfluid_fem::GridEstimate, scene: &Model) -> Vec<PlannedSt
     ]
 }
 
+/// A Newton run's linear solves, `n` iterations: the sparse Cholesky's numeric
+/// factorizations, or the multigrid's levels and preconditioned solves, as
+/// `[fem] solver` resolves on this grid; the description names the other's cost too.
+fn linear_solve_stage(e: &fibfluid_fem::GridEstimate, scene: &Model, n: f64) -> PlannedStage {
+    let chosen = scene.fem.solver.resolve(e.dofs);
+    let how = match scene.fem.solver {
+        fibfluid_fem::FemSolver::Auto => format!(
+            "[fem] solver = \"auto\" picks {chosen} ({} unknowns; multigrid from {})",
+            e.dofs,
+            fibfluid_fem::MULTIGRID_CROSSOVER_DOFS
+        ),
+        s => format!("[fem] solver = \"{s}\""),
+    };
+    let direct = format!(
+        "direct: numeric sparse Cholesky of up to {} unknowns, ~{:.3e} factor nonzeros, {:.2e} bytes, {:.2e} flops",
+        e.dofs, e.factor_nonzeros, e.factor_bytes, e.factor_flops
+    );
+    let multigrid = format!(
+        "multigrid: Galerkin levels and ~{} preconditioned iterations, {:.2e} bytes, {:.2e} flops",
+        fibfluid_fem::MULTIGRID_ITERATIONS,
+        e.multigrid_bytes,
+        e.multigrid_flops
+    );
+    let (bytes, flops) = e.solver_cost(scene.fem.solver);
+    stage(
+        names::FACTORIZATION,
+        true,
+        format!("per Newton iteration, {how}; {direct}; {multigrid}; x ~{n} iterations"),
+        bytes,
+        n * flops,
+    )
+}
+
 /// The finite-element method's plan, from the grid's estimate (counts only): voxelization,
 /// assembly, factorization and one solve; for a Newton run (a neo-Hookean tissue, plates or
 /// regions) the assembly, refactorization and solve of each iteration times the expected
 /// count.
 fn fem_plan(scene: &Model) -> Plan {
     let positions = scene.rest_positions();
+    let multigrid = fibfluid_fem::GridEstimate::of(&positions, scene.fem.resolution)
+        .is_ok_and(|e| !e.uses_direct_solver(scene.fem.solver));
     let newton = scene.tissue.is_some_and(|t| !t.is_linear())
+        || multigrid
         || !scene.plates.is_empty()
         || !scene.fem.regions.is_empty()
         || !scene.fem.grasps.is_empty();

@@ -12,6 +12,7 @@ use super::cell::{CellMaterial, CellState, HyperCell};
 use super::contact::surface_samples;
 use super::dynamics::DynamicsTerm;
 use super::grasp::{GRASP_PENALTY, Grasp, GraspRecord, GraspSet};
+use super::linear_solve::{DirectSolver, LinearSolver, MultigridSolver};
 use super::model::HyperModel;
 use super::terms::{ClampTerm, ContactTerm, ForceTerm};
 use crate::assemble::{lower_pattern, number_free_dofs};
@@ -20,6 +21,7 @@ use crate::clamp::{Clamp, clamp_stiffness};
 use crate::error::{FemError, Result};
 use crate::grid::{FemOptions, SparseGrid};
 use crate::law::{LawStates, MaterialLaw};
+use crate::multigrid::GridLevels;
 use crate::ordering::{Ordering, symbolic_analysis};
 use crate::tissue::Tissue;
 
@@ -45,6 +47,8 @@ pub struct NewtonSettings {
     /// method on their optimality conditions may keep; above it Uzawa's augmentations
     /// alone meet the grasps.
     pub grasp_columns_bytes: usize,
+    /// The linear solver of each Newton iteration (`Auto`: by the unknowns' count).
+    pub solver: crate::FemSolver,
 }
 
 impl Default for NewtonSettings {
@@ -56,6 +60,7 @@ impl Default for NewtonSettings {
             min_increment: 1.0 / 1024.0,
             easy_iterations: 5,
             grasp_columns_bytes: GRASP_COLUMNS_BYTES,
+            solver: crate::FemSolver::Auto,
         }
     }
 }
@@ -121,6 +126,10 @@ pub struct HyperStats {
     /// Augmentations whose Newton solve failed with the contact met (at most 1: the last
     /// converged state then stands as the answer, its grasps met as far as it got).
     pub failed_augmentations: usize,
+    /// Conjugate-gradient iterations of the multigrid solves (0 with the direct solver).
+    pub linear_iterations: usize,
+    /// Multigrid solves (steps and compliance columns; 0 with the direct solver).
+    pub linear_solves: usize,
 }
 
 /// The converged large-deformation answer.
@@ -153,11 +162,43 @@ pub struct HyperSolution {
     pub stats: HyperStats,
 }
 
-/// Newton's scratch: the tangent's values on its fixed pattern and the pattern's kept
-/// symbolic analysis (numeric factorizations reuse it).
+/// Newton's scratch: the tangent's values on its fixed pattern, the pattern's symbolic
+/// analysis (made at the first direct solve, then kept: numeric factorizations reuse it)
+/// and the grid's multigrid levels (made at the first multigrid solve).
 pub(crate) struct NewtonStage {
     pub(crate) tangent: SparseColMat<usize, f64>,
-    pub(crate) symbolic: Arc<SparseSymbolic>,
+    symbolic: Option<Arc<SparseSymbolic>>,
+    levels: Option<Arc<GridLevels>>,
+    ordering: Ordering,
+}
+
+impl NewtonStage {
+    /// The tangent's symbolic analysis (made on first use).
+    ///
+    /// Errors: the analysis's (out of memory, index overflow).
+    pub(crate) fn symbolic(&mut self, model: &HyperModel) -> Result<Arc<SparseSymbolic>> {
+        if self.symbolic.is_none() {
+            let pattern = self.tangent.symbolic();
+            let analysis = symbolic_analysis(&model.grid, &model.free, model.n_free, pattern, self.ordering)?;
+            self.symbolic = Some(Arc::new(analysis));
+        }
+        Ok(self.symbolic.clone().expect("made above"))
+    }
+
+    /// The linear solver `solver` resolves to on this model's grid (by its
+    /// [`crate::GridEstimate::dofs`], as the plan decides).
+    ///
+    /// Errors: those of [`NewtonStage::symbolic`].
+    pub(crate) fn linear_solver(&mut self, model: &HyperModel, solver: crate::FemSolver) -> Result<LinearSolver> {
+        Ok(match solver.resolve(model.grid.estimate().dofs) {
+            crate::FemSolver::Multigrid => {
+                let levels =
+                    self.levels.get_or_insert_with(|| Arc::new(GridLevels::new(&model.grid, &model.free)));
+                LinearSolver::Multigrid(MultigridSolver::new(levels.clone()))
+            }
+            _ => LinearSolver::Direct(DirectSolver::new(self.symbolic(model)?)),
+        })
+    }
 }
 
 /// A sparse-grid body of hyperelastic tissue (see the module docs): the model (shared,
@@ -245,7 +286,6 @@ impl HyperBody {
             return Err(FemError::NothingFree);
         }
         let pattern = lower_pattern(&grid, &free, n_free);
-        let symbolic = Arc::new(symbolic_analysis(&grid, &free, n_free, pattern.as_ref(), ordering)?);
         let nnz = pattern.row_idx().len();
         let tangent = SparseColMat::new(pattern, vec![0.0; nnz]);
         let h = grid.cell_size();
@@ -270,7 +310,7 @@ impl HyperBody {
         Ok(Self {
             model: Arc::new(model),
             terms,
-            stage: NewtonStage { tangent, symbolic },
+            stage: NewtonStage { tangent, symbolic: None, levels: None, ordering },
             states,
             settings: NewtonSettings::default(),
         })
@@ -376,9 +416,10 @@ impl HyperBody {
         self.stage.tangent.val().len()
     }
 
-    /// Stored values of the tangent's Cholesky factor.
+    /// Stored values of the tangent's Cholesky factor (0 before a direct solve: the
+    /// multigrid solver makes none).
     pub fn factor_nonzeros(&self) -> usize {
-        self.stage.symbolic.factor_len()
+        self.stage.symbolic.as_ref().map_or(0, |s| s.factor_len())
     }
 
     /// Node displacements from a free-dof vector (0 on fixed dofs).

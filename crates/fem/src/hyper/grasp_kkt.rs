@@ -130,7 +130,7 @@ impl HyperBody {
             }
             // An indefinite tangent is factored shifted, as in Newton's solves: a damped
             // step that still meets the grasps' rows (their capacitance takes the shift).
-            stats.final_shift = solver.prepare(&self.stage.tangent, &self.stage.symbolic).ok()?;
+            stats.final_shift = solver.prepare(&self.stage.tangent).ok()?;
             stats.factor_seconds += start.elapsed().as_secs_f64();
             stats.newton_iterations += 1;
             let start = Instant::now();

@@ -151,6 +151,7 @@ impl HyperBody {
         stats: &mut HyperStats,
     ) -> Result<std::result::Result<usize, Failure>> {
         let mut indefinite = false;
+        let linear = self.model.materials.iter().all(|m| m.law.is_linear());
         for iteration in 0..=self.settings.max_iterations + EXTRA_ITERATIONS {
             let start = Instant::now();
             let Some(eval) = self.evaluate(x, state, true) else {
@@ -171,7 +172,7 @@ impl HyperBody {
                 return Ok(Err(Failure { residual, indefinite }));
             }
             let start = Instant::now();
-            match solver.prepare(&self.stage.tangent, &self.stage.symbolic) {
+            match solver.prepare(&self.stage.tangent) {
                 Ok(shift) => {
                     indefinite = shift > 0.0;
                     stats.final_shift = shift;
@@ -183,7 +184,9 @@ impl HyperBody {
             stats.newton_iterations += 1;
             let start = Instant::now();
             let mut d = Mat::<f64>::from_fn(self.model.n_free, 1, |i, _| -eval.gradient[i]);
+            solver.set_tolerance(linear_tolerance(residual, self.settings.tolerance, linear));
             solver.solve_in_place(d.as_mut());
+            indefinite |= solver.take_negative_curvature();
             let d: Vec<f64> = (0..self.model.n_free).map(|i| d[(i, 0)]).collect();
             let accepted = self.line_search(x, &d, &eval, state);
             stats.solve_seconds += start.elapsed().as_secs_f64();
@@ -248,6 +251,49 @@ impl HyperBody {
         let work: f64 = state.external.iter().zip(x).map(|(f, xi)| f * xi).sum();
         Some(e - state.t * work)
     }
+}
+
+impl HyperBody {
+    /// The multigrid V-cycle's contraction on this body's tangent at rest: the mean
+    /// factor by which each of `sweeps` stationary cycles shrinks the residual (see
+    /// `fibfluid_linalg::multigrid::Multigrid::contraction`). A diagnostic of the
+    /// hierarchy: below 1 the cycle converges alone, and conjugate gradients need about
+    /// `ln(tolerance) / ln(contraction)` iterations at most.
+    ///
+    /// Errors: an inverted cell at rest (never for a valid body), a tangent that is not
+    /// positive definite ([`FemError::NotPositiveDefinite`]).
+    pub fn multigrid_contraction(&mut self, sweeps: usize) -> Result<f64> {
+        let external = vec![0.0; self.model.n_free];
+        let duals = super::solve::Multipliers::zero(
+            self.terms.contact.samples.len(),
+            0,
+            self.terms.grasps.points.len(),
+        );
+        let x = vec![0.0; self.model.n_free];
+        self.evaluate(&x, &duals.state(1.0, &external, &[]), true).ok_or(FemError::NotPositiveDefinite)?;
+        let levels = crate::multigrid::GridLevels::new(&self.model.grid, &self.model.free);
+        let multigrid = levels.hierarchy(self.stage.tangent.as_ref(), 0.0)?;
+        Ok(multigrid.contraction(sweeps))
+    }
+
+    /// Levels of the multigrid hierarchy of this body's grid (the finest included).
+    pub fn multigrid_levels(&self) -> usize {
+        crate::multigrid::GridLevels::new(&self.model.grid, &self.model.free).nodes.len()
+    }
+}
+
+/// The largest relative residual an iterative linear solve may leave at a Newton
+/// iteration (inexact Newton).
+const MAX_LINEAR_TOLERANCE: f64 = 1e-2;
+
+/// The relative residual an iterative solve of a Newton step stops at, from the relative
+/// nonlinear `residual` (inexact Newton, Eisenstat and Walker's idea): loose far from the
+/// answer, as tight as the residual near it (superlinear convergence), and never much
+/// tighter than the Newton `tolerance` needs. For a `linear` body (every law linear) the
+/// step is the answer: it is solved to the tolerance at once.
+fn linear_tolerance(residual: f64, tolerance: f64, linear: bool) -> f64 {
+    let needed = 0.1 * tolerance / residual.max(f64::MIN_POSITIVE);
+    if linear { needed.min(MAX_LINEAR_TOLERANCE) } else { residual.max(needed).min(MAX_LINEAR_TOLERANCE) }
 }
 
 /// The Euclidean norm of `v`.

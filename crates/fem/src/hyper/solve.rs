@@ -10,7 +10,7 @@ use super::contact::{
 };
 use super::grasp::GRASP_TOLERANCE;
 use super::grasp_kkt::GraspKkt;
-use super::linear_solve::DirectSolver;
+use super::linear_solve::LinearSolver;
 use super::terms::{ContactTerm, LoadState};
 use crate::assemble::FIXED;
 use crate::body::Loads;
@@ -24,19 +24,19 @@ pub(super) struct Progress {
     pub(super) steps: Vec<LoadStep>,
     pub(super) stats: HyperStats,
     /// The linear solve of every Newton iteration of the solve.
-    pub(super) solver: DirectSolver,
+    pub(super) solver: LinearSolver,
 }
 
 impl Progress {
-    /// At rest, at the load factor `t`, with `n` free dofs.
-    pub(super) fn at(n: usize, t: f64) -> Self {
-        Self {
-            x: vec![0.0; n],
-            t,
-            steps: Vec::new(),
-            stats: HyperStats::default(),
-            solver: DirectSolver::default(),
-        }
+    /// At rest, at the load factor `t`, with `n` free dofs, solving with `solver`.
+    pub(super) fn at(n: usize, t: f64, solver: LinearSolver) -> Self {
+        Self { x: vec![0.0; n], t, steps: Vec::new(), stats: HyperStats::default(), solver }
+    }
+
+    /// The stats with the linear solver's counts.
+    pub(super) fn final_stats(&self) -> HyperStats {
+        let (iterations, solves) = self.solver.iterations();
+        HyperStats { linear_iterations: iterations, linear_solves: solves, ..self.stats }
     }
 }
 
@@ -89,7 +89,8 @@ impl HyperBody {
         let external = self.external_loads(loads)?;
         let mut duals =
             Multipliers::zero(self.terms.contact.samples.len(), plates.len(), self.terms.grasps.points.len());
-        let mut run = Progress::at(self.model.n_free, 0.0);
+        let solver = self.stage.linear_solver(&self.model, self.settings.solver)?;
+        let mut run = Progress::at(self.model.n_free, 0.0, solver);
         self.step_to_full_load(&mut run, &duals.state(0.0, &external, plates))?;
         let mut progress = Augmenting {
             force: self.plate_forces(&run.x, plates, &duals.contact, run.t),
@@ -381,6 +382,7 @@ impl HyperBody {
         let grasps = self.terms.grasps.records(&u, state.t, state.grasp_multipliers);
         let (cells, summary) = self.cell_states(&u);
         let residual = run.steps.last().and_then(|s| s.residuals.last().copied()).unwrap_or(0.0);
+        let stats = run.final_stats();
         HyperSolution {
             surface_displacements: self.model.grid.interpolate(&u),
             node_displacements: u,
@@ -393,7 +395,7 @@ impl HyperBody {
             support_force,
             cells,
             summary,
-            stats: run.stats,
+            stats,
         }
     }
 }

@@ -217,7 +217,8 @@ impl HyperBody {
         }
         let mut duals =
             Multipliers::zero(self.terms.contact.samples.len(), plates.len(), self.terms.grasps.points.len());
-        let mut run = Progress::at(self.model.n_free, curve.factor(0.0));
+        let solver = self.stage.linear_solver(&self.model, self.settings.solver)?;
+        let mut run = Progress::at(self.model.n_free, curve.factor(0.0), solver);
         let mut motion = Motion { velocity: vec![0.0; mass.len()], acceleration: vec![0.0; mass.len()] };
         if settings.inertia {
             motion.acceleration =

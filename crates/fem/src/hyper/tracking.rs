@@ -384,8 +384,9 @@ impl HyperBody {
     /// Factors the assembled tangent as [`HyperBody::linearize_holding`] says; `None`
     /// when it needs a shift that is not `shift_allowed`.
     fn factor_holding(&mut self, rows: &[Row], shift_allowed: bool) -> Result<Option<Factored>> {
+        let symbolic = self.stage.symbolic(&self.model)?;
         if rows.is_empty() {
-            match SparseCholesky::factor(&self.stage.symbolic, self.stage.tangent.as_ref()) {
+            match SparseCholesky::factor(&symbolic, self.stage.tangent.as_ref()) {
                 Ok(f) => return Ok(Some((f, 0.0, None))),
                 Err(fibfluid_linalg::LinalgError::SparseNotPositiveDefinite { .. }) => {}
                 Err(e) => return Err(e.into()),
@@ -409,7 +410,7 @@ impl HyperBody {
                 self.add_row_penalty(row, stiffness);
             }
             diagonal_at.iter().for_each(|&p| self.stage.tangent.val_mut()[p] += shift * median);
-            let made = SparseCholesky::factor(&self.stage.symbolic, self.stage.tangent.as_ref());
+            let made = SparseCholesky::factor(&symbolic, self.stage.tangent.as_ref());
             self.stage.tangent = plain.clone();
             match made {
                 Ok(f) if penalty > 0.0 => {

@@ -154,6 +154,33 @@ impl Multigrid {
         self.vcycle(0, r, z);
     }
 
+    /// The V-cycle's contraction: the mean factor by which `sweeps` stationary iterations
+    /// `x += M^-1 (b - A x)` shrink the residual of a fixed pseudo-random right-hand side
+    /// (below 1: the cycle converges on its own; conjugate gradients do better).
+    pub fn contraction(&self, sweeps: usize) -> f64 {
+        let Some(fine) = self.fine() else { return 0.0 };
+        let dead = &self.levels[0].dead;
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let b: Vec<f64> = dead
+            .iter()
+            .map(|&d| {
+                seed ^= seed << 13;
+                seed ^= seed >> 7;
+                seed ^= seed << 17;
+                if d { 0.0 } else { (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5 }
+            })
+            .collect();
+        let n = b.len();
+        let (mut x, mut r, mut z) = (vec![0.0; n], b.clone(), vec![0.0; n]);
+        let first = dot(&r, &r).sqrt();
+        for _ in 0..sweeps {
+            self.precondition(&r, &mut z);
+            x.iter_mut().zip(&z).for_each(|(xi, zi)| *xi += zi);
+            fine.residual(&b, &x, &mut r);
+        }
+        (dot(&r, &r).sqrt() / first).powf(1.0 / sweeps.max(1) as f64)
+    }
+
     /// Solves `A x = b` by conjugate gradients preconditioned with one V-cycle, from `x`,
     /// until `|b - A x| <= tolerance * |b|` or `max_iterations`. Without finer levels
     /// (one level) the coarsest factor solves it directly.
