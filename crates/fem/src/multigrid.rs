@@ -191,7 +191,7 @@ fibfluid_linalg::impl_choice!(FemSolver);
 
 /// Unknowns from which `auto` picks multigrid (measured with `fibfluid bench --fem-solvers`
 /// on the hanging sphere and liver: see docs/fem.md).
-pub const MULTIGRID_CROSSOVER_DOFS: usize = 40_000;
+pub const MULTIGRID_CROSSOVER_DOFS: usize = 10_000;
 
 impl FemSolver {
     /// The solver used on a grid whose bounding box has `dofs` unknowns

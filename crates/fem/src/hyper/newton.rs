@@ -253,35 +253,6 @@ impl HyperBody {
     }
 }
 
-impl HyperBody {
-    /// The multigrid V-cycle's contraction on this body's tangent at rest: the mean
-    /// factor by which each of `sweeps` stationary cycles shrinks the residual (see
-    /// `fibfluid_linalg::multigrid::Multigrid::contraction`). A diagnostic of the
-    /// hierarchy: below 1 the cycle converges alone, and conjugate gradients need about
-    /// `ln(tolerance) / ln(contraction)` iterations at most.
-    ///
-    /// Errors: an inverted cell at rest (never for a valid body), a tangent that is not
-    /// positive definite ([`FemError::NotPositiveDefinite`]).
-    pub fn multigrid_contraction(&mut self, sweeps: usize) -> Result<f64> {
-        let external = vec![0.0; self.model.n_free];
-        let duals = super::solve::Multipliers::zero(
-            self.terms.contact.samples.len(),
-            0,
-            self.terms.grasps.points.len(),
-        );
-        let x = vec![0.0; self.model.n_free];
-        self.evaluate(&x, &duals.state(1.0, &external, &[]), true).ok_or(FemError::NotPositiveDefinite)?;
-        let levels = crate::multigrid::GridLevels::new(&self.model.grid, &self.model.free);
-        let multigrid = levels.hierarchy(self.stage.tangent.as_ref(), 0.0)?;
-        Ok(multigrid.contraction(sweeps))
-    }
-
-    /// Levels of the multigrid hierarchy of this body's grid (the finest included).
-    pub fn multigrid_levels(&self) -> usize {
-        crate::multigrid::GridLevels::new(&self.model.grid, &self.model.free).nodes.len()
-    }
-}
-
 /// The largest relative residual an iterative linear solve may leave at a Newton
 /// iteration (inexact Newton).
 const MAX_LINEAR_TOLERANCE: f64 = 1e-2;
