@@ -655,3 +655,88 @@ fn a_label_image_and_the_surface_it_was_drawn_from_hang_alike() {
     assert!(sag_surface > 0.0 && (sag_image / sag_surface - 1.0).abs() < SAG_AGREEMENT);
     assert!((largest_image / largest_surface - 1.0).abs() < LARGEST_AGREEMENT);
 }
+
+/// The phantom image's body solves alike with the direct and the multigrid solver
+/// (`[fem] solver`): the surfaces agree to 1e-6 relative, the bound two answers of the same
+/// Newton tolerance meet.
+#[test]
+fn a_label_image_body_solves_alike_with_both_fem_solvers() {
+    let scene = Scene::load("fixtures/images/phantom.toml").expect("the phantom scene");
+    let solve = |solver| {
+        let mut fem = scene.model.clone();
+        fem.solver.method = fibfluid::Method::Fem;
+        fem.fem.solver = solver;
+        fibfluid::sim::fem_run::FemRun::new(fem, None).expect("the FEM on the phantom")
+    };
+    let direct = solve(fibfluid::fem::FemSolver::Direct);
+    let multigrid = solve(fibfluid::fem::FemSolver::Multigrid);
+    let stats = multigrid.newton.as_ref().expect("the multigrid runs Newton").stats;
+    assert!(stats.linear_solves > 0, "the multigrid solved");
+    let (mut diff, mut norm) = (0.0, 0.0);
+    for ((m, d), r) in multigrid.positions.iter().zip(&direct.positions).zip(&direct.rest) {
+        for a in 0..3 {
+            diff += (m[a] - d[a]).powi(2);
+            norm += (d[a] - r[a]).powi(2);
+        }
+    }
+    let relative = (diff / norm).sqrt();
+    eprintln!("phantom: multigrid against direct {relative:.2e}");
+    assert!(relative < 1e-6, "{relative}");
+}
+
+/// An ellipsoid drawn in a label image at 1 mm voxels (80 x 60 x 50 mm, 82 x 62 x 52
+/// voxels) hangs at a finite-element resolution equal to its voxel count across (80): the
+/// multigrid (`auto` at this size) converges within 3 GB of peak memory.
+#[test]
+#[ignore = "long run: CI runs it with `cargo test --workspace -- --ignored long_`"]
+fn long_an_ellipsoid_image_at_1_mm_runs_at_its_voxel_resolution() {
+    let dims = [82usize, 62, 52];
+    let spacing = 0.001;
+    let centre = dims.map(|d| 0.5 * (d as f64 - 1.0));
+    let semi = [40.0, 30.0, 25.0];
+    let labels = (0..dims[0] * dims[1] * dims[2])
+        .map(|v| {
+            let ijk = [v % dims[0], (v / dims[0]) % dims[1], v / (dims[0] * dims[1])];
+            let r: f64 = (0..3).map(|a| ((ijk[a] as f64 - centre[a]) / semi[a]).powi(2)).sum();
+            u32::from(r <= 1.0)
+        })
+        .collect();
+    let image = fibfluid::geometry::LabelImage {
+        dims,
+        spacing: [spacing; 3],
+        affine: [[spacing, 0.0, 0.0, 0.0], [0.0, spacing, 0.0, 0.0], [0.0, 0.0, spacing, 0.0]],
+        affine_source: fibfluid::geometry::AffineSource::Spacing,
+        labels,
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let opts = fibfluid::geometry::NiftiWriteOptions { gzip: true, ..Default::default() };
+    fibfluid::geometry::write_nifti(dir.path().join("ellipsoid.nii.gz"), &image, &opts).unwrap();
+    let top = (centre[1] + 0.8 * semi[1]) * spacing;
+    std::fs::write(
+        dir.path().join("ellipsoid.toml"),
+        format!(
+            "[mesh]\nimage = \"ellipsoid.nii.gz\"\n[tissue]\nmodel = \"neo-hookean\"\nyoung = 3000.0\npoisson = 0.45\ndensity = 1000.0\n[gravity]\nacceleration = [0.0, -9.81, 0.0]\n[[fix]]\naxis = \"y\"\nabove = {top}\n[fem]\nresolution = 80\n[solver]\nmethod = \"fem\"\n"
+        ),
+    )
+    .unwrap();
+    let scene = Scene::load(dir.path().join("ellipsoid.toml")).expect("the ellipsoid scene");
+    let _ = std::fs::write("/proc/self/clear_refs", "5");
+    let run = fibfluid::sim::fem_run::FemRun::new(scene.model, None).expect("the FEM at resolution 80");
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    let peak_kb: f64 = status
+        .lines()
+        .find(|l| l.starts_with("VmHWM:"))
+        .and_then(|l| l.split_whitespace().nth(1)?.parse().ok())
+        .unwrap_or(0.0);
+    eprintln!(
+        "ellipsoid at 1 mm: resolution {}, {} cells, {} unknowns, {:.1} s, peak {:.2} GB",
+        run.stats.resolution,
+        run.stats.cells,
+        run.stats.dofs,
+        run.seconds,
+        peak_kb * 1024.0 / 1e9
+    );
+    assert_eq!(run.stats.resolution, 80);
+    assert!(run.residual < 1e-8, "residual {}", run.residual);
+    assert!(peak_kb * 1024.0 < 3e9, "peak {peak_kb} kB");
+}
