@@ -20,24 +20,25 @@ pub struct ProbeArgs {
     /// Output directory (frames.csv, final.obj, report.json, probe.png).
     #[arg(long)]
     out: PathBuf,
-    /// Deformation method: ffm, tsve-chainmail or generalized-chainmail (ChainMail is
-    /// displacement-driven: grab paths only; its settings come from the scene's
-    /// [chainmail] section).
-    #[arg(long, default_value = "ffm")]
-    method: Method,
+    /// Deformation method: ffm, fem, tsve-chainmail or generalized-chainmail; default: the
+    /// scene's `[solver] method` (ChainMail is displacement-driven: grab paths only; its
+    /// settings come from the scene's [chainmail] section).
+    #[arg(long)]
+    method: Option<Method>,
 }
 
 /// Runs `fibfluid probe`.
 pub fn run(args: &ProbeArgs) -> Result<(), crate::CliError> {
     let scene = Scene::load(&args.scene)?;
+    let method = args.method.unwrap_or(scene.model.solver.method);
     for w in fibfluid::ineffective_interactive(&scene) {
         tell!("warning: {w}");
     }
-    let opts = args.response.options(RefreshMode::Scheduled, &scene, &[args.method])?;
+    let opts = args.response.options(RefreshMode::Scheduled, &scene, &[method])?;
     let path = load_tool_path(&args.path)?;
     // Long replays report their progress with an estimate of the time left.
     let progress = crate::progress(path.frames(), "probe");
-    let report = run_probe_with(&scene, &path, &args.out, &opts, args.method, progress.as_deref())?;
+    let report = run_probe_with(&scene, &path, &args.out, &opts, method, progress.as_deref())?;
     for w in &report.warnings {
         tell!("warning: {w}");
     }

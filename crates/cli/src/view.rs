@@ -20,10 +20,10 @@ pub struct ViewArgs {
     /// Address to listen on; the default lets only this machine connect.
     #[arg(long, default_value = "127.0.0.1")]
     host: String,
-    /// Method of the body (ffm, tsve-chainmail, generalized-chainmail); the page can switch
-    /// between the available ones.
-    #[arg(long, default_value = "ffm")]
-    method: Method,
+    /// Method of the body (ffm, fem, tsve-chainmail, generalized-chainmail); default: the
+    /// scene's `[solver] method`. The page can switch between the available ones.
+    #[arg(long)]
+    method: Option<Method>,
     #[command(flatten)]
     response: crate::response_flags::ResponseFlags,
     /// Most clients at once (each has its own body; the factorization or the full
@@ -42,10 +42,11 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
         });
     }
     let scene = Scene::load(&args.scene)?;
+    let method = args.method.unwrap_or(scene.model.solver.method);
     for w in fibfluid::ineffective_interactive(&scene) {
         tell!("warning: {w}");
     }
-    let opts = args.response.options(fibfluid::interact::RefreshMode::Background, &scene, &[args.method])?;
+    let opts = args.response.options(fibfluid::interact::RefreshMode::Background, &scene, &[method])?;
     let Shape::Surface(file) = &scene.shape else {
         return Err(ProbeError::NotASurface { scene: scene.display_name() }.into());
     };
@@ -55,8 +56,8 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
         max_clients: args.max_clients,
         // FFM is served only when its precompute is built (started with `--method ffm`); the
         // FEM when the scene gives [tissue].
-        methods: std::iter::once(args.method)
-            .chain(Method::ALL.iter().copied().filter(|m| *m != args.method && *m != Method::Ffm))
+        methods: std::iter::once(method)
+            .chain(Method::ALL.iter().copied().filter(|m| *m != method && *m != Method::Ffm))
             .filter(|m| *m != Method::Fem || scene.tissue.is_some())
             .collect(),
         ..ServerOptions::default()
@@ -70,7 +71,7 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
     // holds and frame); ChainMail bodies are cheap and built per client. With the lazy
     // response (the default) the first frame follows the base solve: a vertex's columns are
     // computed with the kept factorization when a client first touches it.
-    let ffm = if args.method == Method::Ffm {
+    let ffm = if method == Method::Ffm {
         tell!(
             "building the ffm body of {} ({} vertices, {} response)...",
             scene.name,
@@ -98,7 +99,7 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
         };
     let mesh = match &ffm {
         Some(body) => ViewMesh::new(file, body)?,
-        None => ViewMesh::new(file, chainmail(&scene, args.method)?.as_ref())?,
+        None => ViewMesh::new(file, chainmail(&scene, method)?.as_ref())?,
     };
     let scene_for_clients = scene.clone();
     let factory: BodyFactory = Arc::new(move |method: Method| match (method, &ffm) {
@@ -108,13 +109,13 @@ pub fn run(args: &ViewArgs) -> Result<(), crate::CliError> {
         }
         (other, _) => chainmail(&scene_for_clients, other),
     });
-    say!("fibfluid view: {} ({}, {}; Ctrl-C stops)", server.url(), scene.name, args.method);
+    say!("fibfluid view: {} ({}, {}; Ctrl-C stops)", server.url(), scene.name, method);
     server.run(mesh, factory)?;
     Ok(())
 }
 
 /// The methods a viewer serves: ChainMail always; FFM when its precompute was built (the
-/// viewer was started with `--method ffm`, the default); the FEM with `[tissue]`.
+/// viewer was started with FFM: `--method ffm` or a scene whose `[solver] method` is ffm); the FEM with `[tissue]`.
 fn available(ffm: bool) -> String {
     Method::ALL.iter().filter(|m| ffm || **m != Method::Ffm).map(|m| m.name()).collect::<Vec<_>>().join(", ")
 }

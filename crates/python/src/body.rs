@@ -103,14 +103,17 @@ fn warn_ignored(py: Python<'_>, model: &fibfluid_sim::Model) -> PyResult<()> {
 
 #[pymethods]
 impl NativeBody {
-    /// Builds the body of `scene` for `method` (`ffm`, `tsve-chainmail`,
-    /// `generalized-chainmail`), with the GIL released: for the fiber–fluid method one full
+    /// Builds the body of `scene` for `method` (`ffm`, `fem`, `tsve-chainmail`,
+    /// `generalized-chainmail`; `None`: the scene's `[solver] method`), with the GIL released: for the fiber–fluid method one full
     /// solve of the scene's loads and the precomputed response, for ChainMail the lattice.
     #[new]
-    #[pyo3(signature = (scene, method="ffm", max_memory=None))]
-    fn new(py: Python<'_>, scene: &NativeScene, method: &str, max_memory: Option<u64>) -> PyResult<Self> {
+    #[pyo3(signature = (scene, method=None, max_memory=None))]
+    fn new(py: Python<'_>, scene: &NativeScene, method: Option<&str>, max_memory: Option<u64>) -> PyResult<Self> {
         guard(|| {
-            let method = Method::parse_name(method).map_err(|e| error(e.to_string()))?;
+            let method = match method {
+                Some(m) => Method::parse_name(m).map_err(|e| error(e.to_string()))?,
+                None => scene.scene.model.solver.method,
+            };
             let Shape::Surface(file) = &scene.scene.shape else {
                 return Err(error("an interactive body needs a surface mesh; this scene is a 2D polygon"));
             };

@@ -81,3 +81,13 @@ def test_chainmail_grabs_exactly_and_has_no_forces(scene, method):
     body.release_all()
     positions, _ = body.step()
     assert np.abs(positions[V] - rest[V]).max() < 0.01
+
+
+def test_the_default_method_is_the_scenes(tmp_path):
+    """Without ``method`` a body takes the scene's ``[solver] method``, as ``run`` does."""
+    text = (SCENES / "sphere-tissue.toml").read_text()
+    assert fibfluid.Body(fibfluid.Scene.load(SCENES / "sphere-tissue.toml")).method == "ffm"
+    fem = tmp_path / "sphere-fem.toml"
+    fem.write_text(text.replace("../meshes/", str(SCENES.parent / "meshes") + "/") + 'method = "fem"\n')
+    assert fibfluid.Body(fibfluid.Scene.load(fem)).method == "fem"
+    assert fibfluid.Body(fibfluid.Scene.load(fem), method="ffm").method == "ffm"

@@ -130,6 +130,8 @@ pub struct HyperStats {
     pub linear_iterations: usize,
     /// Multigrid solves (steps and compliance columns; 0 with the direct solver).
     pub linear_solves: usize,
+    /// The linear solver used (`direct` or `multigrid`; `auto` before a solve).
+    pub solver: crate::FemSolver,
 }
 
 /// The converged large-deformation answer.

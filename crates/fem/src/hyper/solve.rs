@@ -36,7 +36,11 @@ impl Progress {
     /// The stats with the linear solver's counts.
     pub(super) fn final_stats(&self) -> HyperStats {
         let (iterations, solves) = self.solver.iterations();
-        HyperStats { linear_iterations: iterations, linear_solves: solves, ..self.stats }
+        let solver = match self.solver {
+            LinearSolver::Direct(_) => crate::FemSolver::Direct,
+            LinearSolver::Multigrid(_) => crate::FemSolver::Multigrid,
+        };
+        HyperStats { linear_iterations: iterations, linear_solves: solves, solver, ..self.stats }
     }
 }
 

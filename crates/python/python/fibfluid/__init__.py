@@ -607,7 +607,7 @@ def run(scene: Scene, method: Optional[str] = None, progress: Progress = None,
 class Body:
     """An interactive body: grab, push and release vertices, frame by frame.
 
-    ``method`` is ``"ffm"`` (the fiber-fluid method: a base solve of the scene's loads,
+    ``method`` (default: the scene's ``[solver] method``) is ``"ffm"`` (the fiber-fluid method: a base solve of the scene's loads,
     then the precomputed response; grabs and pushes, with reaction forces), ``"fem"`` (the
     finite-element method with the scene's ``[tissue]`` law: linear, or neo-Hookean at two
     rates, its linearization refreshed by Newton's iterations on a second thread while
@@ -619,11 +619,11 @@ class Body:
 
     __slots__ = ("_native", "_warned")
 
-    def __init__(self, scene: Scene, method: str = "ffm", max_memory: Optional[int] = None) -> None:
-        """Builds the body of ``scene`` for ``method``."""
+    def __init__(self, scene: Scene, method: Optional[str] = None, max_memory: Optional[int] = None) -> None:
+        """Builds the body of ``scene`` for ``method`` (default: the scene's method)."""
         if not isinstance(scene, Scene):
             raise Error("Body needs a fibfluid.Scene (Scene.load)")
-        if not isinstance(method, str):
+        if method is not None and not isinstance(method, str):
             raise Error(f"method must be a string, one of: {', '.join(METHODS)}")
         self._native = _native.NativeBody(scene._native, method, _memory(max_memory))
         self._warned: set = set()
