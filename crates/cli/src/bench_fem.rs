@@ -40,7 +40,11 @@ pub struct FemSolverRun {
 /// solver first when both are asked (so the multigrid's surface is compared with it).
 ///
 /// Errors: a run's (the scene's cause, or too large for memory at that resolution).
-pub fn bench_fem_solvers(model: &Model, resolutions: &[usize], solvers: &[FemSolver]) -> Result<Vec<FemSolverRun>> {
+pub fn bench_fem_solvers(
+    model: &Model,
+    resolutions: &[usize],
+    solvers: &[FemSolver],
+) -> Result<Vec<FemSolverRun>> {
     let mut rows = Vec::new();
     for &resolution in resolutions {
         let mut direct: Option<Vec<[f64; 3]>> = None;
@@ -61,7 +65,9 @@ pub fn bench_fem_solvers(model: &Model, resolutions: &[usize], solvers: &[FemSol
             let stats = run.newton.as_ref().map(|n| n.stats).unwrap_or_default();
             let newton_iterations = stats.newton_iterations.max(1);
             let from_direct = match (&direct, solver) {
-                (Some(d), FemSolver::Multigrid | FemSolver::Auto) => Some(relative_distance(&displacement, d)),
+                (Some(d), FemSolver::Multigrid | FemSolver::Auto) => {
+                    Some(relative_distance(&displacement, d))
+                }
                 _ => None,
             };
             if solver == FemSolver::Direct {

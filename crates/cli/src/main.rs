@@ -197,10 +197,22 @@ enum Command {
         #[arg(long, value_name = "SCENE", conflicts_with_all = ["stages", "two_rate"])]
         fem_solvers: Option<PathBuf>,
         /// With --fem-solvers: the resolutions (cells along the longest side).
-        #[arg(long, value_delimiter = ',', value_name = "R,..", default_value = "16,24,32", requires = "fem_solvers")]
+        #[arg(
+            long,
+            value_delimiter = ',',
+            value_name = "R,..",
+            default_value = "16,24,32",
+            requires = "fem_solvers"
+        )]
         resolutions: Vec<usize>,
         /// With --fem-solvers: the solvers (direct, multigrid, auto).
-        #[arg(long, value_delimiter = ',', value_name = "S,..", default_value = "direct,multigrid", requires = "fem_solvers")]
+        #[arg(
+            long,
+            value_delimiter = ',',
+            value_name = "S,..",
+            default_value = "direct,multigrid",
+            requires = "fem_solvers"
+        )]
         solvers: Vec<fibfluid::fem::FemSolver>,
     },
     /// Accuracy versus time over modes, stepping, steps, precision and backends.
@@ -802,7 +814,11 @@ fn bench_fem_solvers(
     json: bool,
 ) -> Result<(), CliError> {
     if let Some(&r) = resolutions.iter().find(|&&r| !(1..=fibfluid::fem::MAX_RESOLUTION).contains(&r)) {
-        return Err(CliError::Flag { flag: "resolutions", value: r.to_string(), problem: "must be between 1 and 256" });
+        return Err(CliError::Flag {
+            flag: "resolutions",
+            value: r.to_string(),
+            problem: "must be between 1 and 256",
+        });
     }
     let (scene, _) = load_scene(path, &Overrides::default())?;
     let rows = fibfluid_cli::bench_fem::bench_fem_solvers(&scene.model, resolutions, solvers)?;
@@ -812,7 +828,16 @@ fn bench_fem_solvers(
     }
     say!(
         "{:>10} {:>9} {:>8} {:>8} {:>7} {:>9} {:>11} {:>9} {:>10} {:>11}",
-        "resolution", "solver", "cells", "unknowns", "newton", "cg/solve", "s/newton", "run s", "peak MB", "vs direct"
+        "resolution",
+        "solver",
+        "cells",
+        "unknowns",
+        "newton",
+        "cg/solve",
+        "s/newton",
+        "run s",
+        "peak MB",
+        "vs direct"
     );
     for r in &rows {
         say!(

@@ -66,12 +66,11 @@ pub use clamp::fixed_surface_samples;
 pub use error::{FemError, NotConvergedWhy, Result};
 pub use grid::{
     DEFAULT_RESOLUTION, Element, Embedded, FemOptions, GridEstimate, MAX_CELLS, MAX_RESOLUTION, MIN_FILL,
-    MULTIGRID_ITERATIONS,
-    SNAP, SUBSAMPLES, SparseGrid,
+    MULTIGRID_ITERATIONS, SNAP, SUBSAMPLES, SparseGrid,
 };
 pub use held_rows::FemHold;
-pub use multigrid::{COARSEST_NODES, FemSolver, MAX_PCG_ITERATIONS, MULTIGRID_CROSSOVER_DOFS};
 pub use held_system::HeldResponse;
+pub use multigrid::{COARSEST_NODES, FemSolver, MAX_PCG_ITERATIONS, MULTIGRID_CROSSOVER_DOFS};
 pub use ordering::{ND_LEAF, Ordering};
 pub use region::{CellBlend, Region, RegionShape, blend_regions};
 pub use rigid::{RIGID_MODE_TOLERANCE, RigidMode, check_rigid_modes, free_rigid_modes};

@@ -52,7 +52,8 @@ impl GridLevels {
             cells = coarse_cells;
             node_coords = coarse_nodes;
         }
-        let pattern = node_neighbours(grid).into_iter().map(|l| l.into_iter().map(|n| n as u32).collect()).collect();
+        let pattern =
+            node_neighbours(grid).into_iter().map(|l| l.into_iter().map(|n| n as u32).collect()).collect();
         let node_dof = free.iter().enumerate().filter(|(_, f)| **f != FIXED).map(|(dof, _)| dof).collect();
         Self { transfers: Arc::new(transfers), pattern, node_dof, nodes }
     }
@@ -87,7 +88,11 @@ impl GridLevels {
             fine.shift_diagonal(shift * fine.largest_diagonal());
         }
         Multigrid::new(fine, self.transfers.clone(), MultigridSettings::default()).map_err(|e| {
-            if fibfluid_linalg::multigrid::is_not_positive_definite(&e) { FemError::NotPositiveDefinite } else { e.into() }
+            if fibfluid_linalg::multigrid::is_not_positive_definite(&e) {
+                FemError::NotPositiveDefinite
+            } else {
+                e.into()
+            }
         })
     }
 

@@ -10,8 +10,11 @@ use fibfluid_fem::{FemOptions, FemSolver, Loads, Region, RegionShape, Tissue, Ti
 /// Newton tolerance (1e-8 relative residual): the bound on the surfaces.
 const SOLVER_AGREEMENT: f64 = 1e-6;
 
+/// A surface and its fixed axes per vertex.
+type Clamped = (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<[bool; 3]>);
+
 /// A 5 cm sphere (icosphere of 642 vertices) clamped over its top 15 %.
-fn sphere() -> (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<[bool; 3]>) {
+fn sphere() -> Clamped {
     let (pos, tris) = sphere_surface([0.0; 3], 0.05, 3);
     let top = pos.iter().map(|p| p[2]).fold(f64::MIN, f64::max);
     let fixed = pos.iter().map(|p| [p[2] >= top - 0.015; 3]).collect();
@@ -52,9 +55,11 @@ const GRAVITY: Loads = Loads { gravity: [0.0, 0.0, -9.81], point_forces: Vec::ne
 fn multigrid_matches_direct_on_hanging_linear_and_neo_hookean_spheres() {
     let (pos, tris, fixed) = sphere();
     let options = FemOptions { resolution: 14, ..FemOptions::default() };
-    for (name, model, nu) in
-        [("linear", TissueModel::Linear, 0.45), ("neo-Hookean", TissueModel::NeoHookean, 0.45), ("neo-Hookean nu 0.49", TissueModel::NeoHookean, 0.49)]
-    {
+    for (name, model, nu) in [
+        ("linear", TissueModel::Linear, 0.45),
+        ("neo-Hookean", TissueModel::NeoHookean, 0.45),
+        ("neo-Hookean nu 0.49", TissueModel::NeoHookean, 0.49),
+    ] {
         let tissue = Tissue::new(3000.0, nu, 1000.0).unwrap().with_model(model);
         let make = || HyperBody::from_surface(&pos, &tris, &tissue, &fixed, &options).unwrap();
         assert!(make().multigrid_levels() >= 2, "the grid has coarser levels");
@@ -69,26 +74,29 @@ fn multigrid_matches_direct_with_plates_a_grasp_and_regions() {
     let options = FemOptions { resolution: 12, ..FemOptions::default() };
     let tissue = Tissue::new(3000.0, 0.45, 1000.0).unwrap().with_model(TissueModel::NeoHookean);
     let bottom = pos.iter().map(|p| p[2]).fold(f64::MAX, f64::min);
-    let plate = RigidPlate {
-        start: [0.0, 0.0, bottom],
-        end: [0.0, 0.0, bottom + 0.01],
-        normal: [0.0, 0.0, 1.0],
-    };
+    let plate =
+        RigidPlate { start: [0.0, 0.0, bottom], end: [0.0, 0.0, bottom + 0.01], normal: [0.0, 0.0, 1.0] };
     let make = || HyperBody::from_surface(&pos, &tris, &tissue, &fixed, &options).unwrap();
     let (direct, multigrid) = both(make, &GRAVITY, &[plate]);
     assert!(direct.plate_forces[0] > 0.0, "the plate pushes");
     assert!(agreement("plate", &direct, &multigrid) < SOLVER_AGREEMENT);
 
     let side = (0..pos.len()).max_by(|&a, &b| pos[a][0].total_cmp(&pos[b][0])).unwrap();
-    let grasp = Grasp { vertices: Grasp::patch(&pos, side, 0.012), translation: [0.01, 0.0, 0.0], rotation: [0.0; 3] };
+    let grasp = Grasp {
+        vertices: Grasp::patch(&pos, side, 0.012),
+        translation: [0.01, 0.0, 0.0],
+        rotation: [0.0; 3],
+    };
     let make = || {
-        HyperBody::from_surface_grasped(&pos, &tris, &tissue, &fixed, std::slice::from_ref(&grasp), &options).unwrap()
+        HyperBody::from_surface_grasped(&pos, &tris, &tissue, &fixed, std::slice::from_ref(&grasp), &options)
+            .unwrap()
     };
     let (direct, multigrid) = both(make, &Loads::default(), &[]);
     assert!(agreement("grasp", &direct, &multigrid) < SOLVER_AGREEMENT);
 
     let stiff = Tissue::new(30000.0, 0.45, 1000.0).unwrap().with_model(TissueModel::NeoHookean);
-    let region = Region { shape: RegionShape::Box { min: [-1.0, -1.0, -1.0], max: [1.0, 1.0, 0.0] }, tissue: stiff };
+    let region =
+        Region { shape: RegionShape::Box { min: [-1.0, -1.0, -1.0], max: [1.0, 1.0, 0.0] }, tissue: stiff };
     let make = || {
         HyperBody::from_surface(&pos, &tris, &tissue, &fixed, &options)
             .unwrap()
@@ -123,7 +131,10 @@ fn the_v_cycle_contracts_on_a_cube_with_cut_cells() {
         let options = FemOptions { resolution: 16, ..FemOptions::default() };
         let mut body = HyperBody::from_surface(&pos, &tris, &tissue, &fixed, &options).unwrap();
         let rho = body.multigrid_contraction(8).unwrap();
-        eprintln!("cube with cut cells, nu {nu}: {} levels, contraction {rho:.3} per V-cycle", body.multigrid_levels());
+        eprintln!(
+            "cube with cut cells, nu {nu}: {} levels, contraction {rho:.3} per V-cycle",
+            body.multigrid_levels()
+        );
         assert!(rho < bound, "nu {nu}: contraction {rho}");
     }
 }

@@ -191,7 +191,11 @@ impl NewtonStage {
     /// [`crate::GridEstimate::dofs`], as the plan decides).
     ///
     /// Errors: those of [`NewtonStage::symbolic`].
-    pub(crate) fn linear_solver(&mut self, model: &HyperModel, solver: crate::FemSolver) -> Result<LinearSolver> {
+    pub(crate) fn linear_solver(
+        &mut self,
+        model: &HyperModel,
+        solver: crate::FemSolver,
+    ) -> Result<LinearSolver> {
         Ok(match solver.resolve(model.grid.estimate().dofs) {
             crate::FemSolver::Multigrid => {
                 let levels =

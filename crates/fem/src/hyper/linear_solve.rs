@@ -210,7 +210,9 @@ impl LinearSolver {
     pub(crate) fn iterations(&self) -> (usize, usize) {
         match self {
             LinearSolver::Direct(_) => (0, 0),
-            LinearSolver::Multigrid(m) => (m.iterations.load(Ordering::Relaxed), m.solves.load(Ordering::Relaxed)),
+            LinearSolver::Multigrid(m) => {
+                (m.iterations.load(Ordering::Relaxed), m.solves.load(Ordering::Relaxed))
+            }
         }
     }
 }

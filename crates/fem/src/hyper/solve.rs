@@ -415,11 +415,7 @@ impl HyperBody {
     /// positive definite ([`FemError::NotPositiveDefinite`]).
     pub fn multigrid_contraction(&mut self, sweeps: usize) -> Result<f64> {
         let external = vec![0.0; self.model.n_free];
-        let duals = Multipliers::zero(
-            self.terms.contact.samples.len(),
-            0,
-            self.terms.grasps.points.len(),
-        );
+        let duals = Multipliers::zero(self.terms.contact.samples.len(), 0, self.terms.grasps.points.len());
         let x = vec![0.0; self.model.n_free];
         self.evaluate(&x, &duals.state(1.0, &external, &[]), true).ok_or(FemError::NotPositiveDefinite)?;
         let levels = crate::multigrid::GridLevels::new(&self.model.grid, &self.model.free);

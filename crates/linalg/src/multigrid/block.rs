@@ -111,16 +111,20 @@ impl BlockCsr {
 
     /// The largest diagonal entry's magnitude.
     pub fn largest_diagonal(&self) -> f64 {
-        (0..self.nodes()).map(|i| self.diagonal(i)).flat_map(|d| [d[0], d[4], d[8]]).fold(0.0, |m, v| m.max(v.abs()))
+        (0..self.nodes())
+            .map(|i| self.diagonal(i))
+            .flat_map(|d| [d[0], d[4], d[8]])
+            .fold(0.0, |m, v| m.max(v.abs()))
     }
 
     /// Which of the `3 * nodes` dofs are dead (zero diagonal entry).
     pub fn dead(&self) -> Vec<bool> {
-        (0..self.nodes()).flat_map(|i| {
-            let d = self.diagonal(i);
-            [d[0] == 0.0, d[4] == 0.0, d[8] == 0.0]
-        })
-        .collect()
+        (0..self.nodes())
+            .flat_map(|i| {
+                let d = self.diagonal(i);
+                [d[0] == 0.0, d[4] == 0.0, d[8] == 0.0]
+            })
+            .collect()
     }
 
     /// `y = A x`, in parallel over block rows.
@@ -141,7 +145,10 @@ impl BlockCsr {
     /// `r = b - A x`, in parallel over block rows.
     pub fn residual(&self, b: &[f64], x: &[f64], r: &mut [f64]) {
         self.mul(x, r);
-        r.par_iter_mut().zip(b.par_iter()).with_min_len(3 * ROWS_PER_TASK).for_each(|(ri, bi)| *ri = bi - *ri);
+        r.par_iter_mut()
+            .zip(b.par_iter())
+            .with_min_len(3 * ROWS_PER_TASK)
+            .for_each(|(ri, bi)| *ri = bi - *ri);
     }
 
     /// The lower triangle in compressed columns with 1 on dead diagonal entries (so the

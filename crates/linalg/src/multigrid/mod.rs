@@ -84,7 +84,11 @@ impl Multigrid {
     ///
     /// # Panics
     /// If the transfers' node counts do not chain from `fine` (a programming error).
-    pub fn new(fine: BlockCsr, transfers: Arc<Vec<Prolongation>>, settings: MultigridSettings) -> Result<Self> {
+    pub fn new(
+        fine: BlockCsr,
+        transfers: Arc<Vec<Prolongation>>,
+        settings: MultigridSettings,
+    ) -> Result<Self> {
         let mut levels = Vec::with_capacity(transfers.len());
         let mut matrix = fine;
         for p in transfers.iter() {
@@ -113,7 +117,8 @@ impl Multigrid {
 
     /// Bytes held by the levels' operators and the coarsest factor.
     pub fn bytes(&self) -> usize {
-        self.levels.iter().map(|l| l.matrix.bytes() + l.dead.len() * 80).sum::<usize>() + 8 * self.coarsest.nonzeros()
+        self.levels.iter().map(|l| l.matrix.bytes() + l.dead.len() * 80).sum::<usize>()
+            + 8 * self.coarsest.nonzeros()
     }
 
     /// The fine operator.

@@ -35,9 +35,11 @@ impl Chebyshev {
 
     /// `z = D^-1 r`.
     fn jacobi(&self, r: &[f64], z: &mut [f64]) {
-        z.par_chunks_mut(3).zip(r.par_chunks(3)).zip(self.inverse_diagonal.par_iter()).with_min_len(512).for_each(
-            |((zi, ri), d)| zi.copy_from_slice(&block_apply(d, ri)),
-        );
+        z.par_chunks_mut(3)
+            .zip(r.par_chunks(3))
+            .zip(self.inverse_diagonal.par_iter())
+            .with_min_len(512)
+            .for_each(|((zi, ri), d)| zi.copy_from_slice(&block_apply(d, ri)));
     }
 
     /// Smooths `x` towards `A x = b` (`x` may start at zero: `zero_start` saves a product).
@@ -124,9 +126,8 @@ fn tridiagonal_largest(alphas: &[f64], betas: &[f64]) -> f64 {
     if m == 0 {
         return 1.0;
     }
-    let diagonal: Vec<f64> = (0..m)
-        .map(|j| 1.0 / alphas[j] + if j > 0 { betas[j - 1] / alphas[j - 1] } else { 0.0 })
-        .collect();
+    let diagonal: Vec<f64> =
+        (0..m).map(|j| 1.0 / alphas[j] + if j > 0 { betas[j - 1] / alphas[j - 1] } else { 0.0 }).collect();
     let off: Vec<f64> = (0..m.saturating_sub(1)).map(|j| betas[j].sqrt() / alphas[j]).collect();
     // Power iteration on the small tridiagonal (symmetric positive definite).
     let mut v = vec![1.0; m];
