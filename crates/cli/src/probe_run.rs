@@ -10,7 +10,7 @@ use fibfluid::interact::{
     FrameRow, Latency, LinearizationStatus, Method, MethodBody, PathKind, ProbeError, ProbeOptions, Storage,
     ToolPath, check_method, check_path, replay_observed,
 };
-use fibfluid::sim::result_guards::{ResultChecks, ResultWarning, check_answer};
+use fibfluid::sim::result_guards::{ESTIMATE_LIMIT, ResultChecks, ResultGuard, ResultWarning, check_answer};
 use fibfluid::{ConstraintKind, Scene, Shape};
 use serde::Serialize;
 
@@ -136,6 +136,13 @@ pub(crate) fn final_state_guards(
                 .into(),
         )
     })
+}
+
+/// The `estimate` guard: the largest estimated error of the frames (two-rate bodies) over
+/// the body's size `diagonal` (m), past [`ESTIMATE_LIMIT`].
+fn estimate_warning(refresh: Option<&RefreshStats>, diagonal: f64) -> Option<ResultWarning> {
+    let ratio = refresh?.largest_estimated_error / diagonal.max(f64::MIN_POSITIVE);
+    (ratio > ESTIMATE_LIMIT).then_some(ResultWarning { guard: ResultGuard::Estimate, value: ratio, limit: ESTIMATE_LIMIT })
 }
 
 /// `frames.csv`: `frame,vertex,fx,fy,fz,ux,uy,uz`, every value in shortest round-trip
@@ -317,6 +324,7 @@ pub fn run_probe_with(
         warnings: final_state_guards(scene, file, body.field(), method)?,
         seconds_total: 0.0,
     };
+    report.warnings.extend(estimate_warning(report.probe.refresh.as_ref(), file.mesh.diagonal()));
     let png = if forces {
         let title = format!(
             "{}: force at the probed vertices ({} path, {method}, {})",

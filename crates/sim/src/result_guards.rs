@@ -90,7 +90,14 @@ pub enum ResultGuard {
     /// A finite-element answer with no fixed vertex and no plate in contact: the body is
     /// near free, held only by the grasps' penalties (the value: how many grasps).
     Unheld,
+    /// An interactive frame's estimated distance from the converged answer for its holds
+    /// is more than [`ESTIMATE_LIMIT`] times the body's size (the value: that ratio).
+    Estimate,
 }
+
+/// The largest estimated error of an interactive answer, over the body's size, that
+/// passes without a warning: an estimate past the body's size says nothing of the answer.
+pub const ESTIMATE_LIMIT: f64 = 1.0;
 
 impl Choice for ResultGuard {
     const WHAT: &'static str = "result guard";
@@ -106,6 +113,7 @@ impl Choice for ResultGuard {
         ResultGuard::Grasp,
         ResultGuard::Untouched,
         ResultGuard::Unheld,
+        ResultGuard::Estimate,
     ];
     fn name(self) -> &'static str {
         match self {
@@ -120,6 +128,7 @@ impl Choice for ResultGuard {
             ResultGuard::Grasp => "grasp",
             ResultGuard::Untouched => "untouched",
             ResultGuard::Unheld => "unheld",
+            ResultGuard::Estimate => "estimate",
         }
     }
 }
@@ -182,6 +191,10 @@ impl std::fmt::Display for ResultWarning {
             ResultGuard::Unheld => (
                 "no vertex is fixed and no plate touches the body: only {count} grasp(s) hold it, by penalties",
                 "the body is near free and its rigid motion is whatever the penalties leave: fix vertices ([[fix]]) or support it with a plate",
+            ),
+            ResultGuard::Estimate => (
+                "a frame's estimated distance from the converged answer is {value} times the body's size (limit {limit})",
+                "the frames used an old linearization (a path shorter than one refresh, or failed refreshes): read the answer as the rest shape's linear response, or refresh more often (--refresh-every)",
             ),
         };
         let what = what
