@@ -62,6 +62,8 @@ pub struct RefreshStats {
     pub frames_per_refresh: f64,
     /// The oldest linearization a frame used, in frames.
     pub largest_age_frames: u64,
+    /// The oldest linearization a frame used, in milliseconds since it was swapped in.
+    pub largest_age_ms: f64,
     /// The largest estimated distance of a frame from the converged answer for its holds
     /// (m; Newton's next correction).
     pub largest_estimated_error: f64,
@@ -154,17 +156,44 @@ pub fn frames_csv(rows: &[FrameRow]) -> String {
 /// [`frames_csv`]; with `forces` false (a method without forces, such as ChainMail) the
 /// force fields are left empty (the header stays the same).
 pub fn frames_csv_with(rows: &[FrameRow], forces: bool) -> String {
-    let mut s = String::from("frame,vertex,fx,fy,fz,ux,uy,uz\n");
+    frames_csv_linearized(rows, forces, &[])
+}
+
+/// The columns `frames.csv` adds for a body answered on linearizations (the two-rate
+/// neo-Hookean FEM body): the age of the frame's linearization and its estimated error.
+pub const LINEARIZATION_COLUMNS: &str = "linearization_age_ms,linearization_age_frames,estimated_error_m";
+
+/// [`frames_csv_with`], and with `statuses` (one per frame, in frame order; empty for a body
+/// without linearizations) the [`LINEARIZATION_COLUMNS`] of each row's frame.
+pub fn frames_csv_linearized(rows: &[FrameRow], forces: bool, statuses: &[LinearizationStatus]) -> String {
+    let mut s = String::from("frame,vertex,fx,fy,fz,ux,uy,uz");
+    if !statuses.is_empty() {
+        s.push(',');
+        s.push_str(LINEARIZATION_COLUMNS);
+    }
+    s.push('\n');
     for r in rows {
         let (f, u) = (r.force, r.displacement);
         if forces {
             s.push_str(&format!(
-                "{},{},{:e},{:e},{:e},{:e},{:e},{:e}\n",
+                "{},{},{:e},{:e},{:e},{:e},{:e},{:e}",
                 r.frame, r.file_vertex, f[0], f[1], f[2], u[0], u[1], u[2]
             ));
         } else {
-            s.push_str(&format!("{},{},,,,{:e},{:e},{:e}\n", r.frame, r.file_vertex, u[0], u[1], u[2]));
+            s.push_str(&format!("{},{},,,,{:e},{:e},{:e}", r.frame, r.file_vertex, u[0], u[1], u[2]));
         }
+        if !statuses.is_empty() {
+            match statuses.get(r.frame) {
+                Some(l) => s.push_str(&format!(
+                    ",{:e},{},{:e}",
+                    l.age_seconds * 1e3,
+                    l.age_frames,
+                    l.estimated_error
+                )),
+                None => s.push_str(",,,"),
+            }
+        }
+        s.push('\n');
     }
     s
 }
@@ -345,7 +374,7 @@ pub fn run_probe_with(
     report.seconds_total = start.elapsed().as_secs_f64();
     let json = serde_json::to_string_pretty(&report)? + "\n";
     let files = [
-        (PROBE_FILES[0], frames_csv_with(&replay.rows, forces).into_bytes()),
+        (PROBE_FILES[0], frames_csv_linearized(&replay.rows, forces, &statuses).into_bytes()),
         (PROBE_FILES[1], obj),
         (PROBE_FILES[2], json.into_bytes()),
         (PROBE_FILES[3], png),
@@ -470,6 +499,7 @@ fn refresh_stats(
         refresh_hz: if refresh_seconds > 0.0 { 1.0 / refresh_seconds } else { 0.0 },
         frames_per_refresh: if frame_seconds > 0.0 { refresh_seconds / frame_seconds } else { 0.0 },
         largest_age_frames: statuses.iter().map(|s| s.age_frames).max().unwrap_or(0),
+        largest_age_ms: statuses.iter().map(|s| s.age_seconds * 1e3).fold(0.0, f64::max),
         largest_estimated_error: statuses.iter().map(|s| s.estimated_error).fold(0.0, f64::max),
         final_estimated_error: last.estimated_error,
         failures,

@@ -87,7 +87,10 @@ const EXPECTED: &[(&str, &str)] = &[
         "scene-fem-unknown-model.toml",
         "scene-fem-unknown-model.toml:6: [tissue].model: `mooney` is not a tissue model (expected one of: linear, neo-hookean, auto)",
     ),
-    ("scene-fem-region-outside.toml", "scene-fem-region-outside.toml: fem: region 1 lies outside the body"),
+    (
+        "scene-fem-region-outside.toml",
+        "scene-fem-region-outside.toml: fem: region 1 (box) lies outside the body",
+    ),
     ("scene-fem-region-model.toml", "[[region]] #1 tissue.model: a region takes the body's [tissue] model"),
     (
         "scene-fem-newton-fails.toml",
@@ -762,5 +765,53 @@ fn bench_two_rate_without_its_pair_names_the_missing_flag() {
         p
     })
     .collect();
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+/// A `[[region]]` mesh entirely outside the body is refused naming the scene file and the
+/// region's mesh file (a cube from 5 to 6 beside a unit sphere).
+#[test]
+fn a_region_mesh_outside_the_body_is_refused_naming_its_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut cube = String::new();
+    for k in 0..8 {
+        let c = |bit: usize| if k & bit == 0 { 5.0 } else { 6.0 };
+        cube.push_str(&format!("v {} {} {}\n", c(1), c(2), c(4)));
+    }
+    for f in [
+        [1, 3, 4],
+        [1, 4, 2],
+        [5, 6, 8],
+        [5, 8, 7],
+        [1, 2, 6],
+        [1, 6, 5],
+        [3, 7, 8],
+        [3, 8, 4],
+        [1, 5, 7],
+        [1, 7, 3],
+        [2, 4, 8],
+        [2, 8, 6],
+    ] {
+        cube.push_str(&format!("f {} {} {}\n", f[0], f[1], f[2]));
+    }
+    std::fs::write(dir.path().join("far-lesion.obj"), cube).unwrap();
+    let sphere = fixtures_dir().join("meshes/icosphere-2.obj");
+    let scene = dir.path().join("far-region.toml");
+    std::fs::write(
+        &scene,
+        format!(
+            "[mesh]\npath = \"{}\"\n\n[tissue]\nyoung = 5000.0\npoisson = 0.45\ndensity = 1000.0\n\n\
+             [fem]\nresolution = 8\n\n[[region]]\nmesh = \"far-lesion.obj\"\n\n[region.tissue]\n\
+             young = 20000.0\npoisson = 0.45\n\n[[fix]]\naxis = \"y\"\nbelow = 0.01\n\n\
+             [solver]\nmethod = \"fem\"\n",
+            sphere.display()
+        ),
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let problems = one_line_failure(
+        &["run".as_ref(), scene.as_os_str(), "--out".as_ref(), out.as_os_str()],
+        &["far-region.toml", "region 1 (mesh far-lesion.obj) lies outside the body"],
+    );
     assert!(problems.is_empty(), "{}", problems.join("\n"));
 }

@@ -1283,4 +1283,75 @@ fn probe_warns_about_small_strain_only_for_the_linear_law() {
             assert_eq!(guards.contains(&"estimate".to_string()), estimate > 0.278, "{estimate}: {guards:?}");
         }
     }
+
+/// `probe` of a two-rate neo-Hookean FEM body writes each frame's linearization age (ms and
+/// frames) and estimated error in `frames.csv`: ages never negative, growing by one frame
+/// (and not shrinking in time) until a refresh resets them, and the report's maxima are the
+/// columns' maxima.
+#[test]
+fn probe_of_a_two_rate_body_writes_each_frames_linearization_age_and_error() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mesh = root().join("fixtures/meshes/icosphere-2.obj");
+    let scene = tmp.path().join("neo.toml");
+    let text = format!(
+        "[mesh]\npath = \"{}\"\nunit = \"cm\"\n\n[tissue]\nmodel = \"neo-hookean\"\nyoung = 5000.0\n\
+         poisson = 0.45\ndensity = 1000.0\n\n[fem]\nresolution = 6\n\n[[fix]]\naxis = \"y\"\nabove = 0.8\n",
+        mesh.display()
+    );
+    std::fs::write(&scene, text).unwrap();
+    let path = tmp.path().join("grab.csv");
+    let lines: String =
+        (0..10).map(|k| format!("{k},3,{:e},{:e},0\n", 0.02 * k as f64, -0.02 * k as f64)).collect();
+    std::fs::write(&path, format!("frame,vertex,ux,uy,uz\n{lines}")).unwrap();
+    let out = tmp.path().join("out");
+    let o = bin()
+        .arg("probe")
+        .arg(&scene)
+        .args(["--method", "fem", "--refresh-every", "3", "--path"])
+        .arg(&path)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(
+        lines.next(),
+        Some(
+            "frame,vertex,fx,fy,fz,ux,uy,uz,linearization_age_ms,linearization_age_frames,estimated_error_m"
+        )
+    );
+    let rows: Vec<Vec<f64>> =
+        lines.map(|l| l.split(',').map(|t| t.parse::<f64>().unwrap()).collect()).collect();
+    assert_eq!(rows.len(), 10, "one row per frame: {csv}");
+    for (k, r) in rows.iter().enumerate() {
+        assert_eq!(r.len(), 11, "{csv}");
+        assert_eq!(r[0], k as f64);
+        assert!(r[8] >= 0.0 && r[9] >= 0.0 && r[10] >= 0.0, "frame {k}: {r:?}");
+        assert!(r[9] <= k as f64 && r[9].fract() == 0.0, "frame {k}: age {} frames", r[9]);
+    }
+    let mut resets = 0;
+    for w in rows.windows(2) {
+        let (a, b) = (&w[0], &w[1]);
+        if b[9] <= a[9] {
+            resets += 1;
+        } else {
+            assert_eq!(b[9], a[9] + 1.0, "the same linearization is one frame older: {a:?} then {b:?}");
+            assert!(b[8] >= a[8], "the same linearization is no younger in time: {a:?} then {b:?}");
+        }
+    }
+    assert!(resets >= 2, "refreshing every 3 frames over 10 frames resets the age: {csv}");
+    let report = read_json(&out.join("report.json"));
+    let refresh = &report["probe"]["refresh"];
+    let max = |c: usize| rows.iter().map(|r| r[c]).fold(0.0, f64::max);
+    // serde_json reads decimals to within an ulp or so, hence the 1e-12 tolerance.
+    let same = |key: &str, want: f64| {
+        let got = refresh[key].as_f64().unwrap();
+        assert!((got - want).abs() <= 1e-12 * want.abs(), "{key}: {got} against {want}: {refresh}");
+    };
+    same("largest_age_ms", max(8));
+    assert_eq!(refresh["largest_age_frames"].as_f64().unwrap(), max(9), "{refresh}");
+    same("largest_estimated_error", max(10));
+    same("final_estimated_error", rows[9][10]);
 }

@@ -104,8 +104,13 @@ pub enum SurfaceError {
         smallest: usize,
     },
     /// The extracted surface failed validation (e.g. a label in several pieces).
-    #[error("the extracted surface is not one valid closed body: {0}")]
-    Mesh(#[from] MeshError),
+    #[error("the surface of {selection} is not one valid closed body: {source}")]
+    Mesh {
+        /// The selection whose surface it is.
+        selection: LabelSelection,
+        /// What validation found.
+        source: MeshError,
+    },
 }
 
 /// A surface extracted from a label image, in metres, validated and outward.
@@ -158,19 +163,21 @@ pub fn extract_surface(image: &LabelImage, opts: &SurfaceOptions) -> Result<Labe
     if opts.smooth {
         raw = volume_keeping_surface(image, &mask, block, voxels as f64 * image.voxel_volume(), raw);
     }
-    let mut mesh = TriMesh::new(raw.0, raw.1)?;
-    let mut validation = mesh.validate()?;
+    let selection = opts.selection;
+    let invalid = |source| SurfaceError::Mesh { selection, source };
+    let mut mesh = TriMesh::new(raw.0, raw.1).map_err(invalid)?;
+    let mut validation = mesh.validate().map_err(invalid)?;
     if let Some(target) = opts.target_vertices {
         let (positions, triangles) =
             decimate_valid(mesh.positions(), mesh.triangles(), target).map_err(|e| match e {
                 DecimateError::TargetTooSmall { target, reached } => {
                     SurfaceError::TargetTooSmall { target, smallest: reached }
                 }
-                DecimateError::Mesh(e) => SurfaceError::Mesh(e),
+                DecimateError::Mesh(e) => invalid(e),
             })?;
-        mesh = TriMesh::new(positions, triangles)?;
+        mesh = TriMesh::new(positions, triangles).map_err(invalid)?;
         let flipped = validation.flipped;
-        validation = mesh.validate()?;
+        validation = mesh.validate().map_err(invalid)?;
         validation.flipped |= flipped;
     }
     let volume = mesh.volume();

@@ -207,8 +207,10 @@ fn image_shape(m: MeshToml, dir: &Path) -> Result<(Shape, fibfluid_geometry::Lab
     };
     let surface = extract_surface(&image, &opts)
         .map_err(|source| invalid("[mesh].image", SceneProblem::Surface { path: path.clone(), source }))?;
-    let file = MeshFile::from_mesh(&path, surface.mesh)
-        .map_err(|source| invalid("[mesh].image", SceneProblem::Surface { path, source: source.into() }))?;
+    let file = MeshFile::from_mesh(&path, surface.mesh).map_err(|source| {
+        let source = fibfluid_geometry::SurfaceError::Mesh { selection, source };
+        invalid("[mesh].image", SceneProblem::Surface { path, source })
+    })?;
     Ok((Shape::Surface(Box::new(file)), image))
 }
 

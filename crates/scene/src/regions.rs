@@ -56,6 +56,11 @@ pub(crate) fn regions(
             .map_err(|e| Invalid { key: Some(format!("{key} tissue")), ..e })?;
         let tissue = tissue.with_model(body.model());
         let metres = unit.metres();
+        let origin = match (&spec.mesh, &spec.r#box, &spec.label) {
+            (Some(path), _, _) => format!("mesh {path}"),
+            (None, None, Some(label)) => format!("label {label}"),
+            _ => "box".to_string(),
+        };
         let shape = match (spec.mesh, spec.r#box, spec.label) {
             (None, None, Some(label)) => label_shape(&key, image_path.as_deref(), &mut image, label)?,
             (Some(path), None, None) => {
@@ -92,7 +97,7 @@ pub(crate) fn regions(
             }
         };
         let name = spec.name.unwrap_or_else(|| format!("region {}", k + 1));
-        out.push(NamedRegion { name, region: Region { shape, tissue } });
+        out.push(NamedRegion { name, origin, region: Region { shape, tissue } });
     }
     Ok(out)
 }

@@ -20,6 +20,18 @@ pub enum Error {
         /// What failed.
         source: fibfluid_fem::FemError,
     },
+    /// A `[[region]]` holds no part of the body: named with where its shape comes from.
+    #[error(
+        "{scene}: fem: {name} ({origin}) lies outside the body: none of its points is inside the surface"
+    )]
+    RegionOutsideBody {
+        /// The scene.
+        scene: String,
+        /// The region's name (`[[region]] name`, or `region k`).
+        name: String,
+        /// Where its shape comes from (`mesh lesion.obj`, `box`, `label 2`).
+        origin: String,
+    },
     /// The model lacks what its method needs, or asks what the method cannot do.
     #[error("{scene}: {method}: {problem}")]
     MethodNeeds {

@@ -148,7 +148,17 @@ pub fn build(
     };
     let body = HyperBody::from_surface_grasped(positions, triangles, tissue, &fixed, grasps, &options)
         .and_then(|b| b.with_regions(&regions))
-        .map_err(failed)?
+        .map_err(|source| match source {
+            fibfluid_fem::FemError::RegionOutsideBody { region } => {
+                let named = &model.fem.regions[region - 1];
+                Error::RegionOutsideBody {
+                    scene: model.display_name(),
+                    name: named.name.clone(),
+                    origin: named.origin.clone(),
+                }
+            }
+            source => failed(source),
+        })?
         .with_settings(settings);
     log.add(names::VOXELIZATION, start.elapsed().as_secs_f64());
     Ok(body)

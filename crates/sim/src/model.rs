@@ -172,6 +172,9 @@ pub struct TimedRun {
 pub struct NamedRegion {
     /// Its name (`[[region]] name`, or `region k`).
     pub name: String,
+    /// Where its shape comes from, as the scene gives it (`mesh lesion.obj`, `box`,
+    /// `label 2`): named in errors about the region.
+    pub origin: String,
     /// Its shape (in metres) and tissue.
     pub region: fibfluid_fem::Region,
 }
