@@ -144,7 +144,11 @@ pub(crate) fn final_state_guards(
 /// the body's size `diagonal` (m), past [`ESTIMATE_LIMIT`].
 fn estimate_warning(refresh: Option<&RefreshStats>, diagonal: f64) -> Option<ResultWarning> {
     let ratio = refresh?.largest_estimated_error / diagonal.max(f64::MIN_POSITIVE);
-    (ratio > ESTIMATE_LIMIT).then_some(ResultWarning { guard: ResultGuard::Estimate, value: ratio, limit: ESTIMATE_LIMIT })
+    (ratio > ESTIMATE_LIMIT).then_some(ResultWarning {
+        guard: ResultGuard::Estimate,
+        value: ratio,
+        limit: ESTIMATE_LIMIT,
+    })
 }
 
 /// `frames.csv`: `frame,vertex,fx,fy,fz,ux,uy,uz`, every value in shortest round-trip

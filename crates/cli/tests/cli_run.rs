@@ -1283,6 +1283,7 @@ fn probe_warns_about_small_strain_only_for_the_linear_law() {
             assert_eq!(guards.contains(&"estimate".to_string()), estimate > 0.278, "{estimate}: {guards:?}");
         }
     }
+}
 
 /// `probe` of a two-rate neo-Hookean FEM body writes each frame's linearization age (ms and
 /// frames) and estimated error in `frames.csv`: ages never negative, growing by one frame
