@@ -1227,20 +1227,36 @@ fn a_timed_run_reports_its_progress_in_simulated_time() {
     assert_eq!(progress_line(250.0, 1000.0, 2500, 0), "t = 250.00 s of 1000 s, 2500 steps, 0 cut");
 }
 
+/// An element of an XML text: its name, attributes and text.
+struct XmlElement {
+    name: String,
+    attributes: Vec<(String, String)>,
+    text: String,
+}
+
+impl XmlElement {
+    /// The attribute `key`.
+    fn attribute(&self, key: &str) -> &str {
+        self.attributes
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.as_str())
+            .unwrap_or_else(|| panic!("no {key}"))
+    }
+}
+
 /// The elements of an XML text, checked well-formed (a declaration, comments, balanced
-/// tags, quoted attributes, no markup in the text between tags): each element's name, its
-/// attributes and its text.
-fn xml_elements(xml: &str) -> Vec<(String, Vec<(String, String)>, String)> {
-    let mut elements = Vec::new();
+/// tags, quoted attributes, no markup in the text between tags).
+fn xml_elements(xml: &str) -> Vec<XmlElement> {
+    let mut elements: Vec<XmlElement> = Vec::new();
     let (mut open, mut rest) = (Vec::<String>::new(), xml);
     while let Some(at) = rest.find('<') {
         let text = &rest[..at];
         assert!(!text.contains('&') && !text.contains('>'), "markup in text: {text:.60}");
-        if let Some(last) =
-            open.last().and_then(|name| elements.iter().rposition(|e: &(String, _, _)| &e.0 == name))
+        if let Some(name) = open.last()
+            && let Some(e) = elements.iter_mut().rev().find(|e| &e.name == name)
         {
-            let e: &mut (String, Vec<(String, String)>, String) = &mut elements[last];
-            e.2 += text;
+            e.text += text;
         }
         rest = &rest[at..];
         if let Some(body) = rest.strip_prefix("<!--") {
@@ -1272,24 +1288,19 @@ fn xml_elements(xml: &str) -> Vec<(String, Vec<(String, String)>, String)> {
         if !empty {
             open.push(name.clone());
         }
-        elements.push((name, attributes, String::new()));
+        elements.push(XmlElement { name, attributes, text: String::new() });
     }
     assert!(open.is_empty() && rest.trim().is_empty(), "unclosed elements {open:?}");
     elements
 }
 
-/// The attribute `key` of an element.
-fn attribute<'a>(element: &'a (String, Vec<(String, String)>, String), key: &str) -> &'a str {
-    element.1.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str()).unwrap_or_else(|| panic!("no {key}"))
-}
-
 /// The numbers of the `DataArray` named `name` of a volume file.
-fn data_array(elements: &[(String, Vec<(String, String)>, String)], name: &str) -> Vec<f64> {
+fn data_array(elements: &[XmlElement], name: &str) -> Vec<f64> {
     let e = elements
         .iter()
-        .find(|e| e.0 == "DataArray" && e.1.iter().any(|(k, v)| k == "Name" && v == name))
+        .find(|e| e.name == "DataArray" && e.attributes.iter().any(|(k, v)| k == "Name" && v == name))
         .unwrap_or_else(|| panic!("no DataArray {name}"));
-    e.2.split_whitespace().map(|v| v.parse().unwrap()).collect()
+    e.text.split_whitespace().map(|v| v.parse().unwrap()).collect()
 }
 
 /// A timed run's `series.pvd`: one dataset per row of `series.csv` at its time, each volume
@@ -1297,16 +1308,16 @@ fn data_array(elements: &[(String, Vec<(String, String)>, String)], name: &str) 
 /// at rest, the last with the final `volume.vtu`'s displacements.
 fn check_volume_series(out: &Path, times: &[f64], nodes: usize) {
     let pvd = xml_elements(&std::fs::read_to_string(out.join("series.pvd")).unwrap());
-    assert_eq!(attribute(&pvd[0], "type"), "Collection");
-    let sets: Vec<_> = pvd.iter().filter(|e| e.0 == "DataSet").collect();
+    assert_eq!(pvd[0].attribute("type"), "Collection");
+    let sets: Vec<_> = pvd.iter().filter(|e| e.name == "DataSet").collect();
     assert_eq!(sets.len(), times.len(), "one volume per row of series.csv");
     let mut volumes = Vec::new();
     for (set, t) in sets.iter().zip(times) {
-        assert_eq!(attribute(set, "timestep").parse::<f64>().unwrap(), *t);
-        let file = attribute(set, "file");
+        assert_eq!(set.attribute("timestep").parse::<f64>().unwrap(), *t);
+        let file = set.attribute("file");
         let volume = xml_elements(&std::fs::read_to_string(out.join(file)).unwrap());
-        let piece = volume.iter().find(|e| e.0 == "Piece").unwrap();
-        assert_eq!(attribute(piece, "NumberOfPoints").parse::<usize>().unwrap(), nodes, "{file}");
+        let piece = volume.iter().find(|e| e.name == "Piece").unwrap();
+        assert_eq!(piece.attribute("NumberOfPoints").parse::<usize>().unwrap(), nodes, "{file}");
         let displacement = data_array(&volume, "displacement");
         assert_eq!(displacement.len(), 3 * nodes, "{file}");
         assert_eq!(data_array(&volume, "Points").len(), 3 * nodes, "{file}");
