@@ -588,7 +588,7 @@ fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> 
     let (scene, load) = load_scene(path, over)?;
     // The outputs' place is checked before anything is computed, not after.
     let mut names = fibfluid_cli::OUTPUT_FILES.to_vec();
-    let timed = scene.fem.time.as_ref().map(|t| fibfluid_cli::series::timed_files(t.settings.outputs()));
+    let timed = scene.fem.time.as_ref().map(|t| fibfluid_cli::frames::timed_files(t.settings.outputs()));
     if scene.solver.method == Method::Fem {
         names.push(fibfluid_cli::vtu::VOLUME_FILE);
         names.extend(timed.iter().flatten().map(String::as_str));
@@ -662,7 +662,7 @@ fn run_fem(
 ) -> Result<(), CliError> {
     let path = scene.source.clone().unwrap_or_default();
     // A timed run writes each output time's volume as it comes (staged, moved in at the end).
-    let mut frames = fibfluid_cli::series::FrameWriter::new(out, &scene.name, scene.unit);
+    let mut frames = fibfluid_cli::frames::FrameWriter::new(out, &scene.name, scene.unit);
     let mut shown = time_progress("run");
     let run = fibfluid::sim::fem_run::FemRun::observed(scene, over.max_memory, &mut |frame| {
         frames.write(frame);
@@ -725,8 +725,8 @@ fn run_fem(
             "  wrote {} and {} volumes {} to {}",
             pvd.display(),
             volumes.len() - 1,
-            fibfluid_cli::series::frame_file(0),
-            fibfluid_cli::series::frame_file(volumes.len().saturating_sub(2))
+            fibfluid_cli::frames::frame_file(0),
+            fibfluid_cli::frames::frame_file(volumes.len().saturating_sub(2))
         );
     }
     Ok(())
