@@ -752,17 +752,22 @@ fn time_progress(what: &str) -> Box<dyn FnMut(&fibfluid::sim::hyper_run::TimeFra
             }
         });
     }
-    let bar = ProgressBar::new(1);
-    bar.set_style(
-        ProgressStyle::with_template("{msg} [{bar:30}] ({elapsed}, about {eta} left)")
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
     let what = what.to_string();
+    // Made at the first output: a run without time shows nothing.
+    let mut shown: Option<ProgressBar> = None;
     Box::new(move |f| {
+        let bar = shown.get_or_insert_with(|| {
+            let bar = ProgressBar::new(f.outputs.saturating_sub(1).max(1) as u64);
+            bar.set_style(
+                ProgressStyle::with_template("{msg} [{bar:30}] ({elapsed}, about {eta} left)")
+                    .unwrap_or_else(|_| ProgressStyle::default_bar())
+                    .progress_chars("=> "),
+            );
+            bar
+        });
         bar.set_length(f.outputs.saturating_sub(1).max(1) as u64);
-        bar.set_position(f.index as u64);
         bar.set_message(format!("{what}: {}", line(f)));
+        bar.set_position(f.index as u64);
         if f.index + 1 == f.outputs {
             bar.finish_and_clear();
         }
