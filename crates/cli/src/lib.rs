@@ -8,6 +8,7 @@ pub mod bench_fem;
 pub mod bench_two_rate;
 pub mod compare_run;
 mod error;
+pub mod frames;
 pub mod grab;
 pub mod info;
 pub mod output;

@@ -600,8 +600,10 @@ fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> 
     let (scene, load) = load_scene(path, over)?;
     // The outputs' place is checked before anything is computed, not after.
     let mut names = fibfluid_cli::OUTPUT_FILES.to_vec();
+    let timed = scene.fem.time.as_ref().map(|t| fibfluid_cli::frames::timed_files(t.settings.outputs()));
     if scene.solver.method == Method::Fem {
         names.push(fibfluid_cli::vtu::VOLUME_FILE);
+        names.extend(timed.iter().flatten().map(String::as_str));
     } else if !scene.model.plates.is_empty() {
         names.push(fibfluid_cli::COMPRESSION_FILE);
     }
@@ -671,11 +673,19 @@ fn run_fem(
     over: &Overrides,
 ) -> Result<(), CliError> {
     let path = scene.source.clone().unwrap_or_default();
-    let run = fibfluid::sim::fem_run::FemRun::new(scene, over.max_memory).map_err(in_scene(&path))?;
+    // A timed run writes each output time's volume as it comes (staged, moved in at the end).
+    let mut frames = fibfluid_cli::frames::FrameWriter::new(out, &scene.name, scene.unit);
+    let mut shown = time_progress("run");
+    let run = fibfluid::sim::fem_run::FemRun::observed(scene, over.max_memory, &mut |frame| {
+        frames.write(frame);
+        shown(frame);
+    })
+    .map_err(in_scene(&path))?;
     print_result_warnings(&run.warnings);
     let start = Instant::now();
     let mut report = fibfluid::sim::fem_run::FemReport::of(&run, std::slice::from_ref(&load), notes);
     let written = fibfluid_cli::write_fem_outputs(out, &run, &report)?;
+    let volumes = frames.finish()?;
     report.seconds_total += start.elapsed().as_secs_f64();
     let unit = run.model.unit;
     let to_unit = 1.0 / unit.metres();
@@ -722,7 +732,58 @@ fn run_fem(
     for w in written {
         say!("  wrote {}", w.display());
     }
+    if let Some(pvd) = volumes.last() {
+        say!(
+            "  wrote {} and {} volumes {} to {}",
+            pvd.display(),
+            volumes.len() - 1,
+            fibfluid_cli::frames::frame_file(0),
+            fibfluid_cli::frames::frame_file(volumes.len().saturating_sub(2))
+        );
+    }
     Ok(())
+}
+
+/// Progress of a timed run on stderr, at each output time: the simulated time, the steps
+/// and cuts (`t = 1.20 s of 10 s, 120 steps, 3 cut`): a bar on a terminal, else a plain
+/// line every [`PROGRESS_LINE_SECONDS`] (logs and pipes), as [`progress`].
+fn time_progress(what: &str) -> Box<dyn FnMut(&fibfluid::sim::hyper_run::TimeFrame<'_>)> {
+    let line = |f: &fibfluid::sim::hyper_run::TimeFrame<'_>| {
+        fibfluid_cli::series::progress_line(f.row.time, f.end, f.steps, f.cut_steps)
+    };
+    let start = Instant::now();
+    if !std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+        let what = what.to_string();
+        let mut last = 0.0f64;
+        return Box::new(move |f| {
+            let elapsed = start.elapsed().as_secs_f64();
+            if f.index + 1 < f.outputs && f.index > 0 && elapsed - last >= PROGRESS_LINE_SECONDS {
+                last = elapsed;
+                let left = elapsed / f.row.time * (f.end - f.row.time);
+                tell!("{what}: {}, {elapsed:.0} s so far, about {left:.0} s left", line(f));
+            }
+        });
+    }
+    let what = what.to_string();
+    // Made at the first output: a run without time shows nothing.
+    let mut shown: Option<ProgressBar> = None;
+    Box::new(move |f| {
+        let bar = shown.get_or_insert_with(|| {
+            let bar = ProgressBar::new(f.outputs.saturating_sub(1).max(1) as u64);
+            bar.set_style(
+                ProgressStyle::with_template("{msg} [{bar:30}] ({elapsed}, about {eta} left)")
+                    .unwrap_or_else(|_| ProgressStyle::default_bar())
+                    .progress_chars("=> "),
+            );
+            bar
+        });
+        bar.set_length(f.outputs.saturating_sub(1).max(1) as u64);
+        bar.set_message(format!("{what}: {}", line(f)));
+        bar.set_position(f.index as u64);
+        if f.index + 1 == f.outputs {
+            bar.finish_and_clear();
+        }
+    })
 }
 
 fn print_step_notes(sim: &Simulation) {

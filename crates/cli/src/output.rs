@@ -395,7 +395,7 @@ pub fn write_files_atomically(dir: &Path, files: &[(&str, Vec<u8>)]) -> Result<V
 }
 
 /// The directory the temporary directory of [`write_files_atomically`] goes in.
-fn parent_of(dir: &Path) -> PathBuf {
+pub(crate) fn parent_of(dir: &Path) -> PathBuf {
     match dir.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
@@ -458,6 +458,6 @@ pub fn check_output_dir(dir: &Path, names: &[&str]) -> Result<()> {
     Ok(())
 }
 
-fn nanos() -> u128 {
+pub(crate) fn nanos() -> u128 {
     std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_nanos()).unwrap_or(0)
 }

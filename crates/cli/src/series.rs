@@ -1,4 +1,5 @@
-//! `series.csv`: a timed run's state at each output time (SI units: s, m, m^3, J, N).
+//! `series.csv`: a timed run's state at each output time (SI units: s, m, m^3, J, N); its
+//! progress line.
 
 use fibfluid::sim::fem_run::FemRun;
 use fibfluid::sim::hyper_run::SeriesRow;
@@ -35,4 +36,12 @@ pub fn series_csv(run: &FemRun) -> Option<Vec<u8>> {
         out.push('\n');
     }
     Some(out.into_bytes())
+}
+
+/// The progress of a timed run: `t = 1.20 s of 10 s, 120 steps, 3 cut` (the time to about
+/// three significant digits of the end).
+pub fn progress_line(time: f64, end: f64, steps: usize, cut: usize) -> String {
+    let decimals = (2 - end.log10().floor() as i32).max(2) as usize;
+    let plural = if steps == 1 { "" } else { "s" };
+    format!("t = {time:.decimals$} s of {end} s, {steps} step{plural}, {cut} cut")
 }

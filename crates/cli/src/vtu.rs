@@ -5,6 +5,10 @@
 
 use std::io::Write;
 
+use fibfluid::fem::SparseGrid;
+use fibfluid::fem::Tissue;
+use fibfluid::fem::hyper::{CellState, TimeFields};
+use fibfluid::geometry::{LengthUnit, Vec3};
 use fibfluid::sim::fem_run::FemRun;
 
 /// The name of the volume file a finite-element run writes.
@@ -42,12 +46,65 @@ pub(crate) fn comment_text(text: &str) -> String {
     s
 }
 
+/// What a volume file shows: the grid, its nodes' displacements (m), its cells' states
+/// and region ids.
+#[derive(Debug, Clone, Copy)]
+pub struct VolumeView<'a> {
+    /// The grid.
+    pub grid: &'a SparseGrid,
+    /// The displacement of every grid node, m.
+    pub node_displacements: &'a [Vec3],
+    /// Each cell's strain, `J` and stress (Pa).
+    pub cells: &'a [CellState],
+    /// Each cell's region id (`material_id`).
+    pub region_ids: &'a [u16],
+}
+
+impl<'a> VolumeView<'a> {
+    /// A finished run's volume.
+    pub fn of_run(run: &'a FemRun) -> Self {
+        let v = &run.volume;
+        Self {
+            grid: &v.grid,
+            node_displacements: &v.node_displacements,
+            cells: &v.cells,
+            region_ids: &v.region_ids,
+        }
+    }
+
+    /// A timed run's volume at one output time.
+    pub fn of_fields(fields: &'a TimeFields<'a>) -> Self {
+        Self {
+            grid: fields.grid,
+            node_displacements: fields.node_displacements,
+            cells: fields.cells,
+            region_ids: fields.region_ids,
+        }
+    }
+}
+
+/// The comment a volume file opens with: the scene's name, the tissue's law and the units.
+pub fn volume_comment(name: &str, tissue: &Tissue, unit: LengthUnit) -> String {
+    format!("fibfluid {name} ({}, {unit}): lengths in {unit}, stresses in Pa", tissue.model())
+}
+
 /// Writes the run's cells (positions and displacements in the mesh file's unit, stresses in
 /// Pa).
 pub fn write_vtu(out: &mut impl Write, run: &FemRun) -> std::io::Result<()> {
-    let to_unit = 1.0 / run.model.unit.metres();
-    let volume = &run.volume;
-    let grid = &volume.grid;
+    let comment = volume_comment(&run.model.name, &run.tissue, run.model.unit);
+    write_volume(out, &comment, run.model.unit, &VolumeView::of_run(run))
+}
+
+/// Writes `volume`'s cells under the XML comment `comment` (one line, made safe here):
+/// positions and displacements in `unit`, stresses in Pa.
+pub fn write_volume(
+    out: &mut impl Write,
+    comment: &str,
+    unit: LengthUnit,
+    volume: &VolumeView<'_>,
+) -> std::io::Result<()> {
+    let to_unit = 1.0 / unit.metres();
+    let grid = volume.grid;
     let nodes = grid.node_positions();
     let cells = grid.cell_nodes();
     writeln!(out, r#"<?xml version="1.0"?>"#)?;
@@ -55,18 +112,11 @@ pub fn write_vtu(out: &mut impl Write, run: &FemRun) -> std::io::Result<()> {
         out,
         r#"<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">"#
     )?;
-    writeln!(
-        out,
-        "<!-- fibfluid {} ({}, {}): lengths in {}, stresses in Pa -->",
-        comment_text(&run.model.name),
-        run.tissue.model(),
-        run.model.unit,
-        run.model.unit
-    )?;
+    writeln!(out, "<!-- {} -->", comment_text(comment))?;
     writeln!(out, "<UnstructuredGrid>")?;
     writeln!(out, r#"<Piece NumberOfPoints="{}" NumberOfCells="{}">"#, nodes.len(), cells.len())?;
     writeln!(out, "<Points>")?;
-    let deformed = nodes.iter().zip(&volume.node_displacements).map(|(p, u)| {
+    let deformed = nodes.iter().zip(volume.node_displacements).map(|(p, u)| {
         format!("{:?} {:?} {:?}", (p[0] + u[0]) * to_unit, (p[1] + u[1]) * to_unit, (p[2] + u[2]) * to_unit)
     });
     array(out, "Float64", "Points", 3, deformed)?;
@@ -85,9 +135,7 @@ pub fn write_vtu(out: &mut impl Write, run: &FemRun) -> std::io::Result<()> {
     array(out, "Float64", "displacement", 3, disp)?;
     writeln!(out, "</PointData>")?;
     writeln!(out, r#"<CellData Scalars="J">"#)?;
-    let cell = |f: fn(&fibfluid::fem::hyper::CellState) -> f64| {
-        volume.cells.iter().map(move |c| format!("{:?}", f(c)))
-    };
+    let cell = |f: fn(&CellState) -> f64| volume.cells.iter().map(move |c| format!("{:?}", f(c)));
     array(out, "Float64", "J", 1, cell(|c| c.dilatation))?;
     array(out, "Float64", "max_principal_strain", 1, cell(|c| c.max_principal_strain))?;
     array(out, "Float64", "von_mises_stress", 1, cell(|c| c.von_mises))?;

@@ -1204,6 +1204,129 @@ fn a_timed_scene_writes_its_series_and_relaxes() {
     let ratio = at(1.0)[6] / at(3.0)[6];
     eprintln!("force(1 s) / force(3 s) = {ratio:.5}, G(1) / G(3) = {:.5}", g(1.0) / g(3.0));
     assert!((ratio / (g(1.0) / g(3.0)) - 1.0).abs() < 0.01);
+    let report = read_json(&out.path().join("report.json"));
+    let times: Vec<f64> = rows.iter().map(|r| r[0]).collect();
+    check_volume_series(out.path(), &times, report["fem"]["nodes"].as_u64().unwrap() as usize);
+    // The steps `plan` announces (end / step, and the curve's point at 0.01 s) are the steps
+    // the run took (none was cut).
+    let plan = bin().arg("plan").arg(&scene).output().unwrap();
+    let plan = String::from_utf8_lossy(&plan.stdout);
+    assert!(plan.contains("30 steps of 0.1 s (end 3 s / step)"), "{plan}");
+    let steps = report["newton"]["stats"]["load_steps"].as_u64().unwrap();
+    assert_eq!(report["newton"]["stats"]["cut_steps"].as_u64(), Some(0));
+    assert!(plan.contains(&format!("{steps} steps with the curve's points and the output times")), "{plan}");
+}
+
+/// A timed run's progress line: the simulated time to about three significant digits of
+/// the end, the steps and the cuts.
+#[test]
+fn a_timed_run_reports_its_progress_in_simulated_time() {
+    use fibfluid_cli::series::progress_line;
+    assert_eq!(progress_line(1.2, 10.0, 120, 3), "t = 1.20 s of 10 s, 120 steps, 3 cut");
+    assert_eq!(progress_line(0.005, 0.01, 1, 0), "t = 0.0050 s of 0.01 s, 1 step, 0 cut");
+    assert_eq!(progress_line(250.0, 1000.0, 2500, 0), "t = 250.00 s of 1000 s, 2500 steps, 0 cut");
+}
+
+/// An element of an XML text: its name, attributes and text.
+struct XmlElement {
+    name: String,
+    attributes: Vec<(String, String)>,
+    text: String,
+}
+
+impl XmlElement {
+    /// The attribute `key`.
+    fn attribute(&self, key: &str) -> &str {
+        self.attributes
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.as_str())
+            .unwrap_or_else(|| panic!("no {key}"))
+    }
+}
+
+/// The elements of an XML text, checked well-formed (a declaration, comments, balanced
+/// tags, quoted attributes, no markup in the text between tags).
+fn xml_elements(xml: &str) -> Vec<XmlElement> {
+    let mut elements: Vec<XmlElement> = Vec::new();
+    let (mut open, mut rest) = (Vec::<String>::new(), xml);
+    while let Some(at) = rest.find('<') {
+        let text = &rest[..at];
+        assert!(!text.contains('&') && !text.contains('>'), "markup in text: {text:.60}");
+        if let Some(name) = open.last()
+            && let Some(e) = elements.iter_mut().rev().find(|e| &e.name == name)
+        {
+            e.text += text;
+        }
+        rest = &rest[at..];
+        if let Some(body) = rest.strip_prefix("<!--") {
+            rest = &body[body.find("-->").expect("an unclosed comment") + 3..];
+            continue;
+        }
+        let end = rest.find('>').expect("an unclosed tag");
+        let tag = &rest[1..end];
+        rest = &rest[end + 1..];
+        if tag.starts_with('?') {
+            assert!(tag.ends_with('?'), "{tag}");
+            continue;
+        }
+        if let Some(name) = tag.strip_prefix('/') {
+            assert_eq!(open.pop().as_deref(), Some(name.trim()), "closing tag");
+            continue;
+        }
+        let empty = tag.ends_with('/');
+        let tag = tag.trim_end_matches('/');
+        let name = tag.split_whitespace().next().expect("a tag name").to_string();
+        let mut attributes = Vec::new();
+        let mut attrs = tag[name.len()..].trim();
+        while !attrs.is_empty() {
+            let eq = attrs.find("=\"").unwrap_or_else(|| panic!("an unquoted attribute: {attrs}"));
+            let close = attrs[eq + 2..].find('"').expect("an unclosed attribute") + eq + 2;
+            attributes.push((attrs[..eq].trim().to_string(), attrs[eq + 2..close].to_string()));
+            attrs = attrs[close + 1..].trim_start();
+        }
+        if !empty {
+            open.push(name.clone());
+        }
+        elements.push(XmlElement { name, attributes, text: String::new() });
+    }
+    assert!(open.is_empty() && rest.trim().is_empty(), "unclosed elements {open:?}");
+    elements
+}
+
+/// The numbers of the `DataArray` named `name` of a volume file.
+fn data_array(elements: &[XmlElement], name: &str) -> Vec<f64> {
+    let e = elements
+        .iter()
+        .find(|e| e.name == "DataArray" && e.attributes.iter().any(|(k, v)| k == "Name" && v == name))
+        .unwrap_or_else(|| panic!("no DataArray {name}"));
+    e.text.split_whitespace().map(|v| v.parse().unwrap()).collect()
+}
+
+/// A timed run's `series.pvd`: one dataset per row of `series.csv` at its time, each volume
+/// file well-formed XML with one point per grid node (`nodes`, from report.json), the first
+/// at rest, the last with the final `volume.vtu`'s displacements.
+fn check_volume_series(out: &Path, times: &[f64], nodes: usize) {
+    let pvd = xml_elements(&std::fs::read_to_string(out.join("series.pvd")).unwrap());
+    assert_eq!(pvd[0].attribute("type"), "Collection");
+    let sets: Vec<_> = pvd.iter().filter(|e| e.name == "DataSet").collect();
+    assert_eq!(sets.len(), times.len(), "one volume per row of series.csv");
+    let mut volumes = Vec::new();
+    for (set, t) in sets.iter().zip(times) {
+        assert_eq!(set.attribute("timestep").parse::<f64>().unwrap(), *t);
+        let file = set.attribute("file");
+        let volume = xml_elements(&std::fs::read_to_string(out.join(file)).unwrap());
+        let piece = volume.iter().find(|e| e.name == "Piece").unwrap();
+        assert_eq!(piece.attribute("NumberOfPoints").parse::<usize>().unwrap(), nodes, "{file}");
+        let displacement = data_array(&volume, "displacement");
+        assert_eq!(displacement.len(), 3 * nodes, "{file}");
+        assert_eq!(data_array(&volume, "Points").len(), 3 * nodes, "{file}");
+        volumes.push(displacement);
+    }
+    let last = xml_elements(&std::fs::read_to_string(out.join("volume.vtu")).unwrap());
+    assert!(volumes[0].iter().all(|&u| u == 0.0), "the first volume is at rest");
+    assert!(volumes[1].iter().any(|&u| u != 0.0), "the second has moved");
+    assert_eq!(volumes.last().unwrap(), &data_array(&last, "displacement"), "the last is the final volume");
 }
 
 /// A load curve without `[time]` would do nothing: refused naming the key; `[time]` with

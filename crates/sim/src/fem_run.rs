@@ -72,6 +72,17 @@ pub struct FemRun {
 impl FemRun {
     /// Runs the model with the finite-element method; `max_memory` as for FFM's setup.
     pub fn new(model: impl Into<Model>, max_memory: Option<u64>) -> Result<Self> {
+        Self::observed(model, max_memory, &mut |_| {})
+    }
+
+    /// [`FemRun::new`], a timed run (`[time]`) showing `observer` each output time as it
+    /// is made. A `[tissue] model = "auto"` solved again neo-Hookean shows its outputs
+    /// again from the first.
+    pub fn observed(
+        model: impl Into<Model>,
+        max_memory: Option<u64>,
+        observer: &mut dyn FnMut(&crate::hyper_run::TimeFrame<'_>),
+    ) -> Result<Self> {
         let model: Model = model.into();
         crate::contact::refuse_crossing_plates(&model)?;
         let start = Instant::now();
@@ -79,7 +90,7 @@ impl FemRun {
         let mut log = StageLog::default();
         let mut tissue = tissue_of(&model)?;
         let rest = model.rest_positions();
-        let mut answer = solve_answer(&model, &tissue, limit, &mut log)?;
+        let mut answer = solve_answer(&model, &tissue, limit, &mut log, observer)?;
         let mut notes = Vec::new();
         let strain = answer.strain.max_strain_magnitude;
         if model.fem.auto_model && tissue.is_linear() && strain > LINEAR_STRAIN_LIMIT {
@@ -88,7 +99,7 @@ impl FemRun {
             ));
             tissue = tissue.nonlinear();
             log = StageLog::default();
-            answer = solve_answer(&model, &tissue, limit, &mut log)?;
+            answer = solve_answer(&model, &tissue, limit, &mut log, observer)?;
         }
         let positions: Vec<Vec3> = rest
             .iter()
@@ -137,8 +148,15 @@ impl FemRun {
 
 /// Solves the model with `tissue`'s law. Plates, grasps and regions need the Newton solver
 /// (contact and grasps inside the solve, per-cell materials), for the linear law too
-/// (one iteration per change of the contact set); a plain linear body is one solve.
-fn solve_answer(model: &Model, tissue: &Tissue, limit: u64, log: &mut StageLog) -> Result<FemAnswer> {
+/// (one iteration per change of the contact set); a plain linear body is one solve. A
+/// timed run shows `observer` each output time.
+fn solve_answer(
+    model: &Model,
+    tissue: &Tissue,
+    limit: u64,
+    log: &mut StageLog,
+    observer: &mut dyn FnMut(&crate::hyper_run::TimeFrame<'_>),
+) -> Result<FemAnswer> {
     let plain = model.plates.is_empty() && model.fem.regions.is_empty() && model.fem.grasps.is_empty();
     // The linear body solves with the sparse Cholesky only: above the crossover the
     // Newton solver (one iteration for a linear law) brings the multigrid.
@@ -146,7 +164,7 @@ fn solve_answer(model: &Model, tissue: &Tissue, limit: u64, log: &mut StageLog) 
     if tissue.is_linear() && plain && model.fem.time.is_none() && direct {
         return solve_linear(model, limit, log);
     }
-    let (body, sol, stats, series) = crate::hyper_run::solve(model, tissue, limit, log)?;
+    let (body, sol, stats, series) = crate::hyper_run::solve_observed(model, tissue, limit, log, observer)?;
     Ok(FemAnswer {
         plates: crate::hyper_run::plate_records(&sol),
         grasps: sol.grasps.clone(),

@@ -7,7 +7,7 @@
 use std::time::Instant;
 
 use fibfluid_fem::hyper::{
-    Grasp, HyperBody, HyperSolution, HyperStats, LoadStep, NewtonSettings, RigidPlate, TimeSample,
+    Grasp, HyperBody, HyperSolution, HyperStats, LoadStep, NewtonSettings, RigidPlate, TimeFields, TimeSample,
 };
 use fibfluid_fem::{FemOptions, FemStats, Tissue};
 use serde::Serialize;
@@ -75,6 +75,28 @@ pub fn rigid_plates(model: &Model) -> Vec<RigidPlate> {
         .collect()
 }
 
+/// A timed run's state at one output time, handed to the caller as it is made (for
+/// progress, and to write each time's volume without keeping them all).
+#[derive(Debug, Clone, Copy)]
+pub struct TimeFrame<'a> {
+    /// The output's number, from 0 (`t = 0`) in time order.
+    pub index: usize,
+    /// The outputs the run makes in all.
+    pub outputs: usize,
+    /// The run's end, s.
+    pub end: f64,
+    /// Steps taken so far.
+    pub steps: usize,
+    /// Steps cut so far (after a failed Newton solve).
+    pub cut_steps: usize,
+    /// The output's row of the series.
+    pub row: &'a SeriesRow,
+    /// The whole body then: grid, node displacements (m), cells, region ids.
+    pub fields: &'a TimeFields<'a>,
+    /// The tissue solved (its law named in outputs).
+    pub tissue: &'a Tissue,
+}
+
 /// Builds the model's hyperelastic body (refused from counts first, as the linear one)
 /// and solves it; returns the grid's body, its solution and its stats.
 pub fn solve(
@@ -82,6 +104,17 @@ pub fn solve(
     tissue: &Tissue,
     limit: u64,
     log: &mut StageLog,
+) -> Result<(HyperBody, HyperSolution, FemStats, Vec<SeriesRow>)> {
+    solve_observed(model, tissue, limit, log, &mut |_| {})
+}
+
+/// [`solve`], a timed run showing `observer` each output time as it is made.
+pub fn solve_observed(
+    model: &Model,
+    tissue: &Tissue,
+    limit: u64,
+    log: &mut StageLog,
+    observer: &mut dyn FnMut(&TimeFrame<'_>),
 ) -> Result<(HyperBody, HyperSolution, FemStats, Vec<SeriesRow>)> {
     let mut body = build(model, tissue, &model.fem.grasps, limit, log)?;
     let plates = rigid_plates(model);
@@ -91,12 +124,26 @@ pub fn solve(
             (log.time(names::SOLVE, || body.solve(&full_loads(model), &plates)).map_err(failed)?, Vec::new())
         }
         Some(timed) => {
+            let (settings, outputs) = (&timed.settings, timed.settings.outputs());
             let mut series = Vec::new();
+            let mut on_sample = |s: &TimeSample, fields: &TimeFields<'_>| {
+                let row = SeriesRow::from(s);
+                observer(&TimeFrame {
+                    index: series.len(),
+                    outputs,
+                    end: settings.end,
+                    steps: s.steps,
+                    cut_steps: s.cut_steps,
+                    row: &row,
+                    fields,
+                    tissue,
+                });
+                series.push(row);
+            };
+            let loads = full_loads(model);
             let run = log
                 .time(names::SOLVE, || {
-                    body.solve_in_time(&full_loads(model), &plates, &timed.settings, &timed.curve, &mut |s| {
-                        series.push(SeriesRow::from(s));
-                    })
+                    body.solve_in_time(&loads, &plates, settings, &timed.curve, &mut on_sample)
                 })
                 .map_err(failed)?;
             (run.last, series)

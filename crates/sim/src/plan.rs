@@ -561,8 +561,9 @@ fn fem_plan(scene: &Model) -> Plan {
         || multigrid
         || !scene.plates.is_empty()
         || !scene.fem.regions.is_empty()
-        || !scene.fem.grasps.is_empty();
-    let st = match fibfluid_fem::GridEstimate::of(&positions, scene.fem.resolution) {
+        || !scene.fem.grasps.is_empty()
+        || scene.fem.time.is_some();
+    let mut st = match fibfluid_fem::GridEstimate::of(&positions, scene.fem.resolution) {
         Ok(e) if newton => newton_stages(&e, scene),
         Ok(e) => {
             let cells = e.cells as f64;
@@ -596,7 +597,58 @@ fn fem_plan(scene: &Model) -> Plan {
         }
         Err(e) => vec![stage(names::VOXELIZATION, false, format!("cannot build the grid: {e}"), 0.0, 0.0)],
     };
+    st.extend(time_stage(scene, &positions, &st));
     let memory_bytes = st.iter().map(|s| s.bytes).sum();
     let flops = st.iter().map(|s| s.flops).sum();
     Plan { stages: st, memory_bytes, flops }
+}
+
+/// Newton iterations a plan expects per time step (measured: 78 over the 31 steps of
+/// fixtures/scenes/block-relaxation.toml, 16 for its 10 ms push and then 2 a step while
+/// held; 3 leaves room for a load that keeps moving).
+pub const EXPECTED_TIME_STEP_ITERATIONS: usize = 3;
+
+/// A timed run (`[time]`): its steps (the end over the largest step, and those the load
+/// curve's points and the output times add), each ~[`EXPECTED_TIME_STEP_ITERATIONS`]
+/// Newton iterations at the per-iteration cost of the Newton stages in `newton` (which
+/// count the static run's expected iterations: this stage's flops are the rest); its
+/// memory the laws' history, Newmark's vectors and the kept surface samples.
+fn time_stage(
+    scene: &Model,
+    positions: &[fibfluid_geometry::Vec3],
+    newton: &[PlannedStage],
+) -> Option<PlannedStage> {
+    let timed = scene.fem.time.as_ref()?;
+    let e = fibfluid_fem::GridEstimate::of(positions, scene.fem.resolution).ok()?;
+    let s = &timed.settings;
+    let steps = s.planned_steps(&timed.curve);
+    let counted = if scene.plates.is_empty() {
+        EXPECTED_NEWTON_ITERATIONS
+    } else {
+        EXPECTED_NEWTON_ITERATIONS_WITH_PLATES
+    };
+    let per_iteration = newton
+        .iter()
+        .filter(|x| [names::ASSEMBLY, names::FACTORIZATION, names::SOLVE].contains(&x.name))
+        .map(|x| x.flops)
+        .sum::<f64>()
+        / counted as f64;
+    let iterations = steps * EXPECTED_TIME_STEP_ITERATIONS;
+    let terms = scene.tissue.map_or(0, |t| t.relaxation().terms().len());
+    let history = if terms > 0 { e.cells as f64 * 8.0 * 7.0 * (terms + 1) as f64 * 8.0 } else { 0.0 };
+    let kept = s.outputs() as f64 * positions.len() as f64 * 24.0;
+    Some(stage(
+        names::TIME_STEPS,
+        true,
+        format!(
+            "{} steps of {} s (end {} s / step), {steps} steps with the curve's points and the output times; x ~{EXPECTED_TIME_STEP_ITERATIONS} Newton iterations each: ~{iterations} iterations at {:.2e} flops (the Newton stages count {counted}); {} outputs",
+            s.min_steps(),
+            s.step,
+            s.end,
+            per_iteration,
+            s.outputs()
+        ),
+        history + 6.0 * e.dofs as f64 * 8.0 + kept,
+        iterations.saturating_sub(counted) as f64 * per_iteration,
+    ))
 }

@@ -131,6 +131,8 @@ pub enum Stage {
     Contact,
     /// Position update.
     Update,
+    /// A timed run's steps (`[time]`).
+    TimeSteps,
     /// Writing the output files.
     Outputs,
 }
@@ -156,6 +158,7 @@ impl Choice for Stage {
         Stage::Predictor,
         Stage::Contact,
         Stage::Update,
+        Stage::TimeSteps,
         Stage::Outputs,
     ];
     fn name(self) -> &'static str {
@@ -178,6 +181,7 @@ impl Choice for Stage {
             Stage::Predictor => "predictor",
             Stage::Contact => "contact constraints",
             Stage::Update => "geometry update",
+            Stage::TimeSteps => "time steps",
             Stage::Outputs => "outputs",
         }
     }
@@ -223,6 +227,8 @@ pub mod names {
     pub const CONTACT: Stage = Stage::Contact;
     /// Position update.
     pub const UPDATE: Stage = Stage::Update;
+    /// A timed run's steps.
+    pub const TIME_STEPS: Stage = Stage::TimeSteps;
     /// Writing the output files.
     pub const OUTPUTS: Stage = Stage::Outputs;
 }

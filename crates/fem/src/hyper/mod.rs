@@ -42,7 +42,7 @@ pub use contact::{
 };
 pub use grasp::{GRASP_PENALTY, GRASP_TOLERANCE, Grasp, GraspRecord};
 pub use grasp_kkt::GRASP_NEWTON_ITERATIONS;
-pub use time::{LoadCurve, TimeSample, TimeSettings, TimeSolution};
+pub use time::{LoadCurve, TimeFields, TimeSample, TimeSettings, TimeSolution};
 pub use tracking::{
     CHORD_REACH, HOLD_PENALTIES, Linearization, MAX_RESTORE, MAX_STEP_HALVINGS, SHIFTS, SurfaceResponse,
     Tangent, TrackStep, TrackedResponse,

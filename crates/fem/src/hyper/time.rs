@@ -22,6 +22,7 @@
 use fibfluid_geometry::Vec3;
 
 use super::body::{HyperBody, HyperSolution, LoadStep};
+use super::cell::CellState;
 use super::contact::{MAX_AUGMENTATIONS, RigidPlate, check_plates};
 use super::dynamics::DynamicsTerm;
 use super::solve::{Augmenting, Multipliers, Progress};
@@ -29,6 +30,7 @@ use super::terms::LoadState;
 use crate::assemble::FIXED;
 use crate::body::Loads;
 use crate::error::{FemError, Result};
+use crate::grid::SparseGrid;
 
 /// Newmark's `beta` (average acceleration).
 const BETA: f64 = 0.25;
@@ -38,6 +40,10 @@ const GAMMA: f64 = 0.5;
 const MIN_STEP_FRACTION: f64 = 1.0 / 1024.0;
 /// Times closer than this fraction of the largest step are the same time.
 const TIME_ROUNDING: f64 = 1e-9;
+/// The step length the laws are asked at when a state is reported (s): too short to
+/// relax anything, so a viscoelastic law answers with its stress now, its history
+/// included (a step of 0 asks for the instantaneous elastic response instead).
+const NOW: f64 = 1e-300;
 
 /// A piecewise-linear load factor over time: `(time s, factor)` points, times increasing;
 /// constant before the first point and after the last.
@@ -131,6 +137,34 @@ impl TimeSettings {
     pub fn min_steps(&self) -> usize {
         (self.end / self.step - TIME_ROUNDING).ceil().max(1.0) as usize
     }
+
+    /// The samples a run makes: one at `t = 0`, one at each multiple of `output_every`
+    /// before the end, one at the end.
+    pub fn outputs(&self) -> usize {
+        let eps = TIME_ROUNDING * self.step;
+        let mut count = 2;
+        let mut next = self.output_every;
+        while self.end - next > eps {
+            count += 1;
+            next += self.output_every;
+        }
+        count
+    }
+
+    /// The steps a run along `curve` takes when no step is cut: the largest step, ended
+    /// early on each output time and each point of the curve (as the solve steps).
+    pub fn planned_steps(&self, curve: &LoadCurve) -> usize {
+        let mut clock =
+            Clock { time: 0.0, step: self.step, steps: 0, cut: 0, next_output: self.output_every };
+        while !clock.finished(self) {
+            let to = clock.next_time(self, curve);
+            clock.advance(to, self);
+            if (to - clock.next_output).abs() <= TIME_ROUNDING * self.step {
+                clock.next_output += self.output_every;
+            }
+        }
+        clock.steps
+    }
 }
 
 /// The state of a timed solve at one output time.
@@ -154,6 +188,25 @@ pub struct TimeSample {
     pub grasp_forces: Vec<Vec3>,
     /// Displacement of every surface vertex, m.
     pub surface_displacements: Vec<Vec3>,
+    /// Steps taken to reach it.
+    pub steps: usize,
+    /// Steps cut (after a failed Newton solve) on the way.
+    pub cut_steps: usize,
+}
+
+/// The whole body at an output time, handed to a timed solve's observer beside the sample
+/// and not kept: a [`TimeSolution`] keeps the surface only, so an observer that writes
+/// each state as it comes keeps memory bounded however many outputs a run makes.
+#[derive(Debug, Clone, Copy)]
+pub struct TimeFields<'a> {
+    /// The grid.
+    pub grid: &'a SparseGrid,
+    /// Each cell's region id (0: the body's tissue, `k`: the `k`-th region).
+    pub region_ids: &'a [u16],
+    /// Displacement of every grid node, m.
+    pub node_displacements: &'a [Vec3],
+    /// Each cell's strain, `J` and stress (its law's, its history included), Pa.
+    pub cells: &'a [CellState],
 }
 
 /// A timed solve's record: its samples and the final state as a static solve reports it.
@@ -194,7 +247,8 @@ impl HyperBody {
 
     /// The static large-deformation response stepped through time: `loads`, `plates` and
     /// the body's grasps scaled by `curve`'s factor, the laws' state carried between steps
-    /// (see the module docs). `on_sample` sees each sample as it is made (for progress).
+    /// (see the module docs). `on_sample` sees each sample as it is made, with the whole
+    /// body then ([`TimeFields`]: for progress, and to write each state as it comes).
     ///
     /// Errors: invalid settings ([`FemError::InvalidTime`]); inertia on a body without mass;
     /// a step that cannot converge even at the smallest step ([`FemError::NotConverged`],
@@ -206,7 +260,7 @@ impl HyperBody {
         plates: &[RigidPlate],
         settings: &TimeSettings,
         curve: &LoadCurve,
-        on_sample: &mut dyn FnMut(&TimeSample),
+        on_sample: &mut dyn FnMut(&TimeSample, &TimeFields<'_>),
     ) -> Result<TimeSolution> {
         settings.validate()?;
         check_plates(plates)?;
@@ -226,8 +280,8 @@ impl HyperBody {
         }
         let mut clock =
             Clock { time: 0.0, step: settings.step, steps: 0, cut: 0, next_output: settings.output_every };
-        let mut samples = vec![self.sample(0.0, &run, &duals, plates, &motion, &mass)];
-        on_sample(&samples[0]);
+        let mut samples = vec![self.sample(0.0, &run, &duals, plates, &motion, &mass, &clock)];
+        self.observe(&samples[0], &run.x, on_sample);
         while settings.end - clock.time > TIME_ROUNDING * settings.step {
             let to = clock.next_time(settings, curve);
             let h = to - clock.time;
@@ -248,8 +302,8 @@ impl HyperBody {
                     if (to - clock.next_output).abs() <= TIME_ROUNDING * settings.step
                         || clock.finished(settings)
                     {
-                        let sample = self.sample(to, &run, &duals, plates, &motion, &mass);
-                        on_sample(&sample);
+                        let sample = self.sample(to, &run, &duals, plates, &motion, &mass, &clock);
+                        self.observe(&sample, &run.x, on_sample);
                         samples.push(sample);
                         clock.next_output += settings.output_every;
                     }
@@ -261,11 +315,37 @@ impl HyperBody {
             }
         }
         self.terms.dynamics = None;
-        self.states.set_dt(0.0);
+        // The final state as the laws answer now (their history included).
+        self.states.set_dt(NOW);
         let state = duals.state(run.t, &external, plates);
         let support_force = self.support_force(&run.x, &state, loads);
         let (steps, cut_steps) = (clock.steps, clock.cut);
-        Ok(TimeSolution { samples, last: self.finish(run, &state, support_force), steps, cut_steps })
+        let last = self.finish(run, &state, support_force);
+        self.states.set_dt(0.0);
+        Ok(TimeSolution { samples, last, steps, cut_steps })
+    }
+
+    /// Hands `sample` and the body's fields at the state `x` to `on_sample` (each cell's
+    /// stress as its law answers now, its history included).
+    fn observe(
+        &mut self,
+        sample: &TimeSample,
+        x: &[f64],
+        on_sample: &mut dyn FnMut(&TimeSample, &TimeFields<'_>),
+    ) {
+        let u = self.node_field(x);
+        let stepping = self.states.dt();
+        self.states.set_dt(NOW);
+        let (cells, _) = self.cell_states(&u);
+        self.states.set_dt(stepping);
+        let model = &*self.model;
+        let fields = TimeFields {
+            grid: &model.grid,
+            region_ids: &model.region_ids,
+            node_displacements: &u,
+            cells: &cells,
+        };
+        on_sample(sample, &fields);
     }
 
     /// `M^-1 (f - grad E)` at the start: the acceleration the loads give the body at rest.
@@ -337,7 +417,7 @@ impl HyperBody {
         Ok(None)
     }
 
-    /// The sample at time `t` of the state `run`.
+    /// The sample at time `t` of the state `run`, reached after `clock`'s steps.
     fn sample(
         &self,
         time: f64,
@@ -346,6 +426,7 @@ impl HyperBody {
         plates: &[RigidPlate],
         motion: &Motion,
         mass: &[f64],
+        clock: &Clock,
     ) -> TimeSample {
         let u = self.node_field(&run.x);
         let surface = self.model.grid.interpolate(&u);
@@ -384,6 +465,8 @@ impl HyperBody {
             plate_forces: self.plate_forces(&run.x, plates, &duals.contact, run.t),
             grasp_forces: grasps.iter().map(|g| g.force).collect(),
             surface_displacements: surface,
+            steps: clock.steps,
+            cut_steps: clock.cut,
         }
     }
 }
