@@ -108,7 +108,12 @@ impl NativeBody {
     /// solve of the scene's loads and the precomputed response, for ChainMail the lattice.
     #[new]
     #[pyo3(signature = (scene, method=None, max_memory=None))]
-    fn new(py: Python<'_>, scene: &NativeScene, method: Option<&str>, max_memory: Option<u64>) -> PyResult<Self> {
+    fn new(
+        py: Python<'_>,
+        scene: &NativeScene,
+        method: Option<&str>,
+        max_memory: Option<u64>,
+    ) -> PyResult<Self> {
         guard(|| {
             let method = match method {
                 Some(m) => Method::parse_name(m).map_err(|e| error(e.to_string()))?,
