@@ -555,15 +555,15 @@ fn linear_solve_stage(e: &fibfluid_fem::GridEstimate, scene: &Model, n: f64) -> 
 /// count.
 fn fem_plan(scene: &Model) -> Plan {
     let positions = scene.rest_positions();
-    let multigrid = fibfluid_fem::GridEstimate::of(&positions, scene.fem.resolution)
-        .is_ok_and(|e| !e.uses_direct_solver(scene.fem.solver));
+    let estimate = fibfluid_fem::GridEstimate::of(&positions, scene.fem.resolution);
+    let multigrid = estimate.as_ref().is_ok_and(|e| !e.uses_direct_solver(scene.fem.solver));
     let newton = scene.tissue.is_some_and(|t| !t.is_linear())
         || multigrid
         || !scene.plates.is_empty()
         || !scene.fem.regions.is_empty()
         || !scene.fem.grasps.is_empty()
         || scene.fem.time.is_some();
-    let mut st = match fibfluid_fem::GridEstimate::of(&positions, scene.fem.resolution) {
+    let mut st = match estimate {
         Ok(e) if newton => newton_stages(&e, scene),
         Ok(e) => {
             let cells = e.cells as f64;
