@@ -1330,7 +1330,9 @@ fn check_volume_series(out: &Path, times: &[f64], nodes: usize) {
 }
 
 /// A load curve without `[time]` would do nothing: refused naming the key; `[time]` with
-/// the fiber–fluid method is refused naming the method and the fix (exit 2 both).
+/// the fiber–fluid method is refused naming the method and the fix; a plate driven by a
+/// force without `[time]`, with a travel as well, or pulling, is refused naming its key
+/// (exit 2 all).
 #[test]
 fn time_keys_that_cannot_act_are_refused() {
     let dir = tempfile::tempdir().unwrap();
@@ -1347,9 +1349,14 @@ fn time_keys_that_cannot_act_are_refused() {
         })
         .map(|l| format!("{l}\n"))
         .collect();
+    let forced = untimed.replace("travel = 0.2 ", "force = 0.2 ");
+    assert_ne!(forced, untimed, "the scene's plate has a travel");
     let cases = [
         ("curve.toml", untimed, "[load].curve"),
         ("ffm.toml", text.replace("method = \"fem\"", "method = \"ffm\""), "[time]"),
+        ("static-force.toml", forced.replace("curve = ", "# curve = "), "[[plate]] #1.force"),
+        ("both.toml", text.replace("travel = 0.2 ", "travel = 0.2\nforce = 0.2 "), "[[plate]] #1.force"),
+        ("pulling.toml", text.replace("travel = 0.2 ", "force = -0.2 "), "[[plate]] #1.force"),
     ];
     for (name, scene, expected) in cases {
         let path = dir.path().join(name);
@@ -1359,6 +1366,40 @@ fn time_keys_that_cannot_act_are_refused() {
         eprintln!("{name}: {stderr}");
         assert_eq!(done.status.code(), Some(2), "{name}: {stderr}");
         assert!(stderr.contains(expected), "{name}: {stderr}");
+    }
+}
+
+/// The bundled creep scene (a plate driven by a constant force, `block-creep.toml`), run
+/// for 1 s at resolution 4: `series.csv`'s plate force is the scene's 0.2 N at every output
+/// time after the 10 ms ramp, and the body creeps (its largest displacement grows at each).
+#[test]
+fn a_plate_driven_by_a_force_keeps_it_while_the_body_creeps() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(root().join("fixtures/scenes/block-creep.toml")).unwrap();
+    let mesh = root().join("fixtures/meshes/cube.obj");
+    let text = text
+        .replace("../meshes/cube.obj", &mesh.display().to_string().replace('\\', "/"))
+        .replace("end = 3.0 ", "end = 1.0 ")
+        .replace("[3.0, 1.0]", "[1.0, 1.0]");
+    let scene = dir.path().join("creep.toml");
+    std::fs::write(&scene, text).unwrap();
+    let out = dir.path().join("out");
+    let done = bin().arg("run").arg(&scene).args(["--resolution", "4", "--out"]).arg(&out).output().unwrap();
+    assert!(done.status.success(), "{}", String::from_utf8_lossy(&done.stderr));
+    let series = std::fs::read_to_string(out.join("series.csv")).unwrap();
+    let mut lines = series.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let column = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no {name}"));
+    let (time, force, moved) = (column("time"), column("plate_1_force"), column("max_displacement"));
+    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
+    assert_eq!(rows.last().unwrap()[time], 1.0, "{series}");
+    let pressed: Vec<&Vec<f64>> = rows.iter().filter(|r| r[time] >= 0.01).collect();
+    assert!(pressed.len() >= 2, "{series}");
+    for r in &pressed {
+        assert!((r[force] / 0.2 - 1.0).abs() < 1e-4, "plate force {} N at {} s", r[force], r[time]);
+    }
+    for w in pressed.windows(2) {
+        assert!(w[1][moved] > w[0][moved], "no creep from {} to {} s: {series}", w[0][time], w[1][time]);
     }
 }
 

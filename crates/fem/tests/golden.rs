@@ -273,8 +273,8 @@ const DOME_NH: HyperCase = HyperCase {
     },
     grasp: None,
     plates: &[
-        RigidPlate { start: [0.0; 3], end: [0.0; 3], normal: [0.0, -1.0, 0.0] },
-        RigidPlate { start: [0.0, -0.06, 0.0], end: [0.0, -0.03, 0.0], normal: [0.0, 1.0, 0.0] },
+        RigidPlate { force: None, start: [0.0; 3], end: [0.0; 3], normal: [0.0, -1.0, 0.0] },
+        RigidPlate { force: None, start: [0.0, -0.06, 0.0], end: [0.0, -0.03, 0.0], normal: [0.0, 1.0, 0.0] },
     ],
 };
 

@@ -96,7 +96,12 @@ fn compressed_cube(n: usize, resolution: usize, stretch: f64, tissue: &Tissue) -
     let fixed: Vec<[bool; 3]> = pos.iter().map(|p| [p[0] == 0.0, p[1] == 0.0, p[2] == 0.0]).collect();
     let options = FemOptions { resolution, ..FemOptions::default() };
     let mut body = HyperBody::from_surface(&pos, &tris, tissue, &fixed, &options).unwrap();
-    let plate = RigidPlate { start: [0.0, 0.0, 1.0], end: [0.0, 0.0, stretch], normal: [0.0, 0.0, -1.0] };
+    let plate = RigidPlate {
+        force: None,
+        start: [0.0, 0.0, 1.0],
+        end: [0.0, 0.0, stretch],
+        normal: [0.0, 0.0, -1.0],
+    };
     let sol = body.solve(&Loads::default(), &[plate]).unwrap();
     let corner = pos.iter().position(|p| *p == [1.0, 1.0, 1.0]).unwrap();
     let lateral = 1.0 + sol.surface_displacements[corner][0];
@@ -220,7 +225,8 @@ fn unreachable_load_is_an_error() {
     let settings = NewtonSettings { max_iterations: 1, min_increment: 0.5, ..NewtonSettings::default() };
     let mut body =
         HyperBody::from_surface(&pos, &tris, &tissue, &fixed, &options).unwrap().with_settings(settings);
-    let plate = RigidPlate { start: [0.0, 0.0, 1.0], end: [0.0, 0.0, 0.4], normal: [0.0, 0.0, -1.0] };
+    let plate =
+        RigidPlate { force: None, start: [0.0, 0.0, 1.0], end: [0.0, 0.0, 0.4], normal: [0.0, 0.0, -1.0] };
     match body.solve(&Loads::default(), &[plate]) {
         Err(e @ FemError::NotConverged { step: 1, .. }) => {
             let text = e.to_string();
@@ -243,7 +249,8 @@ fn buckling_is_reported_as_an_unstable_equilibrium() {
     let settings = NewtonSettings { min_increment: 1.0 / 64.0, ..NewtonSettings::default() };
     let mut body =
         HyperBody::from_surface(&pos, &tris, &tissue, &fixed, &options).unwrap().with_settings(settings);
-    let plate = RigidPlate { start: [0.0, 0.0, 8.0], end: [0.0, 0.0, 4.0], normal: [0.0, 0.0, -1.0] };
+    let plate =
+        RigidPlate { force: None, start: [0.0, 0.0, 8.0], end: [0.0, 0.0, 4.0], normal: [0.0, 0.0, -1.0] };
     match body.solve(&Loads::default(), &[plate]) {
         Err(e @ FemError::NotConverged { why: NotConvergedWhy::Indefinite, .. }) => {
             assert!(e.to_string().contains("unstable equilibrium"), "{e}");
@@ -270,8 +277,8 @@ fn long_an_unstable_equilibrium_is_told_by_its_tangent() {
     let tissue = Tissue::new(3000.0, 0.45, 1000.0).unwrap().with_model(TissueModel::NeoHookean);
     let options = FemOptions { resolution: 10, ..FemOptions::default() };
     let plates = [
-        RigidPlate { start: [0.0, -0.05, 0.0], end: [0.0, -0.05, 0.0], normal: [0.0, 1.0, 0.0] },
-        RigidPlate { start: [0.0, 0.05, 0.0], end: [0.0, 0.02, 0.0], normal: [0.0, -1.0, 0.0] },
+        RigidPlate { force: None, start: [0.0, -0.05, 0.0], end: [0.0, -0.05, 0.0], normal: [0.0, 1.0, 0.0] },
+        RigidPlate { force: None, start: [0.0, 0.05, 0.0], end: [0.0, 0.02, 0.0], normal: [0.0, -1.0, 0.0] },
     ];
     let shift = |depth: f64| {
         let bottom = pos.iter().map(|p| p[1]).fold(f64::MAX, f64::min);

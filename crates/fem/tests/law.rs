@@ -77,7 +77,12 @@ fn closed_form(mu: f64, kappa: f64, l: f64) -> (f64, f64, f64) {
 /// The plate's force on the cube pressed to `stretch`, the lateral stretch at a top corner
 /// and the node displacements.
 fn press(body: &mut HyperBody, pos: &[[f64; 3]], stretch: f64) -> (f64, f64, Vec<[f64; 3]>) {
-    let plate = RigidPlate { start: [0.0, 0.0, 1.0], end: [0.0, 0.0, stretch], normal: [0.0, 0.0, -1.0] };
+    let plate = RigidPlate {
+        force: None,
+        start: [0.0, 0.0, 1.0],
+        end: [0.0, 0.0, stretch],
+        normal: [0.0, 0.0, -1.0],
+    };
     let sol = body.solve(&Loads::default(), &[plate]).unwrap();
     let corner = pos.iter().position(|p| *p == [1.0, 1.0, 1.0]).unwrap();
     (-sol.plate_forces[0], 1.0 + sol.surface_displacements[corner][0], sol.node_displacements)

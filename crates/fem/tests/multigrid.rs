@@ -74,8 +74,12 @@ fn multigrid_matches_direct_with_plates_a_grasp_and_regions() {
     let options = FemOptions { resolution: 12, ..FemOptions::default() };
     let tissue = Tissue::new(3000.0, 0.45, 1000.0).unwrap().with_model(TissueModel::NeoHookean);
     let bottom = pos.iter().map(|p| p[2]).fold(f64::MAX, f64::min);
-    let plate =
-        RigidPlate { start: [0.0, 0.0, bottom], end: [0.0, 0.0, bottom + 0.01], normal: [0.0, 0.0, 1.0] };
+    let plate = RigidPlate {
+        force: None,
+        start: [0.0, 0.0, bottom],
+        end: [0.0, 0.0, bottom + 0.01],
+        normal: [0.0, 0.0, 1.0],
+    };
     let make = || HyperBody::from_surface(&pos, &tris, &tissue, &fixed, &options).unwrap();
     let (direct, multigrid) = both(make, &GRAVITY, &[plate]);
     assert!(direct.plate_forces[0] > 0.0, "the plate pushes");

@@ -24,7 +24,12 @@ fn two_layers_act_as_springs_in_series() {
         .unwrap();
     assert_eq!(body.region_ids().iter().filter(|&&m| m == 1).count(), 32, "the upper half's cells");
     let d = 0.01;
-    let plate = RigidPlate { start: [0.0, 0.0, 1.0], end: [0.0, 0.0, 1.0 - d], normal: [0.0, 0.0, -1.0] };
+    let plate = RigidPlate {
+        force: None,
+        start: [0.0, 0.0, 1.0],
+        end: [0.0, 0.0, 1.0 - d],
+        normal: [0.0, 0.0, -1.0],
+    };
     let sol = body.solve(&Loads::default(), &[plate]).unwrap();
     let expected = d / (0.5 / soft.young() + 0.5 / stiff.young());
     let mid = pos.iter().position(|p| *p == [1.0, 1.0, 0.5]).unwrap();

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use crate::common::*;
 use fibfluid_fem::hyper::{Grasp, HyperBody, LoadCurve, RigidPlate, TimeSample, TimeSettings};
 use fibfluid_fem::law::{LinearLaw, MaterialLaw, NeoHookean, PronyTerm, Viscoelastic};
-use fibfluid_fem::{FemOptions, Loads, Tissue};
+use fibfluid_fem::{FemError, FemOptions, Loads, Tissue};
 
 /// The unit cube on frictionless symmetry planes (x on x = 0, y on y = 0, z on z = 0),
 /// its law made viscoelastic.
@@ -30,7 +30,8 @@ fn relaxing_cube(law: Arc<dyn MaterialLaw>, relaxation: &Viscoelastic) -> (Hyper
 fn a_held_block_relaxes_as_the_relaxation_function() {
     let terms = vec![PronyTerm { g: 0.5, tau: 1.0 }];
     let relaxation = Viscoelastic::new(Arc::new(NeoHookean), terms).unwrap();
-    let plate = RigidPlate { start: [0.0, 0.0, 1.0], end: [0.0, 0.0, 0.9], normal: [0.0, 0.0, -1.0] };
+    let plate =
+        RigidPlate { force: None, start: [0.0, 0.0, 1.0], end: [0.0, 0.0, 0.9], normal: [0.0, 0.0, -1.0] };
     let curve = LoadCurve::new(vec![(0.0, 0.0), (0.01, 1.0), (5.0, 1.0)]).unwrap();
     let settings = TimeSettings { end: 5.0, step: 0.1, inertia: false, damping: [0.0; 2], output_every: 0.5 };
     for law in [Arc::new(NeoHookean) as Arc<dyn MaterialLaw>, Arc::new(LinearLaw)] {
@@ -158,6 +159,55 @@ fn a_loaded_block_creeps_as_the_standard_linear_solid() {
         );
         assert!((u / sls - 1.0).abs() < 0.01, "t = {t}: {u} against {sls}");
     }
+}
+
+/// Creep under a plate driven by a force: the cube of the creep test pressed by a rigid
+/// plate on its top face with a constant 50 N (ramped over 0.01 s) creeps as the standard
+/// linear solid, from the closed-form instantaneous answer `u_0 = F L / (E A)` (uniaxial
+/// stress: the cube slides on its symmetry planes) toward `u_0 / (1 - g)`, within 1 % at
+/// t = 1, 2 and 5 s; the plate's force is the one asked for at every output time.
+#[test]
+fn a_block_under_a_constant_plate_force_creeps_as_the_standard_linear_solid() {
+    let g = 0.5;
+    let relaxation = Viscoelastic::new(Arc::new(LinearLaw), vec![PronyTerm { g, tau: 1.0 }]).unwrap();
+    let (mut body, pos) = relaxing_cube(Arc::new(LinearLaw), &relaxation);
+    let (force, young) = (50.0, 5000.0);
+    let plate = RigidPlate {
+        start: [0.0, 0.0, 1.0],
+        end: [0.0, 0.0, 1.0],
+        normal: [0.0, 0.0, -1.0],
+        force: Some(force),
+    };
+    let curve = LoadCurve::new(vec![(0.0, 0.0), (0.01, 1.0), (5.0, 1.0)]).unwrap();
+    let settings = TimeSettings { end: 5.0, step: 0.1, inertia: false, damping: [0.0; 2], output_every: 0.5 };
+    let run = body.solve_in_time(&Loads::default(), &[plate], &settings, &curve, &mut |_, _| {}).unwrap();
+    let top = pos.iter().position(|p| *p == [1.0, 1.0, 1.0]).unwrap();
+    let instantaneous = -force / young;
+    for sample in run.samples.iter().filter(|s| s.time >= 0.01) {
+        let f = sample.plate_forces[0];
+        assert!((f / force - 1.0).abs() < 1e-4, "t = {}: plate force {f} N against {force} N", sample.time);
+    }
+    for t in [1.0, 2.0, 5.0] {
+        let sample = run.samples.iter().find(|s| (s.time - t).abs() < 1e-9).expect("a sample at t");
+        let u = sample.surface_displacements[top][2];
+        let sls = instantaneous * (1.0 / (1.0 - g) - g / (1.0 - g) * (-(1.0 - g) * t).exp());
+        eprintln!("plate creep at t = {t} s: {u:.5e} m, standard linear solid {sls:.5e} m");
+        assert!((u / sls - 1.0).abs() < 0.01, "t = {t}: {u} against {sls}");
+    }
+}
+
+/// A static solve refuses a plate driven by a force (it needs time to find the plate).
+#[test]
+fn a_static_solve_refuses_a_plate_driven_by_a_force() {
+    let relaxation = Viscoelastic::new(Arc::new(LinearLaw), vec![PronyTerm { g: 0.5, tau: 1.0 }]).unwrap();
+    let (mut body, _) = relaxing_cube(Arc::new(LinearLaw), &relaxation);
+    let plate = RigidPlate {
+        start: [0.0, 0.0, 1.0],
+        end: [0.0, 0.0, 1.0],
+        normal: [0.0, 0.0, -1.0],
+        force: Some(1.0),
+    };
+    assert!(matches!(body.solve(&Loads::default(), &[plate]), Err(FemError::InvalidTime { .. })));
 }
 
 /// The ramp-averaged relaxation function: the reaction to a strain raised linearly over

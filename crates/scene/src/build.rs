@@ -89,7 +89,7 @@ pub(crate) fn build(
             });
         }
     }
-    let plates = plates(&spec.plate, &vertices)?;
+    let plates = plates(&spec.plate, &vertices, fem.time.is_some())?;
     fem.grasps = grasps(&spec.grasp, &vertices, &constraints)?;
     let mut model = Model::new(name, shape, material);
     model.constraints = constraints;
@@ -573,8 +573,9 @@ fn solver(s: Option<SolverToml>) -> Result<SolverOptions, Invalid> {
     Ok(solver)
 }
 
-/// `[[plate]]` tables, checked against the rest shape.
-fn plates(specs: &[PlateToml], vertices: &VertexMap<'_>) -> Result<Vec<Plate>, Invalid> {
+/// `[[plate]]` tables, checked against the rest shape (`timed`: the scene has `[time]`,
+/// which a plate driven by a force needs).
+fn plates(specs: &[PlateToml], vertices: &VertexMap<'_>, timed: bool) -> Result<Vec<Plate>, Invalid> {
     let mut plates = Vec::with_capacity(specs.len());
     for (k, p) in specs.iter().enumerate() {
         let key = format!("[[plate]] #{}", k + 1);
@@ -585,9 +586,27 @@ fn plates(specs: &[PlateToml], vertices: &VertexMap<'_>) -> Result<Vec<Plate>, I
             return Err(range(format!("{key}.travel"), "finite", p.travel));
         }
         let m = vertices.metres;
-        let plate = Plate::new(p.point.map(|c| c * m), p.normal, p.travel * m).ok_or_else(|| {
-            range(format!("{key}.normal"), "finite and non-zero", format!("{:?}", p.normal))
-        })?;
+        let normal_invalid =
+            || range(format!("{key}.normal"), "finite and non-zero", format!("{:?}", p.normal));
+        let plate = match p.force {
+            None => Plate::new(p.point.map(|c| c * m), p.normal, p.travel * m).ok_or_else(normal_invalid)?,
+            Some(_) if p.travel != 0.0 => {
+                let problem = "a plate is driven by its travel or by a force, not both: remove one";
+                return Err(invalid(format!("{key}.force"), SceneProblem::Conflict(problem)));
+            }
+            Some(f) if !(f.is_finite() && f >= 0.0) => {
+                return Err(range(
+                    format!("{key}.force"),
+                    "finite and at least 0 (N, pressing on the body)",
+                    f,
+                ));
+            }
+            Some(_) if !timed => {
+                let problem = "a plate driven by a force needs a [time] table (a run without one drives plates by their travel)";
+                return Err(invalid(format!("{key}.force"), SceneProblem::Conflict(problem)));
+            }
+            Some(f) => Plate::driven_by(p.point.map(|c| c * m), p.normal, f).ok_or_else(normal_invalid)?,
+        };
         plates.push(plate);
     }
     let (lo, hi) = fibfluid_geometry::bounding_box(&vertices.positions);

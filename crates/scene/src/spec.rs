@@ -75,6 +75,8 @@ pub(crate) struct PlateToml {
     pub(crate) normal: [f64; 3],
     #[serde(default)]
     pub(crate) travel: f64,
+    /// The contact force that drives the plate instead of `travel` (N).
+    pub(crate) force: Option<f64>,
 }
 
 /// `[[grasp]]` as written: the patch's centre vertex and radius, and its rigid motion.

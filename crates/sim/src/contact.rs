@@ -31,6 +31,10 @@ pub struct Plate {
     pub normal: Vec3,
     /// Motion along the normal over the whole load (reached at load factor 1).
     pub travel: f64,
+    /// `Some(F)`: driven by a force instead (N, at least 0; the finite-element method's
+    /// timed runs): the plate moves along its normal so that its contact force on the body
+    /// follows `F` times the load factor, and `travel` is 0.
+    pub force: Option<f64>,
 }
 
 impl Plate {
@@ -39,7 +43,15 @@ impl Plate {
     pub fn new(point: Vec3, normal: Vec3, travel: f64) -> Option<Self> {
         let len = norm(normal);
         (len.is_finite() && len > 0.0 && point.iter().all(|c| c.is_finite()) && travel.is_finite())
-            .then(|| Plate { point, normal: scale(normal, 1.0 / len), travel })
+            .then(|| Plate { point, normal: scale(normal, 1.0 / len), travel, force: None })
+    }
+
+    /// The plate at rest through `point` with unit `normal`, driven by a contact force of
+    /// `force` N at the full load; `None` for a zero or non-finite normal or a force that
+    /// is negative or not finite.
+    pub fn driven_by(point: Vec3, normal: Vec3, force: f64) -> Option<Self> {
+        let plate = Self::new(point, normal, 0.0)?;
+        (force.is_finite() && force >= 0.0).then_some(Plate { force: Some(force), ..plate })
     }
 
     /// A point of the plane at load factor `lambda`.

@@ -71,7 +71,12 @@ pub fn rigid_plates(model: &Model) -> Vec<RigidPlate> {
     model
         .plates
         .iter()
-        .map(|p| RigidPlate { start: p.point_at(0.0), end: p.point_at(1.0), normal: p.normal })
+        .map(|p| RigidPlate {
+            force: p.force,
+            start: p.point_at(0.0),
+            end: p.point_at(1.0),
+            normal: p.normal,
+        })
         .collect()
 }
 

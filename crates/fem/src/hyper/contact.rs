@@ -43,6 +43,11 @@ pub struct RigidPlate {
     pub end: Vec3,
     /// Unit normal, pointing into the body's side.
     pub normal: Vec3,
+    /// `Some(F)`: the plate is driven by a force, not by its travel: it moves along its
+    /// normal (from `start`; `end` unused) so that its contact force on the body follows
+    /// `F` (N, at least 0) times the load factor. Timed solves only
+    /// ([`crate::HyperBody::solve_in_time`]).
+    pub force: Option<f64>,
 }
 
 impl RigidPlate {
@@ -170,6 +175,9 @@ impl ContactLaw {
 pub(crate) fn check_plates(plates: &[RigidPlate]) -> crate::error::Result<()> {
     if plates.iter().any(|p| p.start.iter().chain(&p.end).chain(&p.normal).any(|v| !v.is_finite())) {
         return Err(crate::error::FemError::NonFinite { what: "plate" });
+    }
+    if plates.iter().filter_map(|p| p.force).any(|f| !(f.is_finite() && f >= 0.0)) {
+        return Err(crate::error::FemError::NonFinite { what: "plate force (finite, at least 0 N)" });
     }
     Ok(())
 }

@@ -5,7 +5,8 @@
 //!   kappa / 4 (J^2 - 1 - 2 ln J)`, or a law of the caller's), total Lagrangian, the volumetric part on each cell's mean
 //!   dilatation (the nonlinear counterpart of the linear body's B-bar, [`cell`]).
 //! - Loads: gravity and point forces are dead loads (fixed in direction and size) scaled by
-//!   the load factor `t` in `[0, 1]`; [`RigidPlate`]s move with `t`; the clamp is the
+//!   the load factor `t` in `[0, 1]`; [`RigidPlate`]s move with `t` (or, in a timed solve,
+//!   are driven by a force: [`plate_drive`]); the clamp is the
 //!   linear body's penalty on the fixed part of the surface (it holds the rest position);
 //!   [`Grasp`]s move patches of the surface rigidly with `t` ([`grasp`]'s augmented Lagrangian).
 //! - Tracking a moving tool ([`tracking`]): the body linearized at its latest state answers
@@ -26,6 +27,7 @@ mod grasp_kkt;
 mod linear_solve;
 mod model;
 mod newton;
+mod plate_drive;
 mod solve;
 mod terms;
 mod time;
@@ -42,6 +44,7 @@ pub use contact::{
 };
 pub use grasp::{GRASP_PENALTY, GRASP_TOLERANCE, Grasp, GraspRecord};
 pub use grasp_kkt::GRASP_NEWTON_ITERATIONS;
+pub use plate_drive::{MAX_PLATE_FORCE_TRIALS, PLATE_FORCE_TOLERANCE};
 pub use time::{LoadCurve, TimeFields, TimeSample, TimeSettings, TimeSolution};
 pub use tracking::{
     CHORD_REACH, HOLD_PENALTIES, Linearization, MAX_RESTORE, MAX_STEP_HALVINGS, SHIFTS, SurfaceResponse,

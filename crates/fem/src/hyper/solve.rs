@@ -85,11 +85,17 @@ impl HyperBody {
     /// The static large-deformation response to `loads` (dead loads, scaled by the load
     /// factor), the `plates` (moving with it) and the body's grasps (moving with it).
     ///
-    /// Errors: a vertex out of range or a non-finite load or plate; a load step that
+    /// Errors: a vertex out of range or a non-finite load or plate, a plate driven by a force
+    /// (timed solves only); a load step that
     /// cannot converge ([`FemError::NotConverged`], with the step, the load factor and the
     /// residual).
     pub fn solve(&mut self, loads: &Loads, plates: &[RigidPlate]) -> Result<HyperSolution> {
         check_plates(plates)?;
+        if plates.iter().any(|p| p.force.is_some()) {
+            return Err(FemError::InvalidTime {
+                reason: "a plate driven by a force needs a timed solve ([time]); a static solve drives plates by their travel".into(),
+            });
+        }
         let external = self.external_loads(loads)?;
         let mut duals =
             Multipliers::zero(self.terms.contact.samples.len(), plates.len(), self.terms.grasps.points.len());
@@ -122,8 +128,11 @@ impl HyperBody {
         augmentation: usize,
     ) -> Result<bool> {
         let h = self.model.grid.cell_size();
+        // A force-driven plate keeps the plain penalty: its penetration moves the plate
+        // (found for its force), not the load the body carries.
+        let deepest = self.deepest_penetration(&run.x, plates, run.t);
         let shallow =
-            self.deepest_penetration(&run.x, plates, run.t).iter().all(|&d| d <= CONTACT_GAP_TOLERANCE * h);
+            deepest.iter().zip(plates).all(|(&d, p)| p.force.is_some() || d <= CONTACT_GAP_TOLERANCE * h);
         let contact_done = shallow || progress.contact_settled;
         let u = self.node_field(&run.x);
         let grasp_done = self.terms.grasps.largest_error(&u, run.t) <= GRASP_TOLERANCE * h;
@@ -267,7 +276,7 @@ impl HyperBody {
         x.to_vec()
     }
 
-    /// Per plate, the deepest penetration (m, 0 when none) at the full load.
+    /// Per plate, the deepest penetration (m, 0 when none) at the load factor `t`.
     pub(super) fn deepest_penetration(&self, x: &[f64], plates: &[RigidPlate], t: f64) -> Vec<f64> {
         let u = self.node_field(x);
         plates
@@ -305,7 +314,7 @@ impl HyperBody {
     fn augment(&self, x: &[f64], plates: &[RigidPlate], t: f64, multipliers: &mut [Vec<f64>]) {
         let u = self.node_field(x);
         let law = ContactTerm::law(&self.model);
-        for (p, m) in plates.iter().zip(multipliers) {
+        for (p, m) in plates.iter().zip(multipliers).filter(|(p, _)| p.force.is_none()) {
             for (s, lambda) in self.terms.contact.samples.iter().zip(m.iter_mut()) {
                 *lambda = law.pressure(law.argument(*lambda, p.gap(s.position(&u), t)));
             }

@@ -25,6 +25,7 @@ use super::body::{HyperBody, HyperSolution, LoadStep};
 use super::cell::CellState;
 use super::contact::{MAX_AUGMENTATIONS, RigidPlate, check_plates};
 use super::dynamics::DynamicsTerm;
+use super::plate_drive::PlateDrive;
 use super::solve::{Augmenting, Multipliers, Progress};
 use super::terms::LoadState;
 use crate::assemble::FIXED;
@@ -273,14 +274,18 @@ impl HyperBody {
             Multipliers::zero(self.terms.contact.samples.len(), plates.len(), self.terms.grasps.points.len());
         let solver = self.stage.linear_solver(&self.model, self.settings.solver)?;
         let mut run = Progress::at(self.model.n_free, curve.factor(0.0), solver);
+        let mut drive = PlateDrive::new(plates);
         let mut motion = Motion { velocity: vec![0.0; mass.len()], acceleration: vec![0.0; mass.len()] };
         if settings.inertia {
-            motion.acceleration =
-                self.initial_acceleration(&run.x, &duals.state(run.t, &external, plates), &mass);
+            motion.acceleration = self.initial_acceleration(
+                &run.x,
+                &duals.state(run.t, &external, &drive.place(plates)),
+                &mass,
+            );
         }
         let mut clock =
             Clock { time: 0.0, step: settings.step, steps: 0, cut: 0, next_output: settings.output_every };
-        let mut samples = vec![self.sample(0.0, &run, &duals, plates, &motion, &mass, &clock)];
+        let mut samples = vec![self.sample(0.0, &run, &duals, &drive.place(plates), &motion, &mass, &clock)];
         self.observe(&samples[0], &run.x, on_sample);
         while settings.end - clock.time > TIME_ROUNDING * settings.step {
             let to = clock.next_time(settings, curve);
@@ -289,7 +294,7 @@ impl HyperBody {
             self.states.set_dt(h);
             self.terms.dynamics = self.dynamics_term(settings, &run.x, &motion, &mass, h);
             let saved = (run.x.clone(), duals.clone());
-            match self.time_step(&mut run, &external, plates, &mut duals)? {
+            match self.driven_step(&mut run, &external, plates, &mut drive, &mut duals)? {
                 None => {
                     let u = self.node_field(&run.x);
                     self.commit_law_states(&u, h);
@@ -302,7 +307,8 @@ impl HyperBody {
                     if (to - clock.next_output).abs() <= TIME_ROUNDING * settings.step
                         || clock.finished(settings)
                     {
-                        let sample = self.sample(to, &run, &duals, plates, &motion, &mass, &clock);
+                        let placed = drive.place(plates);
+                        let sample = self.sample(to, &run, &duals, &placed, &motion, &mass, &clock);
                         self.observe(&sample, &run.x, on_sample);
                         samples.push(sample);
                         clock.next_output += settings.output_every;
@@ -317,7 +323,8 @@ impl HyperBody {
         self.terms.dynamics = None;
         // The final state as the laws answer now (their history included).
         self.states.set_dt(NOW);
-        let state = duals.state(run.t, &external, plates);
+        let placed = drive.place(plates);
+        let state = duals.state(run.t, &external, &placed);
         let support_force = self.support_force(&run.x, &state, loads);
         let (steps, cut_steps) = (clock.steps, clock.cut);
         let last = self.finish(run, &state, support_force);
@@ -386,7 +393,7 @@ impl HyperBody {
 
     /// One step's Newton solve and augmentations at the load factor `run.t`; the relative
     /// residual where Newton stopped when it failed (the caller cuts the step).
-    fn time_step(
+    pub(super) fn time_step(
         &mut self,
         run: &mut Progress,
         external: &[f64],
