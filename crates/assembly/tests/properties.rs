@@ -629,7 +629,8 @@ fn penalty_and_elimination_agree_and_scaling_fixes_conditioning() {
 }
 
 #[test]
-fn auto_pressure_scale_is_near_the_best_factor() {
+#[ignore = "long run: CI runs it with `cargo test --workspace -- --ignored long_`"]
+fn long_auto_pressure_scale_is_near_the_best_factor() {
     // The paper's sphere, a soft body without surface tension, a stiff anisotropic one and
     // the coarser level-1 sphere: the scale that minimizes cond_1 is found by a scan over
     // +-2 decades around the automatic one.

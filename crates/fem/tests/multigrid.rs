@@ -54,7 +54,7 @@ const GRAVITY: Loads = Loads { gravity: [0.0, 0.0, -9.81], point_forces: Vec::ne
 #[test]
 fn multigrid_matches_direct_on_hanging_linear_and_neo_hookean_spheres() {
     let (pos, tris, fixed) = sphere();
-    let options = FemOptions { resolution: 14, ..FemOptions::default() };
+    let options = FemOptions { resolution: 10, ..FemOptions::default() };
     for (name, model, nu) in [
         ("linear", TissueModel::Linear, 0.45),
         ("neo-Hookean", TissueModel::NeoHookean, 0.45),
@@ -71,7 +71,7 @@ fn multigrid_matches_direct_on_hanging_linear_and_neo_hookean_spheres() {
 #[test]
 fn multigrid_matches_direct_with_plates_a_grasp_and_regions() {
     let (pos, tris, fixed) = sphere();
-    let options = FemOptions { resolution: 12, ..FemOptions::default() };
+    let options = FemOptions { resolution: 10, ..FemOptions::default() };
     let tissue = Tissue::new(3000.0, 0.45, 1000.0).unwrap().with_model(TissueModel::NeoHookean);
     let bottom = pos.iter().map(|p| p[2]).fold(f64::MAX, f64::min);
     let plate = RigidPlate {
