@@ -1331,8 +1331,8 @@ fn check_volume_series(out: &Path, times: &[f64], nodes: usize) {
 
 /// A load curve without `[time]` would do nothing: refused naming the key; `[time]` with
 /// the fiber–fluid method is refused naming the method and the fix; a plate driven by a
-/// force without `[time]`, with a travel as well, or pulling, is refused naming its key
-/// (exit 2 all).
+/// force without `[time]`, with a travel as well, or pulling, is refused naming its key;
+/// so is `[fem] tolerance` with `[time]` (exit 2 all).
 #[test]
 fn time_keys_that_cannot_act_are_refused() {
     let dir = tempfile::tempdir().unwrap();
@@ -1357,6 +1357,11 @@ fn time_keys_that_cannot_act_are_refused() {
         ("static-force.toml", forced.replace("curve = ", "# curve = "), "[[plate]] #1.force"),
         ("both.toml", text.replace("travel = 0.2 ", "travel = 0.2\nforce = 0.2 "), "[[plate]] #1.force"),
         ("pulling.toml", text.replace("travel = 0.2 ", "force = -0.2 "), "[[plate]] #1.force"),
+        (
+            "tolerance.toml",
+            text.replace("resolution = 8", "resolution = 8\ntolerance = 0.01"),
+            "[fem].tolerance",
+        ),
     ];
     for (name, scene, expected) in cases {
         let path = dir.path().join(name);
@@ -1401,6 +1406,56 @@ fn a_plate_driven_by_a_force_keeps_it_while_the_body_creeps() {
     for w in pressed.windows(2) {
         assert!(w[1][moved] > w[0][moved], "no creep from {} to {} s: {series}", w[0][time], w[1][time]);
     }
+}
+
+/// `[fem] tolerance` on the linear hanging sphere from resolution 8: the study grows the
+/// resolution by 1.5 until its Richardson estimate (relative L2 of the surface's
+/// displacement) is below 5 %, reports its runs, and answers at its last resolution; the
+/// answer's error against an independent run at twice that resolution is within a factor
+/// 2.5 of the estimate either way (that run's own error is a fifth of the estimate's).
+#[test]
+fn a_tolerance_grows_the_resolution_until_its_estimate_meets_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(root().join("fixtures/scenes/sphere-hanging.toml")).unwrap();
+    let meshes = root().join("fixtures/meshes");
+    let text = text
+        .replace("../meshes/", &format!("{}/", meshes.display().to_string().replace('\\', "/")))
+        .replace("model = \"neo-hookean\"", "model = \"linear\"");
+    let run = |name: &str, fem: &str| {
+        let scene = dir.path().join(format!("{name}.toml"));
+        std::fs::write(&scene, format!("{text}\n[fem]\n{fem}\n")).unwrap();
+        let out = dir.path().join(name);
+        let done = bin().arg("run").arg(&scene).arg("--out").arg(&out).output().unwrap();
+        assert!(done.status.success(), "{name}: {}", String::from_utf8_lossy(&done.stderr));
+        out
+    };
+    let studied = run("studied", "resolution = 8\ntolerance = 0.05");
+    let report = read_json(&studied.join("report.json"));
+    let accuracy = &report["accuracy"];
+    let resolutions: Vec<u64> =
+        accuracy["resolutions"].as_array().unwrap().iter().map(|r| r.as_u64().unwrap()).collect();
+    assert!(resolutions.len() >= 3 && resolutions[..3] == [8, 12, 18], "{accuracy}");
+    assert_eq!(accuracy["met"], true, "{accuracy}");
+    let last = *resolutions.last().unwrap();
+    assert_eq!(report["fem"]["resolution"].as_u64(), Some(last), "the answer is the last run's");
+    let estimate = accuracy["estimated_error"].as_f64().unwrap();
+    assert!(estimate <= 0.05, "{accuracy}");
+    let reference = run("reference", &format!("resolution = {}", 2 * last));
+    let rest: Vec<[f64; 3]> =
+        read_obj_positions(&meshes.join("icosphere-3.obj")).iter().map(|p| p.map(|c| 0.05 * c)).collect();
+    let (answer, exact) = (
+        read_obj_positions(&studied.join("deformed.obj")),
+        read_obj_positions(&reference.join("deformed.obj")),
+    );
+    let squared = |f: &dyn Fn(usize, usize) -> f64| -> f64 {
+        (0..rest.len()).map(|v| (0..3).map(|a| f(v, a).powi(2)).sum::<f64>()).sum::<f64>().sqrt()
+    };
+    let error = squared(&|v, a| answer[v][a] - exact[v][a]) / squared(&|v, a| exact[v][a] - rest[v][a]);
+    eprintln!(
+        "resolutions {resolutions:?}: estimate {estimate:.4}, against resolution {}: {error:.4}",
+        2 * last
+    );
+    assert!(error < 2.5 * estimate && error > estimate / 2.5, "estimate {estimate}, error {error}");
 }
 
 /// `probe` on the neo-Hookean liver (its two-rate FEM body) grasped and pulled: the

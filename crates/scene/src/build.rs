@@ -72,6 +72,10 @@ pub(crate) fn build(
         ffm_material(spec.material, spec.ffm, spec.fluid, tissue.as_ref(), solver.method, axes)?;
     let curve = spec.load.as_mut().and_then(|l| l.curve.take());
     fem.time = crate::time_table::timed_run(spec.time, curve)?;
+    if fem.time.is_some() && fem.tolerance.is_some() {
+        let problem = "a timed run ([time]) runs at [fem] resolution: remove [fem] tolerance (or [time])";
+        return Err(invalid("[fem].tolerance", SceneProblem::Conflict(problem)));
+    }
     let (steps, tolerance) = load(spec.load)?;
     let guards = guards(spec.guards)?;
     let gravity = spec.gravity.map(|g| g.acceleration).unwrap_or([0.0; 3]);
@@ -118,6 +122,16 @@ fn fem_settings(f: Option<FemToml>) -> Result<FemSettings, Invalid> {
         s.resolution = r as usize;
     }
     s.solver = choice("[fem].solver", f.solver, s.solver)?;
+    if let Some(t) = f.tolerance {
+        if !(t.is_finite() && t > 0.0 && t < 1.0) {
+            return Err(range(
+                "[fem].tolerance",
+                "between 0 and 1 (the estimated relative error of the surface's displacement)",
+                t,
+            ));
+        }
+        s.tolerance = Some(t);
+    }
     Ok(s)
 }
 

@@ -121,6 +121,7 @@ pub(crate) struct TissueToml {
 pub(crate) struct FemToml {
     pub(crate) resolution: Option<i64>,
     pub(crate) solver: Option<String>,
+    pub(crate) tolerance: Option<f64>,
 }
 
 #[derive(Deserialize)]

@@ -19,6 +19,7 @@ use fibfluid_fem::{FemStats, SparseGrid, Tissue};
 use fibfluid_geometry::{Boundary, LengthUnit, Vec3};
 use serde::Serialize;
 
+use crate::accuracy::{AccuracyStudy, MAX_STUDY_RUNS};
 use crate::choices::Method;
 use crate::fem_inputs::failed;
 pub use crate::fem_inputs::{
@@ -61,8 +62,9 @@ pub struct FemRun {
     pub newton: Option<crate::hyper_run::NewtonRecord>,
     /// The result guards that fired ([`crate::result_guards`]).
     pub warnings: Vec<ResultWarning>,
-    /// What the run decided on its own (the law `model = "auto"` chose).
-    pub notes: Vec<String>,
+    /// What the run decided on its own: the law `model = "auto"` chose, the resolution
+    /// `[fem] tolerance` chose.
+    pub decided: Decisions,
     /// Stage times.
     pub log: StageLog,
     /// Wall-clock seconds.
@@ -83,14 +85,15 @@ impl FemRun {
         max_memory: Option<u64>,
         observer: &mut dyn FnMut(&crate::hyper_run::TimeFrame<'_>),
     ) -> Result<Self> {
-        let model: Model = model.into();
+        let mut model: Model = model.into();
         crate::contact::refuse_crossing_plates(&model)?;
         let start = Instant::now();
         let limit = fibfluid_linalg::memory_budget(max_memory);
         let mut log = StageLog::default();
         let mut tissue = tissue_of(&model)?;
         let rest = model.rest_positions();
-        let mut answer = solve_answer(&model, &tissue, limit, &mut log, observer)?;
+        let scene_resolution = model.fem.resolution;
+        let (mut answer, mut accuracy) = solve_studied(&mut model, &tissue, limit, &mut log, observer)?;
         let mut notes = Vec::new();
         let strain = answer.strain.max_strain_magnitude;
         if model.fem.auto_model && tissue.is_linear() && strain > LINEAR_STRAIN_LIMIT {
@@ -99,7 +102,8 @@ impl FemRun {
             ));
             tissue = tissue.nonlinear();
             log = StageLog::default();
-            answer = solve_answer(&model, &tissue, limit, &mut log, observer)?;
+            model.fem.resolution = scene_resolution;
+            (answer, accuracy) = solve_studied(&mut model, &tissue, limit, &mut log, observer)?;
         }
         let positions: Vec<Vec3> = rest
             .iter()
@@ -121,9 +125,13 @@ impl FemRun {
         }
         warnings.extend(newton_guards(&answer, small_strain));
         warnings.extend(support_guards(&model, &answer.plates));
+        if let Some(study) = accuracy.as_ref().filter(|s| !s.met) {
+            let value = study.relative_error().unwrap_or(f64::INFINITY);
+            warnings.push(ResultWarning { guard: ResultGuard::Accuracy, value, limit: study.tolerance });
+        }
         Ok(Self {
             warnings,
-            notes,
+            decided: Decisions { notes, accuracy },
             tissue,
             stats: answer.stats,
             residual: answer.residual,
@@ -144,6 +152,61 @@ impl FemRun {
             model,
         })
     }
+}
+
+/// What a finite-element run decided on its own.
+#[derive(Debug, Clone, Default)]
+pub struct Decisions {
+    /// One line per decision (the law `[tissue] model = "auto"` chose).
+    pub notes: Vec<String>,
+    /// The resolutions `[fem] tolerance` ran and their estimate (none without it).
+    pub accuracy: Option<AccuracyStudy>,
+}
+
+/// [`solve_answer`] at `model`'s resolution, or with `[fem] tolerance` at growing
+/// resolutions until the estimate meets it ([`crate::accuracy`]): `model`'s resolution is
+/// then the answer's, and `log` holds the answer's stages.
+fn solve_studied(
+    model: &mut Model,
+    tissue: &Tissue,
+    limit: u64,
+    log: &mut StageLog,
+    observer: &mut dyn FnMut(&crate::hyper_run::TimeFrame<'_>),
+) -> Result<(FemAnswer, Option<AccuracyStudy>)> {
+    let Some(tolerance) = model.fem.tolerance else {
+        return Ok((solve_answer(model, tissue, limit, log, observer)?, None));
+    };
+    let mut study = AccuracyStudy::new(tolerance);
+    let mut best: Option<FemAnswer> = None;
+    let mut resolution = model.fem.resolution;
+    loop {
+        let mut trial = model.clone();
+        trial.fem.resolution = resolution;
+        if let (Err(e), Some(_)) = (estimate(&trial, limit), &best) {
+            study.stopped = Some(format!("resolution {resolution} is refused: {e}"));
+            break;
+        }
+        *log = StageLog::default();
+        let started = Instant::now();
+        let answer = solve_answer(&trial, tissue, limit, log, observer)?;
+        let previous = best.as_ref().map(|b| b.surface_displacements.as_slice());
+        let seconds = started.elapsed().as_secs_f64();
+        let met = study.record(resolution, &answer.surface_displacements, previous, seconds);
+        best = Some(answer);
+        model.fem.resolution = resolution;
+        let next = AccuracyStudy::next_resolution(resolution);
+        if met {
+            break;
+        } else if study.resolutions.len() == MAX_STUDY_RUNS {
+            study.stopped = Some(format!("{MAX_STUDY_RUNS} runs, the most one study makes"));
+            break;
+        } else if next > fibfluid_fem::MAX_RESOLUTION {
+            study.stopped = Some(format!("resolution {next} is above {}", fibfluid_fem::MAX_RESOLUTION));
+            break;
+        }
+        resolution = next;
+    }
+    Ok((best.expect("the first run is made or its error returned"), Some(study)))
 }
 
 /// Solves the model with `tissue`'s law. Plates, grasps and regions need the Newton solver
@@ -441,6 +504,9 @@ pub struct FemRemarks {
     pub notes: Vec<String>,
     /// Settings of the scene that had no effect ([`crate::ineffective`]), one line each.
     pub ineffective: Vec<String>,
+    /// `[fem] tolerance`'s runs and estimate ([`AccuracyStudy`]; omitted without it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub accuracy: Option<AccuracyStudy>,
 }
 
 impl FemReport {
@@ -457,7 +523,7 @@ impl FemReport {
             Shape::Polygon(_) => (0.0, 0.0),
         };
         let mut stages = extra_stages.to_vec();
-        let notes: Vec<String> = run.notes.iter().cloned().chain(notes).collect();
+        let notes: Vec<String> = run.decided.notes.iter().cloned().chain(notes).collect();
         stages.extend_from_slice(run.log.records());
         Self {
             scene: run.model.name.clone(),
@@ -480,6 +546,7 @@ impl FemReport {
             warnings: run.warnings.clone(),
             stages,
             remarks: FemRemarks {
+                accuracy: run.decided.accuracy.clone(),
                 notes,
                 ineffective: crate::ineffective(&run.model).iter().map(ToString::to_string).collect(),
             },

@@ -19,6 +19,7 @@
 //!   plates through capacitance rows on the kept factorization.
 //! - [`Report`]: the data of `report.json` (stages, counters, warnings, plates).
 
+pub mod accuracy;
 pub mod calibration;
 mod choices;
 pub mod contact;

@@ -156,6 +156,10 @@ pub struct FemSettings {
     pub grasps: Vec<fibfluid_fem::hyper::Grasp>,
     /// A run through time (`[time]`, `[load] curve`); `None`: one equilibrium.
     pub time: Option<TimedRun>,
+    /// `[fem] tolerance`: the resolution grows from `resolution` until the surface
+    /// displacement's estimated relative discretization error is at most this
+    /// ([`crate::accuracy`]); `None`: `resolution` as set.
+    pub tolerance: Option<f64>,
 }
 
 /// A run through time: how it steps and the load curve every load follows.
@@ -188,6 +192,7 @@ impl Default for FemSettings {
             auto_model: false,
             grasps: Vec::new(),
             time: None,
+            tolerance: None,
         }
     }
 }

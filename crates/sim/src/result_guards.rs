@@ -93,6 +93,10 @@ pub enum ResultGuard {
     /// An interactive frame's estimated distance from the converged answer for its holds
     /// is more than [`ESTIMATE_LIMIT`] times the body's size (the value: that ratio).
     Estimate,
+    /// `[fem] tolerance` was not met: the finest run's estimated relative discretization
+    /// error (the value; infinite when too few runs fitted to estimate it) is above the
+    /// tolerance (the limit).
+    Accuracy,
 }
 
 /// The largest estimated error of an interactive answer, over the body's size, that
@@ -114,6 +118,7 @@ impl Choice for ResultGuard {
         ResultGuard::Untouched,
         ResultGuard::Unheld,
         ResultGuard::Estimate,
+        ResultGuard::Accuracy,
     ];
     fn name(self) -> &'static str {
         match self {
@@ -129,6 +134,7 @@ impl Choice for ResultGuard {
             ResultGuard::Untouched => "untouched",
             ResultGuard::Unheld => "unheld",
             ResultGuard::Estimate => "estimate",
+            ResultGuard::Accuracy => "accuracy",
         }
     }
 }
@@ -195,6 +201,10 @@ impl std::fmt::Display for ResultWarning {
             ResultGuard::Estimate => (
                 "a frame's estimated distance from the converged answer is {value} times the body's size (limit {limit})",
                 "the frames used an old linearization (a path shorter than one refresh, or failed refreshes): read the answer as the rest shape's linear response, or refresh more often (--refresh-every)",
+            ),
+            ResultGuard::Accuracy => (
+                "the finest resolution's estimated relative error is {value} ([fem] tolerance {limit})",
+                "report.json's accuracy says why the study stopped: allow more memory (--max-memory) or raise the tolerance",
             ),
         };
         let what = what
