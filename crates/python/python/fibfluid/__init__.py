@@ -578,7 +578,7 @@ def run(scene: Scene, method: Optional[str] = None, progress: Progress = None,
     """
     if not isinstance(scene, Scene):
         raise Error("run needs a fibfluid.Scene (Scene.load)")
-    fem = method == "fem"
+    fem = None if method is None else method == "fem"
     if method is not None and method not in ("ffm", "fem"):
         known = ", ".join(METHODS)
         if method in METHODS:
