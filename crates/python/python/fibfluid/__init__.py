@@ -640,7 +640,8 @@ class Body:
         """Grasps the patch of every vertex whose rest position is within ``radius`` (metres,
         Euclidean) of ``vertex``'s and moves it rigidly from the next step: translated by
         ``to`` (a displacement from rest, 3 floats) and turned by the rotation vector
-        ``rotation`` (axis times angle in radians) about ``vertex``'s rest position. A
+        ``rotation`` (axis times angle in radians) about the patch's rest centroid (the
+        mean of its vertices' rest positions), as a scene's ``[[grasp]]`` turns its patch. A
         later grasp of the same vertex moves it; :meth:`release` drops it."""
         rot = None if rotation is None else _vector(rotation, "the rotation")
         self._native.grasp(_index(vertex), _radius(radius), _vector(to, "the displacement"), rot)
