@@ -2,4 +2,5 @@
 
 mod bad_inputs;
 mod cli_run;
+mod scene_method;
 mod view;

@@ -5,10 +5,11 @@
 //! - **Grasp.** The patch is every surface vertex whose *rest* position lies within the
 //!   radius of the picked vertex's rest position (Euclidean distance, not geodesic: a fold
 //!   of the surface closer than the radius is held too). Each patch vertex is grabbed at
-//!   `c + t + R (p - c)` (`p` its rest position, `c` the picked vertex's, `t` and `R` the
-//!   tool's [`RigidMotion`]), so a grasp of `k` vertices costs what `k` grabbed vertices
-//!   cost. The reaction is the [`Wrench`]: the total force the tool applies to the patch and
-//!   its moment about the tool's centre `c + t`.
+//!   `c + t + R (p - c)` (`p` its rest position, `c` the patch's rest centroid, the mean of
+//!   its vertices' rest positions, `t` and `R` the tool's [`RigidMotion`]): the motion of a
+//!   scene's `[[grasp]]` (`fibfluid_fem::hyper::Grasp`) at its full load. A grasp of `k`
+//!   vertices costs what `k` grabbed vertices cost. The reaction is the [`Wrench`]: the total
+//!   force the tool applies to the patch and its moment about the tool's centre `c + t`.
 //! - **Press.** A sphere of radius `r` centred at `x_c`. The active set is found per frame
 //!   by the contact holds of the body ([`Interactive::contact`], a capacitance update of the
 //!   kept factorization, like a plate's contact): each active vertex is held on the plane
@@ -162,16 +163,24 @@ impl Grasp {
     /// scene fixes ([`InteractError::PatchHoldsFixed`]).
     pub fn new(body: &dyn Interactive, vertex: usize, radius: f64) -> Result<Self> {
         let rest = body.rest_positions();
-        let Some(&centre) = rest.get(vertex) else {
+        if vertex >= rest.len() {
             return Err(InteractError::UnknownVertex { vertex, vertices: rest.len() });
-        };
+        }
         check_radius(body, radius)?;
         let patch = patch_around(rest, vertex, radius);
         let fixed: Vec<usize> = patch.iter().copied().filter(|&v| body.is_fixed(v)).collect();
         if let Some(&first) = fixed.first() {
             return Err(InteractError::PatchHoldsFixed { vertex, radius, fixed: first, count: fixed.len() });
         }
+        // The patch holds `vertex` itself (distance 0), so it is never empty.
+        let sum = patch.iter().fold([0.0; 3], |s, &v| add(s, rest[v]));
+        let centre = scale(sum, 1.0 / patch.len() as f64);
         Ok(Self { vertex, centre, radius, patch })
+    }
+
+    /// The tool's centre: the patch's rest centroid (metres), about which a motion turns it.
+    pub fn centre(&self) -> Vec3 {
+        self.centre
     }
 
     /// The picked vertex.

@@ -169,7 +169,7 @@ impl NativeBody {
 
     /// Grasps the patch within `radius` (metres, rest positions) of file vertex `v` and
     /// moves it rigidly by the displacement `to` and the rotation vector `rotation` (about
-    /// the vertex's rest position) from the next step.
+    /// the patch's rest centroid, as a scene's `[[grasp]]`) from the next step.
     #[pyo3(signature = (v, radius, to, rotation=None))]
     fn grasp(
         &mut self,

@@ -69,20 +69,22 @@ impl Done {
 /// step with the GIL held; an exception it raises, or Ctrl-C, stops the run before its next
 /// load step and is raised (the scene is unchanged: runs work on a copy). `max_memory` is
 /// the command line's `--max-memory`.
-/// With `fem` (or a scene whose `[solver] method` is `"fem"`) the run is the finite-element
-/// method's, with the scene's tissue law (linear or neo-Hookean), as `fibfluid run` does
-/// it; `progress` is then not called (Newton's load steps are in the report).
+/// `fem` chooses the method as `--method` does, overriding only `[solver] method` (None:
+/// the scene's): true runs the finite-element method with the scene's tissue law (linear
+/// or neo-Hookean), as `fibfluid run` does it, and `progress` is then not called (Newton's
+/// load steps are in the report); false runs FFM, its fibers calibrated on a `[tissue]`-only
+/// scene as `method = "ffm"` in the file would.
 #[pyfunction]
-#[pyo3(signature = (scene, progress=None, max_memory=None, fem=false))]
+#[pyo3(signature = (scene, progress=None, max_memory=None, fem=None))]
 pub(crate) fn run(
     py: Python<'_>,
     scene: &NativeScene,
     progress: Option<Py<PyAny>>,
     max_memory: Option<u64>,
-    fem: bool,
+    fem: Option<bool>,
 ) -> PyResult<RunOutput> {
     guard(|| {
-        if fem || scene.scene.model.solver.method == fibfluid_sim::Method::Fem {
+        if fem.unwrap_or(scene.scene.model.solver.method == fibfluid_sim::Method::Fem) {
             let model = scene.scene.model.clone();
             let load =
                 StageRecord { name: names::LOAD_SCENE, parent: None, seconds: scene.load_seconds, count: 1 };
@@ -97,7 +99,10 @@ pub(crate) fn run(
         let setup = SetupOptions { max_memory, ..Default::default() };
         let load =
             StageRecord { name: names::LOAD_SCENE, parent: None, seconds: scene.load_seconds, count: 1 };
-        let model = scene.scene.clone();
+        let mut model = scene.scene.clone();
+        if fem == Some(false) {
+            model.model.solver.method = fibfluid_sim::Method::Ffm;
+        }
         let done = py.detach(move || solve(model, &setup, &opts, load));
         // A pending exception (Ctrl-C, or the progress callback's) goes first: the run
         // stopped because of it.

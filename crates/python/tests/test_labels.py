@@ -55,6 +55,19 @@ def test_bad_label_volumes_raise():
         fibfluid.Scene.from_labels(np.zeros((4, 4, 4), dtype=int), [H, H, H], {})
 
 
+def test_labels_a_label_image_cannot_hold_are_refused_naming_the_argument():
+    # A label over 2^32 - 1 (the image's 32-bit labels) would wrap to another label.
+    big = np.zeros((4, 4, 4), dtype=np.uint64)
+    big[1:3, 1:3, 1:3] = 2**32 + 1
+    with pytest.raises(fibfluid.Error, match=r"^labels: label 4294967297 is over 4294967295"):
+        fibfluid.Scene.from_labels(big, [H, H, H], {2**32 + 1: FAT})
+    # A side over 32767 voxels does not fit NIfTI-1's 16-bit dimensions.
+    long = np.zeros((32768, 1, 1), dtype=np.uint8)
+    long[0, 0, 0] = 1
+    with pytest.raises(fibfluid.Error, match=r"^labels: .*side over 32767 voxels"):
+        fibfluid.Scene.from_labels(long, [H, H, H], {1: FAT})
+
+
 def test_the_fem_batch_run_equals_the_command_lines(cli, tmp_path):
     """`fibfluid.run(scene, method="fem")` gives `fibfluid run --method fem`'s deformed.obj
     (sphere-tissue: the unit icosphere read in cm)."""

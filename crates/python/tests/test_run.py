@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import fibfluid
-from conftest import SCENES, read_obj_vertices, run_cli
+from conftest import SCENES, SPHERE_FEM_CM, SPHERE_MESH, read_obj_vertices, run_cli
 
 # Held out from the workspace's golden tests: runs in about a second.
 SCENE = SCENES / "bunny-pull.toml"
@@ -217,3 +217,21 @@ def test_a_timed_scene_returns_its_series(tmp_path):
 
 def test_an_equilibrium_has_no_series(py_run):
     assert py_run.series is None
+
+
+def test_method_ffm_runs_what_the_method_key_runs(tmp_path):
+    """``run(scene, method="ffm")`` on a ``[tissue]``-only scene whose ``[solver] method`` is
+    ``"fem"`` overrides only the method: the fibers are calibrated on the tissue and take its
+    density, as ``method = "ffm"`` in the file does, so gravity moves the body by about what
+    the FEM (the calibration's reference) finds."""
+    text = SPHERE_FEM_CM.format(mesh=SPHERE_MESH.as_posix())
+    (tmp_path / "fem.toml").write_text(text)
+    (tmp_path / "ffm.toml").write_text(text.replace('method = "fem"', 'method = "ffm"'))
+    flag = fibfluid.run(fibfluid.Scene.load(str(tmp_path / "fem.toml")), method="ffm")
+    key = fibfluid.run(fibfluid.Scene.load(str(tmp_path / "ffm.toml")))
+    fem = fibfluid.run(fibfluid.Scene.load(str(tmp_path / "fem.toml")))
+    np.testing.assert_array_equal(flag.positions, key.positions)
+    sag = np.linalg.norm(flag.displacement, axis=1).max()
+    fem_sag = np.linalg.norm(fem.displacement, axis=1).max()
+    assert fem.volume is not None and flag.volume is None
+    assert 0.5 * fem_sag < sag < 2.0 * fem_sag, (sag, fem_sag)

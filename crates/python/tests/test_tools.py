@@ -29,7 +29,9 @@ def test_a_grasp_moves_its_patch_rigidly(body):
     assert len(patch) >= 3 and len(reactions) == len(patch)
     c, s = np.cos(0.1), np.sin(0.1)
     rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    expected = rest[V] + to + (rest[patch] - rest[V]) @ rz.T
+    # Turned about the patch's rest centroid, as a scene's [[grasp]] turns its patch.
+    centroid = rest[patch].mean(axis=0)
+    expected = centroid + to + (rest[patch] - centroid) @ rz.T
     np.testing.assert_allclose(positions[patch], expected, rtol=0, atol=1e-9)
     (tool,) = body.tools()
     assert tool["grasp"] == V and tool["vertices"] == len(patch)

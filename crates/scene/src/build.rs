@@ -286,6 +286,8 @@ impl Fibers {
 /// FFM's material and fiber settings from `[material]` (the older name) or `[ffm]`, and
 /// `[fluid]`. A scene with only `[tissue]` gets the tissue's modulus as a placeholder to be
 /// calibrated against the FEM before an FFM run (its density too when `[fluid]` is absent).
+/// Only the error of a scene with neither depends on `[solver] method` (`method`): a method
+/// chosen later (a command-line flag, a binding's argument) runs the same FFM as the key.
 fn ffm_material(
     old: Option<MaterialToml>,
     ffm: Option<FfmToml>,
@@ -317,35 +319,28 @@ fn ffm_material(
     if let Some(f) = given {
         return Ok((with_kernel(material(f, fluid, axes)?), settings));
     }
-    match (tissue, method) {
-        (Some(t), _) => {
-            // No fiber parameters: FFM's are calibrated on the body against the FEM; the
-            // FEM itself does not use them.
-            settings.calibrate = method != Method::Fem;
-            let density = match &fluid {
-                Some(f) => f.density,
-                None => t.density(),
-            };
-            let placeholder = Fibers {
-                table: "[tissue]",
-                modulus_key: "young",
-                fiber_modulus: FiberModulusToml::One(t.young()),
-                surface_tension: 0.0,
-                stiffening: None,
-            };
-            let mut m = material(placeholder, Some(FluidToml { density }), axes)?;
-            if method == Method::Fem {
-                m = Material::new(Material::default().fiber_modulus(), 0.0, 0.0).expect("in range");
-            }
-            Ok((with_kernel(m), settings))
-        }
-        (None, Method::Fem) => Err(unkeyed(SceneProblem::Conflict(
-            "method fem needs a [tissue] table (young in Pa, poisson, density in kg/m^3)",
-        ))),
-        (None, _) => Err(unkeyed(SceneProblem::Conflict(
-            "missing fiber parameters: give [ffm] (fiber_modulus, surface_tension) or a [tissue] table to calibrate them from",
-        ))),
-    }
+    let Some(t) = tissue else {
+        return Err(unkeyed(SceneProblem::Conflict(if method == Method::Fem {
+            "method fem needs a [tissue] table (young in Pa, poisson, density in kg/m^3)"
+        } else {
+            "missing fiber parameters: give [ffm] (fiber_modulus, surface_tension) or a [tissue] table to calibrate them from"
+        })));
+    };
+    // No fiber parameters: FFM's are calibrated on the body against the FEM before an FFM
+    // run (whatever chose the method); the FEM itself does not use them.
+    settings.calibrate = true;
+    let density = match &fluid {
+        Some(f) => f.density,
+        None => t.density(),
+    };
+    let placeholder = Fibers {
+        table: "[tissue]",
+        modulus_key: "young",
+        fiber_modulus: FiberModulusToml::One(t.young()),
+        surface_tension: 0.0,
+        stiffening: None,
+    };
+    Ok((with_kernel(material(placeholder, Some(FluidToml { density }), axes)?), settings))
 }
 
 /// The fibers (`[ffm]`, `[material]`) and `[fluid]`.

@@ -42,10 +42,31 @@ fn motion() -> RigidMotion {
     RigidMotion::with_rotation_vector([0.03, -0.08, 0.02], [0.0, 0.0, 0.15])
 }
 
+/// The mean of the patch's rest positions.
+fn rest_centroid(rest: &[Vec3], patch: &[usize]) -> Vec3 {
+    let mut c = [0.0; 3];
+    for &v in patch {
+        (0..3).for_each(|a| c[a] += rest[v][a] / patch.len() as f64);
+    }
+    c
+}
+
+/// Where the rigid motion of translation `t` and rotation vector `w` about `c` takes `p`:
+/// `c + t + R (p - c)`, `R (d) = d cos a + (k x d) sin a + k (k . d) (1 - cos a)`.
+fn rigidly_moved(p: Vec3, c: Vec3, t: Vec3, w: Vec3) -> Vec3 {
+    let a = norm(w);
+    let k = w.map(|x| x / a);
+    let d = sub(p, c);
+    let kd = cross(k, d);
+    std::array::from_fn(|i| {
+        c[i] + t[i] + d[i] * a.cos() + kd[i] * a.sin() + k[i] * dot(k, d) * (1.0 - a.cos())
+    })
+}
+
 /// The patch vertices are exactly where the motion takes them.
 fn assert_patch_follows(b: &dyn Interactive, g: &Grasp, m: &RigidMotion) {
     let rest = b.rest_positions();
-    let c = rest[g.vertex()];
+    let c = rest_centroid(rest, g.patch());
     let size = 2.0;
     for &v in g.patch() {
         let e = dist(b.positions()[v], m.apply(c, rest[v]));
@@ -70,7 +91,8 @@ fn a_grasp_moves_its_patch_rigidly_and_its_reactions_reproduce_the_run() {
     assert!(d <= GRAB_TOLERANCE, "grasp reactions vs the full solve {d:e}");
     // The wrench is the patch's total and its moment about the moved centre.
     let w = g.wrench(&b, &m);
-    let centre = m.apply(b.rest_positions()[g.vertex()], b.rest_positions()[g.vertex()]);
+    let c = rest_centroid(b.rest_positions(), g.patch());
+    let centre = m.apply(c, c);
     let (mut f, mut mo) = ([0.0; 3], [0.0; 3]);
     for &(v, r) in &extra {
         f = fibfluid_geometry::vec3::add(f, r);
@@ -95,6 +117,36 @@ fn a_fem_grasp_moves_its_patch_and_its_reactions_reproduce_the_solve() {
     pushed.update().unwrap();
     let d = relative_difference(b.positions(), pushed.positions(), b.rest_positions());
     assert!(d <= GRAB_TOLERANCE, "FEM grasp reactions vs the solve with them as forces {d:e}");
+}
+
+/// A grasp's rotation is one motion: the interactive grasp (`probe`, the viewer, Python's
+/// `Body.grasp`) and the batch run's `[[grasp]]` of the same patch, translation and
+/// rotation vector put every patch vertex where the rigid motion of the patch about its
+/// rest centroid puts it (computed here with Rodrigues' formula).
+#[test]
+fn an_interactive_grasp_and_a_batch_grasp_turn_the_patch_about_its_centroid() {
+    let mut scene = fem_sphere();
+    let (t, w) = ([0.03, -0.08, 0.02], [0.0, 0.0, 0.4]);
+    let mut b = FemInteractive::new(&scene, None).unwrap();
+    let g = Grasp::new(&b, lowest(&b), 0.45).unwrap();
+    let rest = b.rest_positions().to_vec();
+    let c = rest_centroid(&rest, g.patch());
+    assert!(dist(c, rest[g.vertex()]) > 1e-3, "the centroid is not the picked vertex");
+    assert!(dist(g.centre(), c) <= 1e-15, "the grasp's centre {:?} against {c:?}", g.centre());
+    g.hold(&mut b, &RigidMotion::with_rotation_vector(t, w)).unwrap();
+    b.update().unwrap();
+    scene.fem.grasps =
+        vec![fibfluid_fem::hyper::Grasp { vertices: g.patch().to_vec(), translation: t, rotation: w }];
+    let batch = fibfluid_sim::fem_run::FemRun::new(scene, None).unwrap();
+    let size = 2.0;
+    for &v in g.patch() {
+        let target = rigidly_moved(rest[v], c, t, w);
+        let interactive = dist(b.positions()[v], target);
+        assert!(interactive <= PATCH_TOLERANCE * size, "interactive: vertex {v} is {interactive:e} off");
+        // The batch grasp's augmentations stop within 1e-7 of a cell.
+        let run = dist(batch.positions[v], target);
+        assert!(run <= 1e-7 * size, "batch: vertex {v} is {run:e} off");
+    }
 }
 
 #[test]

@@ -251,6 +251,12 @@ _SETTING_DOCS: Dict[str, str] = {
 }
 
 
+#: The longest side of a NIfTI-1 image (its dimensions are 16-bit signed), in voxels.
+_NIFTI1_MAX_DIM = 32767
+#: The largest label of a label image (32-bit unsigned).
+_MAX_LABEL = 2**32 - 1
+
+
 def _nifti1(labels: np.ndarray, spacing_um: Sequence[float]) -> bytes:
     """A NIfTI-1 single file (uint16 or uint32 labels, x fastest, lengths in micrometres)."""
     import struct
@@ -288,8 +294,14 @@ def _labels_scene(labels: Any, spacing: Sequence[float], tissues: Dict[int, Dict
     a = np.asarray(labels)
     if a.ndim != 3 or not np.issubdtype(a.dtype, np.integer):
         raise Error(f"labels must be a 3-D integer array, not {a.ndim}-D {a.dtype}")
+    if any(n > _NIFTI1_MAX_DIM for n in a.shape):
+        raise Error(f"labels: a label volume of shape {a.shape} has a side over {_NIFTI1_MAX_DIM} voxels, "
+                    "the most a NIfTI-1 image holds: crop or downsample it")
     if a.size and int(a.min()) < 0:
         raise Error("labels must not be negative (0 is the background)")
+    if a.size and int(a.max()) > _MAX_LABEL:
+        raise Error(f"labels: label {int(a.max())} is over {_MAX_LABEL}, the largest a label image holds "
+                    "(32-bit labels): number the labels from 1")
     h = [float(x) for x in spacing]
     if len(h) != 3 or not all(np.isfinite(x) and x > 0 for x in h):
         raise Error(f"spacing must be 3 positive lengths in metres, not {spacing!r}")
@@ -578,7 +590,7 @@ def run(scene: Scene, method: Optional[str] = None, progress: Progress = None,
     """
     if not isinstance(scene, Scene):
         raise Error("run needs a fibfluid.Scene (Scene.load)")
-    fem = method == "fem"
+    fem = None if method is None else method == "fem"
     if method is not None and method not in ("ffm", "fem"):
         known = ", ".join(METHODS)
         if method in METHODS:
@@ -640,7 +652,8 @@ class Body:
         """Grasps the patch of every vertex whose rest position is within ``radius`` (metres,
         Euclidean) of ``vertex``'s and moves it rigidly from the next step: translated by
         ``to`` (a displacement from rest, 3 floats) and turned by the rotation vector
-        ``rotation`` (axis times angle in radians) about ``vertex``'s rest position. A
+        ``rotation`` (axis times angle in radians) about the patch's rest centroid (the
+        mean of its vertices' rest positions), as a scene's ``[[grasp]]`` turns its patch. A
         later grasp of the same vertex moves it; :meth:`release` drops it."""
         rot = None if rotation is None else _vector(rotation, "the rotation")
         self._native.grasp(_index(vertex), _radius(radius), _vector(to, "the displacement"), rot)

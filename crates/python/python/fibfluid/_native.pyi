@@ -60,7 +60,7 @@ def run(
     scene: NativeScene,
     progress: Optional[Callable[[int, int], Any]] = None,
     max_memory: Optional[int] = None,
-    fem: bool = False,
+    fem: Optional[bool] = None,
 ) -> RunOutput: ...
 
 class NativeBody:
