@@ -305,9 +305,12 @@ fn ffm_material(
     }
     match (tissue, method) {
         (Some(t), _) => {
-            // No fiber parameters: FFM's are calibrated on the body against the FEM; the
-            // FEM itself does not use them.
+            // No fiber modulus: FFM's is calibrated on the body against the FEM, with the
+            // surface fibers of `[ffm] surface_tension` when given (they hold the vertices
+            // that culling leaves without a fiber); the FEM itself does not use them.
             settings.calibrate = method != Method::Fem;
+            let tension = ffm.as_ref().and_then(|f| f.surface_tension).unwrap_or(0.0);
+            let tension = checked("[ffm].surface_tension", MaterialParameter::SurfaceTension, tension)?;
             let density = match &fluid {
                 Some(f) => f.density,
                 None => t.density(),
@@ -316,7 +319,7 @@ fn ffm_material(
                 table: "[tissue]",
                 modulus_key: "young",
                 fiber_modulus: FiberModulusToml::One(t.young()),
-                surface_tension: 0.0,
+                surface_tension: tension,
                 stiffening: None,
             };
             let mut m = material(placeholder, Some(FluidToml { density }), axes)?;
