@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use fibfluid::geometry::{icosphere, write_obj};
+use fibfluid::geometry::{NiftiWriteOptions, icosphere, write_obj};
 use fibfluid::sim::Error as SimError;
 use fibfluid::sim::fem_run::FemRun;
 use fibfluid::{RunOptions, Scene, Simulation};
@@ -475,5 +475,82 @@ fn a_linear_fem_answer_warns_when_its_strain_is_large() {
     assert_eq!(strain_warning(0.02, "auto"), None);
     let run = FemRun::new(Scene::load(dir.path().join("cube.toml")).unwrap(), None).unwrap();
     assert!(!run.tissue.is_linear(), "the neo-Hookean law");
-    assert!(run.notes.iter().any(|n| n.contains("auto")), "{:?}", run.notes);
+    assert!(run.decided.notes.iter().any(|n| n.contains("auto")), "{:?}", run.decided.notes);
+}
+
+/// An ellipsoid of labels (semi-axes 5.5, 4.5 and 3.5 voxels) in a 15 x 13 x 11 image of
+/// `spacing` metres.
+fn ellipsoid_image(spacing: f64) -> fibfluid::geometry::LabelImage {
+    let dims = [15usize, 13, 11];
+    let semi = [5.5, 4.5, 3.5];
+    let mut labels = Vec::with_capacity(dims.iter().product());
+    for k in 0..dims[2] {
+        for j in 0..dims[1] {
+            for i in 0..dims[0] {
+                let r: f64 = [i, j, k]
+                    .iter()
+                    .enumerate()
+                    .map(|(a, &x)| ((x as f64 - (dims[a] as f64 - 1.0) / 2.0) / semi[a]).powi(2))
+                    .sum();
+                labels.push(u32::from(r <= 1.0));
+            }
+        }
+    }
+    fibfluid::geometry::LabelImage::new(dims, [spacing; 3], labels).unwrap()
+}
+
+/// The largest displacement (m) of the FEM's answer on `image` written with `opts`, decimated
+/// to 150 vertices, hanging from its top (y above `top` m) at resolution 8.
+fn image_sag(
+    dir: &Path,
+    name: &str,
+    image: &fibfluid::geometry::LabelImage,
+    opts: &NiftiWriteOptions,
+    top: f64,
+) -> f64 {
+    fibfluid::geometry::write_nifti(dir.join(format!("{name}.nii")), image, opts).unwrap();
+    let toml = format!(
+        "[mesh]\nimage = \"{name}.nii\"\nvertices = 150\n\
+         [tissue]\nyoung = 3000.0\npoisson = 0.45\ndensity = 1000.0\n\
+         [gravity]\nacceleration = [0.0, -9.81, 0.0]\n[[fix]]\naxis = \"y\"\nabove = {top}\n\
+         [fem]\nresolution = 8\n[solver]\nmethod = \"fem\"\n"
+    );
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, toml).unwrap();
+    let run = FemRun::new(Scene::load(&path).unwrap(), None).unwrap();
+    largest(&displacement(&run.positions, &run.rest))
+}
+
+/// The same label image (2.25 mm voxels) stored in millimetres and in metres gives the same
+/// answer to [`SAME_PHYSICS`]: 2.25 mm read as `2.25 * 1e-3` was one unit in the last place
+/// off `0.00225`, and the decimation, whose collapse order breaks many exact ties on a voxel
+/// surface, turned that into a different surface (max |u| 10 % apart). NIfTI-1 stores
+/// lengths as f32: 2.25 mm is exact there, 0.00225 m is not (`f32` rounds it by -4.3e-8),
+/// so the NIfTI-1 metre file is a body that much smaller: hanging under its own weight, its
+/// displacement scales as the length squared (`rho g L^2 / E`), and the answer must follow
+/// that to [`SAME_PHYSICS`] (it was 12 % off, the same ties broken otherwise).
+#[test]
+fn a_label_image_in_millimetres_and_in_metres_gives_the_same_answer() {
+    use fibfluid::geometry::LengthUnit::{Metre, Millimetre};
+    let dir = tempfile::tempdir().unwrap();
+    let spacing = 2.25e-3;
+    let image = ellipsoid_image(spacing);
+    let top = 8.0 * spacing;
+    let sag = |name: &str, unit, nifti2| {
+        let opts = NiftiWriteOptions { unit, nifti2, ..NiftiWriteOptions::default() };
+        image_sag(dir.path(), name, &image, &opts, top)
+    };
+    let reference = sag("mm-nifti2", Millimetre, true);
+    assert!(reference > 1e-5, "nothing moved: {reference:e} m");
+    let rounded = f64::from(spacing as f32);
+    let f32_ratio = (rounded / spacing).powi(2);
+    for (name, unit, nifti2, expected) in [
+        ("m-nifti2", Metre, true, reference),
+        ("mm-nifti1", Millimetre, false, reference),
+        ("m-nifti1", Metre, false, reference * f32_ratio),
+    ] {
+        let u = sag(name, unit, nifti2);
+        let off = (u / expected - 1.0).abs();
+        assert!(off <= SAME_PHYSICS, "{name}: max |u| {u:e} m against {expected:e} m ({off:e} relative)");
+    }
 }

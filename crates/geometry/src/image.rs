@@ -483,7 +483,7 @@ fn check_voxel_count(dim: &[i64], ltype: LabelType, offset: u64, limit: u64) -> 
 
 /// The voxel-to-world affine in metres, from the sform, the qform or the spacing.
 fn affine_of(h: &Header) -> Result<([[f64; 4]; 3], AffineSource), ImageProblem> {
-    let m = h.unit.metres();
+    let unit = h.unit;
     let (a, source, name) = if h.sform_code > 0 {
         (h.srow, AffineSource::Sform, "sform")
     } else if h.qform_code > 0 {
@@ -496,7 +496,7 @@ fn affine_of(h: &Header) -> Result<([[f64; 4]; 3], AffineSource), ImageProblem> 
             "spacing",
         )
     };
-    let a = a.map(|r| r.map(|x| x * m));
+    let a = a.map(|r| r.map(|x| unit.to_metres(x)));
     if a.iter().flatten().any(|x| !x.is_finite()) {
         return Err(ImageProblem::BadAffine { source_name: name, what: "not finite" });
     }
@@ -540,8 +540,7 @@ fn decode(h: &Header, bytes: &[u8]) -> Result<LabelImage, ImageProblem> {
     for (voxel, chunk) in data.chunks_exact(bpv).enumerate() {
         labels.push(h.ltype.decode(chunk, h.big).map_err(|value| ImageProblem::NotALabel { voxel, value })?);
     }
-    let m = h.unit.metres();
-    let spacing = [h.pixdim[1] * m, h.pixdim[2] * m, h.pixdim[3] * m];
+    let spacing = [1, 2, 3].map(|i| h.unit.to_metres(h.pixdim[i]));
     Ok(LabelImage { dims: h.dims, spacing, affine, affine_source, labels })
 }
 
@@ -627,7 +626,6 @@ pub fn nifti_bytes(image: &LabelImage, opts: &NiftiWriteOptions) -> Vec<u8> {
         _ => LabelType::U32,
     });
     let (unit_code, stored) = nifti_unit(opts.unit);
-    let m = stored.metres();
     let v2 = opts.nifti2;
     let offset = if v2 { 544 } else { 352 };
     let mut h = vec![0u8; offset];
@@ -657,7 +655,12 @@ pub fn nifti_bytes(image: &LabelImage, opts: &NiftiWriteOptions) -> Vec<u8> {
         h[123] = unit_code;
         put(&mut h, 344, b"n+1\0");
     }
-    let pixdim = [1.0, image.spacing[0] / m, image.spacing[1] / m, image.spacing[2] / m];
+    let pixdim = [
+        1.0,
+        stored.from_metres(image.spacing[0]),
+        stored.from_metres(image.spacing[1]),
+        stored.from_metres(image.spacing[2]),
+    ];
     for (i, p) in pixdim.iter().enumerate() {
         real(&mut h, 76 + 4 * i, 104 + 8 * i, *p);
     }
@@ -670,7 +673,7 @@ pub fn nifti_bytes(image: &LabelImage, opts: &NiftiWriteOptions) -> Vec<u8> {
         }
         for (r, row) in image.affine.iter().enumerate() {
             for (c, x) in row.iter().enumerate() {
-                real(&mut h, 280 + 16 * r + 4 * c, 400 + 32 * r + 8 * c, x / m);
+                real(&mut h, 280 + 16 * r + 4 * c, 400 + 32 * r + 8 * c, stored.from_metres(*x));
             }
         }
     }

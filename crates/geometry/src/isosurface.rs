@@ -150,18 +150,19 @@ pub fn extract_surface(image: &LabelImage, opts: &SurfaceOptions) -> Result<Labe
     if opts.smooth {
         box_blur(&mut mask, image.dims);
     }
-    let mut raw = march(image, &mask, 1, HALF);
+    let frame = Frame::of(image);
+    let mut raw = march(image, &frame, &mask, 1, HALF);
     let mut block = 1;
     if let Some(target) = opts.target_vertices {
         let enough = target.saturating_mul(RESAMPLE_RATIO).max(RESAMPLE_ABOVE);
         let largest = image.dims.iter().copied().max().unwrap_or(1);
         while raw.0.len() > enough && block <= largest {
             block += 2;
-            raw = march(image, &mask, block, HALF);
+            raw = march(image, &frame, &mask, block, HALF);
         }
     }
     if opts.smooth {
-        raw = volume_keeping_surface(image, &mask, block, voxels as f64 * image.voxel_volume(), raw);
+        raw = volume_keeping_surface(image, &frame, &mask, block, voxels as f64 * frame.voxel_volume(), raw);
     }
     let selection = opts.selection;
     let invalid = |source| SurfaceError::Mesh { selection, source };
@@ -176,10 +177,12 @@ pub fn extract_surface(image: &LabelImage, opts: &SurfaceOptions) -> Result<Labe
                 DecimateError::Mesh(e) => invalid(e),
             })?;
         mesh = TriMesh::new(positions, triangles).map_err(invalid)?;
-        let flipped = validation.flipped;
-        validation = mesh.validate().map_err(invalid)?;
-        validation.flipped |= flipped;
     }
+    let world = mesh.positions().iter().map(|&q| frame.world(q)).collect();
+    mesh = TriMesh::new(world, mesh.triangles().to_vec()).map_err(invalid)?;
+    let flipped = validation.flipped;
+    validation = mesh.validate().map_err(invalid)?;
+    validation.flipped |= flipped;
     let volume = mesh.volume();
     Ok(LabelSurface {
         mesh,
@@ -212,6 +215,7 @@ const LEVEL_BISECTIONS: usize = 40;
 /// closed 2-manifold.
 fn volume_keeping_surface(
     image: &LabelImage,
+    frame: &Frame,
     mask: &[f64],
     block: usize,
     volume: f64,
@@ -230,7 +234,7 @@ fn volume_keeping_surface(
             hi = level;
         }
         level = 0.5 * (lo + hi);
-        surface = march(image, mask, block, level);
+        surface = march(image, frame, mask, block, level);
     }
     surface
 }
@@ -328,15 +332,65 @@ fn coarse_field(image: &LabelImage, mask: &[f64], block: usize) -> (Vec<f64>, [u
 const TETS: [[usize; 4]; 6] =
     [[0, 1, 3, 7], [0, 1, 5, 7], [0, 2, 3, 7], [0, 2, 6, 7], [0, 4, 5, 7], [0, 4, 6, 7]];
 
-/// Marching tetrahedra on the padded block-mean field at `level`: positions (metres) and
-/// outward triangles.
-fn march(image: &LabelImage, mask: &[f64], block: usize, level: f64) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+/// The voxel-to-world affine as `world = scale * (linear * ijk) + offset`, `scale` the
+/// largest entry of the affine's linear part. Surfaces are made and decimated in the local
+/// coordinates `linear * ijk` and moved to the world last: a change of length unit changes
+/// `scale` and `offset` only (an axis-aligned image of cubic voxels has `linear` the identity
+/// in every unit), so the decimation, whose collapse order breaks many exact ties on a voxel
+/// surface, sees the same numbers in every unit, and a surface in millimetres and one in
+/// metres are the same surface, scaled.
+struct Frame {
+    linear: [[f64; 3]; 3],
+    scale: f64,
+    offset: Vec3,
+}
+
+impl Frame {
+    fn of(image: &LabelImage) -> Self {
+        let a = &image.affine;
+        let scale = (0..3).flat_map(|r| (0..3).map(move |c| a[r][c].abs())).fold(0.0, f64::max);
+        Self {
+            linear: std::array::from_fn(|r| std::array::from_fn(|c| a[r][c] / scale)),
+            scale,
+            offset: std::array::from_fn(|r| a[r][3]),
+        }
+    }
+
+    /// Local coordinates of a (possibly fractional) voxel index.
+    fn local(&self, ijk: Vec3) -> Vec3 {
+        self.linear.map(|r| r[0] * ijk[0] + r[1] * ijk[1] + r[2] * ijk[2])
+    }
+
+    /// World position (metres) of local coordinates.
+    fn world(&self, q: Vec3) -> Vec3 {
+        std::array::from_fn(|r| self.scale * q[r] + self.offset[r])
+    }
+
+    /// Volume of one voxel in local coordinates: `|det linear|`.
+    fn voxel_volume(&self) -> f64 {
+        let a = &self.linear;
+        let det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
+            - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+            + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+        det.abs()
+    }
+}
+
+/// Marching tetrahedra on the padded block-mean field at `level`: positions (local
+/// coordinates of `frame`) and outward triangles.
+fn march(
+    image: &LabelImage,
+    frame: &Frame,
+    mask: &[f64],
+    block: usize,
+    level: f64,
+) -> (Vec<Vec3>, Vec<[u32; 3]>) {
     let (field, g) = coarse_field(image, mask, block);
     let half = (block as f64 - 1.0) / 2.0;
     let world = |n: usize| {
         let (i, j, k) = (n % g[0], (n / g[0]) % g[1], n / (g[0] * g[1]));
         let ijk = [i, j, k].map(|c| (c as f64 - 1.0) * block as f64 + half);
-        image.to_world(ijk)
+        frame.local(ijk)
     };
     let mut positions = Vec::new();
     let mut triangles = Vec::new();

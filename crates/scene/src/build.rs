@@ -326,9 +326,13 @@ fn ffm_material(
             "missing fiber parameters: give [ffm] (fiber_modulus, surface_tension) or a [tissue] table to calibrate them from"
         })));
     };
-    // No fiber parameters: FFM's are calibrated on the body against the FEM before an FFM
-    // run (whatever chose the method); the FEM itself does not use them.
+    // No fiber modulus: FFM's is calibrated on the body against the FEM before an FFM run
+    // (whatever chose the method), with the surface fibers of `[ffm] surface_tension` when
+    // given (they hold the vertices that culling leaves without a fiber); the FEM itself
+    // does not use them.
     settings.calibrate = true;
+    let tension = ffm.as_ref().and_then(|f| f.surface_tension).unwrap_or(0.0);
+    let tension = checked("[ffm].surface_tension", MaterialParameter::SurfaceTension, tension)?;
     let density = match &fluid {
         Some(f) => f.density,
         None => t.density(),
@@ -337,7 +341,7 @@ fn ffm_material(
         table: "[tissue]",
         modulus_key: "young",
         fiber_modulus: FiberModulusToml::One(t.young()),
-        surface_tension: 0.0,
+        surface_tension: tension,
         stiffening: None,
     };
     Ok((with_kernel(material(placeholder, Some(FluidToml { density }), axes)?), settings))
