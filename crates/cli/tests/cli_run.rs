@@ -11,6 +11,14 @@ fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
+/// The text of the bundled scene `fixtures/scenes/{name}` with its meshes' paths made
+/// absolute, to be written anywhere.
+fn fixture_scene(name: &str) -> String {
+    let text = std::fs::read_to_string(root().join("fixtures/scenes").join(name)).unwrap();
+    let meshes = root().join("fixtures/meshes").display().to_string().replace('\\', "/");
+    text.replace("../meshes/", &format!("{meshes}/"))
+}
+
 fn read_obj_positions(path: &Path) -> Vec<[f64; 3]> {
     std::fs::read_to_string(path)
         .unwrap()
@@ -1042,10 +1050,8 @@ fn long_accuracy_study_has_a_physical_axis_with_both_fiber_models() {
 #[ignore = "long run: CI runs it with `cargo test --workspace -- --ignored long_`"]
 fn long_accuracy_study_measures_the_linear_fem_against_a_neo_hookean_reference() {
     use fibfluid_cli::study::{Grid, run_study};
-    let text = std::fs::read_to_string(root().join("fixtures/scenes/sphere-tissue.toml")).unwrap();
-    let text = text
-        .replace("young = 5000.0", "young = 500.0\nmodel = \"neo-hookean\"")
-        .replace("../meshes/", &format!("{}/", root().join("fixtures/meshes").display()));
+    let text = fixture_scene("sphere-tissue.toml")
+        .replace("young = 5000.0", "young = 500.0\nmodel = \"neo-hookean\"");
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("soft-sphere.toml");
     std::fs::write(&path, text).unwrap();
@@ -1336,9 +1342,7 @@ fn check_volume_series(out: &Path, times: &[f64], nodes: usize) {
 #[test]
 fn time_keys_that_cannot_act_are_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(root().join("fixtures/scenes/block-relaxation.toml")).unwrap();
-    let mesh = root().join("fixtures/meshes/cube.obj");
-    let text = text.replace("../meshes/cube.obj", &mesh.display().to_string().replace('\\', "/"));
+    let text = fixture_scene("block-relaxation.toml");
     // The scene without its [time] table (from `[time]` to the blank line after it).
     let mut in_time = false;
     let untimed: String = text
@@ -1380,10 +1384,7 @@ fn time_keys_that_cannot_act_are_refused() {
 #[test]
 fn a_plate_driven_by_a_force_keeps_it_while_the_body_creeps() {
     let dir = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(root().join("fixtures/scenes/block-creep.toml")).unwrap();
-    let mesh = root().join("fixtures/meshes/cube.obj");
-    let text = text
-        .replace("../meshes/cube.obj", &mesh.display().to_string().replace('\\', "/"))
+    let text = fixture_scene("block-creep.toml")
         .replace("end = 3.0 ", "end = 1.0 ")
         .replace("[3.0, 1.0]", "[1.0, 1.0]");
     let scene = dir.path().join("creep.toml");
@@ -1416,11 +1417,7 @@ fn a_plate_driven_by_a_force_keeps_it_while_the_body_creeps() {
 #[test]
 fn a_tolerance_grows_the_resolution_until_its_estimate_meets_it() {
     let dir = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(root().join("fixtures/scenes/sphere-hanging.toml")).unwrap();
-    let meshes = root().join("fixtures/meshes");
-    let text = text
-        .replace("../meshes/", &format!("{}/", meshes.display().to_string().replace('\\', "/")))
-        .replace("model = \"neo-hookean\"", "model = \"linear\"");
+    let text = fixture_scene("sphere-hanging.toml").replace("model = \"neo-hookean\"", "model = \"linear\"");
     let run = |name: &str, fem: &str| {
         let scene = dir.path().join(format!("{name}.toml"));
         std::fs::write(&scene, format!("{text}\n[fem]\n{fem}\n")).unwrap();
@@ -1441,8 +1438,10 @@ fn a_tolerance_grows_the_resolution_until_its_estimate_meets_it() {
     let estimate = accuracy["estimated_error"].as_f64().unwrap();
     assert!(estimate <= 0.05, "{accuracy}");
     let reference = run("reference", &format!("resolution = {}", 2 * last));
-    let rest: Vec<[f64; 3]> =
-        read_obj_positions(&meshes.join("icosphere-3.obj")).iter().map(|p| p.map(|c| 0.05 * c)).collect();
+    let rest: Vec<[f64; 3]> = read_obj_positions(&root().join("fixtures/meshes/icosphere-3.obj"))
+        .iter()
+        .map(|p| p.map(|c| 0.05 * c))
+        .collect();
     let (answer, exact) = (
         read_obj_positions(&studied.join("deformed.obj")),
         read_obj_positions(&reference.join("deformed.obj")),

@@ -124,6 +124,18 @@ fn a_damped_column_comes_to_rest_at_its_static_answer() {
     assert!(diff < 1e-6 * scale, "{diff} against {scale}");
 }
 
+/// `force` N pressing down on the unit cube's top face (1 m^2 at z = 1), shared among its
+/// vertices by the area each stands for: the uniform traction a frictionless plate puts there.
+fn top_face_load(pos: &[[f64; 3]], force: f64) -> Loads {
+    let share = |x: f64| if x == 0.0 || x == 1.0 { 0.5 } else { 1.0 };
+    let weight: f64 = pos.iter().filter(|p| p[2] == 1.0).map(|p| share(p[0]) * share(p[1])).sum();
+    let point_forces = (0..pos.len())
+        .filter(|&v| pos[v][2] == 1.0)
+        .map(|v| (v, [0.0, 0.0, -force * share(pos[v][0]) * share(pos[v][1]) / weight]))
+        .collect();
+    Loads { gravity: [0.0; 3], point_forces }
+}
+
 /// Creep: the cube on its symmetry planes under a constant load on its top face (point
 /// forces of 1 % strain, small-strain law, one Prony term g = 0.5, tau = 1 s) creeps as the
 /// standard linear solid does: `u(t) = u_0 (1 / (1 - g) - g / (1 - g) exp(-(1 - g) t / tau))`,
@@ -134,14 +146,7 @@ fn a_loaded_block_creeps_as_the_standard_linear_solid() {
     let terms = vec![PronyTerm { g: 0.5, tau: 1.0 }];
     let relaxation = Viscoelastic::new(Arc::new(LinearLaw), terms).unwrap();
     let (mut body, pos) = relaxing_cube(Arc::new(LinearLaw), &relaxation);
-    // 50 N on the top face (1 m^2 at z = 1), shared by its vertices by the area they stand for.
-    let share = |x: f64| if x == 0.0 || x == 1.0 { 0.5 } else { 1.0 };
-    let weight: f64 = pos.iter().filter(|p| p[2] == 1.0).map(|p| share(p[0]) * share(p[1])).sum();
-    let point_forces: Vec<(usize, [f64; 3])> = (0..pos.len())
-        .filter(|&v| pos[v][2] == 1.0)
-        .map(|v| (v, [0.0, 0.0, -50.0 * share(pos[v][0]) * share(pos[v][1]) / weight]))
-        .collect();
-    let loads = Loads { gravity: [0.0; 3], point_forces };
+    let loads = top_face_load(&pos, 50.0);
     let top = pos.iter().position(|p| *p == [1.0, 1.0, 1.0]).unwrap();
     let instantaneous = body.solve(&loads, &[]).unwrap().surface_displacements[top][2];
     let (mut body, _) = relaxing_cube(Arc::new(LinearLaw), &relaxation);
@@ -328,13 +333,7 @@ fn a_released_block_recovers_as_the_standard_linear_solid() {
     let (g, tau, hold) = (0.5, 1.0, 2.0);
     let relaxation = Viscoelastic::new(Arc::new(LinearLaw), vec![PronyTerm { g, tau }]).unwrap();
     let (mut body, pos) = relaxing_cube(Arc::new(LinearLaw), &relaxation);
-    let share = |x: f64| if x == 0.0 || x == 1.0 { 0.5 } else { 1.0 };
-    let weight: f64 = pos.iter().filter(|p| p[2] == 1.0).map(|p| share(p[0]) * share(p[1])).sum();
-    let point_forces: Vec<(usize, [f64; 3])> = (0..pos.len())
-        .filter(|&v| pos[v][2] == 1.0)
-        .map(|v| (v, [0.0, 0.0, -50.0 * share(pos[v][0]) * share(pos[v][1]) / weight]))
-        .collect();
-    let loads = Loads { gravity: [0.0; 3], point_forces };
+    let loads = top_face_load(&pos, 50.0);
     let top = pos.iter().position(|p| *p == [1.0, 1.0, 1.0]).unwrap();
     let instantaneous = body.solve(&loads, &[]).unwrap().surface_displacements[top][2];
     let (mut body, _) = relaxing_cube(Arc::new(LinearLaw), &relaxation);

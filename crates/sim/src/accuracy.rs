@@ -117,9 +117,4 @@ impl AccuracyStudy {
             _ => RESOLUTION_RATIO,
         }
     }
-
-    /// The estimated relative error (the `accuracy` guard's value).
-    pub fn relative_error(&self) -> Option<f64> {
-        self.estimated_error
-    }
 }

@@ -126,7 +126,7 @@ impl FemRun {
         warnings.extend(newton_guards(&answer, small_strain));
         warnings.extend(support_guards(&model, &answer.plates));
         if let Some(study) = accuracy.as_ref().filter(|s| !s.met) {
-            let value = study.relative_error().unwrap_or(f64::INFINITY);
+            let value = study.estimated_error.unwrap_or(f64::INFINITY);
             warnings.push(ResultWarning { guard: ResultGuard::Accuracy, value, limit: study.tolerance });
         }
         Ok(Self {
@@ -180,20 +180,25 @@ fn solve_studied(
     let mut best: Option<FemAnswer> = None;
     let mut resolution = model.fem.resolution;
     loop {
-        let mut trial = model.clone();
-        trial.fem.resolution = resolution;
-        if let (Err(e), Some(_)) = (estimate(&trial, limit), &best) {
-            study.stopped = Some(format!("resolution {resolution} is refused: {e}"));
-            break;
-        }
-        *log = StageLog::default();
+        let answered = model.fem.resolution;
+        model.fem.resolution = resolution;
+        let mut run_log = StageLog::default();
         let started = Instant::now();
-        let answer = solve_answer(&trial, tissue, limit, log, observer)?;
+        let answer = match (solve_answer(model, tissue, limit, &mut run_log, observer), &best) {
+            (Ok(answer), _) => answer,
+            // A finer grid that does not fit ends the study at the last one that did.
+            (Err(e @ Error::TooLarge { .. }), Some(_)) => {
+                model.fem.resolution = answered;
+                study.stopped = Some(format!("resolution {resolution} is refused: {e}"));
+                break;
+            }
+            (Err(e), _) => return Err(e),
+        };
+        *log = run_log;
         let previous = best.as_ref().map(|b| b.surface_displacements.as_slice());
         let seconds = started.elapsed().as_secs_f64();
         let met = study.record(resolution, &answer.surface_displacements, previous, seconds);
         best = Some(answer);
-        model.fem.resolution = resolution;
         let next = AccuracyStudy::next_resolution(resolution);
         if met {
             break;

@@ -46,20 +46,9 @@ impl PlateDrive {
         Self { offsets: vec![0.0; plates.len()], compliance: vec![None; plates.len()] }
     }
 
-    /// The plates where the drive holds them now: a force-driven plate fixed at its offset
-    /// (whatever the load factor), the others as given.
+    /// The plates where the drive holds them now (see [`placed`]).
     pub(super) fn place(&self, plates: &[RigidPlate]) -> Vec<RigidPlate> {
-        plates
-            .iter()
-            .zip(&self.offsets)
-            .map(|(p, &s)| match p.force {
-                Some(_) => {
-                    let at = std::array::from_fn(|a| p.start[a] + s * p.normal[a]);
-                    RigidPlate { start: at, end: at, ..*p }
-                }
-                None => *p,
-            })
-            .collect()
+        placed(plates, &self.offsets)
     }
 
     /// The offsets a step tries first: where the last step ended, except for a plate that
@@ -84,13 +73,28 @@ impl PlateDrive {
             }
             _ => match self.compliance[k] {
                 Some(c) if f > 0.0 => s + c * (target - f),
-                _ if f < target => {
-                    s + reach * (1.0 + (s - self.offsets[k]).abs() / reach.max(f64::MIN_POSITIVE))
-                }
+                // Unmeasured and short: each step reaches one more cell past the last.
+                _ if f < target => s + reach + (s - self.offsets[k]).abs(),
                 _ => s - reach,
             },
         }
     }
+}
+
+/// `plates` with each force-driven one fixed at its offset along its normal (whatever the
+/// load factor), the others as given.
+fn placed(plates: &[RigidPlate], offsets: &[f64]) -> Vec<RigidPlate> {
+    plates
+        .iter()
+        .zip(offsets)
+        .map(|(p, &s)| match p.force {
+            Some(_) => {
+                let at = std::array::from_fn(|a| p.start[a] + s * p.normal[a]);
+                RigidPlate { start: at, end: at, ..*p }
+            }
+            None => *p,
+        })
+        .collect()
 }
 
 impl HyperBody {
@@ -116,12 +120,12 @@ impl HyperBody {
         let mut trial = drive.first_trial(plates, reach);
         let mut error = 0.0;
         for _ in 0..MAX_PLATE_FORCE_TRIALS {
-            let placed = PlateDrive { offsets: trial.clone(), compliance: Vec::new() }.place(plates);
+            let at = placed(plates, &trial);
             *duals = start_duals.clone();
-            if let Some(residual) = self.time_step(run, external, &placed, duals)? {
+            if let Some(residual) = self.time_step(run, external, &at, duals)? {
                 return Ok(Some(residual));
             }
-            let forces = self.plate_forces(&run.x, &placed, &duals.contact, run.t);
+            let forces = self.plate_forces(&run.x, &at, &duals.contact, run.t);
             error = 0.0;
             let mut next = trial.clone();
             for (k, plate) in plates.iter().enumerate() {
