@@ -12,6 +12,7 @@ pub mod frames;
 pub mod grab;
 pub mod info;
 pub mod output;
+mod plates_png;
 pub mod probe_run;
 pub mod scaling;
 pub mod series;
@@ -23,6 +24,6 @@ pub mod vtu;
 pub use error::{Error, Result};
 pub use info::{FiberCounts, MeshInfo, SurfaceMeasures, SurfaceTopology};
 pub use output::{
-    COMPRESSION_FILE, OUTPUT_FILES, SurfaceResult, check_output_dir, compression_png, render_png,
-    write_fem_outputs, write_fibers_vtk, write_files_atomically, write_outputs, write_vtk,
+    COMPRESSION_FILE, OUTPUT_FILES, SurfaceResult, check_output_dir, compression_png, fem_draws_plates,
+    render_png, write_fem_outputs, write_fibers_vtk, write_files_atomically, write_outputs, write_vtk,
 };

@@ -604,6 +604,9 @@ fn run_scene(path: &Path, out: &Path, over: &Overrides) -> Result<(), CliError> 
     if scene.solver.method == Method::Fem {
         names.push(fibfluid_cli::vtu::VOLUME_FILE);
         names.extend(timed.iter().flatten().map(String::as_str));
+        if fibfluid_cli::fem_draws_plates(&scene.model) {
+            names.push(fibfluid_cli::COMPRESSION_FILE);
+        }
     } else if !scene.model.plates.is_empty() {
         names.push(fibfluid_cli::COMPRESSION_FILE);
     }

@@ -8,6 +8,7 @@ use fibfluid::geometry::Vec3;
 use fibfluid::sim::fem_run::{FemReport, FemRun};
 use fibfluid::{Model, Report, Shape, Simulation};
 
+use crate::plates_png::{PlateCurve, PlateScene};
 use crate::{Error, Result};
 
 /// Names of the files a run writes.
@@ -85,7 +86,7 @@ fn triangles_of(sim: &Simulation) -> Vec<[u32; 3]> {
 /// by contact pressure, so the contact patches show).
 pub fn render_png(sim: &Simulation) -> Result<Vec<u8>> {
     if !sim.model().plates.is_empty() {
-        return render_plates_png(sim);
+        return PlateScene::of_simulation(sim, triangles_of(sim)).render();
     }
     let title = format!("deformed ({} steps, {})", sim.model().load.steps, sim.model().solver.mode);
     render_rest_and_deformed(&SurfaceResult::of_simulation(sim), &title)
@@ -109,123 +110,21 @@ fn render_rest_and_deformed(surface: &SurfaceResult<'_>, title: &str) -> Result<
     Ok(fibfluid::render::render_surfaces(&panels, None, &opts)?)
 }
 
-/// The rest shape and the compressed shape between their plates (outlines), colored by
-/// contact pressure (force over vertex area).
-fn render_plates_png(sim: &Simulation) -> Result<Vec<u8>> {
-    let tris = triangles_of(sim);
-    let n = sim.positions().len();
-    let areas = sim.body().boundary.vertex_area_vectors(sim.positions());
-    let mut pressure = vec![0.0; n];
-    for c in &sim.state().contacts {
-        let a = fibfluid::geometry::vec3::norm(areas[c.vertex]);
-        if a > 0.0 {
-            pressure[c.vertex] += c.force / a;
-        }
-    }
-    let diag = sim.body().diagonal;
-    let with_plates = |positions: &[Vec3], scalar: &[f64], lambda: f64| {
-        let (mut p, mut t, mut s) = (positions.to_vec(), tris.clone(), scalar.to_vec());
-        let centroid = fibfluid::geometry::vec3::scale(
-            positions.iter().fold([0.0; 3], |a, x| fibfluid::geometry::vec3::add(a, *x)),
-            1.0 / positions.len().max(1) as f64,
-        );
-        for plate in &sim.model().plates {
-            let (corners, quads) = plate_outline(plate, centroid, lambda, 0.6 * diag, 0.01 * diag);
-            let base = p.len() as u32;
-            p.extend_from_slice(&corners);
-            s.extend(std::iter::repeat_n(0.0, corners.len()));
-            t.extend(quads.iter().map(|q| q.map(|i| base + i)));
-        }
-        (p, t, s)
-    };
-    let zero = vec![0.0; n];
-    let (p0, t0, s0) = with_plates(sim.rest_positions(), &zero, 0.0);
-    let (p1, t1, s1) = with_plates(sim.positions(), &pressure, sim.state().load_factor);
-    // Look at the side the most loaded plate presses on: from that plate towards the
-    // body, tilted as the default view is.
-    let mut opts =
-        fibfluid::render::ViewOptions { scalar_label: "contact pressure (Pa)".into(), ..Default::default() };
-    let loaded = sim
-        .plate_records()
-        .iter()
-        .enumerate()
-        .max_by(|a, b| a.1.force.last().unwrap_or(&0.0).total_cmp(b.1.force.last().unwrap_or(&0.0)))
-        .map(|(k, _)| k);
-    if let Some(k) = loaded {
-        use fibfluid::geometry::vec3::{add, dot, norm, scale, sub};
-        let n = sim.model().plates[k].normal;
-        let tilt = sub(opts.view_dir, scale(n, dot(opts.view_dir, n)));
-        let v = add(n, scale(tilt, 0.8));
-        opts.view_dir = scale(v, 1.0 / norm(v));
-    }
-    let panels = [
-        fibfluid::render::Surface {
-            positions: &p0,
-            triangles: &t0,
-            scalar: &s0,
-            title: "rest, plates".into(),
-        },
-        fibfluid::render::Surface {
-            positions: &p1,
-            triangles: &t1,
-            scalar: &s1,
-            title: format!("compressed ({} contacts)", sim.state().contacts.len()),
-        },
-    ];
-    Ok(fibfluid::render::render_surfaces(&panels, None, &opts)?)
-}
-
-/// The outline of a plate as four thin quads (two triangles each): a square of half-side
-/// `half` about the centroid's projection, strips `width` wide.
-fn plate_outline(
-    plate: &fibfluid::contact::Plate,
-    centroid: Vec3,
-    lambda: f64,
-    half: f64,
-    width: f64,
-) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    use fibfluid::geometry::vec3::{add, cross, dot, norm, scale, sub};
-    let n = plate.normal;
-    let helper = if n[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
-    let a = cross(n, helper);
-    let a = scale(a, 1.0 / norm(a));
-    let b = cross(n, a);
-    let origin = plate.point_at(lambda);
-    let center = sub(centroid, scale(n, dot(n, sub(centroid, origin))));
-    let at = |u: f64, v: f64| add(center, add(scale(a, u), scale(b, v)));
-    let mut corners = Vec::new();
-    let mut quads = Vec::new();
-    let (o, i) = (half, half - width);
-    for (u0, v0, u1, v1) in [(-o, -o, o, -i), (-o, i, o, o), (-o, -i, -i, i), (i, -i, o, i)] {
-        let k = corners.len() as u32;
-        corners.extend([at(u0, v0), at(u1, v0), at(u1, v1), at(u0, v1)]);
-        quads.extend([[k, k + 1, k + 2], [k, k + 2, k + 3]]);
-    }
-    (corners, quads)
-}
-
-/// Force (N) against thickness (the mesh's unit) for each plate (`compression.png`).
+/// Force (N) against thickness (the mesh's unit) for each plate of an FFM run
+/// (`compression.png`).
 pub fn compression_png(sim: &Simulation) -> Result<Vec<u8>> {
-    let unit = sim.model().unit;
-    let to_unit = 1.0 / unit.metres();
-    let series: Vec<fibfluid::render::Series> = sim
+    let curves: Vec<PlateCurve> = sim
         .plate_records()
         .iter()
-        .enumerate()
-        .map(|(k, r)| fibfluid::render::Series {
-            label: format!("plate {}", k + 1),
-            points: r.gap.iter().map(|g| g * to_unit).zip(r.force.iter().copied()).collect(),
-        })
+        .map(|r| PlateCurve { gap: r.gap.clone(), force: r.force.clone() })
         .collect();
-    let title = format!("{}: plate force against thickness", sim.model().name);
-    Ok(fibfluid::render::line_chart(
-        &title,
-        &format!("thickness, the plate gap ({unit})"),
-        "force on the plate (N)",
-        &series,
-        900,
-        560,
-    )?)
+    crate::plates_png::compression_png(sim.model(), &curves)
+}
+
+/// Whether a finite-element run draws its plates: a static run with plates (a timed run's
+/// plate forces are in `series.csv`).
+pub fn fem_draws_plates(model: &Model) -> bool {
+    !model.plates.is_empty() && model.fem.time.is_none()
 }
 
 /// A deformed surface to write: the model (its mesh, name and unit), rest and deformed
@@ -287,12 +186,18 @@ pub fn write_outputs(dir: &Path, sim: &Simulation, report: &Report) -> Result<Ve
 pub fn write_fem_outputs(dir: &Path, run: &FemRun, report: &FemReport) -> Result<Vec<PathBuf>> {
     let surface = SurfaceResult::of_fem(run);
     let json = serde_json::to_string_pretty(report)? + "\n";
-    let title = format!("deformed (fem, resolution {})", run.stats.resolution);
-    let png = render_rest_and_deformed(&surface, &title)?;
     let mut vtu = Vec::new();
     crate::vtu::write_vtu(&mut vtu, run)
         .map_err(|source| Error::Io { path: dir.join(crate::vtu::VOLUME_FILE), source })?;
     let mut extra = vec![(crate::vtu::VOLUME_FILE, vtu)];
+    let png = if fem_draws_plates(&run.model) {
+        let curves = crate::plates_png::fem_curves(run);
+        extra.push((COMPRESSION_FILE, crate::plates_png::compression_png(&run.model, &curves)?));
+        PlateScene::of_fem(run, surface.triangles.clone()).render()?
+    } else {
+        let title = format!("deformed (fem, resolution {})", run.stats.resolution);
+        render_rest_and_deformed(&surface, &title)?
+    };
     if let Some(series) = crate::series::series_csv(run) {
         extra.push((crate::series::SERIES_FILE, series));
     }

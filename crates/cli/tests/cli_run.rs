@@ -833,7 +833,9 @@ fn run_with_the_fem_writes_its_report_and_mesh_in_the_file_unit() {
 /// up into a hanging 2 m sphere turns its surface inside out (a negative volume). The run
 /// ends (exit 0), with the result guards on stderr and in report.json; a 50 cm push is
 /// possible but past the linear model's validity (only `linear` fires); a 1 cm push passes
-/// them all (an empty list).
+/// them all (an empty list). Each run writes `compression.png` and each load step's plate
+/// force, the last equal to the plate's final force; the 1 cm push's steps at most
+/// `1 / [load] steps` of the travel apart.
 #[test]
 fn fem_answers_beyond_the_possible_are_flagged() {
     let tmp = tempfile::tempdir().unwrap();
@@ -843,8 +845,9 @@ fn fem_answers_beyond_the_possible_are_flagged() {
             "[mesh]\npath = \"{}\"\n\n[tissue]\nyoung = 3000.0\npoisson = 0.45\ndensity = 1000.0\n\n\
              [[fix]]\naxis = \"y\"\nabove = 0.8\n\n\
              [[plate]]\npoint = [0.0, -1.0, 0.0]\nnormal = [0.0, 1.0, 0.0]\ntravel = {travel}\n\n\
-             [solver]\nmethod = \"fem\"\n\n[fem]\nresolution = 8\n",
-            mesh.display()
+             [load]\nsteps = {steps}\n\n[solver]\nmethod = \"fem\"\n\n[fem]\nresolution = 8\n",
+            mesh.display(),
+            steps = if travel < 0.1 { 4 } else { 1 }
         )
     };
     // travel (m), then whether the answer is impossible, and whether it is past the linear
@@ -858,6 +861,20 @@ fn fem_answers_beyond_the_possible_are_flagged() {
         let stderr = String::from_utf8_lossy(&o.stderr);
         assert!(o.status.success(), "{stderr}");
         let report = read_json(&out.join("report.json"));
+        // A static plate run draws its plates and writes the force–thickness chart, as FFM does.
+        let chart = std::fs::read(out.join("compression.png")).unwrap();
+        assert!(chart.starts_with(b"\x89PNG"), "compression.png is not a PNG");
+        let steps = report["newton"]["steps"].as_array().unwrap();
+        let forces: Vec<f64> = steps.iter().map(|s| s["plate_forces"][0].as_f64().unwrap()).collect();
+        // `[load] steps = 4` (the 1 cm push) caps the increment along the plate's travel.
+        let most = if travel < 0.1 { 0.25 } else { 1.0 };
+        let loads: Vec<f64> = std::iter::once(0.0)
+            .chain(steps.iter().filter(|s| s["augmentation"] == 0).map(|s| s["load"].as_f64().unwrap()))
+            .collect();
+        assert!(loads.windows(2).all(|w| w[1] - w[0] <= most + 1e-12), "{loads:?}");
+        assert!(loads.len() > 4 || travel >= 0.1, "{loads:?}");
+        let last = report["plates"][0]["force"].as_f64().unwrap();
+        assert!((forces.last().unwrap() - last).abs() <= 1e-9 * last.abs(), "{forces:?} against {last}");
         let warnings = report["warnings"].as_array().unwrap();
         let volume = warnings.iter().find(|w| w["guard"] == "volume");
         if impossible {

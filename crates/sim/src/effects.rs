@@ -108,7 +108,7 @@ impl fmt::Display for Ineffective {
             ),
             Ineffective::StepsInFem { steps } => write!(
                 f,
-                "[load] steps = {steps} has no effect on the finite-element method: the FEM steps its load adaptively (Newton's method picks its own increments; a linear body without plates is one solve); it acts with method = \"ffm\" only"
+                "[load] steps = {steps} has no effect on the finite-element method: the FEM steps its load adaptively (Newton's method picks its own increments; a linear body without plates is one solve); it acts with method = \"ffm\", and with [[plate]] as the largest increment"
             ),
             Ineffective::ZeroForce { index, vertex } => write!(
                 f,
@@ -170,7 +170,9 @@ pub fn ineffective(scene: &Model) -> Vec<Ineffective> {
     if stiffens && scene.solver.mode != Mode::Nonlinear && !fem {
         found.push(Ineffective::StiffeningOutsideNonlinear { mode: scene.solver.mode });
     }
-    if fem && (scene.load.steps > 1 || scene.load.tolerance.is_some()) {
+    // A static FEM run with plates takes at most 1/steps of the travel per increment.
+    let steps_act = scene.load.steps > 1 && !scene.plates.is_empty() && scene.fem.time.is_none();
+    if fem && ((scene.load.steps > 1 && !steps_act) || scene.load.tolerance.is_some()) {
         found.push(Ineffective::StepsInFem { steps: scene.load.steps });
     }
     let axes = if matches!(scene.shape, Shape::Polygon(_)) { 2 } else { 3 };

@@ -112,4 +112,8 @@ pub struct FemPlate {
     pub penetration: f64,
     /// Contact augmentations (shared by all plates).
     pub augmentations: usize,
+    /// The contact pressure at each surface vertex (Pa, the grid's surface order; for
+    /// pictures, not in `report.json`).
+    #[serde(skip)]
+    pub pressure: Vec<f64>,
 }

@@ -196,6 +196,7 @@ pub fn build(
     let settings = NewtonSettings {
         grasp_columns_bytes: spare.min(fibfluid_fem::hyper::GRASP_COLUMNS_BYTES),
         solver: model.fem.solver,
+        max_increment: plate_increment(model),
         ..NewtonSettings::default()
     };
     let body = HyperBody::from_surface_grasped(positions, triangles, tissue, &fixed, grasps, &options)
@@ -216,6 +217,17 @@ pub fn build(
     Ok(body)
 }
 
+/// The largest load increment of a static run with plates: `1 / [load] steps`, so each
+/// plate's force is recorded at least that often along its travel (`compression.png`); 1
+/// otherwise (Newton's method picks its increments).
+fn plate_increment(model: &Model) -> f64 {
+    if model.plates.is_empty() || model.fem.time.is_some() {
+        1.0
+    } else {
+        1.0 / model.load.steps.max(1) as f64
+    }
+}
+
 /// Each plate's contact from a hyperelastic solution (contacts counted in surface samples).
 pub fn plate_records(solution: &HyperSolution) -> Vec<FemPlate> {
     (0..solution.plate_forces.len())
@@ -224,6 +236,7 @@ pub fn plate_records(solution: &HyperSolution) -> Vec<FemPlate> {
             contact_samples: solution.plate_contacts[k],
             penetration: solution.plate_penetration[k],
             augmentations: solution.stats.augmentations,
+            pressure: solution.contact_pressure[k].clone(),
         })
         .collect()
 }

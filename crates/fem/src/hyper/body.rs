@@ -41,6 +41,9 @@ pub struct NewtonSettings {
     pub first_increment: f64,
     /// The smallest increment before the solve gives up.
     pub min_increment: f64,
+    /// The largest increment (1: none); a static plate run caps it to record each plate's
+    /// force at least this often along its travel.
+    pub max_increment: f64,
     /// A step that converged in at most this many iterations doubles the next increment.
     pub easy_iterations: usize,
     /// The grasps' compliance columns (`8 x 3 x grasped vertices x dofs` bytes) Newton's
@@ -58,6 +61,7 @@ impl Default for NewtonSettings {
             max_iterations: 25,
             first_increment: 1.0,
             min_increment: 1.0 / 1024.0,
+            max_increment: 1.0,
             easy_iterations: 5,
             grasp_columns_bytes: GRASP_COLUMNS_BYTES,
             solver: crate::FemSolver::Auto,
@@ -76,6 +80,10 @@ pub struct LoadStep {
     pub iterations: usize,
     /// The relative residual before each iteration and at convergence.
     pub residuals: Vec<f64>,
+    /// Per plate, the contact force on the body along its normal at the step's end (N;
+    /// empty without plates).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub plate_forces: Vec<f64>,
 }
 
 /// Cells at least this fraction inside the surface are the tissue the strain summary
@@ -151,6 +159,9 @@ pub struct HyperSolution {
     pub plate_contacts: Vec<usize>,
     /// Per plate, the deepest remaining penetration (m).
     pub plate_penetration: Vec<f64>,
+    /// Per plate, the contact pressure at every surface vertex (Pa): each contact sample's
+    /// force shared among its triangle's vertices, over the vertex's area.
+    pub contact_pressure: Vec<Vec<f64>>,
     /// Per grasp, the force and moment the tissue exerts on the grasper and its largest
     /// constraint error.
     pub grasps: Vec<GraspRecord>,

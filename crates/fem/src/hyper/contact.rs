@@ -70,6 +70,8 @@ pub(crate) struct ContactSample {
     pub(crate) nodes: [usize; 8],
     pub(crate) weights: [f64; 8],
     pub(crate) area: f64,
+    /// The surface triangle it samples (index into the grid's surface triangles).
+    pub(crate) triangle: usize,
 }
 
 impl ContactSample {
@@ -93,7 +95,7 @@ pub(crate) fn surface_samples(grid: &SparseGrid, fixed: &[[bool; 3]]) -> Vec<Con
     let pos = grid.surface_positions();
     let h = grid.cell_size();
     let mut out = Vec::new();
-    for t in grid.surface_triangles() {
+    for (triangle, t) in grid.surface_triangles().iter().enumerate() {
         if t.iter().all(|&v| fixed[v as usize].iter().any(|&f| f)) {
             continue;
         }
@@ -103,7 +105,13 @@ pub(crate) fn surface_samples(grid: &SparseGrid, fixed: &[[bool; 3]]) -> Vec<Con
         let k = ((((8 * samples.len() + 1) as f64).sqrt() - 3.0) / 2.0).round() as usize;
         for (p, share) in samples.into_iter().zip(lattice_shares(k)) {
             if let Some(e) = grid.locate(p) {
-                out.push(ContactSample { rest: p, nodes: e.nodes, weights: e.weights, area: share * area });
+                out.push(ContactSample {
+                    rest: p,
+                    nodes: e.nodes,
+                    weights: e.weights,
+                    area: share * area,
+                    triangle,
+                });
             }
         }
     }

@@ -1,7 +1,7 @@
 //! The load stepping of a hyperelastic solve and its contact augmentations.
 
 use fibfluid_geometry::Vec3;
-use fibfluid_geometry::vec3::scale;
+use fibfluid_geometry::vec3::{cross, dot, norm, scale, sub};
 
 use super::body::{HyperBody, HyperSolution, HyperStats, LoadStep};
 
@@ -156,7 +156,14 @@ impl HyperBody {
             );
             if let Some(iterations) = met {
                 run.stats.augmentations += 1;
-                run.steps.push(LoadStep { load: run.t, augmentation, iterations, residuals: history });
+                let plate_forces = self.plate_forces(&run.x, plates, &duals.contact, run.t);
+                run.steps.push(LoadStep {
+                    load: run.t,
+                    augmentation,
+                    iterations,
+                    residuals: history,
+                    plate_forces,
+                });
                 return Ok(true);
             }
             (run.x, duals.grasps, run.stats.final_shift) = saved;
@@ -173,8 +180,14 @@ impl HyperBody {
         match self.newton(&mut run.x, &state, &mut run.solver, &mut history, &mut run.stats)? {
             Ok(iterations) => {
                 run.stats.augmentations += 1;
-                run.steps.push(LoadStep { load: run.t, augmentation, iterations, residuals: history });
                 let next = self.plate_forces(&run.x, plates, &duals.contact, run.t);
+                run.steps.push(LoadStep {
+                    load: run.t,
+                    augmentation,
+                    iterations,
+                    residuals: history,
+                    plate_forces: next.clone(),
+                });
                 let change = next.iter().zip(&progress.force).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
                 let largest = next.iter().fold(0.0_f64, |m, f| m.max(f.abs()));
                 progress.force = next;
@@ -204,11 +217,13 @@ impl HyperBody {
     /// Load steps from 0 to 1: an increment halves when Newton fails and doubles after an
     /// easy step.
     fn step_to_full_load(&mut self, run: &mut Progress, base: &LoadState<'_>) -> Result<()> {
-        let mut increment = self.settings.first_increment.clamp(self.settings.min_increment, 1.0);
+        let largest = self.settings.max_increment.clamp(self.settings.min_increment, 1.0);
+        let mut increment = self.settings.first_increment.clamp(self.settings.min_increment, largest);
         // The last converged increment (load and displacement), for the secant predictor.
         let mut last: Option<(f64, Vec<f64>)> = None;
         while run.t < 1.0 {
-            let target = (run.t + increment).min(1.0);
+            // Within rounding of the full load is the full load (no empty last step).
+            let target = if run.t + increment >= 1.0 - 1e-9 { 1.0 } else { run.t + increment };
             let state = LoadState { t: target, ..*base };
             let mut trial = self.predict(&run.x, last.as_ref(), target - run.t, &state);
             let mut history = Vec::new();
@@ -224,9 +239,10 @@ impl HyperBody {
                         augmentation: 0,
                         iterations,
                         residuals: history,
+                        plate_forces: self.plate_forces(&run.x, state.plates, state.multipliers, target),
                     });
                     if iterations <= self.settings.easy_iterations {
-                        increment = (2.0 * increment).min(1.0);
+                        increment = (2.0 * increment).min(largest);
                     }
                 }
                 Err(f) => {
@@ -285,7 +301,7 @@ impl HyperBody {
             .collect()
     }
 
-    /// Per plate, the contact force on the body along its normal (N) at the full load.
+    /// Per plate, the contact force on the body along its normal (N) at load factor `t`.
     pub(super) fn plate_forces(
         &self,
         x: &[f64],
@@ -308,6 +324,22 @@ impl HyperBody {
                     .sum()
             })
             .collect()
+    }
+
+    /// `per_vertex` (one value per surface vertex) over each vertex's area (a third of its
+    /// triangles' rest areas); zero where a vertex has no area.
+    fn per_vertex_area(&self, mut per_vertex: Vec<f64>) -> Vec<f64> {
+        let pos = self.model.grid.surface_positions();
+        let mut area = vec![0.0; pos.len()];
+        for t in self.model.grid.surface_triangles() {
+            let c = t.map(|v| pos[v as usize]);
+            let a = 0.5 * norm(cross(sub(c[1], c[0]), sub(c[2], c[0])));
+            t.iter().for_each(|&v| area[v as usize] += a / 3.0);
+        }
+        for (f, a) in per_vertex.iter_mut().zip(area) {
+            *f = if a > 0.0 { *f / a } else { 0.0 };
+        }
+        per_vertex
     }
 
     /// Uzawa's update of the contact pressures: `lambda <- max(0, lambda - beta g)`.
@@ -384,12 +416,21 @@ impl HyperBody {
         let law = ContactTerm::law(&self.model);
         let mut plate_forces = vec![0.0; plates.len()];
         let mut plate_contacts = vec![0; plates.len()];
+        let mut contact_pressure = Vec::with_capacity(plates.len());
+        let (triangles, surface) = (self.model.grid.surface_triangles(), self.model.grid.surface_positions());
         for (k, p) in plates.iter().enumerate() {
+            let mut vertex_force = vec![0.0; surface.len()];
             for (s, sample) in self.terms.contact.samples.iter().enumerate() {
                 let pr = law.pressure(law.argument(multipliers[k][s], p.gap(sample.position(&u), state.t)));
                 plate_forces[k] += sample.area * pr;
                 plate_contacts[k] += usize::from(pr > 0.0);
+                let t = triangles[sample.triangle];
+                let weights = barycentric(sample.rest, t.map(|v| surface[v as usize]));
+                for (&v, w) in t.iter().zip(weights) {
+                    vertex_force[v as usize] += w * sample.area * pr;
+                }
             }
+            contact_pressure.push(self.per_vertex_area(vertex_force));
         }
         let plate_penetration = self.deepest_penetration(&run.x, plates, run.t);
         let grasps = self.terms.grasps.records(&u, state.t, state.grasp_multipliers);
@@ -404,6 +445,7 @@ impl HyperBody {
             plate_forces,
             plate_contacts,
             plate_penetration,
+            contact_pressure,
             grasps,
             support_force,
             cells,
@@ -436,4 +478,16 @@ impl HyperBody {
     pub fn multigrid_levels(&self) -> usize {
         crate::multigrid::GridLevels::new(&self.model.grid, &self.model.free).nodes.len()
     }
+}
+
+/// The barycentric coordinates of `p` (in the triangle's plane) in the triangle `c`; equal
+/// thirds for a degenerate triangle.
+fn barycentric(p: Vec3, c: [Vec3; 3]) -> [f64; 3] {
+    let n = cross(sub(c[1], c[0]), sub(c[2], c[0]));
+    let twice = dot(n, n);
+    if twice <= 0.0 {
+        return [1.0 / 3.0; 3];
+    }
+    let w = |a: Vec3, b: Vec3| dot(n, cross(sub(a, p), sub(b, p))) / twice;
+    [w(c[1], c[2]), w(c[2], c[0]), w(c[0], c[1])]
 }

@@ -405,7 +405,14 @@ impl HyperBody {
         match self.newton(&mut run.x, &state, &mut run.solver, &mut history, &mut run.stats)? {
             Ok(iterations) => {
                 run.stats.load_steps += 1;
-                run.steps.push(LoadStep { load: run.t, augmentation: 0, iterations, residuals: history });
+                let plate_forces = self.plate_forces(&run.x, plates, &duals.contact, run.t);
+                run.steps.push(LoadStep {
+                    load: run.t,
+                    augmentation: 0,
+                    iterations,
+                    residuals: history,
+                    plate_forces,
+                });
             }
             Err(f) => return Ok(Some(f.residual)),
         }
