@@ -160,6 +160,8 @@ pub struct FemSettings {
     /// displacement's estimated relative discretization error is at most this
     /// ([`crate::accuracy`]); `None`: `resolution` as set.
     pub tolerance: Option<f64>,
+    /// `[fit]`: the parameters to fit to observed surface positions (`fibfluid fit`).
+    pub fit: Option<crate::inverse::FitSpec>,
 }
 
 /// A run through time: how it steps and the load curve every load follows.
@@ -193,6 +195,7 @@ impl Default for FemSettings {
             grasps: Vec::new(),
             time: None,
             tolerance: None,
+            fit: None,
         }
     }
 }
