@@ -3,36 +3,14 @@
 //! size), the observed surface positions (`vertex,x,y,z`), and the parameters' values on a
 //! model. The fit itself is [`crate::inverse_fit`].
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use fibfluid_fem::hyper::Parameter;
 use fibfluid_geometry::Vec3;
 
+pub use crate::model::{FitParameter, FitSpec};
 use crate::model::{Model, Shape};
 use crate::{Error, Result};
-
-/// A scene's `[fit]`: what to fit, within which bounds, against which observations.
-#[derive(Clone, Debug, PartialEq)]
-pub struct FitSpec {
-    /// The parameters, in the scene's order.
-    pub parameters: Vec<FitParameter>,
-    /// Per parameter, `[lower, upper]` (SI, both above 0: the fit works in their logarithms).
-    pub bounds: Vec<[f64; 2]>,
-    /// The observed positions' file (`vertex,x,y,z`).
-    pub observed: PathBuf,
-    /// Metres per unit of the observed file's positions (the mesh's unit and scale).
-    pub metres: f64,
-}
-
-/// One fitted parameter: its scene key (`tissue.young`, `region.lesion.young`, `gravity`)
-/// and what it is on the body.
-#[derive(Clone, Debug, PartialEq)]
-pub struct FitParameter {
-    /// The dotted key the scene names it by.
-    pub key: String,
-    /// The body's parameter (tissue 0: `[tissue]`, `k`: the `k`-th `[[region]]`).
-    pub parameter: Parameter,
-}
 
 /// One observed surface vertex.
 #[derive(Clone, Copy, Debug, PartialEq)]
