@@ -2,7 +2,7 @@
 //! the forward and the adjoint forms against central differences of full solves.
 
 use crate::common::*;
-use fibfluid_fem::hyper::{HyperBody, NewtonSettings, Parameter};
+use fibfluid_fem::hyper::{HyperBody, NewtonSettings, Parameter, RigidPlate};
 use fibfluid_fem::{FemOptions, Loads, Region, RegionShape, Tissue, TissueModel};
 
 /// A 4 x 2 x 2 cm block clamped at x = 0, sagging under sideways gravity, its far half
@@ -106,12 +106,19 @@ fn linear_sensitivities_match_central_differences() {
     check(TissueModel::Linear);
 }
 
-/// A tissue index past the regions is refused with a typed error, not a panic.
+/// A tissue index past the regions and a solve with plates are refused with typed errors,
+/// not a panic.
 #[test]
-fn an_unknown_tissue_is_refused() {
+fn unknown_tissues_and_plates_are_refused() {
     let case = Case::new();
     let (mut body, solution, loads) =
         case.solve(TissueModel::Linear, &[3000.0, 15000.0, 0.3, 0.4, 1000.0, 1100.0, 9.81]);
     let e = body.sensitivities(&solution, &loads, &[Parameter::Young(2)]).unwrap_err();
     assert!(e.to_string().contains("tissue 2 does not exist"), "{e}");
+    // A solve with a plate (here one that never touches) is not covered.
+    let plate =
+        RigidPlate { force: None, start: [0.0, 0.0, 1.0], end: [0.0, 0.0, 1.0], normal: [0.0, 0.0, -1.0] };
+    let pressed = body.solve(&loads, &[plate]).unwrap();
+    let e = body.sensitivities(&pressed, &loads, &[Parameter::Young(0)]).unwrap_err();
+    assert!(e.to_string().contains("plates are not covered"), "{e}");
 }

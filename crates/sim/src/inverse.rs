@@ -107,12 +107,14 @@ pub fn parameter_value(model: &Model, p: Parameter) -> Option<f64> {
 pub fn set_parameter(model: &mut Model, p: Parameter, value: f64) -> Result<()> {
     let scene = model.display_name();
     let failed = |source| Error::Fem { scene: scene.clone(), source };
-    if p == Parameter::Gravity {
-        let size = parameter_value(model, p).unwrap_or(0.0);
-        model.load.gravity = model.load.gravity.map(|g| g * value / size);
-        return Ok(());
-    }
-    let (Parameter::Young(k) | Parameter::Poisson(k) | Parameter::Density(k)) = p else { unreachable!() };
+    let k = match p {
+        Parameter::Gravity => {
+            let size = parameter_value(model, p).unwrap_or(0.0);
+            model.load.gravity = model.load.gravity.map(|g| g * value / size);
+            return Ok(());
+        }
+        Parameter::Young(k) | Parameter::Poisson(k) | Parameter::Density(k) => k,
+    };
     let slot = match k {
         0 => model.tissue.as_mut(),
         k => model.fem.regions.get_mut(k - 1).map(|r| &mut r.region.tissue),

@@ -86,7 +86,7 @@ impl HyperBody {
     /// static solve of this body under `loads`, without plates) with respect to each of
     /// `parameters`: one factorization of the tangent at the answer, one solve per parameter.
     ///
-    /// Errors: a grasped body, an unknown tissue, zero gravity asked as a parameter
+    /// Errors: a grasped body, a solution with plates, an unknown tissue, zero gravity asked as a parameter
     /// ([`FemError::Sensitivity`]); a tangent that is not positive definite at the answer.
     pub fn sensitivities(
         &mut self,
@@ -158,10 +158,13 @@ impl HyperBody {
             .collect()
     }
 
-    /// The free-dof vector of `solution`, refused for a grasped body.
+    /// The free-dof vector of `solution`, refused for a grasped body or a solve with plates.
     fn answer(&self, solution: &HyperSolution) -> Result<Vec<f64>> {
         if !self.terms.grasps.points.is_empty() {
             return Err(FemError::Sensitivity { reason: "grasps are not covered".into() });
+        }
+        if !solution.plate_forces.is_empty() {
+            return Err(FemError::Sensitivity { reason: "plates are not covered".into() });
         }
         if solution.node_displacements.len() != self.model.grid.n_nodes() {
             return Err(FemError::LengthMismatch {
