@@ -19,6 +19,7 @@ use say::num;
 mod say;
 mod accuracy;
 mod compare_command;
+mod fit_command;
 mod probe_command;
 mod response_flags;
 mod view;
@@ -233,6 +234,9 @@ enum Command {
     /// Replay one grab path with FFM, TSVE-ChainMail and Generalized ChainMail; write
     /// compare.json and compare.png.
     Compare(compare_command::CompareArgs),
+    /// Fit the scene's [fit] parameters (tissue and region moduli, densities, gravity) to
+    /// observed surface positions; write fit.json.
+    Fit(fit_command::FitArgs),
 }
 
 /// Command-line overrides of the scene's `[solver]` and `[load]` settings; each flag
@@ -478,6 +482,7 @@ fn run(command: Command) -> Result<(), CliError> {
         Command::Probe(args) => probe_command::run(&args),
         Command::View(args) => view::run(&args),
         Command::Compare(args) => compare_command::run(&args),
+        Command::Fit(args) => fit_command::run(&args),
     }
 }
 

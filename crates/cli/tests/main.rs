@@ -2,5 +2,6 @@
 
 mod bad_inputs;
 mod cli_run;
+mod fit;
 mod scene_method;
 mod view;

@@ -112,6 +112,12 @@ pub enum FemError {
         /// Vertices with at least one fixed axis.
         fixed_vertices: usize,
     },
+    /// A sensitivity asked of what it does not cover (grasps, a tissue that is not there).
+    #[error("sensitivities: {reason}")]
+    Sensitivity {
+        /// What was asked and why it cannot be answered.
+        reason: String,
+    },
     /// A grasp with no vertex in its patch.
     #[error("grasp {grasp} holds no vertex")]
     EmptyGrasp {

@@ -59,6 +59,10 @@ pub struct CellBlend {
     pub region_ids: Vec<u16>,
     /// Per region, the cells it holds most of.
     pub region_cells: Vec<usize>,
+    /// Per cell, the share of its samples in each tissue (the base first, then the regions):
+    /// `regions + 1` values per cell, summing to 1 (what its moduli and density are the
+    /// weighted means by).
+    pub shares: Vec<f64>,
 }
 
 /// The inside flags of every sample point of the grid's box for one shape (x fastest).
@@ -110,6 +114,7 @@ pub fn blend_regions(grid: &SparseGrid, base: &Tissue, regions: &[Region]) -> Re
         densities: Vec::new(),
         region_ids: Vec::new(),
         region_cells: vec![0; regions.len()],
+        shares: Vec::new(),
     };
     let mut samples_in = vec![0usize; regions.len()];
     let laws: Vec<Arc<dyn MaterialLaw>> = tissues.iter().map(Tissue::law).collect();
@@ -145,6 +150,7 @@ fn push_cell(blend: &mut CellBlend, laws: &[Arc<dyn MaterialLaw>], tissues: &[Ti
         tissues.iter().zip(counts).map(|(t, &n)| f(t) * n as f64).sum::<f64>() / total
     };
     blend.densities.push(mean(&|t| t.density()));
+    blend.shares.extend(counts.iter().map(|&n| n as f64 / total));
     let id = (0..counts.len()).max_by_key(|&k| (counts[k], std::cmp::Reverse(k))).unwrap_or(0);
     blend.materials.push(CellMaterial::new(
         laws[id].clone(),

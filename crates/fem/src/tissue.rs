@@ -205,6 +205,14 @@ impl Tissue {
         Ok(Self { relaxation: self.relaxation, ..t })
     }
 
+    /// The same tissue (law, relaxation) with another Young's modulus and Poisson's ratio
+    /// (validated as [`Tissue::new`] does).
+    pub fn with_elastic(&self, young: f64, poisson: f64) -> Result<Self> {
+        let t = Self { young, poisson, ..*self };
+        t.validate()?;
+        Ok(t)
+    }
+
     fn validate(&self) -> Result<()> {
         let bad = |name, value, reason| Err(FemError::InvalidTissue { name, value, reason });
         if !(self.young.is_finite() && self.young > 0.0) {

@@ -13,5 +13,6 @@ mod ordering;
 mod patch;
 mod point_force;
 mod region;
+mod sensitivity;
 mod time;
 mod tracking;

@@ -82,6 +82,7 @@ pub(crate) fn build(
     if let Some(c) = gravity.iter().find(|c| !c.is_finite()) {
         return Err(range("[gravity].acceleration", "finite", c));
     }
+    let fit_spec = spec.fit.take();
     let vertices = VertexMap::of(&shape, unit);
     let constraints = constraints(&spec.fix, &vertices, axes)?;
     let forces = forces(&spec.force, &vertices)?;
@@ -108,6 +109,7 @@ pub(crate) fn build(
     model.fem = fem;
     model.ffm = ffm;
     model.unit = unit;
+    model.fem.fit = crate::fit_table::fit(fit_spec, dir, &model, mesh_scale * unit.metres())?;
     Ok(model)
 }
 

@@ -176,6 +176,9 @@ pub enum SceneProblem {
     /// A `[tissue]` value the finite-element method refuses.
     #[error(transparent)]
     Tissue(fibfluid_fem::FemError),
+    /// A `[fit]` key names what the scene does not have, or its bounds do not fit.
+    #[error("{0}")]
+    Fit(String),
     /// A plate whose normal points away from the body.
     #[error("the plate faces away from the body (its normal must point towards the body)")]
     PlateFacesAway,

@@ -24,6 +24,7 @@ use fibfluid_sim::Model;
 mod build;
 mod chainmail_section;
 mod error;
+mod fit_table;
 mod invalid;
 mod lines;
 mod path_file;

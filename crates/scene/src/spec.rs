@@ -29,6 +29,16 @@ pub(crate) struct SceneToml {
     #[serde(default)]
     pub(crate) region: Vec<TissueRegionToml>,
     pub(crate) time: Option<TimeToml>,
+    pub(crate) fit: Option<FitToml>,
+}
+
+/// `[fit]` as written: the parameters to fit, their bounds and the observed file.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct FitToml {
+    pub(crate) parameters: Vec<String>,
+    pub(crate) bounds: Vec<[f64; 2]>,
+    pub(crate) observed: String,
 }
 
 /// `[time]` as written: a run through time (finite-element method only).

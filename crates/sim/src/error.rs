@@ -152,6 +152,16 @@ pub enum Error {
         /// The load factor of the last finished step.
         load_factor: f64,
     },
+    /// The observed file of a fit (or its `[fit]` input) is wrong: named with the line.
+    #[error("{}{}: {problem}", path.display(), line.map(|l| format!(":{l}")).unwrap_or_default())]
+    FitInput {
+        /// The file.
+        path: std::path::PathBuf,
+        /// The line (1-based), where one is to blame.
+        line: Option<usize>,
+        /// What is wrong.
+        problem: String,
+    },
     /// The contact active set kept changing.
     #[error(
         "step {step}: the plate contacts did not settle after {iterations} active-set iterations; take more load steps"

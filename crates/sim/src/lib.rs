@@ -18,6 +18,7 @@
 //!   adaptive steps), [`guards`] after every step, frictionless [`contact`] with rigid
 //!   plates through capacitance rows on the kept factorization.
 //! - [`Report`]: the data of `report.json` (stages, counters, warnings, plates).
+//! - [`inverse_fit`]: the tissues' parameters fitted to observed surface positions (`[fit]`).
 
 pub mod accuracy;
 pub mod calibration;
@@ -30,6 +31,8 @@ pub mod fem_run;
 mod fit;
 pub mod guards;
 pub mod hyper_run;
+pub mod inverse;
+pub mod inverse_fit;
 mod model;
 mod pipeline;
 pub mod plan;

@@ -160,6 +160,8 @@ pub struct FemSettings {
     /// displacement's estimated relative discretization error is at most this
     /// ([`crate::accuracy`]); `None`: `resolution` as set.
     pub tolerance: Option<f64>,
+    /// `[fit]`: the parameters to fit to observed surface positions (`fibfluid fit`).
+    pub fit: Option<FitSpec>,
 }
 
 /// A run through time: how it steps and the load curve every load follows.
@@ -193,6 +195,7 @@ impl Default for FemSettings {
             grasps: Vec::new(),
             time: None,
             tolerance: None,
+            fit: None,
         }
     }
 }
@@ -267,3 +270,26 @@ pub const PLATE_REST_TOLERANCE: f64 = 1e-4;
 
 /// The largest number of load steps a scene may ask for.
 pub const MAX_STEPS: usize = 1_000_000;
+
+/// A scene's `[fit]`: what to fit, within which bounds, against which observations.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FitSpec {
+    /// The parameters, in the scene's order.
+    pub parameters: Vec<FitParameter>,
+    /// Per parameter, `[lower, upper]` (SI, both above 0: the fit works in their logarithms).
+    pub bounds: Vec<[f64; 2]>,
+    /// The observed positions' file (`vertex,x,y,z`).
+    pub observed: std::path::PathBuf,
+    /// Metres per unit of the observed file's positions (the mesh's unit and scale).
+    pub metres: f64,
+}
+
+/// One fitted parameter: its scene key (`tissue.young`, `region.lesion.young`, `gravity`)
+/// and what it is on the body.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FitParameter {
+    /// The dotted key the scene names it by.
+    pub key: String,
+    /// The body's parameter (tissue 0: `[tissue]`, `k`: the `k`-th `[[region]]`).
+    pub parameter: fibfluid_fem::hyper::Parameter,
+}

@@ -319,6 +319,8 @@ impl HyperBody {
             materials,
             densities: vec![tissue.density(); grid.n_cells()],
             region_ids: vec![0; grid.n_cells()],
+            tissues: vec![*tissue],
+            shares: vec![1.0; grid.n_cells()],
             grid,
             tissue: *tissue,
             free,
@@ -346,6 +348,8 @@ impl HyperBody {
         model.materials = blend.materials;
         model.densities = blend.densities;
         model.region_ids = blend.region_ids;
+        model.shares = blend.shares;
+        model.tissues = std::iter::once(model.tissue).chain(regions.iter().map(|r| r.tissue)).collect();
         self.states = LawStates::new(&self.model.materials);
         Ok(self)
     }

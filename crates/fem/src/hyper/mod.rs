@@ -17,6 +17,8 @@
 //!   energy; load increments that halve when Newton fails and double after an easy step
 //!   ([`NewtonSettings`]). A load that cannot be reached fails with the step, the load
 //!   and the residual ([`crate::FemError::NotConverged`]).
+//! - Sensitivities of an answer to the tissues' moduli, densities and gravity, forward and
+//!   adjoint, with the tangent factored at the answer ([`sensitivity`]).
 
 mod body;
 mod cell;
@@ -28,6 +30,7 @@ mod linear_solve;
 mod model;
 mod newton;
 mod plate_drive;
+mod sensitivity;
 mod solve;
 mod terms;
 mod time;
@@ -45,6 +48,7 @@ pub use contact::{
 pub use grasp::{GRASP_PENALTY, GRASP_TOLERANCE, Grasp, GraspRecord};
 pub use grasp_kkt::GRASP_NEWTON_ITERATIONS;
 pub use plate_drive::{MAX_PLATE_FORCE_TRIALS, PLATE_FORCE_TOLERANCE};
+pub use sensitivity::{Parameter, Sensitivities};
 pub use time::{LoadCurve, TimeFields, TimeSample, TimeSettings, TimeSolution};
 pub use tracking::{
     CHORD_REACH, HOLD_PENALTIES, Linearization, MAX_RESTORE, MAX_STEP_HALVINGS, SHIFTS, SurfaceResponse,

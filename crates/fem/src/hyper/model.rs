@@ -24,6 +24,10 @@ pub(crate) struct HyperModel {
     pub(crate) densities: Vec<f64>,
     /// Each cell's region id (0: the body's tissue, `k`: region `k`).
     pub(crate) region_ids: Vec<u16>,
+    /// The tissues the cells blend: the body's, then each region's.
+    pub(crate) tissues: Vec<Tissue>,
+    /// Per cell, the share of each of `tissues` in it (`tissues.len()` values per cell).
+    pub(crate) shares: Vec<f64>,
 }
 
 impl HyperModel {

@@ -68,7 +68,7 @@ impl crate::error::NotConvergedWhy {
 
 /// The tissue's energy and its gradient at node displacements `u`, the Hessian added to
 /// `tangent` when given. `None` when a cell is inverted (`J <= 0`).
-fn add_tissue(
+pub(super) fn add_tissue(
     model: &HyperModel,
     states: &LawStates,
     u: &[Vec3],
