@@ -76,10 +76,14 @@ impl<'a> PlateScene<'a> {
         let zero = vec![0.0; self.rest.len()];
         let (p0, t0, s0) = self.with_plates(self.rest, &zero, 0.0, diag);
         let (p1, t1, s1) = self.with_plates(self.now, &self.pressure, self.lambda, diag);
-        let mut opts = fibfluid::render::ViewOptions {
-            scalar_label: "contact pressure (Pa)".into(),
-            ..Default::default()
+        // A few vertices pinched against a plate (a voxel staircase's edges) can carry many
+        // times the pressure of the rest: the scale then stops at the 95th percentile.
+        let range = fibfluid::render::robust_range(&self.pressure);
+        let label = match range {
+            Some((_, top)) => format!("contact pressure (Pa; {top:.0} and above at the top)"),
+            None => "contact pressure (Pa)".into(),
         };
+        let mut opts = fibfluid::render::ViewOptions { scalar_label: label, ..Default::default() };
         let loaded = self.forces.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1)).map(|(k, _)| k);
         if let Some(k) = loaded {
             let n = self.model.plates[k].normal;
@@ -101,7 +105,7 @@ impl<'a> PlateScene<'a> {
                 title: self.title.clone(),
             },
         ];
-        Ok(fibfluid::render::render_surfaces(&panels, None, &opts)?)
+        Ok(fibfluid::render::render_surfaces(&panels, range, &opts)?)
     }
 
     /// `positions` with each plate's outline at load factor `lambda` appended.

@@ -27,7 +27,9 @@ mod text;
 
 pub use chart::{Series, line_chart, log_drawable, loglog_chart, pareto_front, pareto_front_with_margin};
 pub use error::{RenderError, Result};
-pub use surface::{Colormap, Surface, ViewOptions, render_surfaces};
+pub use surface::{
+    Colormap, OUTLIER_FACTOR, OUTLIER_QUANTILE, Surface, ViewOptions, render_surfaces, robust_range,
+};
 
 /// Largest image, in pixels (width × height), that this crate will allocate.
 ///

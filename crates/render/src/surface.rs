@@ -192,6 +192,29 @@ fn validate(index: usize, s: &Surface<'_>) -> Result<()> {
 
 /// The range mapped onto the color map: the explicit one or the union of
 /// all scalars, widened around its value when it is a single point.
+/// Values at or above this many times the [`OUTLIER_QUANTILE`] quantile are outliers for
+/// [`robust_range`].
+pub const OUTLIER_FACTOR: f64 = 3.0;
+
+/// The quantile of the nonzero magnitudes that [`robust_range`] compares the largest with.
+pub const OUTLIER_QUANTILE: f64 = 0.95;
+
+/// A color range `(0, q)` that keeps a few extreme values from darkening the whole
+/// picture: `q` the [`OUTLIER_QUANTILE`] quantile of the nonzero magnitudes of `values`,
+/// returned only when the largest is at least [`OUTLIER_FACTOR`] times `q` (values above it
+/// are drawn at the top of the scale). `None`: the full range shows every value.
+pub fn robust_range(values: &[f64]) -> Option<(f64, f64)> {
+    let mut nonzero: Vec<f64> =
+        values.iter().map(|v| v.abs()).filter(|v| *v > 0.0 && v.is_finite()).collect();
+    if nonzero.len() < 2 {
+        return None;
+    }
+    nonzero.sort_by(f64::total_cmp);
+    let k = ((nonzero.len() - 1) as f64 * OUTLIER_QUANTILE).floor() as usize;
+    let (quantile, largest) = (nonzero[k], nonzero[nonzero.len() - 1]);
+    (largest >= OUTLIER_FACTOR * quantile).then_some((0.0, quantile))
+}
+
 fn color_range(panels: &[Surface<'_>], range: Option<(f64, f64)>) -> Result<(f64, f64)> {
     let (lo, hi) = match range {
         Some((lo, hi)) => {

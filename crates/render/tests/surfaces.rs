@@ -2,7 +2,7 @@
 //! degenerate input and errors.
 
 use crate::common::{bumpy_sphere, decode, icosahedron, split_cube};
-use fibfluid_render::{Colormap, RenderError, Surface, ViewOptions, render_surfaces};
+use fibfluid_render::{Colormap, RenderError, Surface, ViewOptions, render_surfaces, robust_range};
 
 fn surface<'a>(p: &'a [[f64; 3]], t: &'a [[u32; 3]], s: &'a [f64], title: &str) -> Surface<'a> {
     Surface { positions: p, triangles: t, scalar: s, title: title.to_string() }
@@ -281,4 +281,23 @@ fn tiny_images_and_extreme_coordinates_do_not_panic() {
     let s_out: Vec<f64> = s.iter().map(|v| v * 1e6).collect();
     let png = render_surfaces(&[surface(&p, &t, &s_out, "")], Some((0.0, 1.0)), &opts(64, 64));
     assert!(png.is_ok());
+}
+
+/// A few extreme values do not set the color scale: 1,000 pressures spread over 1 to 1,000
+/// with five at 1e6 get the range (0, the 95th percentile of the nonzero values), which the
+/// spread puts at 954 (the 954th of 1,005 values); without the outliers, or with a largest
+/// value under three times the quantile, the full range stands (`None`). Zeros (out of
+/// contact) are not counted.
+#[test]
+fn a_few_outliers_do_not_set_the_color_scale() {
+    let mut values: Vec<f64> = (1..=1000).map(f64::from).collect();
+    values.extend([0.0; 300]);
+    assert_eq!(robust_range(&values), None);
+    values.extend([1e6; 5]);
+    let (lo, hi) = robust_range(&values).expect("five values at 1e6 are outliers");
+    assert!(lo == 0.0 && hi == 954.0, "({lo}, {hi})");
+    values.truncate(1300);
+    values.push(2500.0);
+    assert_eq!(robust_range(&values), None, "2.5 times the quantile is not an outlier");
+    assert_eq!(robust_range(&[0.0, 0.0]), None);
 }
