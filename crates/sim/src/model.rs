@@ -203,6 +203,14 @@ impl Model {
         Self::new(name, Shape::Surface(Box::new(mesh)), material)
     }
 
+    /// The body's cavities (closed surfaces inside the outer one; 0 for a polygon).
+    pub fn cavities(&self) -> usize {
+        match &self.shape {
+            Shape::Surface(m) => m.validation.cavities.len(),
+            Shape::Polygon(_) => 0,
+        }
+    }
+
     /// A model of a body (surface or polygon) with the given material, no constraints, no
     /// loads, default solver.
     pub fn new(name: impl Into<String>, shape: Shape, material: Material) -> Self {

@@ -33,6 +33,13 @@ impl Simulation {
             });
         }
         refuse_projected(&scene)?;
+        if scene.cavities() > 0 {
+            return Err(Error::MethodNeeds {
+                scene: scene.display_name(),
+                method: Method::Ffm,
+                problem: "has a body with cavities, which the fiber-fluid method does not represent (its fibers and fluid volume are those of one closed surface); use [solver] method = \"fem\" with a [tissue] table",
+            });
+        }
         if scene.fem.time.is_some() {
             return Err(Error::MethodNeeds {
                 scene: scene.display_name(),
