@@ -27,6 +27,7 @@ mod error;
 mod invalid;
 mod lines;
 mod path_file;
+mod pressure_table;
 mod regions;
 mod spec;
 mod time_table;

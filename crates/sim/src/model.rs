@@ -160,6 +160,17 @@ pub struct FemSettings {
     /// displacement's estimated relative discretization error is at most this
     /// ([`crate::accuracy`]); `None`: `resolution` as set.
     pub tolerance: Option<f64>,
+    /// Pressures (`[[pressure]]`) on faces of the surface, in the scene's order.
+    pub pressures: Vec<NamedPressure>,
+}
+
+/// A pressure with the surface the scene names (`outer`, `cavity K` or `box`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct NamedPressure {
+    /// The surface as the scene names it.
+    pub surface: String,
+    /// The pressure (Pa) and its faces (mesh indices).
+    pub pressure: fibfluid_fem::hyper::Pressure,
 }
 
 /// A run through time: how it steps and the load curve every load follows.
@@ -193,6 +204,7 @@ impl Default for FemSettings {
             grasps: Vec::new(),
             time: None,
             tolerance: None,
+            pressures: Vec::new(),
         }
     }
 }

@@ -33,6 +33,13 @@ impl Simulation {
             });
         }
         refuse_projected(&scene)?;
+        if !scene.fem.pressures.is_empty() {
+            return Err(Error::MethodNeeds {
+                scene: scene.display_name(),
+                method: Method::Ffm,
+                problem: "has [[pressure]] loads, which only the finite-element method carries; set [solver] method = \"fem\" with a [tissue] table",
+            });
+        }
         if scene.cavities() > 0 {
             return Err(Error::MethodNeeds {
                 scene: scene.display_name(),
