@@ -32,14 +32,23 @@ fn axis_supports(positions: &[V3], outer: f64) -> Vec<[bool; 3]> {
         .collect()
 }
 
+/// A solved hollow sphere.
+struct Solved {
+    body: HyperBody,
+    rest: Vec<V3>,
+    deformed: Vec<V3>,
+    cavity: Vec<[u32; 3]>,
+    nodes: Vec<V3>,
+}
+
 /// Solves the hollow sphere with `pressures` (on the outer faces, on the cavity faces) at
-/// `resolution`; returns the deformed surface.
+/// `resolution`.
 fn solve(
     tissue: &Tissue,
     (inner, outer, level): (f64, f64, u32),
     resolution: usize,
     [p_outer, p_cavity]: [f64; 2],
-) -> (HyperBody, Vec<V3>, Vec<V3>, Vec<[u32; 3]>, Vec<V3>) {
+) -> Solved {
     let (positions, outer_faces, cavity_faces) = hollow_sphere(inner, outer, level);
     let mut triangles = outer_faces.clone();
     triangles.extend_from_slice(&cavity_faces);
@@ -59,7 +68,7 @@ fn solve(
         .zip(&sol.surface_displacements)
         .map(|(p, u)| std::array::from_fn(|a| p[a] + u[a]))
         .collect();
-    (body, positions, deformed, cavity_faces, sol.node_displacements)
+    Solved { body, rest: positions, deformed, cavity: cavity_faces, nodes: sol.node_displacements }
 }
 
 fn cavity_volume(faces: &[[u32; 3]], positions: &[V3]) -> f64 {
@@ -88,7 +97,8 @@ fn cavity_pressure_work_is_the_stored_energy() {
     let mut dv = Vec::new();
     let mut stored = 0.0;
     for k in 0..=4 {
-        let (body, rest, deformed, cavity, nodes) = solve(&tissue, shape, 8, [0.0, p * k as f64 / 4.0]);
+        let Solved { body, rest, deformed, cavity, nodes } =
+            solve(&tissue, shape, 8, [0.0, p * k as f64 / 4.0]);
         dv.push(cavity_volume(&cavity, &deformed) - cavity_volume(&cavity, &rest));
         stored = strain_energy(&body, &nodes);
     }
@@ -109,7 +119,7 @@ fn cavity_pressure_work_is_the_stored_energy() {
 fn unpressed_cavity_keeps_its_shape_under_outer_pressure() {
     let tissue = Tissue::new(5000.0, 0.3, 0.0).unwrap();
     let (a, b, p) = (1.0, 2.0, 10.0);
-    let (_, rest, deformed, cavity, _) = solve(&tissue, (a, b, 3), 16, [p, 0.0]);
+    let Solved { rest, deformed, cavity, .. } = solve(&tissue, (a, b, 3), 16, [p, 0.0]);
     let (k, mu) = (tissue.bulk_modulus(), tissue.shear_modulus());
     let lame = -p / (3.0 * k * (1.0 - (a / b).powi(3))) * a * (1.0 + 3.0 * k / (4.0 * mu));
     let mut vertices: Vec<u32> = cavity.iter().flatten().copied().collect();
@@ -170,7 +180,7 @@ fn thick_sphere_error(nu: f64, resolution: usize, level: u32, stretches: &[f64])
     let mut worst = 0.0f64;
     for &target in stretches {
         let p = thick_sphere_pressure(mu, target, 1.0, 2.0);
-        let (_, rest, deformed, cavity, _) = solve(&tissue, (1.0, 2.0, level), resolution, [0.0, p]);
+        let Solved { rest, deformed, cavity, .. } = solve(&tissue, (1.0, 2.0, level), resolution, [0.0, p]);
         let la = inner_stretch(&rest, &deformed, &cavity);
         let exact = thick_sphere_stretch(mu, p, 1.0, 2.0);
         let err = ((la - 1.0) / (exact - 1.0) - 1.0).abs();

@@ -4,7 +4,7 @@ use std::f64::consts::PI;
 use std::io::Write;
 
 use fibfluid_geometry::{
-    ImageProblem, LabelImage, LabelSelection, LabelType, LengthUnit, MeshError, NiftiWriteOptions,
+    ImageProblem, LabelImage, LabelSelection, LabelType, LengthUnit, NiftiWriteOptions,
     SMOOTH_VOLUME_TOLERANCE, SurfaceError, SurfaceOptions, extract_surface, nifti_bytes, read_nifti,
     read_nifti_bytes, write_nifti,
 };
