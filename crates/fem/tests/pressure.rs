@@ -87,25 +87,26 @@ fn strain_energy(body: &HyperBody, u: &[V3]) -> f64 {
 }
 
 /// A cavity pressure's work `W = int p dV` (by parts, `P dV(P) - int dV dp`, Simpson over
-/// five pressures) equals the strain energy stored at the full pressure within 1 %: the
-/// follower pressure is conservative and its volume is the cavity's.
+/// 0, P/2 and P) equals the strain energy stored at the full pressure within 1 % (measured
+/// 7.5e-4; 5e-5 with five pressures): the follower pressure is conservative and its volume
+/// is the cavity's.
 #[test]
 fn cavity_pressure_work_is_the_stored_energy() {
     let tissue = Tissue::new(5000.0, 0.45, 0.0).unwrap().with_model(TissueModel::NeoHookean);
     let shape = (1.0, 2.0, 2);
     let p = 600.0;
-    let mut dv = Vec::new();
+    let mut dv = vec![0.0];
     let mut stored = 0.0;
-    for k in 0..=4 {
+    for k in 1..=2 {
         let Solved { body, rest, deformed, cavity, nodes } =
-            solve(&tissue, shape, 8, [0.0, p * k as f64 / 4.0]);
+            solve(&tissue, shape, 8, [0.0, p * k as f64 / 2.0]);
         dv.push(cavity_volume(&cavity, &deformed) - cavity_volume(&cavity, &rest));
         stored = strain_energy(&body, &nodes);
     }
-    let integral = p / 4.0 / 3.0 * (dv[0] + 4.0 * dv[1] + 2.0 * dv[2] + 4.0 * dv[3] + dv[4]);
-    let work = p * dv[4] - integral;
+    let integral = p / 6.0 * (dv[0] + 4.0 * dv[1] + dv[2]);
+    let work = p * dv[2] - integral;
     eprintln!("cavity dV {dv:?} m^3; work {work:.6e} J, stored {stored:.6e} J");
-    assert!(dv[4] > 0.05, "the cavity grows: {dv:?}");
+    assert!(dv[2] > 0.05, "the cavity grows: {dv:?}");
     assert!((work / stored - 1.0).abs() < 0.01, "work {work} against stored {stored}");
 }
 
@@ -196,12 +197,12 @@ fn thick_sphere_error(nu: f64, resolution: usize, level: u32, stretches: &[f64])
     worst
 }
 
-/// Quick: the thick sphere at resolution 12 (three cells through the wall), nu = 0.49, at
-/// an inner stretch of 1.2: the stretch within 4 % of the closed form (measured 2.7 %;
-/// 1.2 % at resolution 16, 0.6 % at 24).
+/// Quick: the thick sphere at resolution 10 (2.5 cells through the wall), nu = 0.49, at
+/// an inner stretch of 1.1: the stretch within 4 % of the closed form (measured 1.8 %; at
+/// 1.2, 2.7 % at resolution 12, 1.2 % at 16, 0.6 % at 24).
 #[test]
 fn thick_sphere_coarse_matches_closed_form() {
-    let worst = thick_sphere_error(0.49, 12, 2, &[1.2]);
+    let worst = thick_sphere_error(0.49, 10, 2, &[1.1]);
     assert!(worst < 0.04, "{worst}");
 }
 
