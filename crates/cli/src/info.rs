@@ -62,6 +62,9 @@ pub struct SurfaceTopology {
     pub genus: i64,
     /// Whether the file's faces pointed inward and were flipped.
     pub flipped: bool,
+    /// Each cavity's volume (closed surfaces inside the outer one; cavity `K` is entry
+    /// `K - 1`).
+    pub cavities: Vec<f64>,
 }
 
 /// Convexity and the fibers the visibility tests kept.
@@ -111,6 +114,7 @@ impl MeshInfo {
                 closed: true,
                 genus: file.validation.genus,
                 flipped: file.validation.flipped,
+                cavities: file.validation.cavities.clone(),
             },
             bbox_min,
             bbox_max,

@@ -504,6 +504,9 @@ fn mesh_info(path: &Path, json: bool, fibers_out: Option<&Path>) -> Result<(), C
     say!("  vertices        {} ({} in the file)", info.vertices, info.file_vertices);
     say!("  faces           {}", info.faces);
     say!("  closed          yes, genus {}", info.topology.genus);
+    for (k, v) in info.topology.cavities.iter().enumerate() {
+        say!("  cavity {:<8} volume {}", k + 1, num(*v));
+    }
     say!(
         "  bounding box    [{}, {}, {}] .. [{}, {}, {}]",
         num(lo[0]),

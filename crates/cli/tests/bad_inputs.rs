@@ -43,7 +43,8 @@ const EXPECTED: &[(&str, &str)] = &[
     ("mesh-open.obj", "the surface is open"),
     ("mesh-single-triangle.obj", "the surface is open: 3 boundary edges"),
     ("mesh-truncated-facet.stl", ":12: the last facet has fewer than 3 vertices"),
-    ("mesh-two-tetrahedra.obj", "2 disconnected components"),
+    ("mesh-two-tetrahedra.obj", "component 1 lies outside the outer surface: two disjoint bodies"),
+    ("mesh-cavity-crosses.obj", "cavity 1 crosses the outer surface"),
     (
         "scene-image-truncated.toml",
         "image-truncated.nii: is truncated: the voxels need 11872 bytes, only 400 present",
@@ -148,6 +149,10 @@ const EXPECTED: &[(&str, &str)] = &[
         "scene-plate-zero-normal.toml",
         "scene-plate-zero-normal.toml:14: [[plate]] #1.normal: must be finite and non-zero",
     ),
+    ("scene-pressure-missing-cavity.toml", "[[pressure]] #1.surface: the body has no cavity 2 (it has 1"),
+    ("scene-pressure-empty-box.toml", "[[pressure]] #1.box: selects no face"),
+    ("scene-pressure-nan.toml", "[[pressure]] #1.value: must be finite"),
+    ("scene-pressure-ffm.toml", "[[pressure]]: a pressure is a load of the finite-element method only"),
     (
         "scene-fem-fixed-on-a-line.toml",
         "scene-fem-fixed-on-a-line.toml: fem: the fixed vertices (2 of them) leave the body free to move: a rotation about the axis",

@@ -45,7 +45,28 @@ pub(crate) fn node_neighbours(grid: &SparseGrid) -> Vec<Vec<usize>> {
 /// The symbolic lower triangle of K over the free dofs: column `f` holds every free row
 /// `g >= f` whose node shares a cell with `f`'s node.
 pub(crate) fn lower_pattern(grid: &SparseGrid, free: &[usize], n_free: usize) -> SymbolicSparseColMat<usize> {
-    let nb = node_neighbours(grid);
+    lower_pattern_coupled(grid, free, n_free, &[])
+}
+
+/// [`lower_pattern`] with the node pairs `extra` coupled too (each both ways): the
+/// couplings of a load between nodes that share no cell (a pressure's faces).
+pub(crate) fn lower_pattern_coupled(
+    grid: &SparseGrid,
+    free: &[usize],
+    n_free: usize,
+    extra: &[(usize, usize)],
+) -> SymbolicSparseColMat<usize> {
+    let mut nb = node_neighbours(grid);
+    if !extra.is_empty() {
+        for &(a, b) in extra {
+            nb[a].push(b);
+            nb[b].push(a);
+        }
+        for list in &mut nb {
+            list.sort_unstable();
+            list.dedup();
+        }
+    }
     let mut col_ptr = Vec::with_capacity(n_free + 1);
     let mut row_idx = Vec::new();
     col_ptr.push(0);

@@ -12,6 +12,7 @@ mod multigrid;
 mod ordering;
 mod patch;
 mod point_force;
+mod pressure;
 mod region;
 mod sensitivity;
 mod time;

@@ -96,11 +96,36 @@ pub enum MeshError {
         /// Other end.
         b: u32,
     },
-    /// The faces form several disconnected pieces.
-    #[error("the mesh has {count} disconnected components; one closed body is expected")]
-    MultipleComponents {
-        /// Number of components.
-        count: usize,
+    /// A closed component lies outside the outer surface (the one of largest volume): two
+    /// bodies, where one (with cavities inside it) is expected.
+    #[error(
+        "component {component} lies outside the outer surface: two disjoint bodies (one body, with any cavities inside it, is expected)"
+    )]
+    DisjointBodies {
+        /// The component (numbered like the cavities: the outer surface is 0).
+        component: usize,
+    },
+    /// A cavity has vertices both inside and outside the outer surface.
+    #[error("cavity {cavity} crosses the outer surface (some of its vertices lie outside it)")]
+    CavityCrossesOuter {
+        /// The cavity (1-based).
+        cavity: usize,
+    },
+    /// Two cavities cross each other.
+    #[error("cavities {a} and {b} cross each other (some vertices of one lie inside the other)")]
+    CavitiesCross {
+        /// One cavity (1-based).
+        a: usize,
+        /// The other.
+        b: usize,
+    },
+    /// A closed component lies inside a cavity: a body floating in a hole.
+    #[error("cavity {inner} lies inside cavity {outer}: a body inside a cavity is not supported")]
+    CavityInCavity {
+        /// The inner component.
+        inner: usize,
+        /// The cavity around it.
+        outer: usize,
     },
     /// The enclosed volume is zero: the body is flat.
     #[error("the enclosed volume is zero (a flat body)")]

@@ -36,6 +36,7 @@ mod off;
 mod ply;
 mod polygon;
 mod raw;
+mod shells;
 mod turned;
 mod unit;
 pub mod vec3;
@@ -71,6 +72,7 @@ pub use mesh::{
 pub use off::write_off_to;
 pub use ply::{PlyFormat, write_ply_to};
 pub use polygon::Polygon;
+pub use shells::{Shell, winding_number};
 pub use turned::{
     TURN_LIMIT, edges_turned_inside_out, faces_turned_given, faces_turned_inside_out, neighbourhood_angles,
 };

@@ -32,8 +32,11 @@ pub struct Validation {
     pub flipped: bool,
     /// Euler characteristic V - E + F.
     pub euler_characteristic: i64,
-    /// Genus of the closed surface, (2 - chi) / 2.
+    /// Genus of the closed surface (summed over the outer surface and the cavities),
+    /// `(2 c - chi) / 2` for `c` closed surfaces.
     pub genus: i64,
+    /// Each cavity's volume (positive; [`TriMesh::shells`]), in cavity order.
+    pub cavities: Vec<f64>,
     /// Human-readable warnings (e.g. the flip).
     pub warnings: Vec<String>,
 }
@@ -144,8 +147,10 @@ impl TriMesh {
         Adjacency::new(self.n_vertices(), &self.triangles)
     }
 
-    /// Checks that this is one closed, manifold, consistently oriented surface with no
-    /// degenerate or duplicate faces; flips the faces if they point inward.
+    /// Checks that this is one body: closed, manifold, consistently oriented surfaces with
+    /// no degenerate or duplicate faces, the outer one and cavities inside it
+    /// ([`crate::Shell`]); faces the outer outward and each cavity toward its hole,
+    /// flipping what points the other way.
     pub fn validate(&mut self) -> Result<Validation, MeshError> {
         self.check_faces()?;
         self.check_near_duplicates()?;
@@ -154,13 +159,37 @@ impl TriMesh {
         self.check_vertex_fans(&adj)?;
         let used = (0..self.n_vertices()).filter(|&v| !adj.faces_of(v).is_empty()).count() as i64;
         let chi = used - n_edges + self.n_faces() as i64;
-        let mut report =
-            Validation { flipped: false, euler_characteristic: chi, genus: (2 - chi) / 2, warnings: vec![] };
-        if self.orient_outward()? {
-            report.flipped = true;
-            report.warnings.push("faces pointed inward (negative volume); flipped to outward".into());
+        let shells = self.shells();
+        let c = shells.len() as i64;
+        let mut report = Validation {
+            flipped: false,
+            euler_characteristic: chi,
+            genus: (2 * c - chi) / 2,
+            cavities: vec![],
+            warnings: vec![],
+        };
+        if shells.len() == 1 {
+            if self.orient_outward()? {
+                report.flipped = true;
+                report.warnings.push("faces pointed inward (negative volume); flipped to outward".into());
+            }
+            return Ok(report);
         }
+        let v = shells[0].volume;
+        if !(v.is_finite() && v.abs() >= f64::MIN_POSITIVE) {
+            // Names the scale problem when it is one.
+            self.orient_outward()?;
+            return Err(MeshError::ZeroVolume);
+        }
+        report.warnings = self.orient_shells(&shells)?;
+        report.flipped = v < 0.0;
+        report.cavities = shells[1..].iter().map(|s| s.volume.abs()).collect();
         Ok(report)
+    }
+
+    /// Reverses face `k`'s orientation.
+    pub(crate) fn flip_face(&mut self, k: usize) {
+        self.triangles[k].swap(1, 2);
     }
 
     /// No degenerate face (repeated vertex, area too small for the mesh's size) and no two
@@ -233,8 +262,8 @@ impl TriMesh {
         Ok(())
     }
 
-    /// Every edge shared by exactly two faces of opposite orientation, one component.
-    /// Returns the number of edges.
+    /// Every edge shared by exactly two faces of opposite orientation. Returns the number
+    /// of edges.
     fn check_edges(&self) -> Result<i64, MeshError> {
         // Edges: (min, max, face, forward?).
         let mut edges: Vec<(u32, u32, u32, bool)> = Vec::with_capacity(3 * self.n_faces());
@@ -248,7 +277,6 @@ impl TriMesh {
         let mut boundary = Vec::new();
         let mut i = 0;
         let mut n_edges = 0i64;
-        let mut uf = UnionFind::new(self.n_faces());
         while i < edges.len() {
             let mut j = i;
             while j < edges.len() && edges[j].0 == edges[i].0 && edges[j].1 == edges[i].1 {
@@ -262,7 +290,6 @@ impl TriMesh {
                     if edges[i].3 == edges[i + 1].3 {
                         return Err(MeshError::InconsistentOrientation { a, b });
                     }
-                    uf.union(edges[i].2 as usize, edges[i + 1].2 as usize);
                 }
                 faces => return Err(MeshError::NonManifoldEdge { a, b, faces }),
             }
@@ -270,10 +297,6 @@ impl TriMesh {
         }
         if let Some(&(a, b)) = boundary.first() {
             return Err(MeshError::OpenBoundary { count: boundary.len(), a, b });
-        }
-        let components = uf.count();
-        if components > 1 {
-            return Err(MeshError::MultipleComponents { count: components });
         }
         Ok(n_edges)
     }

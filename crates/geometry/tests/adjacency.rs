@@ -53,9 +53,11 @@ fn adjacency_matches_the_triangles() {
             assert_eq!(faces.len(), nb.len(), "{name}: vertex {v}");
         }
 
-        // Euler characteristic from the counts made here; the genus is known per fixture.
+        // Euler characteristic from the counts made here; the genus is known per fixture
+        // (summed over its closed surfaces: the outer one and any cavities).
         let chi = n as i64 - uses.len() as i64 + m.n_faces() as i64;
-        assert_eq!(chi, 2 - 2 * genus, "{name}: V - E + F");
+        let surfaces = m.shells().len() as i64;
+        assert_eq!(chi, 2 * surfaces - 2 * genus, "{name}: V - E + F");
         assert_eq!(file.validation.euler_characteristic, chi, "{name}");
         assert_eq!(file.validation.genus, genus, "{name}");
     }

@@ -2,6 +2,7 @@
 
 mod adjacency;
 mod area_volume;
+mod cavity;
 mod common;
 mod decimate;
 mod fibers;

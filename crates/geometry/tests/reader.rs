@@ -425,7 +425,7 @@ fn topology_errors_are_typed() {
     p5.extend(p.iter().map(|q| add(*q, [10.0, 0.0, 0.0])));
     let mut t5 = t.clone();
     t5.extend(t.iter().map(|f| f.map(|i| i + 4)));
-    assert_eq!(mesh_error(read(&p5, &t5)), MeshError::MultipleComponents { count: 2 });
+    assert_eq!(mesh_error(read(&p5, &t5)), MeshError::DisjointBodies { component: 1 });
 
     // A face using one vertex twice.
     let mut t6 = t.clone();

@@ -89,6 +89,9 @@ pub enum ChainmailBodyError {
     /// The scene is a 2D polygon.
     #[error("ChainMail needs a surface mesh; this scene is a 2D polygon")]
     NotASurface,
+    /// The body has cavities (not built for ChainMail).
+    #[error("ChainMail does not run a body with cavities (the finite-element method does)")]
+    Cavities,
     /// The lattice would not fit in the memory budget (refused before allocating).
     #[error(
         "the ChainMail lattice at spacing {spacing} needs up to {bytes} bytes ({:.2} GiB), but only {available} bytes ({:.2} GiB) may be used; use a larger [chainmail] spacing",
@@ -125,6 +128,9 @@ impl ChainmailBody {
         budget: u64,
     ) -> Result<Self, ChainmailBodyError> {
         let Shape::Surface(file) = &scene.shape else { return Err(ChainmailBodyError::NotASurface) };
+        if !file.validation.cavities.is_empty() {
+            return Err(ChainmailBodyError::Cavities);
+        }
         let rest = file.mesh.positions().to_vec();
         let fixed_axis = (0..rest.len())
             .map(|v| {

@@ -96,6 +96,8 @@ pub(crate) fn build(
     }
     let plates = plates(&spec.plate, &vertices, fem.time.is_some())?;
     fem.grasps = grasps(&spec.grasp, &vertices, &constraints)?;
+    let is_fem = solver.method == fibfluid_sim::Method::Fem;
+    fem.pressures = crate::pressure_table::pressures(&spec.pressure, &shape, unit.metres(), is_fem)?;
     let mut model = Model::new(name, shape, material);
     model.constraints = constraints;
     model.load.gravity = gravity;

@@ -190,6 +190,19 @@ pub enum SceneProblem {
         /// How far through.
         depth: f64,
     },
+    /// A pressure on a cavity the body does not have.
+    #[error("the body has no cavity {cavity} (it has {count}; `fibfluid mesh-info` lists them)")]
+    NoSuchCavity {
+        /// The cavity named (1-based).
+        cavity: usize,
+        /// The body's cavities.
+        count: usize,
+    },
+    /// A pressure's box holds no whole face.
+    #[error(
+        "selects no face (a face is selected when its three vertices lie in the box, in the mesh's unit)"
+    )]
+    EmptyPressureBox,
     /// Nothing is fixed along an axis.
     #[error(
         "no vertex is fixed along {axis}: the body could translate freely along it (add a [[fix]] table; a frictionless plate does not hold a body sideways)"

@@ -28,6 +28,7 @@ mod fit_table;
 mod invalid;
 mod lines;
 mod path_file;
+mod pressure_table;
 mod regions;
 mod spec;
 mod time_table;

@@ -25,6 +25,8 @@ pub(crate) struct SceneToml {
     pub(crate) plate: Vec<PlateToml>,
     #[serde(default)]
     pub(crate) grasp: Vec<GraspToml>,
+    #[serde(default)]
+    pub(crate) pressure: Vec<crate::pressure_table::PressureToml>,
     pub(crate) chainmail: Option<ChainmailToml>,
     #[serde(default)]
     pub(crate) region: Vec<TissueRegionToml>,

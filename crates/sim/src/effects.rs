@@ -42,6 +42,12 @@ pub enum Ineffective {
         /// How many grasps the scene gives.
         grasps: usize,
     },
+    /// `[[pressure]]`s in a scene run by an interactive body, which does not carry them:
+    /// only the finite-element batch run applies pressures.
+    PressuresOutsideFemRun {
+        /// How many pressures the scene gives.
+        pressures: usize,
+    },
     /// A fluid density without gravity: the density enters only the hydrostatic load.
     DensityWithoutGravity {
         /// The density given.
@@ -97,6 +103,10 @@ impl fmt::Display for Ineffective {
                 f,
                 "{grasps} [[grasp]] table(s) are ignored: grasps are carried by the finite-element batch run only (`run` with method = \"fem\"); interactive bodies grasp through tool paths"
             ),
+            Ineffective::PressuresOutsideFemRun { pressures } => write!(
+                f,
+                "{pressures} [[pressure]] table(s) are ignored: pressures are carried by the finite-element batch run only (`run` with method = \"fem\")"
+            ),
             Ineffective::DensityWithoutGravity { density } => write!(
                 f,
                 "[fluid] density = {density} has no effect without gravity (it enters only the hydrostatic load); add [gravity] acceleration or remove [fluid]"
@@ -123,12 +133,16 @@ impl fmt::Display for Ineffective {
 }
 
 /// What a scene asks for that an interactive body does not carry: the scene's grasps
-/// (a tool grasps instead).
+/// (a tool grasps instead) and pressures.
 pub fn ineffective_interactive(scene: &Model) -> Vec<Ineffective> {
-    if scene.fem.grasps.is_empty() {
-        return Vec::new();
+    let mut found = Vec::new();
+    if !scene.fem.grasps.is_empty() {
+        found.push(Ineffective::GraspsOutsideFemRun { grasps: scene.fem.grasps.len() });
     }
-    vec![Ineffective::GraspsOutsideFemRun { grasps: scene.fem.grasps.len() }]
+    if !scene.fem.pressures.is_empty() {
+        found.push(Ineffective::PressuresOutsideFemRun { pressures: scene.fem.pressures.len() });
+    }
+    found
 }
 
 /// Every setting of `scene` that cannot act, in scene order (gravity and fluid, material,

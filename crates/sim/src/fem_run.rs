@@ -214,7 +214,7 @@ fn solve_studied(
     Ok((best.expect("the first run is made or its error returned"), Some(study)))
 }
 
-/// Solves the model with `tissue`'s law. Plates, grasps and regions need the Newton solver
+/// Solves the model with `tissue`'s law. Plates, grasps, pressures and regions need the Newton solver
 /// (contact and grasps inside the solve, per-cell materials), for the linear law too
 /// (one iteration per change of the contact set); a plain linear body is one solve. A
 /// timed run shows `observer` each output time.
@@ -225,7 +225,10 @@ fn solve_answer(
     log: &mut StageLog,
     observer: &mut dyn FnMut(&crate::hyper_run::TimeFrame<'_>),
 ) -> Result<FemAnswer> {
-    let plain = model.plates.is_empty() && model.fem.regions.is_empty() && model.fem.grasps.is_empty();
+    let plain = model.plates.is_empty()
+        && model.fem.regions.is_empty()
+        && model.fem.grasps.is_empty()
+        && model.fem.pressures.is_empty();
     // The linear body solves with the sparse Cholesky only: above the crossover the
     // Newton solver (one iteration for a linear law) brings the multigrid.
     let direct = crate::fem_inputs::estimate(model, limit)?.uses_direct_solver(model.fem.solver);
@@ -398,6 +401,9 @@ pub struct FemResultFacts {
     pub volume_final: f64,
     /// The answer's largest strain, `J` extremes and largest von Mises stress.
     pub strain: StrainSummary,
+    /// Each cavity's volume at the end (m^3; omitted for a body without cavities).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub cavity_volumes: Vec<f64>,
 }
 
 /// A region of other tissue in `report.json`.
@@ -456,6 +462,44 @@ pub struct FemSupports {
     /// error (m) (omitted without grasps).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub grasps: Vec<GraspRecord>,
+    /// Each pressure's resultant force on the body at the end (omitted without pressures).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub pressures: Vec<PressureRecord>,
+}
+
+/// A pressure in `report.json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct PressureRecord {
+    /// The surface it acts on (`outer`, `cavity K`, `box`).
+    pub surface: String,
+    /// The pressure at the end (Pa: the scene's value times the final load factor).
+    pub value: f64,
+    /// Its resultant force on the body (N): on the deformed surface for a follower
+    /// pressure, on the rest surface for a dead one (0 on a closed surface either way).
+    pub resultant: Vec3,
+}
+
+impl PressureRecord {
+    /// The pressures of a run at its end.
+    pub fn of(run: &FemRun) -> Vec<Self> {
+        let load = run.model.fem.time.as_ref().map_or(1.0, |t| t.curve.factor(t.settings.end));
+        let dead = run.tissue.is_linear();
+        run.model
+            .fem
+            .pressures
+            .iter()
+            .map(|p| {
+                let follows = !dead && p.pressure.is_closed();
+                let at = if follows { &run.positions } else { &run.rest };
+                let r = p.pressure.resultant(at);
+                PressureRecord {
+                    surface: p.surface.clone(),
+                    value: p.pressure.value * load,
+                    resultant: r.map(|c| c * load),
+                }
+            })
+            .collect()
+    }
 }
 
 /// `report.json` of a finite-element run.
@@ -543,10 +587,15 @@ impl FemReport {
                 volume_initial,
                 volume_final,
                 strain: run.strain,
+                cavity_volumes: cavity_volumes(run),
             },
             residual: run.residual,
             newton: run.newton.clone(),
-            supports: FemSupports { plates: run.plates.clone(), grasps: run.grasps.clone() },
+            supports: FemSupports {
+                plates: run.plates.clone(),
+                grasps: run.grasps.clone(),
+                pressures: PressureRecord::of(run),
+            },
             regions: RegionRecord::of(run),
             warnings: run.warnings.clone(),
             stages,
@@ -558,4 +607,17 @@ impl FemReport {
             seconds_total: run.seconds + extra_stages.iter().map(|s| s.seconds).sum::<f64>(),
         }
     }
+}
+
+/// Each cavity's volume at the end of a run (m^3).
+fn cavity_volumes(run: &FemRun) -> Vec<f64> {
+    let Shape::Surface(m) = &run.model.shape else { return Vec::new() };
+    let shells = m.mesh.shells();
+    shells[1..]
+        .iter()
+        .map(|s| {
+            let faces: Vec<[u32; 3]> = s.faces.iter().map(|&f| m.mesh.triangles()[f]).collect();
+            -fibfluid_geometry::volume(&run.positions, &faces)
+        })
+        .collect()
 }

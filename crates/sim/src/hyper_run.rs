@@ -212,7 +212,9 @@ pub fn build(
             }
             source => failed(source),
         })?
-        .with_settings(settings);
+        .with_settings(settings)
+        .with_pressures(&model.fem.pressures.iter().map(|p| p.pressure.clone()).collect::<Vec<_>>())
+        .map_err(failed)?;
     log.add(names::VOXELIZATION, start.elapsed().as_secs_f64());
     Ok(body)
 }

@@ -49,8 +49,8 @@ pub use error::{Error, Result};
 /// The length unit of a mesh file (`[mesh] unit`), shared with the label images.
 pub use fibfluid_geometry::LengthUnit;
 pub use model::{
-    FemSettings, FfmSettings, Load, MAX_STEPS, Model, NamedRegion, PLATE_REST_TOLERANCE, PointForce, Shape,
-    SolverOptions, TimedRun, VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE,
+    FemSettings, FfmSettings, Load, MAX_STEPS, Model, NamedPressure, NamedRegion, PLATE_REST_TOLERANCE,
+    PointForce, Shape, SolverOptions, TimedRun, VOLUME_NEWTON_ITERATIONS, VOLUME_TOLERANCE,
 };
 pub use plan::{Plan, PlannedStage};
 pub use report::{

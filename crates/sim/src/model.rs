@@ -162,6 +162,17 @@ pub struct FemSettings {
     pub tolerance: Option<f64>,
     /// `[fit]`: the parameters to fit to observed surface positions (`fibfluid fit`).
     pub fit: Option<FitSpec>,
+    /// Pressures (`[[pressure]]`) on faces of the surface, in the scene's order.
+    pub pressures: Vec<NamedPressure>,
+}
+
+/// A pressure with the surface the scene names (`outer`, `cavity K` or `box`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct NamedPressure {
+    /// The surface as the scene names it.
+    pub surface: String,
+    /// The pressure (Pa) and its faces (mesh indices).
+    pub pressure: fibfluid_fem::hyper::Pressure,
 }
 
 /// A run through time: how it steps and the load curve every load follows.
@@ -196,6 +207,7 @@ impl Default for FemSettings {
             time: None,
             tolerance: None,
             fit: None,
+            pressures: Vec::new(),
         }
     }
 }
@@ -204,6 +216,14 @@ impl Model {
     /// A model of a mesh with the given material, no constraints, no loads, default solver.
     pub fn from_mesh(name: impl Into<String>, mesh: MeshFile, material: Material) -> Self {
         Self::new(name, Shape::Surface(Box::new(mesh)), material)
+    }
+
+    /// The body's cavities (closed surfaces inside the outer one; 0 for a polygon).
+    pub fn cavities(&self) -> usize {
+        match &self.shape {
+            Shape::Surface(m) => m.validation.cavities.len(),
+            Shape::Polygon(_) => 0,
+        }
     }
 
     /// A model of a body (surface or polygon) with the given material, no constraints, no

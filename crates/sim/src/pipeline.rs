@@ -33,6 +33,20 @@ impl Simulation {
             });
         }
         refuse_projected(&scene)?;
+        if !scene.fem.pressures.is_empty() {
+            return Err(Error::MethodNeeds {
+                scene: scene.display_name(),
+                method: Method::Ffm,
+                problem: "has [[pressure]] loads, which only the finite-element method carries; set [solver] method = \"fem\" with a [tissue] table",
+            });
+        }
+        if scene.cavities() > 0 {
+            return Err(Error::MethodNeeds {
+                scene: scene.display_name(),
+                method: Method::Ffm,
+                problem: "has a body with cavities, which the fiber-fluid method does not represent (its fibers and fluid volume are those of one closed surface); use [solver] method = \"fem\" with a [tissue] table",
+            });
+        }
         if scene.fem.time.is_some() {
             return Err(Error::MethodNeeds {
                 scene: scene.display_name(),

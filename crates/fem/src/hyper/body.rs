@@ -14,8 +14,9 @@ use super::dynamics::DynamicsTerm;
 use super::grasp::{GRASP_PENALTY, Grasp, GraspRecord, GraspSet};
 use super::linear_solve::{DirectSolver, LinearSolver, MultigridSolver};
 use super::model::HyperModel;
+use super::pressure::{Pressure, PressureTerm};
 use super::terms::{ClampTerm, ContactTerm, ForceTerm};
-use crate::assemble::{lower_pattern, number_free_dofs};
+use crate::assemble::{lower_pattern, lower_pattern_coupled, number_free_dofs};
 use crate::body::{Loads, load_vector};
 use crate::clamp::{Clamp, clamp_stiffness};
 use crate::error::{FemError, Result};
@@ -288,6 +289,25 @@ impl HyperBody {
         Ok(self)
     }
 
+    /// The same body with `pressures` (replacing any it had) on faces of its surface,
+    /// ramped with the load factor ([`super::pressure`]'s module docs: a closed selection
+    /// follows the deformed surface under a nonlinear law; an open one, or any under the
+    /// linear law, is a dead load on the rest surface).
+    ///
+    /// Errors: a face's vertex out of range, a non-finite value.
+    pub fn with_pressures(mut self, pressures: &[Pressure]) -> Result<Self> {
+        self.terms.pressures = PressureTerm::new(&self.model.grid, pressures)?;
+        let pairs = self.terms.pressures.couplings(&self.model.grid);
+        if !pairs.is_empty() {
+            let model = &*self.model;
+            let pattern = lower_pattern_coupled(&model.grid, &model.free, model.n_free, &pairs);
+            let nnz = pattern.row_idx().len();
+            self.stage.tangent = SparseColMat::new(pattern, vec![0.0; nnz]);
+            self.stage.symbolic = None;
+        }
+        Ok(self)
+    }
+
     /// Prepares the body on a grid (see [`HyperBody::from_surface`]).
     pub fn new(grid: SparseGrid, tissue: &Tissue, fixed: &[[bool; 3]], ordering: Ordering) -> Result<Self> {
         if fixed.len() != grid.n_vertices() {
@@ -311,6 +331,7 @@ impl HyperBody {
             contact: ContactTerm { samples: surface_samples(&grid, fixed) },
             grasps: GraspSet::default(),
             dynamics: None,
+            pressures: PressureTerm::default(),
         };
         let materials = vec![CellMaterial::of(tissue); grid.n_cells()];
         let states = LawStates::new(&materials);
@@ -523,6 +544,8 @@ pub(crate) struct ForceTerms {
     pub(crate) grasps: GraspSet,
     /// Inertia and damping over a time step (a timed solve with `inertia` or damping only).
     pub(crate) dynamics: Option<DynamicsTerm>,
+    /// Pressures on faces of the surface.
+    pub(crate) pressures: PressureTerm,
 }
 
 impl ForceTerms {
@@ -531,6 +554,9 @@ impl ForceTerms {
         let mut terms: Vec<&dyn ForceTerm> = vec![&self.clamp, &self.contact, &self.grasps];
         if let Some(d) = &self.dynamics {
             terms.push(d);
+        }
+        if !self.pressures.is_empty() {
+            terms.push(&self.pressures);
         }
         terms
     }

@@ -8,7 +8,8 @@
 //!   the load factor `t` in `[0, 1]`; [`RigidPlate`]s move with `t` (or, in a timed solve,
 //!   are driven by a force: [`plate_drive`]); the clamp is the
 //!   linear body's penalty on the fixed part of the surface (it holds the rest position);
-//!   [`Grasp`]s move patches of the surface rigidly with `t` ([`grasp`]'s augmented Lagrangian).
+//!   [`Grasp`]s move patches of the surface rigidly with `t` ([`grasp`]'s augmented Lagrangian);
+//!   [`Pressure`]s push on faces of the surface, scaled by `t` ([`pressure`]).
 //! - Tracking a moving tool ([`tracking`]): the body linearized at its latest state answers
 //!   frames with held vertices exactly (a capacitance update of the tangent's factor); each
 //!   new linearization at the last answer is one more Newton iteration.
@@ -30,6 +31,7 @@ mod linear_solve;
 mod model;
 mod newton;
 mod plate_drive;
+mod pressure;
 mod sensitivity;
 mod solve;
 mod terms;
@@ -48,6 +50,7 @@ pub use contact::{
 pub use grasp::{GRASP_PENALTY, GRASP_TOLERANCE, Grasp, GraspRecord};
 pub use grasp_kkt::GRASP_NEWTON_ITERATIONS;
 pub use plate_drive::{MAX_PLATE_FORCE_TRIALS, PLATE_FORCE_TOLERANCE};
+pub use pressure::Pressure;
 pub use sensitivity::{Parameter, Sensitivities};
 pub use time::{LoadCurve, TimeFields, TimeSample, TimeSettings, TimeSolution};
 pub use tracking::{

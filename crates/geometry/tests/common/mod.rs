@@ -14,6 +14,7 @@ pub const FIXTURES: &[(&str, i64)] = &[
     ("Bunny.stl", 0),
     ("cube.obj", 0),
     ("dome.obj", 0),
+    ("hollow-sphere.obj", 0),
     ("icosahedron.obj", 0),
     ("icosphere-1.obj", 0),
     ("icosphere-2.obj", 0),
