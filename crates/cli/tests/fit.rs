@@ -16,7 +16,7 @@ const TRUTH: [f64; 2] = [3000.0, 15000.0];
 
 /// The surface of the box `[0, n_x s] x [0, n_y s] x [0, n_z s]` as OBJ text (two outward
 /// triangles per square of side `s`).
-fn box_obj(n: [usize; 3], s: f64) -> String {
+pub(crate) fn box_obj(n: [usize; 3], s: f64) -> String {
     let mut index = std::collections::HashMap::new();
     let (mut vertices, mut faces) = (String::new(), String::new());
     let mut id = |g: [usize; 3], vertices: &mut String| {
