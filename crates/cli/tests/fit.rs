@@ -155,6 +155,8 @@ fn fit_recovers_the_moduli_of_a_synthetic_truth() {
     assert!(report["residual_relative"].as_f64().unwrap() < 1e-3, "{}", report["residual_relative"]);
     assert_eq!(report["observations"], 30);
     assert!(report["correlation"][0][1].as_f64().unwrap().abs() <= 1.0);
+    let png = std::fs::read(out.join("fit.png")).unwrap();
+    assert!(png.starts_with(b"\x89PNG\r\n\x1a\n"), "fit.png is a PNG");
 }
 
 /// Without gravity, pressed by a point force, the column's density does nothing: fitted with
