@@ -1,5 +1,6 @@
 //! `fibfluid fit`: the scene's `[fit]` parameters fitted to the observed surface positions;
-//! writes `fit.json` and prints a progress line per iteration.
+//! writes `fit.json` and `fit.png` (the residual per iteration) and prints a progress line
+//! per iteration.
 
 use std::path::PathBuf;
 
@@ -15,7 +16,7 @@ use crate::say::num;
 pub struct FitArgs {
     /// Scene TOML file with a [fit] section.
     scene: PathBuf,
-    /// Output directory (fit.json).
+    /// Output directory (fit.json, fit.png).
     #[arg(long)]
     out: PathBuf,
     /// Refuse a solve whose factor needs more than this many bytes (default: the
@@ -35,7 +36,7 @@ pub fn run(args: &FitArgs) -> Result<(), CliError> {
             problem: "has no [fit] section (parameters, bounds, observed)".into(),
         }));
     };
-    fibfluid_cli::check_output_dir(&args.out, &["fit.json"])?;
+    fibfluid_cli::check_output_dir(&args.out, &["fit.json", "fit.png"])?;
     let observed = read_observed(&scene.model, &spec.observed, spec.metres)?;
     let limit = fibfluid::memory_budget(args.max_memory);
     let keys: Vec<&str> = spec.parameters.iter().map(|p| p.key.as_str()).collect();
@@ -52,7 +53,11 @@ pub fn run(args: &FitArgs) -> Result<(), CliError> {
     };
     let report = fit(&scene.model, &spec, &observed, limit, &mut progress).map_err(&in_scene)?;
     let json = serde_json::to_vec_pretty(&report)?;
-    fibfluid_cli::write_files_atomically(&args.out, &[("fit.json", json)])?;
+    let mut files = vec![("fit.json", json)];
+    if !report.history.is_empty() {
+        files.push(("fit.png", history_png(&report.scene, &report.history)?));
+    }
+    fibfluid_cli::write_files_atomically(&args.out, &files)?;
     for p in &report.parameters {
         match (p.value, p.sigma) {
             (Some(v), Some(s)) => say!("{:<28} {} +- {}", p.key, num(v), num(s)),
@@ -70,4 +75,14 @@ pub fn run(args: &FitArgs) -> Result<(), CliError> {
         if report.converged { "" } else { " (not converged: the iteration limit)" }
     );
     Ok(())
+}
+
+/// `fit.png`: the base-10 logarithm of the RMS residual (m) after each iteration.
+fn history_png(scene: &str, history: &[f64]) -> Result<Vec<u8>, CliError> {
+    let points =
+        history.iter().enumerate().map(|(k, r)| ((k + 1) as f64, r.max(f64::MIN_POSITIVE).log10())).collect();
+    let series = [fibfluid::render::Series { label: "rms residual".into(), points }];
+    let title = format!("{scene}: fit residual per iteration");
+    Ok(fibfluid::render::line_chart(&title, "iteration", "log10 rms residual (m)", &series, 900, 520)
+        .map_err(fibfluid_cli::Error::from)?)
 }

@@ -22,6 +22,7 @@ mod compare_command;
 mod fit_command;
 mod probe_command;
 mod response_flags;
+mod sweep_command;
 mod view;
 
 /// Soft tissue as fluid held by elastic fibers: the fiber–fluid method.
@@ -71,6 +72,24 @@ enum CliError {
         path: PathBuf,
         /// What failed.
         source: fibfluid::sim::Error,
+    },
+    /// A `--set KEY=VALUE` that names no parameter or gives no usable value.
+    #[error("--set {value}: {problem}")]
+    Set {
+        /// The value given.
+        value: String,
+        /// What is wrong.
+        problem: String,
+    },
+    /// Runs of a sweep that failed (their errors are in `sweep.csv`).
+    #[error("{failed} of {total} runs failed (their errors are in {})", csv.display())]
+    SweepFailed {
+        /// The sweep's table.
+        csv: PathBuf,
+        /// The runs that failed.
+        failed: usize,
+        /// All runs.
+        total: usize,
     },
     /// An error of the viewer (binding, building a body).
     #[error(transparent)]
@@ -237,6 +256,9 @@ enum Command {
     /// Fit the scene's [fit] parameters (tissue and region moduli, densities, gravity) to
     /// observed surface positions; write fit.json.
     Fit(fit_command::FitArgs),
+    /// Run the scene once per combination of the --set values, in parallel processes; write
+    /// run-001, run-002, ... (each what `run` writes) and sweep.csv.
+    Sweep(sweep_command::SweepArgs),
 }
 
 /// Command-line overrides of the scene's `[solver]` and `[load]` settings; each flag
@@ -274,6 +296,10 @@ struct Overrides {
     /// machine's memory).
     #[arg(long, value_name = "BYTES")]
     max_memory: Option<u64>,
+    /// A tissue, region or gravity parameter, `KEY=VALUE` (keys as `[fit]` names them:
+    /// tissue.young, region.NAME.poisson, gravity, ...); repeated for several.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
 }
 
 impl Overrides {
@@ -325,7 +351,7 @@ impl Overrides {
             }
             scene.load.steps = n;
         }
-        Ok(())
+        sweep_command::apply_sets(&self.set, scene)
     }
 
     fn setup(&self) -> SetupOptions {
@@ -483,6 +509,7 @@ fn run(command: Command) -> Result<(), CliError> {
         Command::View(args) => view::run(&args),
         Command::Compare(args) => compare_command::run(&args),
         Command::Fit(args) => fit_command::run(&args),
+        Command::Sweep(args) => sweep_command::run(&args),
     }
 }
 

@@ -16,7 +16,7 @@ const TRUTH: [f64; 2] = [3000.0, 15000.0];
 
 /// The surface of the box `[0, n_x s] x [0, n_y s] x [0, n_z s]` as OBJ text (two outward
 /// triangles per square of side `s`).
-fn box_obj(n: [usize; 3], s: f64) -> String {
+pub(crate) fn box_obj(n: [usize; 3], s: f64) -> String {
     let mut index = std::collections::HashMap::new();
     let (mut vertices, mut faces) = (String::new(), String::new());
     let mut id = |g: [usize; 3], vertices: &mut String| {
@@ -155,6 +155,8 @@ fn fit_recovers_the_moduli_of_a_synthetic_truth() {
     assert!(report["residual_relative"].as_f64().unwrap() < 1e-3, "{}", report["residual_relative"]);
     assert_eq!(report["observations"], 30);
     assert!(report["correlation"][0][1].as_f64().unwrap().abs() <= 1.0);
+    let png = std::fs::read(out.join("fit.png")).unwrap();
+    assert!(png.starts_with(b"\x89PNG\r\n\x1a\n"), "fit.png is a PNG");
 }
 
 /// Without gravity, pressed by a point force, the column's density does nothing: fitted with

@@ -4,4 +4,5 @@ mod bad_inputs;
 mod cli_run;
 mod fit;
 mod scene_method;
+mod sweep;
 mod view;

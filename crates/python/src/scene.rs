@@ -104,6 +104,16 @@ impl NativeScene {
         })
     }
 
+    /// Sets a tissue, region or gravity parameter by its dotted key (`tissue.young`,
+    /// `region.NAME.poisson`, `gravity`: the keys of `[fit]` and `fibfluid run --set`).
+    fn set_parameter(&mut self, key: &str, value: f64) -> PyResult<()> {
+        guard(|| {
+            let p = fibfluid_scene::parameter_of_key(key, &self.scene.model).map_err(error)?;
+            fibfluid_sim::inverse::set_parameter(&mut self.scene.model, p, value)
+                .map_err(|e| error(format!("{key} = {value}: {e}")))
+        })
+    }
+
     /// Every setting's name.
     #[staticmethod]
     fn names() -> Vec<&'static str> {

@@ -14,8 +14,10 @@ use crate::spec::FitToml;
 /// The keys a tissue's parameter takes after `tissue.` or `region.NAME.`.
 const FIELDS: [&str; 3] = ["young", "poisson", "density"];
 
-/// The parameter a dotted key names on `model`, or why not.
-fn parameter(key: &str, model: &Model) -> Result<Parameter, String> {
+/// The parameter a dotted key (`tissue.young`, `region.NAME.poisson`, `gravity`) names on
+/// `model`, or why not (one line naming the key). `[fit]`, `run --set` and `sweep --set`
+/// read their keys with it.
+pub fn parameter_of_key(key: &str, model: &Model) -> Result<Parameter, String> {
     let field = |tissue: usize, field: &str| match field {
         "young" => Ok(Parameter::Young(tissue)),
         "poisson" => Ok(Parameter::Poisson(tissue)),
@@ -66,7 +68,7 @@ pub(crate) fn fit(
     }
     let mut parameters = Vec::new();
     for (key, b) in f.parameters.iter().zip(&f.bounds) {
-        let p = parameter(key, model).map_err(|e| bad("parameters", e))?;
+        let p = parameter_of_key(key, model).map_err(|e| bad("parameters", e))?;
         if parameters.iter().any(|q: &FitParameter| q.parameter == p) {
             return Err(bad("parameters", format!("`{key}` is named twice")));
         }

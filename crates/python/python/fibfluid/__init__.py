@@ -34,7 +34,7 @@ from ._native import Error
 
 __version__: str = _native.__version__
 
-__all__ = ["Body", "Error", "GuardWarning", "Result", "Scene", "Volume", "run", "set_threads", "__version__"]
+__all__ = ["Body", "Error", "GuardWarning", "Result", "Scene", "Volume", "run", "set_threads", "sweep", "__version__"]
 
 #: The methods a :class:`Body` can run.
 METHODS: Tuple[str, ...] = ("ffm", "tsve-chainmail", "generalized-chainmail")
@@ -169,6 +169,13 @@ class Scene:
     def update(self, **values: Any) -> "Scene":
         """Sets several settings, all or none; returns the scene."""
         self._native.update(values)
+        return self
+
+    def set_parameter(self, key: str, value: float) -> "Scene":
+        """Sets a tissue, region or gravity parameter by its dotted key (``tissue.young``,
+        ``region.NAME.poisson``, ``gravity``: the keys of ``[fit]`` and ``fibfluid run
+        --set``), in SI units; returns the scene."""
+        self._native.set_parameter(key, float(value))
         return self
 
     def __setattr__(self, name: str, value: Any) -> None:
@@ -834,3 +841,61 @@ def set_threads(n: int) -> Optional[str]:
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
         raise Error("threads must be a positive integer")
     return _native.set_threads(int(n))
+
+
+SceneSource = Union[str, "os.PathLike[str]", Scene]
+
+
+def _sweep_scene(scene: SceneSource, values: Dict[str, Any]) -> Scene:
+    """The scene with ``values`` set: dotted keys (and ``gravity``) as parameters, the rest
+    as settings."""
+    s = scene.copy() if isinstance(scene, Scene) else Scene.load(scene)
+    settings = {k: v for k, v in values.items() if "." not in k and k != "gravity"}
+    for k, v in values.items():
+        if k not in settings:
+            s.set_parameter(k, v)
+    return s.update(**settings)
+
+
+def _sweep_one(task: Tuple[SceneSource, Dict[str, Any], Optional[str], Optional[int]]) -> Result:
+    """One run of :func:`sweep` (a top-level function: process and Dask workers pickle it)."""
+    scene, values, method, max_memory = task
+    return run(_sweep_scene(scene, values), method=method, max_memory=max_memory)
+
+
+def sweep(scenes: Union[SceneSource, Sequence[SceneSource]], parameters: Optional[Sequence[Dict[str, Any]]] = None,
+          executor: Any = None, method: Optional[str] = None, max_memory: Optional[int] = None) -> List[Result]:
+    """Runs many scenes and returns their :class:`Result` s in order: each of ``scenes``
+    (paths or :class:`Scene` s), or one scene once per dict of ``parameters`` (dotted keys
+    such as ``tissue.young`` and ``region.NAME.young`` set as :meth:`Scene.set_parameter`
+    does, other keys as settings: ``{"tissue.young": 3000.0, "steps": 10}``).
+
+    ``executor`` is any ``concurrent.futures.Executor`` (its ``map``) or a Dask
+    ``distributed.Client`` (anything with ``map`` and ``gather``); by default a local
+    ``ProcessPoolExecutor`` of one process per core (each solving with one thread), the
+    processes started by ``spawn``. Process and Dask workers get the scenes by path: give
+    paths there (a :class:`Scene` does not pickle). Each parameter dict is checked before
+    anything runs."""
+    if parameters is not None:
+        if not isinstance(scenes, (str, os.PathLike, Scene)):
+            raise Error("sweep with parameters takes one scene (a path or a Scene)")
+        base = scenes if isinstance(scenes, Scene) else Scene.load(scenes)
+        for values in parameters:
+            _sweep_scene(base, dict(values))
+        tasks = [(scenes, dict(values), method, max_memory) for values in parameters]
+    else:
+        listed = [scenes] if isinstance(scenes, (str, os.PathLike, Scene)) else list(scenes)
+        tasks = [(scene, {}, method, max_memory) for scene in listed]
+    if not tasks:
+        return []
+    if executor is None:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        workers = min(len(tasks), os.cpu_count() or 1)
+        context = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(workers, mp_context=context, initializer=set_threads, initargs=(1,)) as pool:
+            return list(pool.map(_sweep_one, tasks))
+    if hasattr(executor, "gather") and hasattr(executor, "map"):
+        return list(executor.gather(executor.map(_sweep_one, tasks, pure=False)))
+    return list(executor.map(_sweep_one, tasks))
