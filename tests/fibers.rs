@@ -87,7 +87,8 @@ fn mesh(name: &str) -> PathBuf {
 /// about the clamp (no swing): there the two models are close (measured 0.200 against
 /// 0.191); the projected network's own Poisson ratio (central forces) limits it.
 #[test]
-fn projected_fibers_beat_the_papers_on_a_swinging_body() {
+#[ignore = "long run: CI runs it with `cargo test --workspace -- --ignored long_`"]
+fn long_projected_fibers_beat_the_papers_on_a_swinging_body() {
     let dir = tempfile::tempdir().unwrap();
     let liver = mesh("liver2.obj");
     let (paper, _) = shape_error(scene(dir.path(), &liver, "top = 0.08", "paper", ""), "liver2-hanging.txt");

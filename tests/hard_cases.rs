@@ -82,7 +82,8 @@ fn paper_sphere() -> Scene {
 }
 
 #[test]
-fn penalty_and_elimination_in_f64_and_mixed_precision() {
+#[ignore = "long run: CI runs it with `cargo test --workspace -- --ignored long_`"]
+fn long_penalty_and_elimination_in_f64_and_mixed_precision() {
     let mut reference: Option<Vec<Vec3>> = None;
     for backend in Backend::compiled() {
         for method in [ConstraintKind::Penalty, ConstraintKind::Eliminate] {
@@ -120,7 +121,8 @@ fn penalty_and_elimination_in_f64_and_mixed_precision() {
 }
 
 #[test]
-fn slivers_of_half_a_degree() {
+#[ignore = "long run: CI runs it with `cargo test --workspace -- --ignored long_`"]
+fn long_slivers_of_half_a_degree() {
     // liver-smooth.obj: 2194 vertices, triangles down to 0.62 degrees, 5 self-crossing pairs.
     let file = load_mesh("fixtures/meshes/liver-smooth.obj").unwrap();
     let material = moderate(file.mesh.diagonal(), 1000.0);

@@ -950,7 +950,8 @@ fn a_grasp_left_short_of_its_target_is_told() {
 /// three frames (0, the release at 1, and 1,000,000), for FFM and the FEM alike, and the
 /// replay keeps one row per listed hold.
 #[test]
-fn a_long_idle_path_costs_only_the_frames_that_change() {
+#[ignore = "long run: CI runs it with `cargo test --workspace -- --ignored long_`"]
+fn long_a_long_idle_path_costs_only_the_frames_that_change() {
     let tmp = tempfile::tempdir().unwrap();
     let path = tmp.path().join("long.csv");
     std::fs::write(&path, "frame,vertex,ux,uy,uz\n0,36,0.01,0,0\n1000000,36,0.02,0,0\n").unwrap();
@@ -1206,7 +1207,8 @@ fn a_diverged_configuration_does_not_break_the_charts() {
 /// relaxation function: force(1 s) / force(3 s) = G(1) / G(3) within 1 % (the closed form
 /// `G(t) = 1 - g (1 - exp(-t / tau))`; the elastic force cancels in the ratio).
 #[test]
-fn a_timed_scene_writes_its_series_and_relaxes() {
+#[ignore = "long run: CI runs it with `cargo test --workspace -- --ignored long_`"]
+fn long_a_timed_scene_writes_its_series_and_relaxes() {
     let out = tempfile::tempdir().unwrap();
     let scene = root().join("fixtures/scenes/block-relaxation.toml");
     let done = bin().args(["run"]).arg(&scene).arg("--out").arg(out.path()).output().unwrap();
@@ -1432,7 +1434,8 @@ fn a_plate_driven_by_a_force_keeps_it_while_the_body_creeps() {
 /// answer's error against an independent run at twice that resolution is within a factor
 /// 2.5 of the estimate either way (that run's own error is a fifth of the estimate's).
 #[test]
-fn a_tolerance_grows_the_resolution_until_its_estimate_meets_it() {
+#[ignore = "long run: CI runs it with `cargo test --workspace -- --ignored long_`"]
+fn long_a_tolerance_grows_the_resolution_until_its_estimate_meets_it() {
     let dir = tempfile::tempdir().unwrap();
     let text = fixture_scene("sphere-hanging.toml").replace("model = \"neo-hookean\"", "model = \"linear\"");
     let run = |name: &str, fem: &str| {
@@ -1479,7 +1482,8 @@ fn a_tolerance_grows_the_resolution_until_its_estimate_meets_it() {
 /// neo-Hookean body, although the hanging liver strains several times 1 (docs/fem.md); the
 /// same path on the linear law (`[tissue] model = "linear"`) does warn of its validity.
 #[test]
-fn probe_warns_about_small_strain_only_for_the_linear_law() {
+#[ignore = "long run: CI runs it with `cargo test --workspace -- --ignored long_`"]
+fn long_probe_warns_about_small_strain_only_for_the_linear_law() {
     let tmp = tempfile::tempdir().unwrap();
     let scene = std::fs::read_to_string(root().join("fixtures/scenes/liver-hanging.toml")).unwrap();
     let linear = scene.replace("model = \"neo-hookean\"", "model = \"linear\"");
