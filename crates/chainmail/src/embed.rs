@@ -2,9 +2,10 @@
 //! that a ChainMail run deforms the same surface the other methods deform.
 
 use fibfluid_geometry::vec3::Vec3;
+use fibfluid_geometry::winding_number;
 
 use crate::error::{ChainmailError, Result};
-use crate::lattice::{Lattice, check_grid, check_spacing, check_surface, winding_number};
+use crate::lattice::{Lattice, check_grid, check_spacing, check_surface};
 
 /// Bytes per grid node of a lattice built by [`Lattice::embed_surface`]: the node-to-element
 /// map (4) and the voxel mask (1).

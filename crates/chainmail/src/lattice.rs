@@ -2,6 +2,8 @@
 
 pub(crate) use fibfluid_geometry::vec3::{Vec3, cross, dot, norm, sub};
 
+use fibfluid_geometry::winding_number;
+
 use crate::error::{ChainmailError, Result};
 use crate::material::Material;
 
@@ -89,22 +91,6 @@ pub(crate) fn check_surface(positions: &[Vec3], triangles: &[[u32; 3]], spacing:
         }
     }
     Ok(())
-}
-
-/// Generalized winding number of a closed triangle surface around `p`
-/// (solid angles by Van Oosterom & Strackee); ±1 inside, 0 outside.
-pub(crate) fn winding_number(p: Vec3, positions: &[Vec3], triangles: &[[u32; 3]]) -> f64 {
-    let mut total = 0.0;
-    for t in triangles {
-        let a = sub(positions[t[0] as usize], p);
-        let b = sub(positions[t[1] as usize], p);
-        let c = sub(positions[t[2] as usize], p);
-        let (la, lb, lc) = (norm(a), norm(b), norm(c));
-        let num = dot(a, cross(b, c));
-        let den = la * lb * lc + dot(a, b) * lc + dot(b, c) * la + dot(c, a) * lb;
-        total += 2.0 * num.atan2(den);
-    }
-    total / (4.0 * std::f64::consts::PI)
 }
 
 impl Lattice {

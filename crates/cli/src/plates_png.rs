@@ -2,7 +2,7 @@
 //! outlines, colored by contact pressure (`render.png`), and each plate's force against
 //! the plate gap (`compression.png`). FFM runs and static finite-element runs draw the same.
 
-use fibfluid::contact::Plate;
+use fibfluid::contact::{Plate, gap_to_next_plate};
 use fibfluid::geometry::Vec3;
 use fibfluid::geometry::vec3::{add, cross, dot, norm, scale, sub};
 use fibfluid::sim::fem_run::FemRun;
@@ -135,13 +135,7 @@ fn centroid(positions: &[Vec3]) -> Vec3 {
 
 /// The diagonal of the positions' bounding box.
 fn diagonal(positions: &[Vec3]) -> f64 {
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    for p in positions {
-        for a in 0..3 {
-            lo[a] = lo[a].min(p[a]);
-            hi[a] = hi[a].max(p[a]);
-        }
-    }
+    let (lo, hi) = fibfluid::geometry::bounding_box(positions);
     if positions.is_empty() { 0.0 } else { norm(sub(hi, lo)) }
 }
 
@@ -203,18 +197,17 @@ pub(crate) fn compression_png(model: &Model, curves: &[PlateCurve]) -> Result<Ve
 }
 
 /// A static finite-element run's curves, one point per converged load step (contact
-/// augmentations refine the last): the gap is the distance to the facing plate, or for a
-/// plate with none, the rest body's extent in front of it.
+/// augmentations refine the last): the gap is FFM's, the distance to the next plate
+/// ([`gap_to_next_plate`]), or for a single plate the rest body's extent in front of it.
 pub(crate) fn fem_curves(run: &FemRun) -> Vec<PlateCurve> {
     let plates = &run.model.plates;
     let steps = run.newton.as_ref().map(|n| n.steps.as_slice()).unwrap_or_default();
-    let centre = centroid(&run.rest);
+    // The rest body's farthest reach along each plate's normal.
+    let reach: Vec<f64> =
+        plates.iter().map(|p| run.rest.iter().map(|x| dot(p.normal, *x)).fold(f64::MIN, f64::max)).collect();
     let gap = |k: usize, t: f64| {
-        let facing = (0..plates.len()).find(|&j| j != k && dot(plates[j].normal, plates[k].normal) < -0.99);
-        match facing {
-            Some(j) => plates[k].gap(centre, t) + plates[j].gap(centre, t),
-            None => run.rest.iter().map(|x| plates[k].gap(*x, t)).fold(0.0, f64::max),
-        }
+        gap_to_next_plate(plates, k, t)
+            .unwrap_or_else(|| (reach[k] - dot(plates[k].normal, plates[k].point_at(t))).max(0.0))
     };
     (0..plates.len())
         .map(|k| {

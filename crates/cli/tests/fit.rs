@@ -51,11 +51,16 @@ pub(crate) fn box_obj(n: [usize; 3], s: f64) -> String {
 /// A 2 x 2 x 3 cm neo-Hookean column on its base, gravity down and sideways, its lower half
 /// a stiff region; `young` the two moduli, `fit` an optional `[fit]` section.
 fn scene_text(young: [f64; 2], fit: &str) -> String {
+    column_scene("neo-hookean", young, 6, fit)
+}
+
+/// The column of [`scene_text`] with the tissue law `model` (both tissues) at `resolution`.
+pub(crate) fn column_scene(model: &str, young: [f64; 2], resolution: usize, fit: &str) -> String {
     format!(
         r#"[mesh]
 path = "column.obj"
 [tissue]
-model = "neo-hookean"
+model = "{model}"
 young = {}
 poisson = 0.4
 density = 1000.0
@@ -72,7 +77,7 @@ acceleration = [3.0, 0.0, -9.3]
 axis = "z"
 below = 0.0001
 [fem]
-resolution = 6
+resolution = {resolution}
 [solver]
 method = "fem"
 {fit}"#,

@@ -5,38 +5,13 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
-/// A 2 x 2 x 3 cm linear-law column on its base under gravity, its lower half a stiffer
-/// region named `lesion`, at a coarse grid.
-const SCENE: &str = r#"[mesh]
-path = "column.obj"
-[tissue]
-model = "linear"
-young = 3000.0
-poisson = 0.4
-density = 1000.0
-[[region]]
-name = "lesion"
-box = { min = [-1.0, -1.0, -1.0], max = [1.0, 1.0, 0.015] }
-[region.tissue]
-young = 15000.0
-poisson = 0.4
-density = 1000.0
-[gravity]
-acceleration = [3.0, 0.0, -9.3]
-[[fix]]
-axis = "z"
-below = 0.0001
-[fem]
-resolution = 4
-[solver]
-method = "fem"
-"#;
-
 fn setup() -> (tempfile::TempDir, std::path::PathBuf) {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("column.obj"), crate::fit::box_obj([2, 2, 3], 0.01)).unwrap();
     let scene = dir.path().join("scene.toml");
-    std::fs::write(&scene, SCENE).unwrap();
+    // The fit's column with the linear law (its sag scales exactly as 1/E), coarser.
+    let text = crate::fit::column_scene("linear", [3000.0, 15000.0], 4, "");
+    std::fs::write(&scene, text).unwrap();
     (dir, scene)
 }
 

@@ -153,6 +153,14 @@ pub struct PlatesMeet {
     pub closing: f64,
 }
 
+/// The distance from plate `k` to the next plate (`k + 1`, cyclically) along `k`'s normal at
+/// load factor `lambda`: the thickness a compression between them closes to (`report.json`
+/// `gap`, `compression.png`); `None` for a single plate.
+pub fn gap_to_next_plate(plates: &[Plate], k: usize, lambda: f64) -> Option<f64> {
+    let (plate, other) = (&plates[k], plates.get((k + 1) % plates.len()).filter(|_| plates.len() > 1)?);
+    Some(dot(plate.normal, sub(other.point_at(lambda), plate.point_at(lambda))).abs())
+}
+
 /// The first pair of plates facing each other ([`FACING_TOLERANCE`]) whose gap closes below
 /// zero by load factor 1, from the plates alone: the slab's width is measured through
 /// `centre` (the body's rest centroid) as the sum of its distances to both planes, linear in

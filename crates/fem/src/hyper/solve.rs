@@ -102,10 +102,8 @@ impl HyperBody {
         let solver = self.stage.linear_solver(&self.model, self.settings.solver)?;
         let mut run = Progress::at(self.model.n_free, 0.0, solver);
         self.step_to_full_load(&mut run, &duals.state(0.0, &external, plates))?;
-        let mut progress = Augmenting {
-            force: self.plate_forces(&run.x, plates, &duals.contact, run.t),
-            ..Augmenting::default()
-        };
+        let force = run.steps.last().map(|s| s.plate_forces.clone()).unwrap_or_default();
+        let mut progress = Augmenting { force, ..Augmenting::default() };
         for augmentation in 1..=MAX_AUGMENTATIONS {
             if !self.augment_once(&mut run, &external, plates, &mut duals, &mut progress, augmentation)? {
                 break;
@@ -156,14 +154,7 @@ impl HyperBody {
             );
             if let Some(iterations) = met {
                 run.stats.augmentations += 1;
-                let plate_forces = self.plate_forces(&run.x, plates, &duals.contact, run.t);
-                run.steps.push(LoadStep {
-                    load: run.t,
-                    augmentation,
-                    iterations,
-                    residuals: history,
-                    plate_forces,
-                });
+                self.record_step(run, plates, &duals.contact, augmentation, iterations, history);
                 return Ok(true);
             }
             (run.x, duals.grasps, run.stats.final_shift) = saved;
@@ -180,14 +171,8 @@ impl HyperBody {
         match self.newton(&mut run.x, &state, &mut run.solver, &mut history, &mut run.stats)? {
             Ok(iterations) => {
                 run.stats.augmentations += 1;
-                let next = self.plate_forces(&run.x, plates, &duals.contact, run.t);
-                run.steps.push(LoadStep {
-                    load: run.t,
-                    augmentation,
-                    iterations,
-                    residuals: history,
-                    plate_forces: next.clone(),
-                });
+                let next =
+                    self.record_step(run, plates, &duals.contact, augmentation, iterations, history).to_vec();
                 let change = next.iter().zip(&progress.force).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
                 let largest = next.iter().fold(0.0_f64, |m, f| m.max(f.abs()));
                 progress.force = next;
@@ -234,13 +219,7 @@ impl HyperBody {
                     run.x = trial;
                     run.t = target;
                     run.stats.load_steps += 1;
-                    run.steps.push(LoadStep {
-                        load: target,
-                        augmentation: 0,
-                        iterations,
-                        residuals: history,
-                        plate_forces: self.plate_forces(&run.x, state.plates, state.multipliers, target),
-                    });
+                    self.record_step(run, state.plates, state.multipliers, 0, iterations, history);
                     if iterations <= self.settings.easy_iterations {
                         increment = (2.0 * increment).min(largest);
                     }
@@ -324,6 +303,22 @@ impl HyperBody {
                     .sum()
             })
             .collect()
+    }
+
+    /// Records the step `run` just converged (at `run.t`, from `run.x`) with each plate's
+    /// force there; returns those forces.
+    pub(super) fn record_step<'a>(
+        &self,
+        run: &'a mut Progress,
+        plates: &[RigidPlate],
+        multipliers: &[Vec<f64>],
+        augmentation: usize,
+        iterations: usize,
+        residuals: Vec<f64>,
+    ) -> &'a [f64] {
+        let plate_forces = self.plate_forces(&run.x, plates, multipliers, run.t);
+        run.steps.push(LoadStep { load: run.t, augmentation, iterations, residuals, plate_forces });
+        &run.steps[run.steps.len() - 1].plate_forces
     }
 
     /// `per_vertex` (one value per surface vertex) over each vertex's area (a third of its

@@ -21,7 +21,7 @@
 
 use fibfluid_geometry::Vec3;
 
-use super::body::{HyperBody, HyperSolution, LoadStep};
+use super::body::{HyperBody, HyperSolution};
 use super::cell::CellState;
 use super::contact::{MAX_AUGMENTATIONS, RigidPlate, check_plates};
 use super::dynamics::DynamicsTerm;
@@ -402,24 +402,14 @@ impl HyperBody {
     ) -> Result<Option<f64>> {
         let mut history = Vec::new();
         let state = duals.state(run.t, external, plates);
-        match self.newton(&mut run.x, &state, &mut run.solver, &mut history, &mut run.stats)? {
+        let force = match self.newton(&mut run.x, &state, &mut run.solver, &mut history, &mut run.stats)? {
             Ok(iterations) => {
                 run.stats.load_steps += 1;
-                let plate_forces = self.plate_forces(&run.x, plates, &duals.contact, run.t);
-                run.steps.push(LoadStep {
-                    load: run.t,
-                    augmentation: 0,
-                    iterations,
-                    residuals: history,
-                    plate_forces,
-                });
+                self.record_step(run, plates, &duals.contact, 0, iterations, history).to_vec()
             }
             Err(f) => return Ok(Some(f.residual)),
-        }
-        let mut progress = Augmenting {
-            force: self.plate_forces(&run.x, plates, &duals.contact, run.t),
-            ..Augmenting::default()
         };
+        let mut progress = Augmenting { force, ..Augmenting::default() };
         for augmentation in 1..=MAX_AUGMENTATIONS {
             match self.augment_once(run, external, plates, duals, &mut progress, augmentation) {
                 Ok(true) => continue,

@@ -122,8 +122,8 @@ impl Simulation {
         let plates = &self.model.plates;
         for (k, plate) in plates.iter().enumerate() {
             let mine: Vec<&Contact> = self.state.contacts.iter().filter(|c| c.plate == k).collect();
-            let gap = match plates.get((k + 1) % plates.len()).filter(|_| plates.len() > 1) {
-                Some(other) => dot(plate.normal, sub(other.point_at(lambda), plate.point_at(lambda))).abs(),
+            let gap = match crate::contact::gap_to_next_plate(plates, k, lambda) {
+                Some(gap) => gap,
                 None => {
                     let h: Vec<f64> = self.state.positions.iter().map(|x| dot(plate.normal, *x)).collect();
                     h.iter().copied().fold(f64::MIN, f64::max) - h.iter().copied().fold(f64::MAX, f64::min)
