@@ -55,40 +55,47 @@ pub(crate) fn fit(
     metres: f64,
 ) -> Result<Option<FitSpec>, Invalid> {
     let Some(f) = f else { return Ok(None) };
-    let bad = |key: &str, problem: String| invalid(format!("[fit].{key}"), SceneProblem::Fit(problem));
-    if f.parameters.is_empty() {
-        return Err(bad("parameters", "names no parameter".into()));
+    let parameters = fit_parameters(&f.parameters, &f.bounds, model)
+        .map_err(|(key, problem)| invalid(format!("[fit].{key}"), SceneProblem::Fit(problem)))?;
+    Ok(Some(FitSpec { parameters, bounds: f.bounds, observed: dir.join(&f.observed), metres }))
+}
+
+/// The fitted parameters of `keys` (dotted keys) with their `bounds` (one `[lower, upper]`
+/// each, in order) on `model`, checked as `[fit]`'s: or which of `parameters` and `bounds`
+/// is wrong and why (one line naming the key). `[fit]` and Python's `fibfluid.fit` read them
+/// with it.
+pub fn fit_parameters(
+    keys: &[String],
+    bounds: &[[f64; 2]],
+    model: &Model,
+) -> Result<Vec<FitParameter>, (&'static str, String)> {
+    if keys.is_empty() {
+        return Err(("parameters", "names no parameter".into()));
     }
-    if f.bounds.len() != f.parameters.len() {
-        let (b, p) = (f.bounds.len(), f.parameters.len());
-        return Err(bad(
-            "bounds",
-            format!("{b} bounds for {p} parameters (one [lower, upper] each, in order)"),
-        ));
+    if bounds.len() != keys.len() {
+        let (b, p) = (bounds.len(), keys.len());
+        return Err(("bounds", format!("{b} bounds for {p} parameters (one [lower, upper] each, in order)")));
     }
     let mut parameters = Vec::new();
-    for (key, b) in f.parameters.iter().zip(&f.bounds) {
-        let p = parameter_of_key(key, model).map_err(|e| bad("parameters", e))?;
+    for (key, b) in keys.iter().zip(bounds) {
+        let p = parameter_of_key(key, model).map_err(|e| ("parameters", e))?;
         if parameters.iter().any(|q: &FitParameter| q.parameter == p) {
-            return Err(bad("parameters", format!("`{key}` is named twice")));
+            return Err(("parameters", format!("`{key}` is named twice")));
         }
         let start = parameter_value(model, p).unwrap_or(f64::NAN);
         if !(b[0].is_finite() && b[1].is_finite() && b[0] > 0.0 && b[0] < b[1]) {
-            return Err(bad("bounds", format!("`{key}`: [{}, {}] must be 0 < lower < upper", b[0], b[1])));
+            return Err(("bounds", format!("`{key}`: [{}, {}] must be 0 < lower < upper", b[0], b[1])));
         }
         if !(start >= b[0] && start <= b[1]) {
-            return Err(bad(
-                "bounds",
-                format!("`{key}`: the start {start} lies outside [{}, {}]", b[0], b[1]),
-            ));
+            return Err(("bounds", format!("`{key}`: the start {start} lies outside [{}, {}]", b[0], b[1])));
         }
         if matches!(p, Parameter::Poisson(_)) && b[1] >= 0.5 {
-            return Err(bad(
+            return Err((
                 "bounds",
                 format!("`{key}`: Poisson's ratio's upper bound {} must be below 0.5", b[1]),
             ));
         }
         parameters.push(FitParameter { key: key.clone(), parameter: p });
     }
-    Ok(Some(FitSpec { parameters, bounds: f.bounds, observed: dir.join(&f.observed), metres }))
+    Ok(parameters)
 }

@@ -35,7 +35,7 @@ mod time_table;
 mod tissue_table;
 
 pub use error::{Error, Result, SceneError, SceneProblem};
-pub use fit_table::parameter_of_key;
+pub use fit_table::{fit_parameters, parameter_of_key};
 pub use path_file::{load_tool_path, parse_tool_path};
 
 use invalid::Invalid;

@@ -5,8 +5,8 @@
 
 use std::path::Path;
 
-use fibfluid_fem::hyper::Parameter;
-use fibfluid_geometry::Vec3;
+pub use fibfluid_fem::hyper::Parameter;
+use fibfluid_geometry::{MeshFile, Vec3};
 
 pub use crate::model::{FitParameter, FitSpec};
 use crate::model::{Model, Shape};
@@ -68,23 +68,32 @@ pub fn read_observed(model: &Model, path: &Path, metres: f64) -> Result<Vec<Obse
                     bad_row(path, i + 1, format!("`{}` is not a finite number", fields[a + 1]))
                 })? * metres;
         }
-        let count = file.file_vertex_count();
-        let vertex = if v < count { file.from_file_index(v) } else { None }.ok_or_else(|| {
-            bad_row(
-                path,
-                i + 1,
-                format!("vertex {v} is not a vertex of the mesh ({count} in its file, 0-based)"),
-            )
-        })?;
-        if out.iter().any(|o| o.vertex == vertex) {
-            return Err(bad_row(path, i + 1, format!("vertex {v} is observed twice")));
-        }
-        out.push(Observation { vertex, file_vertex: v, position: p });
+        let o = observation(file, v, p, &out).map_err(|problem| bad_row(path, i + 1, problem))?;
+        out.push(o);
     }
     if out.is_empty() {
         return Err(Error::FitInput { path: path.into(), line: None, problem: "no observed vertex".into() });
     }
     Ok(out)
+}
+
+/// The observation of the file's vertex `v` (0-based, file order) at `position` (m) on the
+/// mesh `file`, after the observations `earlier`, or why not (a vertex out of range or
+/// unused, a vertex observed twice). [`read_observed`] and Python's `fibfluid.fit` read
+/// their rows with it.
+pub fn observation(
+    file: &MeshFile,
+    v: usize,
+    position: Vec3,
+    earlier: &[Observation],
+) -> std::result::Result<Observation, String> {
+    let count = file.file_vertex_count();
+    let vertex = if v < count { file.from_file_index(v) } else { None }
+        .ok_or_else(|| format!("vertex {v} is not a vertex of the mesh ({count} in its file, 0-based)"))?;
+    if earlier.iter().any(|o| o.vertex == vertex) {
+        return Err(format!("vertex {v} is observed twice"));
+    }
+    Ok(Observation { vertex, file_vertex: v, position })
 }
 
 /// The value of `p` on `model` (`None`: a tissue it does not have).
