@@ -15,6 +15,7 @@ use pyo3::prelude::*;
 
 mod arrays;
 mod body;
+mod inverse;
 mod run;
 mod scene;
 mod settings;
@@ -69,6 +70,8 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<volume::VolumeOutput>()?;
     m.add_function(wrap_pyfunction!(run::run, m)?)?;
     m.add_function(wrap_pyfunction!(set_threads, m)?)?;
+    m.add_function(wrap_pyfunction!(inverse::sensitivity, m)?)?;
+    m.add_function(wrap_pyfunction!(inverse::fit, m)?)?;
     Ok(())
 }
 

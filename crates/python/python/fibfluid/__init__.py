@@ -34,7 +34,8 @@ from ._native import Error
 
 __version__: str = _native.__version__
 
-__all__ = ["Body", "Error", "GuardWarning", "Result", "Scene", "Volume", "run", "set_threads", "sweep", "__version__"]
+__all__ = ["Body", "Error", "FitResult", "GuardWarning", "Result", "Scene", "Sensitivity", "Volume", "fit", "run",
+           "sensitivity", "set_threads", "sweep", "__version__"]
 
 #: The methods a :class:`Body` can run.
 METHODS: Tuple[str, ...] = ("ffm", "tsve-chainmail", "generalized-chainmail")
@@ -899,3 +900,7 @@ def sweep(scenes: Union[SceneSource, Sequence[SceneSource]], parameters: Optiona
     if hasattr(executor, "gather") and hasattr(executor, "map"):
         return list(executor.gather(executor.map(_sweep_one, tasks, pure=False)))
     return list(executor.map(_sweep_one, tasks))
+
+
+# After Scene and the helpers it imports from this module.
+from ._inverse import FitResult, Sensitivity, fit, sensitivity  # noqa: E402

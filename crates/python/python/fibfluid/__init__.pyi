@@ -165,3 +165,42 @@ def sweep(
     method: Optional[MethodName] = None,
     max_memory: Optional[int] = None,
 ) -> List[Result]: ...
+
+@dataclass(frozen=True)
+class Sensitivity:
+    positions: npt.NDArray[np.float64]  # (N, 3) deformed surface, m
+    derivatives: Dict[str, npt.NDArray[np.float64]]  # key -> (N, 3) du/dtheta, m per SI unit
+    values: Dict[str, float]
+
+def sensitivity(
+    scene: Union[str, os.PathLike[str], Scene],
+    parameters: Sequence[str],
+    max_memory: Optional[int] = None,
+) -> Sensitivity: ...
+
+@dataclass(frozen=True)
+class FitResult:
+    keys: List[str]
+    values: Dict[str, Optional[float]]  # None: not identifiable
+    sigma: Dict[str, Optional[float]]
+    identifiable: Dict[str, bool]
+    at_bound: Dict[str, bool]
+    start: Dict[str, float]
+    correlation: npt.NDArray[np.float64]  # (k, k), NaN where not identifiable
+    residual_rms: float
+    residual_relative: float
+    iterations: int
+    newton_solves: int
+    sensitivity_solves: int
+    converged: bool
+    history: npt.NDArray[np.float64]
+    report: Dict[str, Any]
+
+def fit(
+    scene: Union[str, os.PathLike[str], Scene],
+    observed: Union[npt.ArrayLike, Tuple[npt.ArrayLike, npt.ArrayLike]],  # (M, 4) or (vertices, positions in m)
+    parameters: Sequence[str],
+    bounds: Sequence[Sequence[float]],
+    progress: Optional[Callable[[Dict[str, Any]], Any]] = None,
+    max_memory: Optional[int] = None,
+) -> FitResult: ...

@@ -96,3 +96,16 @@ class NativeBody:
     def is_fixed(self, v: int) -> bool: ...
 
 def set_threads(n: int) -> Optional[str]: ...
+
+def sensitivity(
+    scene: NativeScene, keys: List[str], max_memory: Optional[int] = None
+) -> Tuple[npt.NDArray[np.float64], List[npt.NDArray[np.float64]], List[float]]: ...
+def fit(
+    scene: NativeScene,
+    vertices: npt.NDArray[np.int64],
+    positions: npt.NDArray[np.float64],
+    keys: List[str],
+    bounds: List[List[float]],
+    progress: Optional[Callable[[int, float, float, List[float]], Any]] = None,
+    max_memory: Optional[int] = None,
+) -> str: ...
