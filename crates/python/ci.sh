@@ -9,7 +9,7 @@
 # FIBFLUID_CLI to a `fibfluid` binary to use that one instead.
 #
 # Needs: Python >= 3.9 with venv, cargo (Rust 1.95), network access to PyPI (maturin, numpy,
-# pytest).
+# pytest, and dask and distributed for the sweep on a local Dask cluster).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 
@@ -38,8 +38,8 @@ fi
 # The package as a user installs it, plus the `testing` feature: the test hook
 # `Body._fail_next_refreshes` (maturin's PEP 517 backend reads its arguments from
 # MATURIN_PEP517_ARGS).
-echo "== pip install ./crates/python pytest numpy (features: testing)"
-MATURIN_PEP517_ARGS="--features testing" "$venv/bin/python" -m pip install --disable-pip-version-check --progress-bar off ./crates/python pytest numpy
+echo "== pip install ./crates/python pytest numpy dask distributed (features: testing)"
+MATURIN_PEP517_ARGS="--features testing" "$venv/bin/python" -m pip install --disable-pip-version-check --progress-bar off ./crates/python pytest numpy dask distributed
 
 if [ -z "${FIBFLUID_CLI:-}" ]; then
   echo "== the command line to compare with (cargo test --workspace --no-run)"

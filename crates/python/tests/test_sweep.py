@@ -41,3 +41,19 @@ def test_sweep_checks_every_parameter_before_running(scene_path):
         fibfluid.sweep(scene_path, [{"tissue.young": 5000.0}, {"tissue.yung": 1.0}])
     with pytest.raises(fibfluid.Error, match="one scene"):
         fibfluid.sweep([scene_path], [{"tissue.young": 5000.0}])
+
+
+def test_sweep_on_a_dask_local_cluster(scene_path):
+    """Two worker processes of one thread each: the same answers as serial runs, in order."""
+    pytest.importorskip("dask")
+    distributed = pytest.importorskip("distributed")
+    many = [{"tissue.young": e} for e in (4000.0, 5000.0, 8000.0, 10000.0)]
+    serial = [fibfluid.run(fibfluid.Scene.load(scene_path).set_parameter("tissue.young", p["tissue.young"]))
+              for p in many]
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        with distributed.Client(cluster) as client:
+            results = fibfluid.sweep(scene_path, many, executor=client)
+    assert [r.report["tissue"]["young"] for r in results] == [p["tissue.young"] for p in many]
+    for a, b in zip(results, serial):
+        np.testing.assert_array_equal(a.positions, b.positions)
+        np.testing.assert_array_equal(a.displacement, b.displacement)
