@@ -146,6 +146,20 @@ def test_a_parameter_the_observations_cannot_see_is_not_identifiable(column):
     assert np.isnan(r.correlation[0, 1])
 
 
+def test_an_exception_in_progress_is_raised_when_the_fit_ends(column):
+    truth = column("truth", TRUTH)
+    rows = observed_rows(truth, fibfluid.run(truth, method="fem").positions)
+    calls = []
+
+    def progress(step):
+        calls.append(step["iteration"])
+        raise RuntimeError("stop")
+
+    with pytest.raises(RuntimeError, match="stop"):
+        fibfluid.fit(column("start", (2500.0, 15000.0)), rows, KEYS, BOUNDS, progress=progress)
+    assert calls == [1]
+
+
 def one_line_error(match, f, *args, **kwargs):
     with pytest.raises(fibfluid.Error, match=match) as e:
         f(*args, **kwargs)
@@ -171,6 +185,7 @@ def test_bad_input_is_a_one_line_error(column):
     one_line_error(r"3 observed vertices but 2 positions", fit, start, (np.arange(3), rows[:2, 1:]), KEYS, BOUNDS)
     one_line_error(r"whole numbers", fit, start, [[0.5, 0, 0, 0]], KEYS, BOUNDS)
     one_line_error(r"`tissue.young` is named twice", fit, start, rows, KEYS[:1] * 2, BOUNDS)
+    one_line_error(r"parameters must be a list of dotted keys", fit, start, rows, "tissue.young", BOUNDS[:1])
     one_line_error(r"`tissue.yung`", fibfluid.sensitivity, start, ["tissue.yung"])
     one_line_error(r"names no parameter", fibfluid.sensitivity, start, [])
     # What the static fit does not cover: plates; a body without a [tissue].

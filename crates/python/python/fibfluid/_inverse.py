@@ -23,9 +23,15 @@ def _scene(scene: SceneSource, what: str) -> Scene:
 
 
 def _keys(parameters: Any, what: str) -> List[str]:
-    if isinstance(parameters, str) or not all(isinstance(k, str) for k in parameters):
-        raise Error(f"{what}: parameters must be a list of dotted keys such as ['tissue.young']")
-    keys = list(parameters)
+    bad = Error(f"{what}: parameters must be a list of dotted keys such as ['tissue.young']")
+    if isinstance(parameters, str):
+        raise bad
+    try:
+        keys = list(parameters)
+    except TypeError:
+        raise bad from None
+    if not all(isinstance(k, str) for k in keys):
+        raise bad
     twice = sorted({k for k in keys if keys.count(k) > 1})
     if twice:
         raise Error(f"{what}: parameters: `{twice[0]}` is named twice")
