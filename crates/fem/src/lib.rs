@@ -65,8 +65,8 @@ pub use clamp::CLAMP_PENALTY;
 pub use clamp::fixed_surface_samples;
 pub use error::{FemError, NotConvergedWhy, Result};
 pub use grid::{
-    DEFAULT_RESOLUTION, Element, Embedded, FemOptions, GridEstimate, MAX_CELLS, MAX_RESOLUTION, MIN_FILL,
-    MULTIGRID_ITERATIONS, SNAP, SUBSAMPLES, SparseGrid,
+    CellFill, DEFAULT_RESOLUTION, Element, Embedded, FemOptions, GridEstimate, MAX_CELLS, MAX_RESOLUTION,
+    MIN_FILL, MULTIGRID_ITERATIONS, SNAP, SUBSAMPLES, SparseGrid,
 };
 pub use held_rows::FemHold;
 pub use held_system::HeldResponse;

@@ -6,7 +6,7 @@ use crate::common::*;
 use fibfluid_fem::hyper::{
     CellMaterial, GRASP_TOLERANCE, Grasp, HyperBody, HyperCell, NewtonSettings, RigidPlate,
 };
-use fibfluid_fem::{FemBody, FemError, FemOptions, Loads, NotConvergedWhy, Tissue, TissueModel};
+use fibfluid_fem::{CellFill, FemBody, FemError, FemOptions, Loads, NotConvergedWhy, Tissue, TissueModel};
 
 /// A smooth, non-trivial displacement of a cell of edge `h` (stretch, shear and twist of
 /// about 20 %).
@@ -22,14 +22,28 @@ fn sample_displacement(h: f64) -> [[f64; 3]; 8] {
 }
 
 /// The gradient and Hessian of one cell match central finite differences of the energy and
-/// of the gradient to 1e-6 relative (the independent check: only the energy is trusted).
+/// of the gradient to 1e-6 relative (the independent check: only the energy is trusted),
+/// for a cell filled evenly and one filled unevenly by octant (a cut cell's quadrature).
 #[test]
 fn tangent_matches_finite_differences() {
+    let uneven = CellFill { points: [1.0, 0.5, 0.25, 0.0, 0.75, 1.0, 0.125, 0.625] };
+    for fill in [CellFill::uniform(0.8), uneven] {
+        let (gerr, kerr, asym) = finite_difference_errors(fill);
+        eprintln!("{fill:?}: gradient {gerr:.2e}, tangent {kerr:.2e}, asymmetry {asym:.2e} relative");
+        assert!(gerr < 1e-6 && kerr < 1e-6, "gradient {gerr:e}, tangent {kerr:e}");
+        // The Hessian of a potential is symmetric.
+        assert!(asym < 1e-12, "asymmetry {asym:e}");
+    }
+}
+
+/// The largest relative errors of one cell's gradient and Hessian against central
+/// differences, and the Hessian's relative asymmetry.
+fn finite_difference_errors(fill: CellFill) -> (f64, f64, f64) {
     let h = 0.01;
     let cell = HyperCell::new(h);
     let m = CellMaterial::new(std::sync::Arc::new(fibfluid_fem::law::NeoHookean), 1500.0, 40000.0);
     let u = sample_displacement(h);
-    let t = cell.tangent(&m, &u, 0.8, true).unwrap();
+    let t = cell.tangent(&m, &u, fill, true).unwrap();
     let k = t.hessian.unwrap();
     let eps = 1e-6 * h;
     let shifted = |l: usize, s: f64| {
@@ -42,22 +56,20 @@ fn tangent_matches_finite_differences() {
     let (mut gerr, mut kerr) = (0.0_f64, 0.0_f64);
     for l in 0..24 {
         let (plus, minus) = (shifted(l, eps), shifted(l, -eps));
-        let fd = (cell.energy(&m, &plus, 0.8).unwrap() - cell.energy(&m, &minus, 0.8).unwrap()) / (2.0 * eps);
+        let fd =
+            (cell.energy(&m, &plus, fill).unwrap() - cell.energy(&m, &minus, fill).unwrap()) / (2.0 * eps);
         gerr = gerr.max((fd - t.gradient[l]).abs() / gnorm);
-        let gp = cell.tangent(&m, &plus, 0.8, false).unwrap().gradient;
-        let gm = cell.tangent(&m, &minus, 0.8, false).unwrap().gradient;
+        let gp = cell.tangent(&m, &plus, fill, false).unwrap().gradient;
+        let gm = cell.tangent(&m, &minus, fill, false).unwrap().gradient;
         for r in 0..24 {
             kerr = kerr.max(((gp[r] - gm[r]) / (2.0 * eps) - k[r][l]).abs() / knorm);
         }
     }
-    eprintln!("finite differences: gradient {gerr:.2e}, tangent {kerr:.2e} relative");
-    assert!(gerr < 1e-6 && kerr < 1e-6, "gradient {gerr:e}, tangent {kerr:e}");
-    // The Hessian of a potential is symmetric.
     let asym = (0..24)
         .flat_map(|r| (0..24).map(move |c| (r, c)))
         .map(|(r, c)| (k[r][c] - k[c][r]).abs())
         .fold(0.0, f64::max);
-    assert!(asym < 1e-12 * knorm, "asymmetry {asym:e}");
+    (gerr, kerr, asym / knorm)
 }
 
 /// A rigid rotation by 90 degrees about z costs the neo-Hookean cell no energy and no force;
@@ -465,8 +477,8 @@ fn grasp_rotates_a_free_body_rigidly_only_large_deformation() {
 /// 2 cm of vertex 570 lifted by (-3.3, 3.2, -0.6) cm: the patch lies in few cells, so its
 /// rows are nearly dependent and Uzawa's augmentations crept (12 of them, error 5.6e-8 m).
 /// Newton's method on the grasp's optimality conditions meets it in one augmentation to
-/// the tolerance, its residuals falling faster than linearly (each below the one before
-/// to the power 1.5 once under 1e-2), and the grasper's force balances the weight and
+/// the tolerance, its residuals falling quadratically (each below 100 times the square of
+/// the one before once under 1e-2: measured constants about 50), and the grasper's force balances the weight and
 /// the supports (an independent check: the same equilibrium as
 /// `grasp_pull_is_in_equilibrium_with_the_clamp`).
 #[test]
@@ -499,7 +511,11 @@ fn newton_meets_a_grasp_uzawa_crept_on() {
     assert!(sol.grasps[0].error <= GRASP_TOLERANCE * h, "{}", sol.grasps[0].error);
     assert_eq!((sol.stats.augmentations, last.augmentation), (1, 1));
     let small: Vec<f64> = last.residuals.iter().copied().skip(1).filter(|&r| r < 1e-2).collect();
-    assert!(small.len() >= 2 && small.windows(2).all(|w| w[1] <= w[0].powf(1.5)), "{:?}", last.residuals);
+    assert!(
+        small.len() >= 2 && small.windows(2).all(|w| w[1] <= 100.0 * w[0] * w[0]),
+        "{:?}",
+        last.residuals
+    );
     let weight = 9.81 * 1060.0 * body.grid().fill().iter().sum::<f64>() * h.powi(3);
     let balance: Vec<f64> = (0..3).map(|a| sol.grasps[0].force[a] - sol.support_force[a]).collect();
     let expected = [0.0, -weight, 0.0];

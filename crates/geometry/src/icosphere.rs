@@ -91,3 +91,19 @@ pub fn fibonacci_sphere(n: usize) -> Vec<Vec3> {
         })
         .collect()
 }
+
+/// A hollow sphere: icospheres (`level`) of radii `inner` and `outer`, the inner one turned
+/// to face the hole (a body with one cavity). Returns the positions (the outer sphere's
+/// first), the outer faces and the cavity's faces.
+///
+/// # Panics
+/// As [`icosphere`].
+pub fn hollow_icosphere(inner: f64, outer: f64, level: u32) -> (Vec<Vec3>, Vec<[u32; 3]>, Vec<[u32; 3]>) {
+    let a = icosphere(level, outer);
+    let b = icosphere(level, inner);
+    let n = a.n_vertices() as u32;
+    let mut positions = a.positions().to_vec();
+    positions.extend_from_slice(b.positions());
+    let cavity = b.triangles().iter().map(|t| [t[0] + n, t[2] + n, t[1] + n]).collect();
+    (positions, a.triangles().to_vec(), cavity)
+}

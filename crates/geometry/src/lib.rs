@@ -20,6 +20,7 @@
 //!   vertex target that keeps the volume, [`decimate`]).
 
 mod adjacency;
+mod block;
 mod boundary;
 mod bvh;
 mod crossing;
@@ -43,6 +44,7 @@ pub mod vec3;
 mod voxel;
 
 pub use adjacency::Adjacency;
+pub use block::box_surface;
 pub use boundary::Boundary;
 pub use bvh::TriangleBvh;
 pub use crossing::{Crossing, segment_triangle};
@@ -52,7 +54,7 @@ pub use fibers::{
     EXIT_TOLERANCE, FiberSet, VisibilityOptions, VisibilityReport, crosses_surface_brute_force, cull_fibers,
     self_intersections,
 };
-pub use icosphere::{fibonacci_sphere, icosphere};
+pub use icosphere::{fibonacci_sphere, hollow_icosphere, icosphere};
 pub use image::{
     AffineSource, GZIP_MARGIN, ImageError, ImageProblem, LabelImage, LabelType, NiftiWriteOptions,
     nifti_bytes, read_nifti, read_nifti_bytes, read_nifti_with, write_nifti,

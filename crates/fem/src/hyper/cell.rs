@@ -13,7 +13,7 @@ use fibfluid_geometry::Vec3;
 use std::sync::Arc;
 
 use crate::element::{CELL_DOFS, CellMatrix, gauss_points, gradients, unit_cell_matrices};
-use crate::grid::Element;
+use crate::grid::{CellFill, Element};
 use crate::law::state::POINTS_PER_CELL;
 use crate::law::tensor::{M3, cofactor, det, symmetric_eigenvalues};
 use crate::law::{CellLawState, PointState};
@@ -74,9 +74,21 @@ impl CellMaterial {
 /// is half empty gains 0.5 % of its stiffness.
 pub const EMPTY_STIFFNESS: f64 = 1e-2;
 
+/// The fictitious material's bulk modulus is at most this multiple of its shear modulus
+/// (that of Poisson's ratio 0.3). Integrated fully, a nearly incompressible fictitious
+/// material would lock: at nu = 0.499 (`kappa = 500 mu`) the empty part of a cut cell
+/// carried `5 mu` of locked volumetric stiffness, five times the tissue's shear modulus,
+/// and the thick sphere under pressure came out 5-8 % too stiff.
+pub const EMPTY_BULK_RATIO: f64 = 13.0 / 6.0;
+
 /// The fictitious material's weight in a cell of `fill`.
 fn empty_weight(fill: f64) -> f64 {
     EMPTY_STIFFNESS * (1.0 - fill).max(0.0)
+}
+
+/// The moduli the fictitious material's volumetric energy is evaluated with.
+fn empty_moduli(moduli: &Moduli) -> Moduli {
+    Moduli { mu: moduli.mu, kappa: moduli.kappa.min(EMPTY_BULK_RATIO * moduli.mu) }
 }
 
 /// Gauss weight of each of the eight points (fractions of the cell's volume).
@@ -151,9 +163,10 @@ impl HyperCell {
         std::array::from_fn(|r| std::array::from_fn(|s| c * (m.mu * dev[r][s] + m.kappa * vol[r][s])))
     }
 
-    /// The cell's energy (J) at node displacements `u`, times `fill`, with its law at its
-    /// initial state; `None` when a Gauss point or the cell has `J <= 0` (a nonlinear law).
-    pub fn energy(&self, m: &CellMaterial, u: &[Vec3; 8], fill: f64) -> Option<f64> {
+    /// The cell's energy (J) at node displacements `u`, times `fill` (a fraction, or the
+    /// fill by octant: [`CellFill`]), with its law at its initial state; `None` when a Gauss
+    /// point or the cell has `J <= 0` (a nonlinear law).
+    pub fn energy(&self, m: &CellMaterial, u: &[Vec3; 8], fill: impl Into<CellFill>) -> Option<f64> {
         self.energy_with(m, u, fill, CellLawState { values: &m.initial_cell_state(), dt: 0.0 })
     }
 
@@ -162,11 +175,12 @@ impl HyperCell {
         &self,
         m: &CellMaterial,
         u: &[Vec3; 8],
-        fill: f64,
+        fill: impl Into<CellFill>,
         state: CellLawState<'_>,
     ) -> Option<f64> {
+        let fill = fill.into();
         if m.law.is_linear() {
-            let k = self.linear_matrix(m, fill);
+            let k = self.linear_matrix(m, fill.mean());
             let x: Vec<f64> = u.iter().flatten().copied().collect();
             return Some(
                 0.5 * (0..CELL_DOFS)
@@ -175,23 +189,28 @@ impl HyperCell {
             );
         }
         let (law, moduli, len) = (&*m.law, m.moduli(), m.law.state_len());
-        let mut iso = 0.0;
-        let mut theta = 0.0;
-        let mut pointwise = 0.0;
+        let w = Weights::of(&fill, self.volume, 0.0);
+        let (mut stored, mut theta) = (0.0, 0.0);
         for (p, g) in self.grads.iter().enumerate() {
             let f = deformation_gradient(u, g);
-            iso += W * law.isochoric_energy(&f, &moduli, state.point(len, p))?;
-            theta += W * det(&f);
-            pointwise += W * law.volumetric(det(&f), &moduli, PointState::ELASTIC)?[0];
+            let iso = law.isochoric_energy(&f, &moduli, state.point(len, p))?;
+            let pointwise = law.volumetric(det(&f), &empty_moduli(&moduli), PointState::ELASTIC)?[0];
+            stored += (w.tissue[p] + w.empty[p]) * iso + w.empty[p] * pointwise;
+            theta += w.theta[p] * det(&f);
         }
         let [vol, _, _] = law.volumetric(theta, &moduli, state.point(len, 0))?;
-        let empty = empty_weight(fill) * self.volume;
-        Some(fill * self.volume * (iso + vol) + empty * (iso + pointwise))
+        Some(stored + w.scale * vol)
     }
 
     /// The gradient and (with `hessian`) the Hessian of [`HyperCell::energy`]; `None` when
     /// a Gauss point or the cell has `J <= 0` (a nonlinear law).
-    pub fn tangent(&self, m: &CellMaterial, u: &[Vec3; 8], fill: f64, hessian: bool) -> Option<CellTangent> {
+    pub fn tangent(
+        &self,
+        m: &CellMaterial,
+        u: &[Vec3; 8],
+        fill: impl Into<CellFill>,
+        hessian: bool,
+    ) -> Option<CellTangent> {
         self.tangent_with(m, u, fill, hessian, CellLawState { values: &m.initial_cell_state(), dt: 0.0 })
     }
 
@@ -200,12 +219,13 @@ impl HyperCell {
         &self,
         m: &CellMaterial,
         u: &[Vec3; 8],
-        fill: f64,
+        fill: impl Into<CellFill>,
         hessian: bool,
         state: CellLawState<'_>,
     ) -> Option<CellTangent> {
+        let fill = fill.into();
         if m.law.is_linear() {
-            let k = self.linear_matrix(m, fill);
+            let k = self.linear_matrix(m, fill.mean());
             let x: Vec<f64> = u.iter().flatten().copied().collect();
             let gradient = std::array::from_fn(|r| (0..CELL_DOFS).map(|c| k[r][c] * x[c]).sum());
             return Some(CellTangent { gradient, hessian: hessian.then(|| Box::new(k)) });
@@ -215,15 +235,16 @@ impl HyperCell {
         if js.iter().any(|&j| !(j > 0.0)) {
             return None;
         }
-        let theta: f64 = js.iter().map(|j| W * j).sum();
+        let mut weights = Weights::of(&fill, self.volume, 0.0);
+        let theta: f64 = js.iter().zip(&weights.theta).map(|(j, w)| w * j).sum();
         let [_, du, ddu] = m.law.volumetric(theta, &m.moduli(), state.point(m.law.state_len(), 0))?;
+        weights.du = du;
         let mut gradient = [0.0; CELL_DOFS];
         let mut dtheta = [0.0; CELL_DOFS];
         let mut k = hessian.then(|| Box::new([[0.0; CELL_DOFS]; CELL_DOFS]));
-        let weights = Weights { scale: fill * self.volume, empty: empty_weight(fill) * self.volume, du };
         for p in 0..8 {
             let point =
-                Point { g: &self.grads[p], f: &fs[p], j: js[p], state: state.point(m.law.state_len(), p) };
+                Point { p, g: &self.grads[p], f: &fs[p], j: js[p], state: state.point(m.law.state_len(), p) };
             self.add_point(m, &point, &weights, &mut gradient, &mut dtheta, k.as_deref_mut())?;
         }
         for (gi, d) in gradient.iter_mut().zip(&dtheta) {
@@ -250,17 +271,17 @@ impl HyperCell {
         dtheta: &mut [f64; CELL_DOFS],
         k: Option<&mut CellMatrix>,
     ) -> Option<()> {
-        let (g, moduli) = (point.g, m.moduli());
-        let (scale, empty, du) = (w.scale, w.empty, w.du);
+        let (g, moduli, p) = (point.g, m.moduli(), point.p);
+        let (tissue, empty, theta, du) = (w.tissue[p], w.empty[p], w.theta[p], w.du);
         let cof = cofactor(point.f);
         let (stress, a) = m.law.isochoric_stress(point.f, &moduli, point.state);
         // The empty part's pointwise volumetric energy U(J) (see `EMPTY_STIFFNESS`).
-        let [_, du_p, ddu_p] = m.law.volumetric(point.j, &moduli, PointState::ELASTIC)?;
+        let [_, du_p, ddu_p] = m.law.volumetric(point.j, &empty_moduli(&moduli), PointState::ELASTIC)?;
         for b in 0..8 {
             for i in 0..3 {
                 let dot = |m: &M3| (0..3).map(|jj| m[i][jj] * g[b][jj]).sum::<f64>();
-                gradient[3 * b + i] += (scale + empty) * W * dot(&stress) + empty * W * du_p * dot(&cof);
-                dtheta[3 * b + i] += W * dot(&cof);
+                gradient[3 * b + i] += (tissue + empty) * dot(&stress) + empty * du_p * dot(&cof);
+                dtheta[3 * b + i] += theta * dot(&cof);
             }
         }
         if let Some(k) = k {
@@ -271,10 +292,9 @@ impl HyperCell {
                     let (kk, l) = (s / 3, s % 3);
                     let geometric = (cof[i][jj] * cof[kk][l] - cof[i][l] * cof[kk][jj]) / point.j;
                     let material = cof[i][jj] * cof[kk][l];
-                    *v = W
-                        * ((scale + empty) * *v
-                            + scale * du * geometric
-                            + empty * (du_p * geometric + ddu_p * material));
+                    *v = (tissue + empty) * *v
+                        + w.scale * theta * du * geometric
+                        + empty * (du_p * geometric + ddu_p * material);
                 }
             }
             add_gauss_point(k, &c, g, 1.0);
@@ -318,17 +338,36 @@ impl HyperCell {
 
 /// One Gauss point's kinematics and law state.
 struct Point<'a> {
+    p: usize,
     g: &'a [[f64; 3]; 8],
     f: &'a M3,
     j: f64,
     state: PointState<'a>,
 }
 
-/// A cell's weights: the tissue's (`fill V`), the empty part's, and `U'(theta)`.
+/// A cell's quadrature weights: each Gauss point's tissue volume (`V f_p / 8`) and empty
+/// part's (`EMPTY_STIFFNESS V (1 - f_p) / 8`), its weight in the tissue's mean dilatation
+/// (`f_p / sum f`), the tissue's volume `V mean(f)` that `U(theta)` is integrated over, and
+/// `U'(theta)`.
 struct Weights {
+    tissue: [f64; 8],
+    empty: [f64; 8],
+    theta: [f64; 8],
     scale: f64,
-    empty: f64,
     du: f64,
+}
+
+impl Weights {
+    fn of(fill: &CellFill, volume: f64, du: f64) -> Self {
+        let total: f64 = fill.points.iter().sum();
+        Self {
+            tissue: fill.points.map(|f| volume * f * W),
+            empty: fill.points.map(|f| volume * empty_weight(f) * W),
+            theta: fill.points.map(|f| if total > 0.0 { f / total } else { W }),
+            scale: volume * fill.mean(),
+            du,
+        }
+    }
 }
 
 /// `K[(b, i)][(c, k)] += scale * sum_JL grad N_b,J C[iJ][kL] grad N_c,L` for one Gauss point.

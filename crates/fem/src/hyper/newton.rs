@@ -77,7 +77,7 @@ pub(super) fn add_tissue(
 ) -> Option<f64> {
     let mut elastic = 0.0;
     for (c, nodes) in model.grid.cell_nodes().iter().enumerate() {
-        let fill = model.grid.fill()[c];
+        let fill = model.grid.cell_fill(c);
         let local = nodes.map(|n| u[n]);
         let dofs = model.cell_dofs(nodes);
         let (material, law_state) = (&model.materials[c], states.cell(c));
@@ -237,11 +237,11 @@ impl HyperBody {
         let u = self.node_field(x);
         let model = &*self.model;
         let mut e = 0.0;
-        for (c, (nodes, &fill)) in model.grid.cell_nodes().iter().zip(model.grid.fill()).enumerate() {
+        for (c, nodes) in model.grid.cell_nodes().iter().enumerate() {
             e += model.cell.energy_with(
                 &model.materials[c],
                 &nodes.map(|n| u[n]),
-                fill,
+                model.grid.cell_fill(c),
                 self.states.cell(c),
             )?;
         }

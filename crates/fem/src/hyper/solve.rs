@@ -364,7 +364,7 @@ impl HyperBody {
         }
         let node_volume = self.model.grid.cell_size().powi(3) / 8.0;
         for (c, nodes) in self.model.grid.cell_nodes().iter().enumerate() {
-            let fill = self.model.grid.fill()[c];
+            let fill = self.model.grid.cell_fill(c);
             let local = nodes.map(|n| u[n]);
             let law_state = self.states.cell(c);
             let Some(t) =
@@ -375,7 +375,8 @@ impl HyperBody {
             for (l, g) in t.gradient.iter().enumerate() {
                 let (n, a) = (nodes[l / 3], l % 3);
                 if fixed(n, a) {
-                    r[a] += g - state.t * fill * self.model.densities[c] * node_volume * loads.gravity[a];
+                    r[a] +=
+                        g - state.t * fill.mean() * self.model.densities[c] * node_volume * loads.gravity[a];
                 }
             }
         }

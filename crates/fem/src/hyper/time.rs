@@ -453,7 +453,7 @@ impl HyperBody {
                 model.cell.energy_with(
                     &model.materials[c],
                     &nodes.map(|n| u[n]),
-                    model.grid.fill()[c],
+                    model.grid.cell_fill(c),
                     elastic,
                 )
             })

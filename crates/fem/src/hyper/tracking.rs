@@ -584,8 +584,9 @@ impl HyperBody {
     /// Whether no cell is inverted at the free-dof state `x`.
     fn cell_states_valid(&self, x: &[f64]) -> bool {
         let u = self.node_field(x);
-        let cells = self.model.grid.cell_nodes().iter().zip(self.model.grid.fill()).enumerate();
-        cells.into_iter().all(|(c, (nodes, &fill))| {
+        let cells = self.model.grid.cell_nodes().iter().enumerate();
+        cells.into_iter().all(|(c, nodes)| {
+            let fill = self.model.grid.cell_fill(c);
             self.model
                 .cell
                 .energy_with(&self.model.materials[c], &nodes.map(|n| u[n]), fill, self.states.cell(c))
