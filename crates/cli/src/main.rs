@@ -23,6 +23,7 @@ mod fit_command;
 mod probe_command;
 mod response_flags;
 mod sweep_command;
+mod validate_command;
 mod view;
 
 /// Soft tissue as fluid held by elastic fibers: the fiber–fluid method.
@@ -90,6 +91,20 @@ enum CliError {
         failed: usize,
         /// All runs.
         total: usize,
+    },
+    /// A `fibfluid validate --case` that names no case.
+    #[error("--case {name}: names no case (cases: {cases})")]
+    UnknownCase {
+        /// The name given.
+        name: String,
+        /// The cases there are.
+        cases: String,
+    },
+    /// Cases of `fibfluid validate` outside their tolerance (the table says by how much).
+    #[error("outside their tolerance: {cases}")]
+    ValidationFailed {
+        /// The cases' names.
+        cases: String,
     },
     /// An error of the viewer (binding, building a body).
     #[error(transparent)]
@@ -259,6 +274,10 @@ enum Command {
     /// Run the scene once per combination of the --set values, in parallel processes; write
     /// run-001, run-002, ... (each what `run` writes) and sweep.csv.
     Sweep(sweep_command::SweepArgs),
+    /// Run the field's benchmarks (homogeneous tests, the thick sphere, the cantilever,
+    /// Hertz) against their references; print the table (exit 1 when a case misses its
+    /// tolerance).
+    Validate(validate_command::ValidateArgs),
 }
 
 /// Command-line overrides of the scene's `[solver]` and `[load]` settings; each flag
@@ -388,6 +407,11 @@ fn main() -> ExitCode {
     }
     match run(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
+        // A measurement outside its tolerance is not a user error: exit 1.
+        Err(e @ CliError::ValidationFailed { .. }) => {
+            tell!("error: {e}");
+            ExitCode::from(1)
+        }
         Err(e) => {
             tell!("error: {}", one_line(&e.to_string()));
             ExitCode::from(2)
@@ -510,6 +534,7 @@ fn run(command: Command) -> Result<(), CliError> {
         Command::Compare(args) => compare_command::run(&args),
         Command::Fit(args) => fit_command::run(&args),
         Command::Sweep(args) => sweep_command::run(&args),
+        Command::Validate(args) => validate_command::run(&args),
     }
 }
 

@@ -5,4 +5,5 @@ mod cli_run;
 mod fit;
 mod scene_method;
 mod sweep;
+mod validate;
 mod view;

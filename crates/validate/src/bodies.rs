@@ -1,0 +1,122 @@
+//! The finite-element bodies of the cases, built and solved through `fibfluid-fem`'s
+//! public API as a user's program would; each returns the measured quantity.
+
+use fibfluid_fem::hyper::{CellMaterial, HyperBody, HyperCell, NewtonSettings, Pressure, RigidPlate};
+use fibfluid_fem::{FemOptions, Loads, Result, Tissue};
+use fibfluid_geometry::{Vec3, box_surface, hollow_icosphere, icosphere};
+
+/// A unit cube (`resolution` cells a side, one surface vertex per node) held on its three
+/// coordinate planes along their normals (symmetry planes), pulled on the far faces of the
+/// first `loaded` axes by a dead nominal stress `p` (Pa): the mean stretch of the far face
+/// of axis x.
+pub fn pulled_cube(tissue: &Tissue, resolution: usize, loaded: usize, p: f64) -> Result<f64> {
+    let (pos, tris) = box_surface([0.0; 3], [resolution; 3], 1.0 / resolution as f64);
+    let fixed: Vec<[bool; 3]> = pos.iter().map(|x| x.map(|c| c == 0.0)).collect();
+    let on_far_face = |t: &[u32; 3], axis: usize| t.iter().all(|&v| pos[v as usize][axis] == 1.0);
+    let pressures: Vec<Pressure> = (0..loaded)
+        .map(|axis| Pressure {
+            value: -p,
+            faces: tris.iter().filter(|t| on_far_face(t, axis)).copied().collect(),
+        })
+        .collect();
+    let options = FemOptions { resolution, ..FemOptions::default() };
+    let mut body =
+        HyperBody::from_surface(&pos, &tris, tissue, &fixed, &options)?.with_pressures(&pressures)?;
+    let sol = body.solve(&Loads::default(), &[])?;
+    let far: Vec<usize> = (0..pos.len()).filter(|&v| pos[v][0] == 1.0).collect();
+    Ok(1.0 + far.iter().map(|&v| sol.surface_displacements[v][0]).sum::<f64>() / far.len() as f64)
+}
+
+/// One cell of edge 1 m with every node on the homogeneous simple shear `x += gamma y`: the
+/// shear force its nodes on the face `y = 1` carry (N), the element's `P_xy` on that face
+/// (NaN if the law refuses the deformation).
+pub fn sheared_cell(tissue: &Tissue, gamma: f64) -> f64 {
+    let cell = HyperCell::new(1.0);
+    let corner = |b: usize| [(b & 1) as f64, ((b >> 1) & 1) as f64, ((b >> 2) & 1) as f64];
+    let u: [Vec3; 8] = std::array::from_fn(|b| [gamma * corner(b)[1], 0.0, 0.0]);
+    let Some(t) = cell.tangent(&CellMaterial::of(tissue), &u, 1.0, false) else { return f64::NAN };
+    (0..8).filter(|b| corner(*b)[1] == 1.0).map(|b| t.gradient[3 * b]).sum()
+}
+
+/// Each vertex on a coordinate plane held along that plane's normal: the symmetry planes of
+/// a body centred at the origin (no rigid motion; nothing against a symmetric deformation).
+fn symmetry_planes(positions: &[Vec3], size: f64) -> Vec<[bool; 3]> {
+    positions.iter().map(|p| p.map(|c| c.abs() < 1e-9 * size)).collect()
+}
+
+/// The thick sphere of radii `a` and `b` (icospheres of `level`) under the follower
+/// pressure `p` (Pa) in its cavity, solved with `newton`: the mean inner stretch.
+pub fn inflated_sphere(
+    tissue: &Tissue,
+    (a, b, level): (f64, f64, u32),
+    resolution: usize,
+    p: f64,
+    newton: NewtonSettings,
+) -> Result<f64> {
+    let (positions, outer_faces, cavity_faces) = hollow_icosphere(a, b, level);
+    let mut triangles = outer_faces;
+    triangles.extend_from_slice(&cavity_faces);
+    let fixed = symmetry_planes(&positions, b);
+    let options = FemOptions { resolution, ..FemOptions::default() };
+    let pressure = Pressure { value: p, faces: cavity_faces.clone() };
+    let mut body = HyperBody::from_surface(&positions, &triangles, tissue, &fixed, &options)?
+        .with_pressures(&[pressure])?
+        .with_settings(newton);
+    let sol = body.solve(&Loads::default(), &[])?;
+    let radius = |p: Vec3| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+    let mut vertices: Vec<usize> = cavity_faces.iter().flatten().map(|&v| v as usize).collect();
+    vertices.sort_unstable();
+    vertices.dedup();
+    let stretch = |v: usize| {
+        let x = positions[v];
+        let u = sol.surface_displacements[v];
+        radius([x[0] + u[0], x[1] + u[1], x[2] + u[2]]) / radius(x)
+    };
+    Ok(vertices.iter().map(|&v| stretch(v)).sum::<f64>() / vertices.len() as f64)
+}
+
+/// A sphere of radius `r` (an icosphere of `level`) between two frictionless plates normal
+/// to y that each approach its centre by `depth` (m), held on its symmetry planes: the force
+/// on the upper plate (N).
+pub fn pressed_sphere(tissue: &Tissue, (r, level): (f64, u32), resolution: usize, depth: f64) -> Result<f64> {
+    let mesh = icosphere(level, r);
+    let fixed = symmetry_planes(mesh.positions(), r);
+    let options = FemOptions { resolution, ..FemOptions::default() };
+    let mut body = HyperBody::from_surface(mesh.positions(), mesh.triangles(), tissue, &fixed, &options)?;
+    let plate = |side: f64| RigidPlate {
+        start: [0.0, side * r, 0.0],
+        end: [0.0, side * (r - depth), 0.0],
+        normal: [0.0, -side, 0.0],
+        force: None,
+    };
+    let sol = body.solve(&Loads::default(), &[plate(1.0), plate(-1.0)])?;
+    Ok(sol.plate_forces[0])
+}
+
+/// A cantilever of length 1 m and square section `1 / slenderness` (m), clamped at x = 0,
+/// under a dead load along -z on its free end of `alpha E I / L^2` (spread evenly over the
+/// end face's vertices): the tip's mean deflection along -z and its mean shortening along
+/// x (m).
+pub fn bent_cantilever(
+    tissue: &Tissue,
+    slenderness: usize,
+    resolution: usize,
+    alpha: f64,
+) -> Result<[f64; 2]> {
+    let across = (resolution / slenderness).max(1);
+    let h = 1.0 / resolution as f64;
+    let (pos, tris) = box_surface([0.0; 3], [resolution, across, across], h);
+    let b = across as f64 * h;
+    let fixed: Vec<[bool; 3]> = pos.iter().map(|x| [x[0] == 0.0; 3]).collect();
+    let tip: Vec<usize> = (0..pos.len()).filter(|&v| (pos[v][0] - 1.0).abs() < 1e-12).collect();
+    let load = alpha * tissue.young() * b.powi(4) / 12.0;
+    let share = load / tip.len() as f64;
+    let loads =
+        Loads { point_forces: tip.iter().map(|&v| (v, [0.0, 0.0, -share])).collect(), ..Loads::default() };
+    let options = FemOptions { resolution, ..FemOptions::default() };
+    let mut body = HyperBody::from_surface(&pos, &tris, tissue, &fixed, &options)?;
+    let sol = body.solve(&loads, &[])?;
+    let mean =
+        |axis: usize| tip.iter().map(|&v| sol.surface_displacements[v][axis]).sum::<f64>() / tip.len() as f64;
+    Ok([-mean(2), -mean(0)])
+}
