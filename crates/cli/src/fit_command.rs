@@ -1,12 +1,12 @@
 //! `fibfluid fit`: the scene's `[fit]` parameters fitted to the observed surface positions;
-//! writes `fit.json` and `fit.png` (the residual per iteration) and prints a progress line
-//! per iteration.
+//! writes `fit.json` and `fit.png` (the residual of each observed vertex on the fitted
+//! surface, and the residual per iteration) and prints a progress line per iteration.
 
 use std::path::PathBuf;
 
-use fibfluid::Scene;
-use fibfluid::sim::inverse::read_observed;
-use fibfluid::sim::inverse_fit::{FitProgress, fit};
+use fibfluid::sim::inverse::{Observation, read_observed};
+use fibfluid::sim::inverse_fit::{FitProgress, FitReport, fit};
+use fibfluid::{Model, Scene, Shape, render};
 
 use crate::CliError;
 use crate::say::num;
@@ -55,7 +55,7 @@ pub fn run(args: &FitArgs) -> Result<(), CliError> {
     let json = serde_json::to_vec_pretty(&report)?;
     let mut files = vec![("fit.json", json)];
     if !report.history.is_empty() {
-        files.push(("fit.png", history_png(&report.scene, &report.history)?));
+        files.push(("fit.png", fit_png(&scene.model, &observed, &report)?));
     }
     fibfluid_cli::write_files_atomically(&args.out, &files)?;
     for p in &report.parameters {
@@ -77,12 +77,60 @@ pub fn run(args: &FitArgs) -> Result<(), CliError> {
     Ok(())
 }
 
-/// `fit.png`: the base-10 logarithm of the RMS residual (m) after each iteration.
-fn history_png(scene: &str, history: &[f64]) -> Result<Vec<u8>, CliError> {
-    let points =
-        history.iter().enumerate().map(|(k, r)| ((k + 1) as f64, r.max(f64::MIN_POSITIVE).log10())).collect();
-    let series = [fibfluid::render::Series { label: "rms residual".into(), points }];
-    let title = format!("{scene}: fit residual per iteration");
-    Ok(fibfluid::render::line_chart(&title, "iteration", "log10 rms residual (m)", &series, 900, 520)
-        .map_err(fibfluid_cli::Error::from)?)
+/// `fit.png`'s size (pixels): the fitted surface left, the residual per iteration right.
+pub const FIT_PNG_SIZE: [u32; 2] = [1600, 640];
+
+/// Grey: the vertices that were not observed.
+const NOT_OBSERVED: [u8; 3] = [175, 175, 175];
+
+/// `fit.png`: the fitted surface colored by each observed vertex's distance from its
+/// observed position (mm; the faces around the observed vertices colored, the rest grey),
+/// beside the base-10 logarithm of the RMS residual (m) after each iteration.
+fn fit_png(model: &Model, observed: &[Observation], report: &FitReport) -> Result<Vec<u8>, CliError> {
+    let triangles = match &model.shape {
+        Shape::Surface(m) => m.mesh.triangles().to_vec(),
+        Shape::Polygon(_) => Vec::new(),
+    };
+    let mut scalar = vec![f64::NAN; report.surface.positions.len()];
+    for (o, r) in observed.iter().zip(&report.surface.residuals) {
+        scalar[o.vertex] = 1e3 * r.distance;
+    }
+    let top = report.surface.residuals.iter().map(|r| 1e3 * r.distance).fold(0.0, f64::max);
+    let opts = render::ViewOptions {
+        width: FIT_PNG_SIZE[1],
+        height: FIT_PNG_SIZE[1],
+        scalar_label: "|x_model - x_observed| (mm)".into(),
+        no_value: Some(NOT_OBSERVED),
+        ..Default::default()
+    };
+    let title = format!("residual at {} observed vertices (grey: none)", observed.len());
+    let panel = render::Surface {
+        positions: &report.surface.positions,
+        triangles: &triangles,
+        scalar: &scalar,
+        title,
+    };
+    let surface =
+        render::render_surfaces(&[panel], Some((0.0, top)), &opts).map_err(fibfluid_cli::Error::from)?;
+    // The PNG header's width (bytes 16..20, big-endian).
+    let surface_width = surface.get(16..20).map_or(0, |b| u32::from_be_bytes([b[0], b[1], b[2], b[3]]));
+    let points = report
+        .history
+        .iter()
+        .enumerate()
+        .map(|(k, r)| ((k + 1) as f64, r.max(f64::MIN_POSITIVE).log10()))
+        .collect();
+    let series = [render::Series { label: "rms residual".into(), points }];
+    let title = format!("{}: fit residual per iteration", report.scene);
+    let chart_width = FIT_PNG_SIZE[0].saturating_sub(surface_width).max(320);
+    let chart = render::line_chart(
+        &title,
+        "iteration",
+        "log10 rms residual (m)",
+        &series,
+        chart_width,
+        FIT_PNG_SIZE[1],
+    )
+    .map_err(fibfluid_cli::Error::from)?;
+    Ok(render::side_by_side(&[&surface, &chart]).map_err(fibfluid_cli::Error::from)?)
 }

@@ -162,6 +162,73 @@ fn fit_recovers_the_moduli_of_a_synthetic_truth() {
     assert!(report["correlation"][0][1].as_f64().unwrap().abs() <= 1.0);
     let png = std::fs::read(out.join("fit.png")).unwrap();
     assert!(png.starts_with(b"\x89PNG\r\n\x1a\n"), "fit.png is a PNG");
+    // The header's width and height: the surface and the chart side by side.
+    assert_eq!((be32(&png[16..20]), be32(&png[20..24])), (1600, 640));
+    // Noise-free: every observed vertex lands on its observation, to well under its
+    // displacement (the vertices in the observed file's order).
+    let residuals = report["residuals"].as_array().unwrap();
+    assert_eq!(residuals.len(), 30);
+    let rest = Scene::load(&scene).unwrap().rest_positions();
+    for ((r, (v, p)), m) in residuals.iter().zip(&observed).zip(mesh_indices(&scene, &observed)) {
+        assert_eq!(r["vertex"].as_u64(), Some(*v as u64));
+        let moved = (0..3).map(|a| (p[a] - rest[m][a]).powi(2)).sum::<f64>().sqrt();
+        assert!(r["distance"].as_f64().unwrap() < 1e-6 * moved, "{r} against a displacement of {moved} m");
+    }
+}
+
+fn be32(b: &[u8]) -> u32 {
+    u32::from_be_bytes([b[0], b[1], b[2], b[3]])
+}
+
+/// The mesh index of each observed vertex (the rows are in file order).
+fn mesh_indices(scene: &Path, rows: &Rows) -> Vec<usize> {
+    let scene = Scene::load(scene).unwrap();
+    let fibfluid::sim::Shape::Surface(file) = &scene.shape else { unreachable!() };
+    rows.iter().map(|(v, _)| file.from_file_index(*v).unwrap()).collect()
+}
+
+/// One observed vertex moved 3 mm sideways: `fit.json`'s residuals are the distances of a
+/// separate forward run at the fitted moduli from the observations, and the moved vertex's
+/// is the largest, most of the 3 mm (the two moduli cannot follow one vertex).
+#[test]
+fn fit_json_residuals_are_those_of_a_forward_run_at_the_fitted_moduli() {
+    let (dir, scene, mut observed) = setup();
+    let moved = 7;
+    observed[moved].1[0] += 3e-3;
+    write_observed(dir.path(), &observed);
+    let out = dir.path().join("out");
+    let run = fit(&scene, &out);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("fit.json")).unwrap()).unwrap();
+    let fitted: Vec<f64> = (0..2).map(|j| report["parameters"][j]["value"].as_f64().unwrap()).collect();
+    let forward = dir.path().join("forward.toml");
+    std::fs::write(&forward, scene_text([fitted[0], fitted[1]], "")).unwrap();
+    let model = Scene::load(&forward).unwrap();
+    let (_, solution, _, _) = fibfluid::sim::hyper_run::solve(
+        &model.model,
+        &model.tissue.unwrap(),
+        u64::MAX,
+        &mut StageLog::default(),
+    )
+    .unwrap();
+    let rest = model.rest_positions();
+    let residuals = report["residuals"].as_array().unwrap();
+    let mut largest = (0, 0.0);
+    for (k, ((r, (v, p)), m)) in
+        residuals.iter().zip(&observed).zip(mesh_indices(&forward, &observed)).enumerate()
+    {
+        let x: [f64; 3] = std::array::from_fn(|a| rest[m][a] + solution.surface_displacements[m][a]);
+        let distance = (0..3).map(|a| (x[a] - p[a]).powi(2)).sum::<f64>().sqrt();
+        let reported = r["distance"].as_f64().unwrap();
+        assert_eq!(r["vertex"].as_u64(), Some(*v as u64));
+        assert!((reported - distance).abs() < 1e-9, "vertex {v}: {reported} against {distance} m");
+        if reported > largest.1 {
+            largest = (k, reported);
+        }
+    }
+    assert_eq!(largest.0, moved, "{residuals:?}");
+    assert!(largest.1 > 0.5 * 3e-3 && largest.1 < 1.05 * 3e-3, "{}", largest.1);
 }
 
 /// Without gravity, pressed by a point force, the column's density does nothing: fitted with

@@ -11,6 +11,8 @@
 //!   [`line_chart`]: the same on linear axes (time series such as a probe's
 //!   reaction force per frame).
 //!
+//! [`side_by_side`] joins such pictures into one.
+//!
 //! Text is drawn with a bundled copy of DejaVu Sans (see
 //! `assets/LICENSE-DejaVu.txt`), so no system fonts are needed. The font is
 //! registered with `plotters` under the family names `"fibfluid-sans"` and
@@ -21,11 +23,13 @@
 //! [`RenderError`]; nothing here panics on bad data.
 
 mod chart;
+mod compose;
 mod error;
 mod surface;
 mod text;
 
 pub use chart::{Series, line_chart, log_drawable, loglog_chart, pareto_front, pareto_front_with_margin};
+pub use compose::side_by_side;
 pub use error::{RenderError, Result};
 pub use surface::{
     Colormap, OUTLIER_FACTOR, OUTLIER_QUANTILE, Surface, ViewOptions, render_surfaces, robust_range,

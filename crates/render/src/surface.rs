@@ -82,6 +82,10 @@ pub struct ViewOptions {
     /// Background color, RGB (default white). Text is drawn dark on light
     /// backgrounds and light on dark ones.
     pub background: [u8; 3],
+    /// With a color here, a NaN scalar marks a vertex without a value: a face takes the
+    /// mean of its vertices that have one, and this color when none has (default `None`:
+    /// a NaN scalar is an error).
+    pub no_value: Option<[u8; 3]>,
 }
 
 impl Default for ViewOptions {
@@ -96,6 +100,7 @@ impl Default for ViewOptions {
             colormap: Colormap::Viridis,
             scalar_label: String::new(),
             background: [255, 255, 255],
+            no_value: None,
         }
     }
 }
@@ -156,7 +161,7 @@ impl Camera {
     }
 }
 
-fn validate(index: usize, s: &Surface<'_>) -> Result<()> {
+fn validate(index: usize, s: &Surface<'_>, allow_nan: bool) -> Result<()> {
     if s.positions.is_empty() {
         return Err(RenderError::EmptyInput {
             what: format!("panel {index} (\"{}\") has no vertices", s.title),
@@ -178,7 +183,9 @@ fn validate(index: usize, s: &Surface<'_>) -> Result<()> {
     {
         return Err(RenderError::NonFinitePosition { panel: index, vertex, position: *p });
     }
-    if let Some((vertex, v)) = s.scalar.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+    if let Some((vertex, v)) =
+        s.scalar.iter().enumerate().find(|(_, v)| !(v.is_finite() || allow_nan && v.is_nan()))
+    {
         return Err(RenderError::NonFiniteScalar { panel: index, vertex, value: *v });
     }
     let n = s.positions.len();
@@ -226,8 +233,11 @@ fn color_range(panels: &[Surface<'_>], range: Option<(f64, f64)>) -> Result<(f64
         None => panels
             .iter()
             .flat_map(|p| p.scalar.iter().copied())
+            .filter(|v| v.is_finite())
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v))),
     };
+    // Only vertices without a value: any range will do.
+    let (lo, hi) = if lo <= hi { (lo, hi) } else { (0.0, 0.0) };
     if 0.5 * hi - 0.5 * lo > 0.5e-12 * lo.abs().max(hi.abs()) {
         Ok((lo, hi))
     } else {
@@ -420,14 +430,16 @@ struct Shading {
     colormap: Colormap,
     lo: f64,
     hi: f64,
+    /// The color of a face none of whose vertices has a value.
+    no_value: [u8; 3],
 }
 
 impl Shading {
-    fn new(camera: &Camera, colormap: Colormap, (lo, hi): (f64, f64)) -> Self {
+    fn new(camera: &Camera, colormap: Colormap, (lo, hi): (f64, f64), no_value: Option<[u8; 3]>) -> Self {
         let l: [f64; 3] =
             std::array::from_fn(|k| -camera.forward[k] + 0.45 * camera.up[k] - 0.3 * camera.right[k]);
         let n = norm(l);
-        Self { light: l.map(|c| c / n), colormap, lo, hi }
+        Self { light: l.map(|c| c / n), colormap, lo, hi, no_value: no_value.unwrap_or([160; 3]) }
     }
 
     /// The color of the face with vertices `[a, b, c]` of `panel`, or `None` if it is
@@ -445,8 +457,14 @@ impl Shading {
         }
         let lambert = (dot(normal, self.light) / len).abs();
         let shade = 0.3 + 0.7 * lambert;
-        let mean = panel.scalar[a] / 3.0 + panel.scalar[b] / 3.0 + panel.scalar[c] / 3.0;
-        let rgb = self.colormap.eval((0.5 * mean - 0.5 * self.lo) / (0.5 * self.hi - 0.5 * self.lo));
+        let values = [a, b, c].map(|v| panel.scalar[v]);
+        let with_value = values.iter().filter(|v| !v.is_nan()).count();
+        let rgb = if with_value == 0 {
+            self.no_value
+        } else {
+            let mean = values.iter().filter(|v| !v.is_nan()).map(|v| v / with_value as f64).sum::<f64>();
+            self.colormap.eval((0.5 * mean - 0.5 * self.lo) / (0.5 * self.hi - 0.5 * self.lo))
+        };
         Some(rgb.map(|ch| (f64::from(ch) * shade).round().clamp(0.0, 255.0) as u8))
     }
 }
@@ -517,7 +535,8 @@ fn draw_text(
 /// [`ViewOptions::up`]) framed on the union of their screen-space bounding
 /// boxes, so equal geometry appears at equal size and place. Each face is
 /// flat Lambert shaded (two-sided, light from the camera's upper left) times
-/// the color-map color of the mean of its vertex scalars, and faces are
+/// the color-map color of the mean of its vertex scalars (see
+/// [`ViewOptions::no_value`] for vertices without one), and faces are
 /// painted back to front. Each panel has its title above it; one color bar
 /// on the right shows the color range with five plain-number tick labels
 /// (min, max and three between) and [`ViewOptions::scalar_label`].
@@ -549,7 +568,7 @@ pub fn render_surfaces(
         return Err(RenderError::EmptyInput { what: "no surfaces to render".into() });
     }
     for (i, p) in panels.iter().enumerate() {
-        validate(i, p)?;
+        validate(i, p, opts.no_value.is_some())?;
     }
     let range = color_range(panels, range)?;
     let camera = Camera::new(opts.view_dir, opts.up)?;
@@ -568,7 +587,7 @@ pub fn render_surfaces(
     let projected: Vec<Vec<[f64; 3]>> =
         panels.iter().map(|p| p.positions.iter().map(|&x| camera.project(x)).collect()).collect();
     let framing = Framing::fit(&projected, layout.mesh_rect);
-    let shading = Shading::new(&camera, opts.colormap, range);
+    let shading = Shading::new(&camera, opts.colormap, range, opts.no_value);
     for (pi, (panel, proj)) in panels.iter().zip(&projected).enumerate() {
         let ox = f64::from(opts.width) * pi as f64;
         paint_panel(&mut pixmap, panel, proj, ox, &framing, &shading);

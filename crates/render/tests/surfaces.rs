@@ -301,3 +301,47 @@ fn a_few_outliers_do_not_set_the_color_scale() {
     assert_eq!(robust_range(&values), None, "2.5 times the quantile is not an outlier");
     assert_eq!(robust_range(&[0.0, 0.0]), None);
 }
+
+/// With `no_value`, NaN scalars are vertices without a value: a panel of them is painted in
+/// that color, shaded (red and blue equal, no green), not refused.
+#[test]
+fn vertices_without_a_value_are_painted_in_the_no_value_color() {
+    let (p, t) = icosahedron();
+    let none = vec![f64::NAN; p.len()];
+    let o = ViewOptions { no_value: Some([200, 0, 200]), ..opts(240, 240) };
+    let img = decode(&render_surfaces(&[surface(&p, &t, &none, "none")], Some((0.0, 1.0)), &o).unwrap());
+    // Not gray: not the background, nor the title's text.
+    let painted: Vec<[u8; 3]> = column(&img, 0, 240).into_iter().filter(|c| !is_gray(*c)).collect();
+    assert!(painted.len() > 1000, "{} pixels", painted.len());
+    assert!(painted.iter().all(|c| c[1] == 0 && c[0] == c[2] && c[0] > 50), "{:?}", painted[0]);
+    // Without `no_value` the same scalars are an error.
+    assert!(matches!(
+        render_surfaces(&[surface(&p, &t, &none, "none")], None, &opts(240, 240)),
+        Err(RenderError::NonFiniteScalar { vertex: 0, .. })
+    ));
+}
+
+/// `side_by_side` puts the second picture right of the first, tops aligned, on white.
+#[test]
+fn side_by_side_joins_pictures_left_to_right() {
+    let (p, t) = icosahedron();
+    let s: Vec<f64> = p.iter().map(|q| q[1]).collect();
+    let a = render_surfaces(&[surface(&p, &t, &s, "a")], None, &opts(200, 150)).unwrap();
+    let b = render_surfaces(&[surface(&p, &t, &s, "b")], None, &opts(180, 260)).unwrap();
+    let (da, db) = (decode(&a), decode(&b));
+    let (w, h, px) = decode(&fibfluid_render::side_by_side(&[&a, &b]).unwrap());
+    assert_eq!((w, h), (da.0 + db.0, 260));
+    for y in 0..h {
+        for x in 0..w {
+            let expected = if x >= da.0 {
+                db.2[(y * db.0 + x - da.0) as usize]
+            } else if y < da.1 {
+                da.2[(y * da.0 + x) as usize]
+            } else {
+                [255; 3]
+            };
+            assert_eq!(px[(y * w + x) as usize], expected, "pixel {x}, {y}");
+        }
+    }
+    assert!(fibfluid_render::side_by_side(&[b"not a png"]).is_err());
+}

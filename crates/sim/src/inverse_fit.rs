@@ -10,6 +10,8 @@
 
 use fibfluid_fem::Loads;
 use fibfluid_fem::hyper::{HyperBody, HyperSolution, Parameter};
+use fibfluid_geometry::Vec3;
+use fibfluid_geometry::vec3::add;
 use serde::Serialize;
 
 use crate::fem_inputs::{full_loads, tissue_of};
@@ -63,6 +65,25 @@ pub struct FittedParameter {
     pub bounds: [f64; 2],
 }
 
+/// One observed vertex's residual at the answer (`fit.json`'s `residuals`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct VertexResidual {
+    /// The vertex as the observed file numbers it (0-based, file order).
+    pub vertex: usize,
+    /// Its distance from the observed position, `|x_model - x_observed|` (m).
+    pub distance: f64,
+}
+
+/// The fitted model's surface at the answer.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FittedSurface {
+    /// Each observed vertex's residual, in the order of the observations.
+    pub residuals: Vec<VertexResidual>,
+    /// Every vertex's fitted position (m, mesh order; not written to `fit.json`).
+    #[serde(skip)]
+    pub positions: Vec<Vec3>,
+}
+
 /// What a fit found (`fit.json`).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct FitReport {
@@ -92,6 +113,10 @@ pub struct FitReport {
     pub converged: bool,
     /// The RMS residual after each iteration (m).
     pub history: Vec<f64>,
+    /// The residual of each observed vertex and the fitted surface (`residuals` in
+    /// `fit.json`).
+    #[serde(flatten)]
+    pub surface: FittedSurface,
 }
 
 /// A converged equilibrium at one set of parameters: its residual and Jacobian.
@@ -234,6 +259,14 @@ pub fn fit(
         });
     }
     problem.jacobian(&mut point)?;
+    let surface = FittedSurface {
+        residuals: observed
+            .iter()
+            .zip(point.residual.chunks_exact(3))
+            .map(|(o, r)| VertexResidual { vertex: o.file_vertex, distance: dot(r, r).sqrt() })
+            .collect(),
+        positions: rest.iter().zip(&point.solution.surface_displacements).map(|(x, u)| add(*x, *u)).collect(),
+    };
     let residual_rms = rms(&point.residual);
     let stats = Statistics::of(point.jacobian.as_ref().expect("filled above"), point.cost, observed_rms);
     let parameters = spec
@@ -268,6 +301,7 @@ pub fn fit(
         sensitivity_solves: problem.sensitivity_solves,
         converged: converged || point.cost == 0.0,
         history,
+        surface,
     })
 }
 
