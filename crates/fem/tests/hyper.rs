@@ -555,3 +555,39 @@ fn a_body_as_stiff_as_bone_converges_to_the_linear_answer() {
         assert!(diff <= 1e-6 * sag, "E = {young:e} Pa: {diff} against the sag {sag}");
     }
 }
+
+/// The surface's enclosed volume change of a nearly incompressible sphere (nu = 0.4999,
+/// 10 cm, E = 3 kPa) hanging from its cap at resolution `resolution`, relative: the FEM's
+/// own surface, its clamped cap where the clamp's penalty left it.
+fn hanging_sphere_volume_change(resolution: usize) -> f64 {
+    let mesh = fibfluid_geometry::icosphere(3, 0.05);
+    let fixed: Vec<[bool; 3]> = mesh.positions().iter().map(|p| [p[1] > 0.04; 3]).collect();
+    let tissue = Tissue::new(3000.0, 0.4999, 1000.0).unwrap().with_model(TissueModel::NeoHookean);
+    let options = FemOptions { resolution, ..FemOptions::default() };
+    let mut body =
+        HyperBody::from_surface(mesh.positions(), mesh.triangles(), &tissue, &fixed, &options).unwrap();
+    let sol = body.solve(&Loads { gravity: [0.0, -9.81, 0.0], ..Default::default() }, &[]).unwrap();
+    let deformed: Vec<[f64; 3]> = mesh
+        .positions()
+        .iter()
+        .zip(&sol.surface_displacements)
+        .map(|(p, u)| std::array::from_fn(|a| p[a] + u[a]))
+        .collect();
+    let rest = fibfluid_geometry::volume(mesh.positions(), mesh.triangles());
+    fibfluid_geometry::volume(&deformed, mesh.triangles()) / rest - 1.0
+}
+
+/// A nearly incompressible body keeps its surface's volume: the sphere, sagging 2 cm, changes
+/// its enclosed volume by less than 0.2 % at resolutions 8 and 16 (measured +0.076 and
+/// +0.078 %). The written `deformed.obj` puts the clamped vertices back at rest (the
+/// clamp's slip, up to 2.7 mm here, is left inside the body), which adds a step at the
+/// clamp's rim and about +1 % to that surface's volume at resolution 8, +0.7 % at 16.
+#[test]
+#[ignore = "long run: CI runs it with `cargo test --workspace -- --ignored long_`"]
+fn long_near_incompressible_surface_keeps_its_volume() {
+    for resolution in [8, 16] {
+        let change = hanging_sphere_volume_change(resolution);
+        eprintln!("resolution {resolution}: enclosed volume change {:.3} %", 100.0 * change);
+        assert!(change.abs() < 2e-3, "resolution {resolution}: {change}");
+    }
+}
