@@ -17,35 +17,10 @@ const TRUTH: [f64; 2] = [3000.0, 15000.0];
 /// The surface of the box `[0, n_x s] x [0, n_y s] x [0, n_z s]` as OBJ text (two outward
 /// triangles per square of side `s`).
 pub(crate) fn box_obj(n: [usize; 3], s: f64) -> String {
-    let mut index = std::collections::HashMap::new();
-    let (mut vertices, mut faces) = (String::new(), String::new());
-    let mut id = |g: [usize; 3], vertices: &mut String| {
-        let len = index.len();
-        *index.entry(g).or_insert_with(|| {
-            vertices.push_str(&format!("v {} {} {}\n", g[0] as f64 * s, g[1] as f64 * s, g[2] as f64 * s));
-            len + 1
-        })
-    };
-    for a in 0..3 {
-        let (b, c) = ((a + 1) % 3, (a + 2) % 3);
-        for side in [0, n[a]] {
-            for i in 0..n[b] {
-                for j in 0..n[c] {
-                    let g = |di: usize, dj: usize| {
-                        let mut g = [0; 3];
-                        (g[a], g[b], g[c]) = (side, i + di, j + dj);
-                        g
-                    };
-                    let q = [g(0, 0), g(1, 0), g(1, 1), g(0, 1)].map(|g| id(g, &mut vertices));
-                    let (t1, t2) = if side == n[a] { ([0, 1, 2], [0, 2, 3]) } else { ([0, 2, 1], [0, 3, 2]) };
-                    for t in [t1, t2] {
-                        faces.push_str(&format!("f {} {} {}\n", q[t[0]], q[t[1]], q[t[2]]));
-                    }
-                }
-            }
-        }
-    }
-    vertices + &faces
+    let (positions, triangles) = fibfluid::geometry::box_surface([0.0; 3], n, s);
+    let vertices = positions.iter().map(|p| format!("v {} {} {}\n", p[0], p[1], p[2]));
+    let faces = triangles.iter().map(|t| format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1));
+    vertices.chain(faces).collect()
 }
 
 /// A 2 x 2 x 3 cm neo-Hookean column on its base, gravity down and sideways, its lower half
