@@ -43,13 +43,18 @@ fn thick_sphere_closed_form_has_the_lame_limit_and_its_limit_point() {
     assert!((top - 1.83).abs() < 0.01, "limit point at {top}");
 }
 
-/// The quick homogeneous cases, the shear cell and the cantilevers meet their references.
+/// The quick homogeneous cases and the shear cell meet their closed forms; the cantilevers
+/// at resolution 32 (2 cells through the thickness) are within 3 % of the elastica
+/// (measured 1.4 and 0.4 %).
 #[test]
 fn quick_cases_meet_their_references() {
-    let quick = ["uniaxial", "equibiaxial", "shear", "cantilever-1", "cantilever-10"];
-    for case in cases().iter().filter(|c| quick.contains(&c.name)) {
+    for case in cases().iter().filter(|c| ["uniaxial", "equibiaxial", "shear"].contains(&c.name)) {
         let row = case.check(Speed::Quick);
         assert!(row.passed, "{row:?}");
+    }
+    for case in cases().iter().filter(|c| c.name.starts_with("cantilever")) {
+        let outcome = run_case(case, 32).unwrap();
+        assert!(outcome.error() < 0.03, "{}: {outcome:?}", case.name);
     }
 }
 
