@@ -100,6 +100,11 @@ fn setup_with(truth: &str, fitted: &str) -> (tempfile::TempDir, PathBuf, Rows) {
     (dir, path, observed)
 }
 
+/// `fit.json` in `out`, parsed.
+fn fit_json(out: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(out.join("fit.json")).unwrap()).unwrap()
+}
+
 fn write_observed(dir: &Path, rows: &[(usize, [f64; 3])]) {
     let mut text = String::from("vertex,x,y,z\n");
     for (v, p) in rows {
@@ -124,8 +129,7 @@ fn fit_recovers_the_moduli_of_a_synthetic_truth() {
     eprintln!("{stderr}{}", String::from_utf8_lossy(&run.stdout));
     assert!(run.status.success());
     assert!(stderr.contains("fit: iteration 1:"), "a progress line per iteration");
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("fit.json")).unwrap()).unwrap();
+    let report: serde_json::Value = fit_json(&out);
     for (j, truth) in TRUTH.iter().enumerate() {
         let p = &report["parameters"][j];
         let value = p["value"].as_f64().unwrap();
@@ -174,8 +178,7 @@ fn fit_json_residuals_are_those_of_a_forward_run_at_the_fitted_moduli() {
     let out = dir.path().join("out");
     let run = fit(&scene, &out);
     assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("fit.json")).unwrap()).unwrap();
+    let report: serde_json::Value = fit_json(&out);
     let fitted: Vec<f64> = (0..2).map(|j| report["parameters"][j]["value"].as_f64().unwrap()).collect();
     let forward = dir.path().join("forward.toml");
     std::fs::write(&forward, scene_text([fitted[0], fitted[1]], "")).unwrap();
@@ -231,8 +234,7 @@ fn a_parameter_the_observations_cannot_see_is_not_identifiable() {
     let out = dir.path().join("out");
     let run = fit(&scene, &out);
     assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("fit.json")).unwrap()).unwrap();
+    let report: serde_json::Value = fit_json(&out);
     let (young, density) = (&report["parameters"][0], &report["parameters"][1]);
     assert!((young["value"].as_f64().unwrap() / TRUTH[0] - 1.0).abs() < 0.01, "{young}");
     assert_eq!(density["identifiable"], false);
@@ -318,8 +320,7 @@ fn long_noisy_fits_bracket_the_truth_at_the_stated_rate() {
         write_observed(dir.path(), &noisy);
         let out = dir.path().join(format!("out{draw}"));
         assert!(fit(&scene, &out).status.success());
-        let report: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(out.join("fit.json")).unwrap()).unwrap();
+        let report: serde_json::Value = fit_json(&out);
         for (j, truth) in TRUTH.iter().enumerate() {
             let p = &report["parameters"][j];
             let (value, sigma) = (p["value"].as_f64().unwrap(), p["sigma"].as_f64().unwrap());

@@ -29,15 +29,8 @@ use fibfluid_fem::{FemBody, Loads, SparseGrid, Tissue};
 use fibfluid_geometry::{FiberSet, icosphere};
 use fibfluid_linalg::{FactorOptions, FactorizationExt, LinearSolver, Structured};
 
-/// The 1-, 5- and 15-minute load averages.
-fn load() -> String {
-    std::fs::read_to_string("/proc/loadavg")
-        .unwrap_or_default()
-        .split_whitespace()
-        .take(3)
-        .collect::<Vec<_>>()
-        .join(" ")
-}
+mod common;
+use common::load;
 
 fn fem(c: &mut Criterion) {
     let mesh = icosphere(3, 1.0);

@@ -25,15 +25,8 @@ use fibfluid_fem::hyper::{HyperBody, HyperSolution, HyperStats, NewtonSettings, 
 use fibfluid_fem::{FemOptions, FemSolver, Loads, Region, RegionShape, Tissue, TissueModel};
 use fibfluid_geometry::icosphere;
 
-/// The 1-, 5- and 15-minute load averages.
-fn load() -> String {
-    std::fs::read_to_string("/proc/loadavg")
-        .unwrap_or_default()
-        .split_whitespace()
-        .take(3)
-        .collect::<Vec<_>>()
-        .join(" ")
-}
+mod common;
+use common::load;
 
 /// Seconds of the Newton iterations of a solve, per iteration.
 fn per_iteration(stats: &HyperStats) -> f64 {
