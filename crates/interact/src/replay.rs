@@ -830,16 +830,3 @@ pub fn check_method(path: &ToolPath, method: Method) -> std::result::Result<(), 
     }
     Ok(())
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn latency_percentiles_by_nearest_rank() {
-        let s: Vec<f64> = (1..=100).map(f64::from).collect();
-        assert_eq!(Latency::of(&s), Latency { p50: 50.0, p99: 99.0, max: 100.0 });
-        assert_eq!(Latency::of(&[3.0]), Latency { p50: 3.0, p99: 3.0, max: 3.0 });
-        assert_eq!(Latency::of(&[]), Latency::default());
-    }
-}

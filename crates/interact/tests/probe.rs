@@ -345,3 +345,14 @@ fn lazy_columns_are_computed_once_per_touched_vertex() {
     c.update().unwrap();
     assert_eq!(c.memory_bytes(), before);
 }
+
+/// Nearest-rank percentiles, by hand: of 1..=100 the 50th and 99th values; one sample is
+/// every percentile; no sample gives zeros.
+#[test]
+fn latency_percentiles_by_nearest_rank() {
+    use fibfluid_interact::Latency;
+    let s: Vec<f64> = (1..=100).map(f64::from).collect();
+    assert_eq!(Latency::of(&s), Latency { p50: 50.0, p99: 99.0, max: 100.0 });
+    assert_eq!(Latency::of(&[3.0]), Latency { p50: 3.0, p99: 3.0, max: 3.0 });
+    assert_eq!(Latency::of(&[]), Latency::default());
+}
