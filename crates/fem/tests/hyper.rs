@@ -580,9 +580,9 @@ fn hanging_sphere_volume_change(resolution: usize) -> f64 {
 
 /// A nearly incompressible body keeps its surface's volume: the sphere, sagging 2 cm, changes
 /// its enclosed volume by less than 0.2 % at resolutions 8 and 16 (measured +0.076 and
-/// +0.078 %). The written `deformed.obj` puts the clamped vertices back at rest (the
-/// clamp's slip, up to 2.7 mm here, is left inside the body), which adds a step at the
-/// clamp's rim and about +1 % to that surface's volume at resolution 8, +0.7 % at 16.
+/// +0.078 %). A run writes this surface, the clamp's slip (up to 2.7 mm here) included
+/// (`a_near_incompressible_run_writes_a_surface_that_keeps_its_volume` in the facade's
+/// tests): putting the clamped vertices back at rest added +1 % at resolution 8.
 #[test]
 #[ignore = "long run: CI runs it with `cargo test --workspace -- --ignored long_`"]
 fn long_near_incompressible_surface_keeps_its_volume() {

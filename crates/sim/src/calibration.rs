@@ -63,7 +63,7 @@ pub fn calibrate(model: &Model, max_memory: Option<u64>) -> Result<Calibration> 
     let resolution = calibration_resolution(model);
     fem.fem.resolution = resolution;
     let fem_run = FemRun::new(fem, max_memory)?;
-    let u_fem = displacements(&fem_run.positions, &fem_run.rest);
+    let u_fem = fem_run.displacements_clamped_exactly();
     let mut ffm = model.clone();
     ffm.ffm.calibrate = false;
     ffm.solver.method = Method::Ffm;

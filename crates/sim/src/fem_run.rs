@@ -40,8 +40,11 @@ pub struct FemRun {
     pub model: Model,
     /// Rest positions (metres).
     pub rest: Vec<Vec3>,
-    /// Deformed positions (metres); a fixed axis of a fixed vertex is exactly at rest (the
-    /// clamp's penalty slip, [`fibfluid_fem::CLAMP_PENALTY`], is an error inside the body).
+    /// Deformed positions (metres): the finite-element surface as computed. A fixed vertex
+    /// moves along its fixed axes by the clamp's penalty slip ([`fibfluid_fem::CLAMP_PENALTY`];
+    /// [`FemRun::clamp_slip`]), which vanishes like the cell size; putting it back at rest
+    /// would add a step at the clamp's rim and change the enclosed volume by the slip times
+    /// the clamp's area.
     pub positions: Vec<Vec3>,
     /// The tissue.
     pub tissue: Tissue,
@@ -72,6 +75,34 @@ pub struct FemRun {
 }
 
 impl FemRun {
+    /// The largest displacement of a fixed vertex along one of its fixed axes (m): the
+    /// clamp's penalty slip (0 without fixed vertices).
+    pub fn clamp_slip(&self) -> f64 {
+        self.fixed_axes().map(|(v, a)| (self.positions[v][a] - self.rest[v][a]).abs()).fold(0.0, f64::max)
+    }
+
+    /// Each vertex's displacement (m) with its fixed axes at 0, as an exact clamp has them
+    /// (what the fiber–fluid method, whose clamp is exact, is calibrated against).
+    pub fn displacements_clamped_exactly(&self) -> Vec<Vec3> {
+        let mut u: Vec<Vec3> = self
+            .positions
+            .iter()
+            .zip(&self.rest)
+            .map(|(p, r)| std::array::from_fn(|a| p[a] - r[a]))
+            .collect();
+        for (v, a) in self.fixed_axes() {
+            u[v][a] = 0.0;
+        }
+        u
+    }
+
+    /// The fixed `(vertex, axis)` pairs.
+    fn fixed_axes(&self) -> impl Iterator<Item = (usize, usize)> + '_ {
+        (0..self.rest.len())
+            .flat_map(|v| (0..3).map(move |a| (v, a)))
+            .filter(|&(v, a)| self.model.constraints.get(v, a).is_some())
+    }
+
     /// Runs the model with the finite-element method; `max_memory` as for FFM's setup.
     pub fn new(model: impl Into<Model>, max_memory: Option<u64>) -> Result<Self> {
         Self::observed(model, max_memory, &mut |_| {})
@@ -108,10 +139,7 @@ impl FemRun {
         let positions: Vec<Vec3> = rest
             .iter()
             .zip(&answer.surface_displacements)
-            .enumerate()
-            .map(|(v, (p, u))| {
-                std::array::from_fn(|a| p[a] + if model.constraints.get(v, a).is_some() { 0.0 } else { u[a] })
-            })
+            .map(|(p, u)| std::array::from_fn(|a| p[a] + u[a]))
             .collect();
         let small_strain = tissue.is_linear();
         let mut warnings = answer_guards(&model, &rest, &positions, answer.residual, small_strain)?;
@@ -465,6 +493,9 @@ pub struct FemSupports {
     /// Each pressure's resultant force on the body at the end (omitted without pressures).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub pressures: Vec<PressureRecord>,
+    /// The largest displacement of a fixed vertex along a fixed axis (m): the clamp's
+    /// penalty slip ([`FemRun::clamp_slip`]; 0 without fixed vertices).
+    pub clamp_slip: f64,
 }
 
 /// A pressure in `report.json`.
@@ -526,8 +557,8 @@ pub struct FemReport {
     /// Newton's steps, residual histories, counts and times (hyperelastic tissue only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub newton: Option<crate::hyper_run::NewtonRecord>,
-    /// Each plate's contact and each grasp's force (flattened into `report.json`:
-    /// `plates`, `grasps`).
+    /// Each plate's contact, each grasp's force and the clamp's slip (flattened into
+    /// `report.json`: `plates`, `grasps`, `pressures`, `clamp_slip`).
     #[serde(flatten)]
     pub supports: FemSupports,
     /// Each region of other tissue: its cells and how far they moved (omitted without
@@ -595,6 +626,7 @@ impl FemReport {
                 plates: run.plates.clone(),
                 grasps: run.grasps.clone(),
                 pressures: PressureRecord::of(run),
+                clamp_slip: run.clamp_slip(),
             },
             regions: RegionRecord::of(run),
             warnings: run.warnings.clone(),
