@@ -1,11 +1,12 @@
 //! `fibfluid bench --two-rate SCENE --path PATH`: the two-rate neo-Hookean body against the
 //! linear FEM body on the same path, frames paced at a haptic device's rate, in one run.
 //!
-//! Three bodies replay the path, each from its own equilibrium under the scene's loads
+//! Four bodies replay the path, each from its own equilibrium under the scene's loads
 //! (as `compare` does), with a frame every [`FRAME_PERIOD`] (the time a frame does not use
 //! is slept, as a haptic loop waits for its device): the linear FEM body, the two-rate body
-//! with Newton refreshes only, and the two-rate body as shipped (chord refreshes on the
-//! kept factor between Newton's, `fibfluid::interact::MAX_CHORD_REFRESHES`). The two-rate
+//! with Newton refreshes only, with at most `fibfluid::interact::MAX_CHORD_REFRESHES` chord
+//! refreshes on the kept factor between Newton's, and as shipped (chord refreshes balanced
+//! in time against the refactorizations, `fibfluid::interact::ChordBudget`). The two-rate
 //! bodies refresh on their second thread meanwhile. Reported, as ratios measured in the
 //! same run: each two-rate body's frame p99 over the linear body's, and its mean refresh
 //! over one iteration of the batch Newton solve of the body's own loads. Every
@@ -50,8 +51,9 @@ pub struct Tracking {
 /// One two-rate body's replay.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct TwoRateRun {
-    /// Chord refreshes allowed between two refactorizations (0: Newton only).
-    pub chord_refreshes: usize,
+    /// The chord refreshes allowed between two refactorizations: `"none"` (Newton only),
+    /// `"at most N"` or `"balanced"` (`fibfluid::interact::ChordBudget`).
+    pub chords: String,
     /// Frame latency, refreshes running (us).
     pub latency_us: Latency,
     /// Frame p99 over the linear body's frame p99.
@@ -97,7 +99,10 @@ pub struct TwoRateBench {
     pub newton_iteration_seconds: f64,
     /// The two-rate body with Newton refreshes only.
     pub newton_only: TwoRateRun,
-    /// The two-rate body as shipped.
+    /// The two-rate body with at most `fibfluid::interact::MAX_CHORD_REFRESHES` chord
+    /// refreshes between two refactorizations.
+    pub fixed_chords: TwoRateRun,
+    /// The two-rate body as shipped (balanced chord refreshes).
     pub two_rate: TwoRateRun,
 }
 
@@ -135,14 +140,16 @@ pub fn bench_two_rate(scene: &Scene, path: &ToolPath, max_memory: Option<u64>) -
     let background = |chords| opts(RefreshMode::Background, chords);
     let (linear, _) = paced_replay(&linear_scene, &checked, &background(None))?;
     let (newton_only, newton_iteration_seconds) = paced_replay(scene, &checked, &background(Some(0)))?;
+    let fixed = fibfluid::interact::MAX_CHORD_REFRESHES;
+    let (fixed_chords, _) = paced_replay(scene, &checked, &background(Some(fixed)))?;
     let (two_rate, _) = paced_replay(scene, &checked, &background(None))?;
     let reference = converged_samples(scene, &checked, &opts(RefreshMode::Converged, Some(0)))?;
     let linear_latency_us = Latency::of(&linear.latency_us);
-    let run = |paced: &Paced, chords| {
+    let run = |paced: &Paced, chords: String| {
         let summary = RefreshSummary::of(&paced.statuses);
         let latency_us = Latency::of(&paced.latency_us);
         TwoRateRun {
-            chord_refreshes: chords,
+            chords,
             frame_p99_ratio: latency_us.p99 / linear_latency_us.p99,
             latency_us,
             refreshes: summary.refreshes,
@@ -164,8 +171,9 @@ pub fn bench_two_rate(scene: &Scene, path: &ToolPath, max_memory: Option<u64>) -
         linear_tracking: tracking(&linear.samples, &reference),
         linear_latency_us,
         newton_iteration_seconds,
-        newton_only: run(&newton_only, 0),
-        two_rate: run(&two_rate, fibfluid::interact::MAX_CHORD_REFRESHES),
+        newton_only: run(&newton_only, "none".into()),
+        fixed_chords: run(&fixed_chords, format!("at most {fixed}")),
+        two_rate: run(&two_rate, "balanced".into()),
     })
 }
 

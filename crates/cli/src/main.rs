@@ -1006,7 +1006,7 @@ fn bench_two_rate(scene: &Path, path: &Path, json: bool) -> Result<(), CliError>
         e.last
     );
     say!("one batch Newton iteration {:.3} s", b.newton_iteration_seconds);
-    for run in [&b.newton_only, &b.two_rate] {
+    for run in [&b.newton_only, &b.fixed_chords, &b.two_rate] {
         print_two_rate_run(run);
     }
     Ok(())
@@ -1015,7 +1015,7 @@ fn bench_two_rate(scene: &Path, path: &Path, json: bool) -> Result<(), CliError>
 /// One two-rate body's lines of `bench --two-rate`.
 fn print_two_rate_run(r: &fibfluid_cli::bench_two_rate::TwoRateRun) {
     let t = r.latency_us;
-    say!("two-rate, {} chord refreshes per refactorization", r.chord_refreshes);
+    say!("two-rate, chord refreshes per refactorization: {}", r.chords);
     say!("                     frame p50 {:>8.1} us  p99 {:>8.1} us  max {:>9.1} us", t.p50, t.p99, t.max);
     say!("                     frame p99 ratio {:.2} (over the linear body's)", r.frame_p99_ratio);
     say!(

@@ -9,9 +9,11 @@
 //! the step, shortened while it would invert a cell). A Newton refresh then assembles and
 //! factors the tangent at the step's end and computes the held vertices' columns there; a
 //! chord refresh keeps the factor and its columns and moves only the state and its force
-//! (a few times cheaper). The cadence: at most [`MAX_CHORD_REFRESHES`] chord refreshes
-//! between two Newton ones, only with the holds within reach, a step within a cell, and
-//! while each chord step halves the one before. Holding a tool still, the frames converge
+//! (a few to tens of times cheaper). The cadence ([`ChordBudget`]): on the refresh thread,
+//! chord refreshes until they have cost as much time as the last Newton one (at most
+//! [`MAX_BALANCED_CHORDS`]), in the frame loop at most [`MAX_CHORD_REFRESHES`]; either
+//! only with the holds within reach, a step within a cell, and while each chord step
+//! halves the one before. Holding a tool still, the frames converge
 //! to the batch hyperelastic answer for the same holds (a Newton refresh confirms it); with
 //! the tool moving, a frame is the linear response about a state at most one refresh old.
 //!
@@ -47,7 +49,8 @@ pub const ROUNDING_STEP: f64 = 1e-6;
 pub const MAX_SCHEDULED_EVERY: u64 = 1000;
 
 /// Refreshes that keep the factor ([`Tangent::Keep`], chord iterations) between two that
-/// factor the tangent, at most: a chord refresh costs a force evaluation and two solves,
+/// factor the tangent, at most, in the frame loop and for [`ChordBudget::Balanced`]
+/// there: a chord refresh costs a force evaluation and two solves,
 /// a refactorization the tangent's assembly, its factorization and the held vertices'
 /// columns (on the bundled liver 0.016 s against 0.17 s), so the frames' state
 /// follows the tool several times as often, on a tangent at most this many refreshes old.
@@ -56,6 +59,24 @@ pub const MAX_CHORD_REFRESHES: usize = 4;
 /// A chord refresh for unchanged holds whose step is more than this fraction of the step
 /// before it converges too slowly: the next refresh factors the tangent.
 pub const CHORD_CONTRACTION: f64 = 0.5;
+
+/// The most chord refreshes [`ChordBudget::Balanced`] runs between two refactorizations.
+pub const MAX_BALANCED_CHORDS: usize = 32;
+
+/// How many chord refreshes run between two refactorizations.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum ChordBudget {
+    /// At most this many (0: every refresh is a Newton iteration).
+    AtMost(usize),
+    /// On the refresh thread ([`RefreshMode::Background`]), chord refreshes until they have
+    /// taken as long as the last refactorization did (at most [`MAX_BALANCED_CHORDS`]): the
+    /// thread spends about half its time factoring whatever the body's size, where a
+    /// refactorization costs from ten times a chord refresh (the bundled liver) to tens of
+    /// times (a finer grid). In the frame loop, whose replays must be reproducible (not
+    /// timed), [`MAX_CHORD_REFRESHES`].
+    #[default]
+    Balanced,
+}
 
 /// When the linearization is refreshed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -105,6 +126,13 @@ struct Cadence {
     /// Chord refreshes allowed between two refactorizations (0 in
     /// [`RefreshMode::Converged`]: Newton's own iterations).
     max_chords: usize,
+    /// Balance the chord refreshes' time against the last refactorization's
+    /// ([`ChordBudget::Balanced`] on the refresh thread).
+    timed: bool,
+    /// Seconds of the last refresh that factored the tangent.
+    refactor_seconds: f64,
+    /// Seconds of the chord refreshes since it.
+    chord_seconds: f64,
     /// The last refresh's request and full step (m).
     last: Option<(Request, f64)>,
     /// The last refresh was a chord step that contracted less than
@@ -118,17 +146,35 @@ impl Cadence {
         Self { max_chords, ..Self::default() }
     }
 
+    /// The cadence of `budget`: timed only on the refresh thread (`on_thread`).
+    fn of_budget(budget: ChordBudget, on_thread: bool) -> Self {
+        match budget {
+            ChordBudget::AtMost(n) => Self::with_chords(n),
+            ChordBudget::Balanced if on_thread => {
+                Self { timed: true, ..Self::with_chords(MAX_BALANCED_CHORDS) }
+            }
+            ChordBudget::Balanced => Self::with_chords(MAX_CHORD_REFRESHES),
+        }
+    }
+
     /// How the next refresh from `current` for `request` treats the tangent. A factor
     /// made with the holds' penalty is kept only for the same rows (its springs belong to
     /// the holds it was made for).
     fn tangent(&self, current: &Linearization, request: &Request) -> Tangent {
         let rows_kept = self.last.as_ref().is_some_and(|(last, _)| same_rows(&last.holds, &request.holds));
+        let paid = self.timed && self.chord_seconds >= self.refactor_seconds;
         let stale = current.chord_steps() >= self.max_chords || (current.hold_penalty() > 0.0 && !rows_kept);
-        if self.slow || stale { Tangent::Refactor } else { Tangent::Keep }
+        if self.slow || stale || paid { Tangent::Refactor } else { Tangent::Keep }
     }
 
-    /// Records a finished refresh for `request`.
-    fn record(&mut self, request: &Request, step: &TrackStep) {
+    /// Records a finished refresh for `request` that took `seconds`.
+    fn record(&mut self, request: &Request, step: &TrackStep, seconds: f64) {
+        if step.refactored {
+            self.refactor_seconds = seconds;
+            self.chord_seconds = 0.0;
+        } else {
+            self.chord_seconds += seconds;
+        }
         let same = self.last.as_ref().is_some_and(|(r, _)| r.same_tools(request));
         let previous = self.last.as_ref().map_or(f64::INFINITY, |last| last.1);
         self.slow = !step.refactored && same && step.step > CHORD_CONTRACTION * previous;
@@ -139,6 +185,7 @@ impl Cadence {
     fn restart(&mut self) {
         self.last = None;
         self.slow = false;
+        self.chord_seconds = 0.0;
     }
 }
 
@@ -260,7 +307,7 @@ impl HyperInteractive {
     /// Errors: a model with plates or scene grasps, without a tissue, or whose own loads
     /// Newton cannot reach. `EveryFrames(0)` refreshes every frame, as `EveryFrames(1)`.
     pub fn new(model: &Model, max_memory: Option<u64>, mode: RefreshMode) -> fibfluid_sim::Result<Self> {
-        Self::with_chord_refreshes(model, max_memory, mode, MAX_CHORD_REFRESHES)
+        Self::with_chord_budget(model, max_memory, mode, ChordBudget::Balanced)
     }
 
     /// [`HyperInteractive::new`] with at most `chords` chord refreshes between two
@@ -272,6 +319,19 @@ impl HyperInteractive {
         max_memory: Option<u64>,
         mode: RefreshMode,
         chords: usize,
+    ) -> fibfluid_sim::Result<Self> {
+        Self::with_chord_budget(model, max_memory, mode, ChordBudget::AtMost(chords))
+    }
+
+    /// [`HyperInteractive::new`] with the chord refreshes `budget` allows between two
+    /// refactorizations.
+    ///
+    /// Errors: those of [`HyperInteractive::new`].
+    pub fn with_chord_budget(
+        model: &Model,
+        max_memory: Option<u64>,
+        mode: RefreshMode,
+        budget: ChordBudget,
     ) -> fibfluid_sim::Result<Self> {
         let start = Instant::now();
         let scene = model.display_name();
@@ -292,13 +352,13 @@ impl HyperInteractive {
         let refresher = match mode {
             RefreshMode::EveryFrames(every) => Refresher::Inline {
                 body: Box::new(body),
-                cadence: Cadence::with_chords(chords),
+                cadence: Cadence::of_budget(budget, false),
                 every: every.max(1),
                 converge: false,
             },
             RefreshMode::Scheduled => Refresher::Inline {
                 body: Box::new(body),
-                cadence: Cadence::with_chords(chords),
+                cadence: Cadence::of_budget(budget, false),
                 every: (scheduled as u64).clamp(1, MAX_SCHEDULED_EVERY),
                 converge: false,
             },
@@ -309,7 +369,7 @@ impl HyperInteractive {
                 converge: true,
             },
             RefreshMode::Background => {
-                Refresher::Thread(spawn_worker(body, linearization.clone(), loads.clone(), chords))
+                Refresher::Thread(spawn_worker(body, linearization.clone(), loads.clone(), budget))
             }
         };
         let holds = Holds::of_model(model, PushRule::Anywhere);
@@ -552,13 +612,14 @@ fn refresh(
     let tangent = cadence.tangent(current, request);
     match body.track_with(current, loads, &request.pushes, &request.holds, tangent) {
         Ok(s) => {
-            cadence.record(request, &s);
+            let seconds = start.elapsed().as_secs_f64();
+            cadence.record(request, &s, seconds);
             Outcome::Done {
                 refactored: s.refactored,
                 linearization: Box::new(s.linearization),
                 step: s.step,
                 frame: request.frame,
-                seconds: start.elapsed().as_secs_f64(),
+                seconds,
             }
         }
         Err(e) => Outcome::Failed { message: e.to_string(), frame: request.frame },
@@ -583,13 +644,13 @@ fn spawn_worker(
     mut body: HyperBody,
     mut linearization: Linearization,
     loads: Loads,
-    chords: usize,
+    budget: ChordBudget,
 ) -> Worker {
     let (requests, inbox) = mpsc::channel::<Message>();
     let (outbox, outcomes) = mpsc::channel();
     std::thread::spawn(move || {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().ok();
-        let mut cadence = Cadence::with_chords(chords);
+        let mut cadence = Cadence::of_budget(budget, true);
         while let Ok(first) = inbox.recv() {
             let mut request = match first {
                 Message::Refresh(r) => r,

@@ -11,7 +11,7 @@ use fibfluid_sim::{Method, Mode, Model, RunOptions, Shape, Simulation};
 use crate::chainmail_body::ChainmailBody;
 use crate::chainmail_settings::{ChainmailSettings, Variant};
 use crate::fem_body::FemInteractive;
-use crate::hyper_body::{HyperInteractive, RefreshMode};
+use crate::hyper_body::{ChordBudget, HyperInteractive, RefreshMode};
 use crate::replay::ProbeError;
 use crate::{
     Compliance, ComplianceOptions, FfmBody, InteractError, Interactive, Precompute, Storage, memory_budget,
@@ -30,7 +30,7 @@ pub struct ProbeOptions {
     /// When a hyperelastic body refreshes its linearization.
     pub refresh: RefreshMode,
     /// Chord refreshes of a hyperelastic body between two refactorizations (`None`:
-    /// [`crate::MAX_CHORD_REFRESHES`]; `Some(0)`: Newton's iterations only).
+    /// [`crate::ChordBudget::Balanced`]; `Some(0)`: Newton's iterations only).
     pub chord_refreshes: Option<usize>,
 }
 
@@ -144,11 +144,11 @@ impl MethodBody {
     ) -> Result<Self, ProbeError> {
         match (method, Variant::of_method(method)) {
             (Method::Fem, _) if scene.tissue.is_some_and(|t| !t.is_linear()) => {
-                Ok(MethodBody::Hyper(Box::new(HyperInteractive::with_chord_refreshes(
+                Ok(MethodBody::Hyper(Box::new(HyperInteractive::with_chord_budget(
                     scene,
                     opts.max_memory_bytes,
                     opts.refresh,
-                    opts.chord_refreshes.unwrap_or(crate::hyper_body::MAX_CHORD_REFRESHES),
+                    opts.chord_refreshes.map_or(ChordBudget::Balanced, ChordBudget::AtMost),
                 )?)))
             }
             (Method::Fem, _) => {
