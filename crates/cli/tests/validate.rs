@@ -67,33 +67,28 @@ fn coarse_thick_sphere_meets_the_closed_form() {
     assert!(outcome.error() < 0.03, "{outcome:?}");
 }
 
-/// Runs `names` at the resolutions `fibfluid validate` (without --quick) runs and asserts
-/// each is within the tolerance docs/validation.md states.
-fn full_cases_pass(names: &[&str]) {
+/// Runs `names` at `speed`'s resolutions and asserts each is within the tolerance
+/// docs/validation.md states for it.
+fn cases_pass(names: &[&str], speed: Speed) {
     let failed: Vec<String> = cases()
         .iter()
         .filter(|c| names.contains(&c.name))
-        .map(|c| c.check(Speed::Full))
+        .map(|c| c.check(speed))
         .filter(|r| !r.passed)
         .map(|r| format!("{r:?}"))
         .collect();
     assert!(failed.is_empty(), "{failed:#?}");
 }
 
-/// The homogeneous cases, the cantilevers and Hertz at the full resolutions.
+/// The homogeneous cases and the cantilevers at the resolutions `fibfluid validate` (without
+/// --quick) runs; Hertz and the thick sphere at their largest pressure (its largest error)
+/// at the quick ones, against the quick tolerances (the full ones take minutes each: the
+/// command runs them, docs/validation.md has their table).
 #[test]
 #[ignore = "long run: CI runs it with `cargo test --workspace -- --ignored long_`"]
-fn long_full_cases_meet_their_tolerances() {
-    full_cases_pass(&["uniaxial", "equibiaxial", "shear", "cantilever-1", "cantilever-10", "hertz"]);
-}
-
-/// The thick sphere at its largest pressure (its largest error) at resolutions 12 and 24:
-/// the smaller pressures lie between the coarse check above (1.2 at resolution 8) and this
-/// one; the command runs them all.
-#[test]
-#[ignore = "long run: CI runs it with `cargo test --workspace -- --ignored long_`"]
-fn long_full_thick_sphere_meets_its_tolerance() {
-    full_cases_pass(&["sphere-1.5"]);
+fn long_cases_meet_their_tolerances() {
+    cases_pass(&["uniaxial", "equibiaxial", "shear", "cantilever-1", "cantilever-10"], Speed::Full);
+    cases_pass(&["hertz", "sphere-1.5"], Speed::Quick);
 }
 
 /// The thick sphere loaded past its limit point stops Newton's method (an error, not an
