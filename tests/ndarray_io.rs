@@ -1,18 +1,9 @@
 //! The facade's ndarray conversions (feature `ndarray`): a test target of its own, so that
 //! `cargo test --workspace` (the feature off) does not build it and CI's
-//! `cargo test -p fibfluid --features ndarray --test ndarray_io` rebuilds only the facade.
+//! `cargo test --workspace --features fibfluid/ndarray --test ndarray_io` rebuilds only the
+//! facade.
 
 use fibfluid::{RunOptions, Scene, Simulation};
-
-fn sphere() -> Scene {
-    Scene::load("fixtures/scenes/sphere.toml").expect("bundled sphere scene")
-}
-
-fn run(scene: Scene) -> Simulation {
-    let mut sim = Simulation::new(scene).expect("setup");
-    sim.run(&RunOptions::default()).expect("run");
-    sim
-}
 
 /// `fibfluid::ndarray_io` (feature `ndarray`) against the slice forms it converts: N x 3
 /// positions and triangles both ways, in standard and column-major layout; the displacement
@@ -27,10 +18,11 @@ fn ndarray_arrays_match_the_slice_forms() {
         triangles_array, triangles_from_array, vec3s_from_array,
     };
 
-    let scene = sphere();
+    let scene = Scene::load("fixtures/scenes/sphere.toml").expect("bundled sphere scene");
     let Shape::Surface(file) = &scene.shape else { panic!("the sphere scene is a surface") };
     let (rest, tris) = (file.mesh.positions().to_vec(), file.mesh.triangles().to_vec());
-    let sim = run(scene.clone());
+    let mut sim = Simulation::new(scene.clone()).expect("setup");
+    sim.run(&RunOptions::default()).expect("run");
     let x = sim.positions();
 
     let a = positions_array(x);

@@ -63,6 +63,17 @@ pub const CHORD_CONTRACTION: f64 = 0.5;
 /// The most chord refreshes [`ChordBudget::Balanced`] runs between two refactorizations.
 pub const MAX_BALANCED_CHORDS: usize = 32;
 
+/// What the chord refreshes since the last refactorization have spent.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct ChordSpent {
+    /// Chord refreshes made since it.
+    pub chords: usize,
+    /// Their seconds.
+    pub chord_seconds: f64,
+    /// Seconds of the last refactorization (0: none timed yet).
+    pub refactor_seconds: f64,
+}
+
 /// How many chord refreshes run between two refactorizations.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum ChordBudget {
@@ -76,6 +87,22 @@ pub enum ChordBudget {
     /// timed), [`MAX_CHORD_REFRESHES`].
     #[default]
     Balanced,
+}
+
+impl ChordBudget {
+    /// Whether one more chord refresh is allowed after `spent`, on the refresh thread
+    /// (`on_thread`) or in the frame loop. Balanced on the thread: while the chords have
+    /// taken less time than the last refactorization (none before the first one is timed)
+    /// and number fewer than [`MAX_BALANCED_CHORDS`].
+    pub fn allows_chord(self, spent: ChordSpent, on_thread: bool) -> bool {
+        match self {
+            ChordBudget::AtMost(n) => spent.chords < n,
+            ChordBudget::Balanced if on_thread => {
+                spent.chords < MAX_BALANCED_CHORDS && spent.chord_seconds < spent.refactor_seconds
+            }
+            ChordBudget::Balanced => spent.chords < MAX_CHORD_REFRESHES,
+        }
+    }
 }
 
 /// When the linearization is refreshed.
@@ -162,9 +189,18 @@ impl Cadence {
     /// the holds it was made for).
     fn tangent(&self, current: &Linearization, request: &Request) -> Tangent {
         let rows_kept = self.last.as_ref().is_some_and(|(last, _)| same_rows(&last.holds, &request.holds));
-        let paid = self.timed && self.chord_seconds >= self.refactor_seconds;
-        let stale = current.chord_steps() >= self.max_chords || (current.hold_penalty() > 0.0 && !rows_kept);
-        if self.slow || stale || paid { Tangent::Refactor } else { Tangent::Keep }
+        let budget = if self.timed { ChordBudget::Balanced } else { ChordBudget::AtMost(self.max_chords) };
+        let spent = ChordSpent {
+            chords: current.chord_steps(),
+            chord_seconds: self.chord_seconds,
+            refactor_seconds: self.refactor_seconds,
+        };
+        let penalized = current.hold_penalty() > 0.0 && !rows_kept;
+        if self.slow || penalized || !budget.allows_chord(spent, self.timed) {
+            Tangent::Refactor
+        } else {
+            Tangent::Keep
+        }
     }
 
     /// Records a finished refresh for `request` that took `seconds`.

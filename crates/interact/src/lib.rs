@@ -113,7 +113,8 @@ pub use fibfluid_sim::Method;
 pub use frame_guards::{FrameGuardError, FrameGuards};
 pub use holds::{Hold, Holds, NORMAL_TOLERANCE, PushRule};
 pub use hyper_body::{
-    CHORD_CONTRACTION, ChordBudget, HyperInteractive, MAX_BALANCED_CHORDS, MAX_CHORD_REFRESHES, RefreshMode,
+    CHORD_CONTRACTION, ChordBudget, ChordSpent, HyperInteractive, MAX_BALANCED_CHORDS, MAX_CHORD_REFRESHES,
+    RefreshMode,
 };
 pub use interactive::{Interactive, LinearizationStatus, Surface};
 pub use method_body::{MethodBody, ProbeBody, ProbeOptions, build_body, linearized};
