@@ -150,12 +150,11 @@ impl Request {
 /// factor is fresh enough and the chord steps contract, else a refactorization.
 #[derive(Debug, Default)]
 struct Cadence {
-    /// Chord refreshes allowed between two refactorizations (0 in
+    /// Chord refreshes allowed between two refactorizations (`AtMost(0)` in
     /// [`RefreshMode::Converged`]: Newton's own iterations).
-    max_chords: usize,
-    /// Balance the chord refreshes' time against the last refactorization's
-    /// ([`ChordBudget::Balanced`] on the refresh thread).
-    timed: bool,
+    budget: ChordBudget,
+    /// On the refresh thread (where a balanced budget is timed).
+    on_thread: bool,
     /// Seconds of the last refresh that factored the tangent.
     refactor_seconds: f64,
     /// Seconds of the chord refreshes since it.
@@ -168,20 +167,9 @@ struct Cadence {
 }
 
 impl Cadence {
-    /// At most `max_chords` chord refreshes between two refactorizations.
-    fn with_chords(max_chords: usize) -> Self {
-        Self { max_chords, ..Self::default() }
-    }
-
-    /// The cadence of `budget`: timed only on the refresh thread (`on_thread`).
+    /// The cadence of `budget`, on the refresh thread (`on_thread`) or in the frame loop.
     fn of_budget(budget: ChordBudget, on_thread: bool) -> Self {
-        match budget {
-            ChordBudget::AtMost(n) => Self::with_chords(n),
-            ChordBudget::Balanced if on_thread => {
-                Self { timed: true, ..Self::with_chords(MAX_BALANCED_CHORDS) }
-            }
-            ChordBudget::Balanced => Self::with_chords(MAX_CHORD_REFRESHES),
-        }
+        Self { budget, on_thread, ..Self::default() }
     }
 
     /// How the next refresh from `current` for `request` treats the tangent. A factor
@@ -189,14 +177,13 @@ impl Cadence {
     /// the holds it was made for).
     fn tangent(&self, current: &Linearization, request: &Request) -> Tangent {
         let rows_kept = self.last.as_ref().is_some_and(|(last, _)| same_rows(&last.holds, &request.holds));
-        let budget = if self.timed { ChordBudget::Balanced } else { ChordBudget::AtMost(self.max_chords) };
         let spent = ChordSpent {
             chords: current.chord_steps(),
             chord_seconds: self.chord_seconds,
             refactor_seconds: self.refactor_seconds,
         };
         let penalized = current.hold_penalty() > 0.0 && !rows_kept;
-        if self.slow || penalized || !budget.allows_chord(spent, self.timed) {
+        if self.slow || penalized || !self.budget.allows_chord(spent, self.on_thread) {
             Tangent::Refactor
         } else {
             Tangent::Keep
@@ -400,7 +387,7 @@ impl HyperInteractive {
             },
             RefreshMode::Converged => Refresher::Inline {
                 body: Box::new(body),
-                cadence: Cadence::with_chords(0),
+                cadence: Cadence::of_budget(ChordBudget::AtMost(0), false),
                 every: 1,
                 converge: true,
             },
