@@ -711,3 +711,26 @@ fn a_near_incompressible_run_writes_a_surface_that_keeps_its_volume() {
     assert!(change.abs() < 2e-3, "enclosed volume changed by {change}");
     assert!(slip > 0.0 && slip < 0.5 * cell, "slip {slip} m of a {cell} m cell");
 }
+
+/// `[ffm] stiffening` on a tissue-only scene (its fiber modulus calibrated on the FEM) is
+/// kept: the calibration fits the small-strain modulus, and the stiffening acts on it in
+/// nonlinear mode as it does on a modulus given. A bad value names its key.
+#[test]
+fn stiffening_survives_the_calibration_of_a_tissue_only_scene() {
+    use fibfluid::assembly::StiffnessLaw;
+    let text = std::fs::read_to_string("fixtures/scenes/sphere-tissue.toml").unwrap();
+    let meshes = format!("{}/", std::fs::canonicalize("fixtures/meshes").unwrap().display());
+    let text = text.replace("../meshes/", &meshes).replace("mode = \"paper\"", "mode = \"nonlinear\"");
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, ffm: &str| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, format!("{text}[ffm]\n{ffm}\n")).unwrap();
+        path
+    };
+    let s = Scene::load(write("stiff.toml", "stiffening = 3.0")).unwrap();
+    assert!(s.ffm.calibrate, "no fiber modulus given: calibrated");
+    assert!(matches!(s.material.law(), StiffnessLaw::Quadratic { c } if *c == 3.0), "{:?}", s.material.law());
+    assert_eq!(fibfluid::ineffective(&s), vec![], "stiffening acts in nonlinear mode");
+    let err = Scene::load(write("bad.toml", "stiffening = -1.0")).expect_err("c < 0").to_string();
+    assert!(err.contains("[ffm].stiffening"), "{err}");
+}

@@ -337,6 +337,11 @@ fn ffm_material(
     settings.calibrate = true;
     let tension = ffm.as_ref().and_then(|f| f.surface_tension).unwrap_or(0.0);
     let tension = checked("[ffm].surface_tension", MaterialParameter::SurfaceTension, tension)?;
+    // The calibration fits the small-strain modulus (paper mode); the scene's stiffening
+    // then acts on it in nonlinear mode, as with a modulus given.
+    let stiffening = ffm.as_ref().and_then(|f| f.stiffening);
+    let stiffening =
+        stiffening.map(|c| checked("[ffm].stiffening", MaterialParameter::Stiffening, c)).transpose()?;
     let density = match &fluid {
         Some(f) => f.density,
         None => t.density(),
@@ -346,7 +351,7 @@ fn ffm_material(
         modulus_key: "young",
         fiber_modulus: FiberModulusToml::One(t.young()),
         surface_tension: tension,
-        stiffening: None,
+        stiffening,
     };
     Ok((with_kernel(material(placeholder, Some(FluidToml { density }), axes)?), settings))
 }
