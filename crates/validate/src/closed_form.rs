@@ -1,6 +1,6 @@
 //! The references: closed forms of the uncoupled neo-Hookean law
 //! `W = mu / 2 (J^(-2/3) I1 - 3) + kappa / 4 (J^2 - 1 - 2 ln J)` (FEBio's; docs/fem.md) under
-//! homogeneous deformations, the incompressible thick sphere (Ogden), Hertz's contact
+//! homogeneous deformations, the incompressible thick sphere and cylinder (Ogden), Hertz's contact
 //! (Johnson) and the elastica (a shooting solution of its ordinary differential equation).
 //! None of them calls the finite-element code.
 
@@ -75,6 +75,17 @@ pub fn thick_sphere_limit_stretch(a: f64, b: f64) -> f64 {
 pub fn thick_sphere_stretch(mu: f64, p: f64, a: f64, b: f64) -> f64 {
     let top = thick_sphere_limit_stretch(a, b);
     increasing_root(|la| thick_sphere_pressure(mu, la, a, b) - p, (1.0, top))
+}
+
+/// The incompressible neo-Hookean thick cylinder in plane strain (inner radius `a`, outer
+/// `b`, no axial stretch) under an inner pressure, as a function of the inner stretch `la`
+/// (Ogden, Non-linear Elastic Deformations, 1984, §5.3; the integral of
+/// `mu (l^2 - l^-2) dr / r` across the wall): `p = mu (ln(la / lb) + (1/lb^2 - 1/la^2) / 2)`,
+/// with `lb^2 = 1 + (la^2 - 1) a^2 / b^2`. It rises monotonically towards `mu ln(b / a)`: no
+/// limit point.
+pub fn thick_cylinder_pressure(mu: f64, la: f64, a: f64, b: f64) -> f64 {
+    let lb2 = 1.0 + (la * la - 1.0) * (a / b).powi(2);
+    mu * (0.5 * (la * la / lb2).ln() + 0.5 * (1.0 / lb2 - 1.0 / (la * la)))
 }
 
 /// Hertz: the force (N) pressing a linear elastic sphere of radius `r` between two rigid

@@ -198,6 +198,19 @@ fn inflated(stretch: f64, resolution: usize) -> Result<Outcome, CaseError> {
     Ok(Outcome { value, reference: stretch })
 }
 
+/// The thick cylinder's radii.
+const CYLINDER: (f64, f64) = (1.0, 2.0);
+
+fn inflated_tube(stretch: f64, resolution: usize) -> Result<Outcome, CaseError> {
+    let t = tissue(SPHERE_POISSON);
+    let (a, b) = CYLINDER;
+    // The dead load on the rest surface that is the closed form's pressure at `stretch` on
+    // the deformed one.
+    let nominal = stretch * exact::thick_cylinder_pressure(t.shear_modulus(), stretch, a, b);
+    let value = bodies::inflated_cylinder(&t, CYLINDER, resolution, nominal)?;
+    Ok(Outcome { value, reference: stretch })
+}
+
 /// The thick sphere loaded past its limit point (`LIMIT_OVERSHOOT` times the closed form's
 /// largest pressure): Newton's method must fail (load stepping cannot pass a limit point),
 /// and the load factor it reached, times the pressure applied, estimates the discrete
@@ -238,6 +251,7 @@ pub fn cases_at(speed: Speed) -> Vec<Case> {
 pub fn cases() -> Vec<Case> {
     const CLOSED: &str = "closed form of the neo-Hookean energy";
     const OGDEN: &str = "Ogden 1984, §5.3 (incompressible)";
+    const OGDEN_PLANE: &str = "Ogden 1984, §5.3 (incompressible, plane strain)";
     const ELASTICA: &str = "elastica (Bisshopp & Drucker 1945), shot numerically";
     let case = |name, quantity, source, quick, full, tolerance, evaluate| Case {
         name,
@@ -257,6 +271,21 @@ pub fn cases() -> Vec<Case> {
         case("sphere-1.3", "inner stretch at p(1.3)", OGDEN, 8, 12, [0.04, 0.012], |r| inflated(1.3, r)),
         case("sphere-1.4", "inner stretch at p(1.4)", OGDEN, 8, 12, [0.04, 0.016], |r| inflated(1.4, r)),
         case("sphere-1.5", "inner stretch at p(1.5)", OGDEN, 8, 12, [0.04, 0.024], |r| inflated(1.5, r)),
+        case("cylinder-1.1", "inner stretch at p(1.1)", OGDEN_PLANE, 8, 12, [0.01, 0.005], |r| {
+            inflated_tube(1.1, r)
+        }),
+        case("cylinder-1.2", "inner stretch at p(1.2)", OGDEN_PLANE, 8, 12, [0.01, 0.005], |r| {
+            inflated_tube(1.2, r)
+        }),
+        case("cylinder-1.3", "inner stretch at p(1.3)", OGDEN_PLANE, 8, 12, [0.01, 0.005], |r| {
+            inflated_tube(1.3, r)
+        }),
+        case("cylinder-1.4", "inner stretch at p(1.4)", OGDEN_PLANE, 8, 12, [0.01, 0.005], |r| {
+            inflated_tube(1.4, r)
+        }),
+        case("cylinder-1.5", "inner stretch at p(1.5)", OGDEN_PLANE, 8, 12, [0.01, 0.005], |r| {
+            inflated_tube(1.5, r)
+        }),
         case("sphere-limit", "limit pressure (Pa): Newton must stop", OGDEN, 0, 8, [0.06, 0.06], limit_point),
         case("cantilever-1", "tip deflection / L at PL^2/EI = 1", ELASTICA, 32, 64, [0.1, 0.02], |r| {
             cantilever(1.0, r)
