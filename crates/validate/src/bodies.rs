@@ -166,6 +166,46 @@ pub fn inflated_cylinder(
     Ok(vertices.iter().map(|&v| stretch(v)).sum::<f64>() / vertices.len() as f64)
 }
 
+/// Cook's membrane in plane strain: the tapered panel with corners (0, 0), (48, 44),
+/// (48, 60) and (0, 44) mm, `thickness` (m) deep along z with every vertex held along z,
+/// clamped on x = 0, under a dead shear traction `traction` (Pa, along +y) on x = 48 mm:
+/// the mean vertical displacement (m) of the corner (48, 60) mm. The surface is a box's
+/// lattice (`cells` squares along the panel's two sides, `layers` through the thickness)
+/// mapped bilinearly onto the panel.
+pub fn cooks_membrane(
+    tissue: &Tissue,
+    resolution: usize,
+    (thickness, traction): (f64, f64),
+    (cells, layers): (usize, usize),
+) -> Result<f64> {
+    let (lattice, triangles) = box_surface([0.0; 3], [cells, cells, layers], 1.0);
+    let (n, m) = (cells as f64, layers as f64);
+    let positions: Vec<Vec3> = lattice
+        .iter()
+        .map(|p| {
+            let (s, t) = (p[0] / n, p[1] / n);
+            [0.048 * s, 0.044 * (s + t) - 0.028 * s * t, thickness * p[2] / m]
+        })
+        .collect();
+    let on = |v: usize, axis: usize| lattice[v][axis] == n;
+    let fixed: Vec<[bool; 3]> = lattice.iter().map(|p| [p[0] == 0.0, p[0] == 0.0, true]).collect();
+    // The right edge's lattice is uniform (16 mm by the thickness): each vertex carries its
+    // share of the area, halved on each side it lies on.
+    let share = |v: usize| {
+        let half = |c: f64, top: f64| if c == 0.0 || c == top { 0.5 } else { 1.0 };
+        half(lattice[v][1], n) * half(lattice[v][2], m)
+    };
+    let loaded: Vec<usize> = (0..lattice.len()).filter(|&v| on(v, 0)).collect();
+    let total_share: f64 = loaded.iter().map(|&v| share(v)).sum();
+    let force = traction * 0.016 * thickness;
+    let point_forces = loaded.iter().map(|&v| (v, [0.0, force * share(v) / total_share, 0.0])).collect();
+    let options = FemOptions { resolution, ..FemOptions::default() };
+    let mut body = HyperBody::from_surface(&positions, &triangles, tissue, &fixed, &options)?;
+    let sol = body.solve(&Loads { point_forces, ..Loads::default() }, &[])?;
+    let corner: Vec<usize> = (0..lattice.len()).filter(|&v| on(v, 0) && on(v, 1)).collect();
+    Ok(corner.iter().map(|&v| sol.surface_displacements[v][1]).sum::<f64>() / corner.len() as f64)
+}
+
 /// A sphere of radius `r` (an icosphere of `level`) between two frictionless plates normal
 /// to y that each approach its centre by `depth` (m), held on its symmetry planes: the force
 /// on the upper plate (N).

@@ -242,6 +242,23 @@ fn hertz(resolution: usize) -> Result<Outcome, CaseError> {
     Ok(Outcome { value, reference: exact::hertz_force(t.young(), t.poisson(), r, depth * r) })
 }
 
+/// Cook's membrane (de Souza Neto et al. 1996; Elguedj et al. 2008): G = 80.1938 MPa and
+/// nu = 0.499 (E = 240.565 MPa), a shear traction of 6.25 MPa (100 N per mm of depth over
+/// the 16 mm edge); the panel 4 mm deep; its surface lattice.
+const COOK: (f64, f64, (f64, f64), (usize, usize)) = (240.565e6, 0.499, (3e-3, 6.25e6), (96, 4));
+/// The corner's vertical displacement (m): OpenGeoSys's large-deformation benchmark with
+/// F-bar quadrilaterals at 30 elements per side (6.891 mm, rising by 0.02 mm per
+/// refinement: 6.859, 6.873, 6.891 at 20, 25, 30), the convergence Elguedj et al. (2008)
+/// show.
+const COOK_REFERENCE: f64 = 6.891e-3;
+
+fn cook(resolution: usize) -> Result<Outcome, CaseError> {
+    let (young, poisson, load, lattice) = COOK;
+    let t = Tissue::new(young, poisson, 0.0).expect("a valid tissue").with_model(TissueModel::NeoHookean);
+    let value = bodies::cooks_membrane(&t, resolution, load, lattice)?;
+    Ok(Outcome { value, reference: COOK_REFERENCE })
+}
+
 /// The cases `speed` runs, in the table's order.
 pub fn cases_at(speed: Speed) -> Vec<Case> {
     cases().into_iter().filter(|c| speed == Speed::Full || c.quick > 0).collect()
@@ -293,6 +310,15 @@ pub fn cases() -> Vec<Case> {
         case("cantilever-10", "tip deflection / L at PL^2/EI = 10", ELASTICA, 32, 64, [0.1, 0.02], |r| {
             cantilever(10.0, r)
         }),
+        case(
+            "cook",
+            "corner displacement (m), plane strain",
+            "OpenGeoSys benchmark (F-bar, 30 x 30), after Elguedj et al. 2008",
+            20,
+            40,
+            [0.1, 0.02],
+            cook,
+        ),
         case(
             "hertz",
             "plate force at depth 0.04 R (N)",
