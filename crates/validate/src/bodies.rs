@@ -63,16 +63,22 @@ pub fn inflated_sphere(
         .with_pressures(&[pressure])?
         .with_settings(newton);
     let sol = body.solve(&Loads::default(), &[])?;
-    let radius = |p: Vec3| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
-    let mut vertices: Vec<usize> = cavity_faces.iter().flatten().map(|&v| v as usize).collect();
+    Ok(mean_stretch(&positions, &sol.surface_displacements, &cavity_faces, 3))
+}
+
+/// The mean over the vertices of `faces` of their distance from the origin deformed over
+/// at rest, measured in the first `axes` coordinates (3: from the centre, 2: from the z
+/// axis).
+fn mean_stretch(positions: &[Vec3], displacements: &[Vec3], faces: &[[u32; 3]], axes: usize) -> f64 {
+    let radius = |p: Vec3| p[..axes].iter().map(|c| c * c).sum::<f64>().sqrt();
+    let mut vertices: Vec<usize> = faces.iter().flatten().map(|&v| v as usize).collect();
     vertices.sort_unstable();
     vertices.dedup();
     let stretch = |v: usize| {
-        let x = positions[v];
-        let u = sol.surface_displacements[v];
+        let (x, u) = (positions[v], displacements[v]);
         radius([x[0] + u[0], x[1] + u[1], x[2] + u[2]]) / radius(x)
     };
-    Ok(vertices.iter().map(|&v| stretch(v)).sum::<f64>() / vertices.len() as f64)
+    vertices.iter().map(|&v| stretch(v)).sum::<f64>() / vertices.len() as f64
 }
 
 /// A hollow cylinder about z (radii `a` < `b`, length `length` centred on z = 0), closed by
@@ -84,8 +90,8 @@ fn hollow_cylinder(
     (segments, layers, rings): (usize, usize, usize),
 ) -> (Vec<Vec3>, Vec<[u32; 3]>, Vec<[u32; 3]>) {
     let mut positions = Vec::new();
-    // `grid[k][l]`: ring k across the wall (0: inner, rings: outer) at layer l; a ring
-    // strictly inside the wall exists only on the two caps.
+    // Rings of `segments` vertices: the inner and outer walls' at every layer, and the
+    // caps' rings strictly inside the wall at the two ends.
     let mut ring_at = |r: f64, z: f64| {
         let first = positions.len() as u32;
         positions.extend((0..segments).map(|j| {
@@ -155,15 +161,7 @@ pub fn inflated_cylinder(
     let mut body =
         HyperBody::from_surface(&positions, &faces, tissue, &fixed, &options)?.with_pressures(&[pressure])?;
     let sol = body.solve(&Loads::default(), &[])?;
-    let radius = |p: Vec3| (p[0] * p[0] + p[1] * p[1]).sqrt();
-    let mut vertices: Vec<usize> = cavity.iter().flatten().map(|&v| v as usize).collect();
-    vertices.sort_unstable();
-    vertices.dedup();
-    let stretch = |v: usize| {
-        let (x, u) = (positions[v], sol.surface_displacements[v]);
-        radius([x[0] + u[0], x[1] + u[1], 0.0]) / radius(x)
-    };
-    Ok(vertices.iter().map(|&v| stretch(v)).sum::<f64>() / vertices.len() as f64)
+    Ok(mean_stretch(&positions, &sol.surface_displacements, &cavity, 2))
 }
 
 /// Cook's membrane in plane strain: the tapered panel with corners (0, 0), (48, 44),
